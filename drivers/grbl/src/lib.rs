@@ -1,0 +1,1 @@
+//! GRBL slider driver (placeholder until the driver lands).

@@ -1,0 +1,1 @@
+fn main() { println!("footscand {}", env!("CARGO_PKG_VERSION")); }
