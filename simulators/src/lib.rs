@@ -1,1 +1,35 @@
-//! footscan simulator.
+//! footscan simulator: what the scanner would see, with exact ground truth.
+//!
+//! Independent of the algorithms it checks: nothing here depends on the `footscan` crate.
+//! - [`foot`]: the parametric foot (SPEC section 13) with analytic measurement truth;
+//! - [`optics`]: the general optical model of SPEC section 2;
+//! - [`render`]: frames and their per-row ground truth;
+//! - [`camera`]: a [`footscan_hal::Camera`] that renders at the slider's true position;
+//! - [`grbl`]: a GRBL 1.1 emulator on a pseudo-terminal.
+
+pub mod camera;
+pub mod foot;
+pub mod grbl;
+pub mod optics;
+pub mod render;
+
+use footscan_hal::Timestamp;
+
+/// Where the optical head physically is at a given instant.
+///
+/// The GRBL emulator implements this from its motion model (including slider scale error and
+/// backlash, which the controller's own position report does not show); the simulated camera
+/// asks it at each frame's capture time.
+pub trait PositionSource: Send + Sync {
+    fn physical_x(&self, at: Timestamp) -> f64;
+}
+
+/// A head that never moves (tests, calibration targets imaged at fixed positions).
+#[derive(Clone, Copy, Debug)]
+pub struct FixedPosition(pub f64);
+
+impl PositionSource for FixedPosition {
+    fn physical_x(&self, _at: Timestamp) -> f64 {
+        self.0
+    }
+}
