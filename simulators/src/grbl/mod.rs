@@ -1,1 +1,271 @@
-//! (in progress)
+//! A GRBL 1.1h emulator on a pseudo-terminal.
+//!
+//! [`GrblEmulator::spawn`] opens a pty pair and serves the GRBL serial protocol on the master
+//! from a thread; a driver opens [`GrblEmulator::port_path`] (e.g. `/dev/pts/7`) exactly as it
+//! would open `/dev/ttyUSB0`. The motion model is analytic in `CLOCK_MONOTONIC` time, so
+//! [`GrblEmulator::position_source`] gives the exact physical head position at any instant of
+//! the retained history (30 s) and of the planned future.
+//!
+//! # Protocol
+//! Faithful to GRBL 1.1h where it matters to a client:
+//! - banner `\r\nGrbl 1.1h ['$' for help]\r\n` at power-up and after a soft reset (0x18); with
+//!   homing enabled (`$22=1`) the machine powers up in `Alarm` with
+//!   `[MSG:'$H'|'$X' to unlock]`. As in GRBL, a soft reset keeps the prior state: an idle,
+//!   homed machine stays `Idle`, while a reset during motion kills the steppers, reports
+//!   `ALARM:3` (`ALARM:6` during homing) and comes back in `Alarm`.
+//! - every line is answered `ok` or `error:N` with GRBL's codes; a motion line is answered as
+//!   soon as its block enters the planner (15 blocks), not when it completes. A line that finds
+//!   the planner full waits (unanswered) until a block finishes.
+//! - `$$`, `$#`, `$G`, `$I`, `$N`, `$C`, `$X`, `$H`, `$RST=`, `$N=value`, `$J=` jogs; g-code
+//!   `G0 G1 G4 G17-19 G20 G21 G40 G53 G54-59 G61 G80 G90 G91 G94`, `M0-2 M3-5 M7-9 M30`,
+//!   words `F N P S T X Y Z` (Y and Z are accepted and ignored: a single-axis machine). Arcs,
+//!   probing and offsets answer `error:20`.
+//! - realtime bytes act on arrival, even mid-line: `?` status report
+//!   `<Idle|MPos:12.345,0.000,0.000|FS:0,0>` (with `|WCO:` and `|Ov:` every few reports as
+//!   GRBL does; `WPos` when `$10` bit 0 is clear; `Bf:` when bit 1 is set), `!` feed hold
+//!   (`Hold:1` while decelerating at `$120`, then `Hold:0`; a jog is cancelled instead), `~`
+//!   resume (ignored until the hold is complete, as in GRBL), 0x85 jog cancel, 0x18 reset.
+//! - soft limits (`$20`, on when homing is enabled): a g-code target outside `[0, $130]`
+//!   decelerates, raises `ALARM:2`, `[MSG:Reset to continue]` and ignores everything but `?`
+//!   and reset until a reset; a jog beyond travel is refused with `error:15`.
+//!   (Machine coordinates run over `[0, travel]` with home at 0, not GRBL's default negative
+//!   space.)
+//! - serial RX buffer of `rx_buffer` bytes: non-realtime bytes beyond it are still processed
+//!   in order (no data is lost) but counted in [`GrblEmulator::rx_overflow_bytes`], so a test
+//!   can prove that a character-counting client never overflows.
+//!
+//! Deviations: CRLF counts as one line end (GRBL would answer the empty line between `\r` and
+//! `\n` with a second `ok`); blocks join with a full stop (no junction look-ahead); a G4 sharing a
+//! block with axis words is refused with `error:31`.
+//!
+//! # Physical position
+//! `physical = slider_scale × carriage`, where the carriage follows the motor through a
+//! backlash play of `backlash_mm`: moving +X it trails the motor by `backlash_mm`; after a
+//! reversal it stays put until the motor has crossed the play, then follows exactly (moving −X
+//! it coincides with the motor). Power-up and homing (which approaches 0 from +X) leave the
+//! play taken up on the −X side, so a homed machine at rest has physical = scale × machine.
+
+mod gcode;
+mod machine;
+mod motion;
+mod pty;
+mod server;
+
+use crate::PositionSource;
+use crossbeam_channel::Sender;
+use footscan_hal::Timestamp;
+use machine::Machine;
+use serde::{Deserialize, Serialize};
+use server::{Cmd, Server};
+use std::os::fd::OwnedFd;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+
+pub use motion::trapezoid_time;
+
+/// The power-up/reset banner line (printed after an empty line).
+pub(crate) const BANNER: &str = "\r\nGrbl 1.1h ['$' for help]";
+
+/// Emulated machine. Defaults: a 330 mm slider at 3000 mm/min and 500 mm/s² with homing.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct EmulatorConfig {
+    /// `$110`, mm/min.
+    pub max_rate_mm_min: f64,
+    /// `$120`, mm/s².
+    pub accel_mm_s2: f64,
+    /// `$130`, mm: soft limits are `[0, travel]`.
+    pub travel_mm: f64,
+    /// Physical position = scale × machine position (slider calibration error).
+    pub slider_scale: f64,
+    /// Play between motor and carriage, mm (see the module docs).
+    pub backlash_mm: f64,
+    /// `$22` (and `$20` soft limits with it).
+    pub homing_enabled: bool,
+    /// Simulated duration of `$H`.
+    pub homing_seconds: f64,
+    /// Delay between sampling a status report and sending it.
+    pub status_latency_us: u64,
+    /// Serial RX buffer, bytes (reported in `$I` as `[OPT:V,15,N]`).
+    pub rx_buffer: usize,
+}
+
+impl Default for EmulatorConfig {
+    fn default() -> Self {
+        EmulatorConfig {
+            max_rate_mm_min: 3000.0,
+            accel_mm_s2: 500.0,
+            travel_mm: 330.0,
+            slider_scale: 1.0,
+            backlash_mm: 0.0,
+            homing_enabled: true,
+            homing_seconds: 0.3,
+            status_latency_us: 0,
+            rx_buffer: 128,
+        }
+    }
+}
+
+/// Faults a test can inject.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fault {
+    /// Raise `ALARM:N`: motion stops dead, state `Alarm`. Codes 1 and 2 (hard/soft limit) are
+    /// critical: `[MSG:Reset to continue]` and nothing but `?` and reset is served until a
+    /// reset. Other codes abort through GRBL's reset path (banner, `'$H'|'$X' to unlock`).
+    Alarm(u8),
+    /// Stop answering (and reading) anything, realtime `?` included; `false` resumes and the
+    /// pending input is then processed in order.
+    Silence(bool),
+    /// Close the pty master: the client's port hangs up (EIO / POLLHUP).
+    Disconnect,
+}
+
+/// GRBL machine state as reported in `<...|`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MachineState {
+    Idle,
+    Run,
+    /// `Hold:1` decelerating, `Hold:0` stopped and ready to resume.
+    Hold(u8),
+    Jog,
+    Alarm,
+    Home,
+    Check,
+}
+
+impl std::fmt::Display for MachineState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MachineState::Idle => write!(f, "Idle"),
+            MachineState::Run => write!(f, "Run"),
+            MachineState::Hold(n) => write!(f, "Hold:{n}"),
+            MachineState::Jog => write!(f, "Jog"),
+            MachineState::Alarm => write!(f, "Alarm"),
+            MachineState::Home => write!(f, "Home"),
+            MachineState::Check => write!(f, "Check"),
+        }
+    }
+}
+
+pub(crate) struct Shared {
+    pub machine: Mutex<Machine>,
+    pub config: EmulatorConfig,
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, Machine> {
+        self.machine.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// The emulator's motion model as a [`PositionSource`] for the simulated camera.
+struct EmulatorPosition(Arc<Shared>);
+
+impl PositionSource for EmulatorPosition {
+    fn physical_x(&self, at: Timestamp) -> f64 {
+        self.0.lock().timeline.physical_at(at.as_secs_f64())
+    }
+}
+
+/// A GRBL 1.1h controller on a pty; see the module docs.
+pub struct GrblEmulator {
+    path: PathBuf,
+    shared: Arc<Shared>,
+    cmds: Sender<Cmd>,
+    wake_tx: OwnedFd,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl GrblEmulator {
+    /// Open a pty and start serving. The power-up banner is written at once; a client that
+    /// opens the port later finds it in the input queue (drivers flush and reset anyway).
+    pub fn spawn(config: EmulatorConfig) -> std::io::Result<Self> {
+        let pty = pty::Pty::open()?;
+        let path = pty.path.clone();
+        let (wake_rx, wake_tx) = pty::wake_pipe()?;
+        let shared = Arc::new(Shared {
+            machine: Mutex::new(Machine::new(&config)),
+            config: config.clone(),
+        });
+        let (tx, rx) = crossbeam_channel::unbounded();
+        let server = Server::new(
+            shared.clone(),
+            pty,
+            wake_rx,
+            rx,
+            config.rx_buffer,
+            config.status_latency_us,
+        );
+        let thread = std::thread::Builder::new()
+            .name("grbl-emulator".into())
+            .spawn(move || server.run())?;
+        Ok(GrblEmulator {
+            path,
+            shared,
+            cmds: tx,
+            wake_tx,
+            thread: Some(thread),
+        })
+    }
+
+    /// The pty slave to open, e.g. `/dev/pts/7`.
+    pub fn port_path(&self) -> &Path {
+        &self.path
+    }
+
+    pub fn config(&self) -> &EmulatorConfig {
+        &self.shared.config
+    }
+
+    /// Physical head position at any time, from the motion model (valid after the emulator is
+    /// dropped too: it then reports the final plan).
+    pub fn position_source(&self) -> Arc<dyn PositionSource> {
+        Arc::new(EmulatorPosition(self.shared.clone()))
+    }
+
+    pub fn inject(&self, fault: Fault) {
+        let _ = self.cmds.send(Cmd::Fault(fault));
+        pty::wake(&self.wake_tx);
+    }
+
+    /// Machine (motor) position now, mm.
+    pub fn machine_x(&self) -> f64 {
+        self.machine_x_at(Timestamp::now())
+    }
+
+    /// Machine (motor) position at `t`, mm.
+    pub fn machine_x_at(&self, t: Timestamp) -> f64 {
+        self.shared.lock().timeline.machine_at(t.as_secs_f64())
+    }
+
+    /// Physical head position at `t`, mm (same as the position source).
+    pub fn physical_x_at(&self, t: Timestamp) -> f64 {
+        self.shared.lock().timeline.physical_at(t.as_secs_f64())
+    }
+
+    pub fn state(&self) -> MachineState {
+        self.shared.lock().state(Timestamp::now().as_secs_f64())
+    }
+
+    /// Non-realtime bytes received while the RX buffer was full (0 for a client that counts
+    /// characters correctly).
+    pub fn rx_overflow_bytes(&self) -> u64 {
+        self.shared.lock().rx_overflow
+    }
+
+    /// Current `$N` settings.
+    pub fn settings(&self) -> std::collections::BTreeMap<u32, f64> {
+        self.shared.lock().settings.clone()
+    }
+}
+
+impl Drop for GrblEmulator {
+    fn drop(&mut self) {
+        let _ = self.cmds.send(Cmd::Stop);
+        pty::wake(&self.wake_tx);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
