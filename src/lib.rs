@@ -1,1 +1,12 @@
+//! footscan: a laser-line foot scanner and last-design toolkit.
+//!
+//! The library holds all the logic; the binaries `footscan` (command line) and `footscand`
+//! (daemon) are thin shells over it. Hardware is reached only through `footscan-hal`, so the
+//! simulator (`footscan-sim`) is one more backend behind the same traits.
+
+pub mod calib;
+pub mod detect;
+pub mod io;
 pub mod pipeline;
+pub mod scan;
+pub mod util;

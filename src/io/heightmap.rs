@@ -1,0 +1,189 @@
+use image::{Rgb, RgbImage};
+use std::path::Path;
+
+/// A sole height map rendered for people: heights on a colour scale over the platform's
+/// x (heel to toe, left to right) and y (top to bottom), with a labelled colour bar.
+pub struct HeightMapImage {
+    pub image: RgbImage,
+    /// Height at the top of the colour scale, mm.
+    pub max_mm: f64,
+    /// Cells that received at least one point.
+    pub filled_cells: usize,
+}
+
+impl HeightMapImage {
+    pub fn save(&self, path: &Path) -> std::io::Result<()> {
+        let mut png = Vec::new();
+        self.image
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .map_err(std::io::Error::other)?;
+        super::write_atomic(path, &png)
+    }
+}
+
+const BG: Rgb<u8> = Rgb([24, 24, 28]);
+const FG: Rgb<u8> = Rgb([230, 230, 230]);
+
+/// Rasterise points (mm) into `cell_mm` cells (mean height per cell) and colour them.
+pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
+    assert!(cell_mm > 0.0);
+    let finite = points.iter().filter(|p| p.iter().all(|v| v.is_finite()));
+    let (mut x0, mut x1, mut y0, mut y1, mut zmax) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN, 0.0f64);
+    let mut any = false;
+    for p in finite.clone() {
+        any = true;
+        x0 = x0.min(p[0]);
+        x1 = x1.max(p[0]);
+        y0 = y0.min(p[1]);
+        y1 = y1.max(p[1]);
+        zmax = zmax.max(p[2]);
+    }
+    if !any {
+        (x0, x1, y0, y1) = (0.0, 10.0, 0.0, 10.0);
+    }
+    let w = (((x1 - x0) / cell_mm).floor() as usize + 1).clamp(1, 4000);
+    let h = (((y1 - y0) / cell_mm).floor() as usize + 1).clamp(1, 4000);
+    let mut sum = vec![0.0f64; w * h];
+    let mut n = vec![0u32; w * h];
+    for p in finite {
+        let i = (((p[0] - x0) / cell_mm) as usize).min(w - 1);
+        let j = (((p[1] - y0) / cell_mm) as usize).min(h - 1);
+        sum[j * w + i] += p[2];
+        n[j * w + i] += 1;
+    }
+    // A round top of scale so the legend reads well.
+    let step = nice_step(zmax.max(1.0) / 5.0);
+    let max_mm = (zmax.max(1.0) / step).ceil() * step;
+
+    let margin = 12u32;
+    let bar_w = 110u32;
+    let title_h = 20u32;
+    let img_w = w as u32 + 2 * margin + bar_w;
+    let img_h = (h as u32).max(160) + 2 * margin + title_h;
+    let mut image = RgbImage::from_pixel(img_w, img_h, BG);
+    let mut filled = 0;
+    for j in 0..h {
+        for i in 0..w {
+            let k = j * w + i;
+            if n[k] > 0 {
+                filled += 1;
+                let z = sum[k] / n[k] as f64;
+                image.put_pixel(margin + i as u32, margin + title_h + j as u32, colour(z / max_mm));
+            }
+        }
+    }
+    draw_text(
+        &mut image,
+        margin,
+        4,
+        &format!(
+            "sole height, x {:.0}-{:.0} mm, y {:.0}-{:.0} mm, cell {} mm",
+            x0, x1, y0, y1, cell_mm
+        ),
+    );
+    // Colour bar with ticks.
+    let bx = margin * 2 + w as u32;
+    let by = margin + title_h;
+    let bh = (img_h - by - margin - 10).max(50);
+    for t in 0..bh {
+        let c = colour(1.0 - t as f64 / (bh - 1) as f64);
+        for u in 0..16 {
+            image.put_pixel(bx + u, by + t, c);
+        }
+    }
+    let ticks = (max_mm / step).round() as u32;
+    for k in 0..=ticks {
+        let v = k as f64 * step;
+        let y = by + ((1.0 - v / max_mm) * (bh - 1) as f64).round() as u32;
+        for u in 16..20 {
+            image.put_pixel(bx + u, y, FG);
+        }
+        draw_text(&mut image, bx + 23, y.saturating_sub(3), &format_tick(v, step));
+    }
+    draw_text(&mut image, bx, by + bh + 2, "mm");
+    HeightMapImage {
+        image,
+        max_mm,
+        filled_cells: filled,
+    }
+}
+
+fn nice_step(raw: f64) -> f64 {
+    let p = 10f64.powf(raw.log10().floor());
+    for m in [1.0, 2.0, 2.5, 5.0, 10.0] {
+        if m * p >= raw {
+            return m * p;
+        }
+    }
+    10.0 * p
+}
+
+fn format_tick(v: f64, step: f64) -> String {
+    if step.fract().abs() < 1e-9 {
+        format!("{v:.0}")
+    } else {
+        format!("{v:.1}")
+    }
+}
+
+/// Perceptually ordered dark-blue -> green -> yellow ramp (viridis-like, piecewise linear).
+fn colour(t: f64) -> Rgb<u8> {
+    const STOPS: [[f64; 3]; 5] = [
+        [68.0, 1.0, 84.0],
+        [59.0, 82.0, 139.0],
+        [33.0, 145.0, 140.0],
+        [94.0, 201.0, 98.0],
+        [253.0, 231.0, 37.0],
+    ];
+    let t = t.clamp(0.0, 1.0) * (STOPS.len() - 1) as f64;
+    let i = (t.floor() as usize).min(STOPS.len() - 2);
+    let f = t - i as f64;
+    let c = |k: usize| (STOPS[i][k] + f * (STOPS[i + 1][k] - STOPS[i][k])).round() as u8;
+    Rgb([c(0), c(1), c(2)])
+}
+
+/// 8x8 bitmap text (font8x8's basic Latin), clipped to the image.
+pub(crate) fn draw_text(image: &mut RgbImage, x: u32, y: u32, text: &str) {
+    use font8x8::UnicodeFonts;
+    for (n, ch) in text.chars().enumerate() {
+        let Some(glyph) = font8x8::BASIC_FONTS.get(ch) else {
+            continue;
+        };
+        for (row, bits) in glyph.iter().enumerate() {
+            for col in 0..8 {
+                if bits & (1 << col) != 0 {
+                    let (px, py) = (x + n as u32 * 8 + col, y + row as u32);
+                    if px < image.width() && py < image.height() {
+                        image.put_pixel(px, py, FG);
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn raster_covers_points_and_scale_tops_max() {
+        let pts: Vec<[f64; 3]> = (0..100)
+            .flat_map(|i| (0..40).map(move |j| [i as f64, j as f64, (i as f64) * 0.13]))
+            .collect();
+        let hm = render_heightmap(&pts, 1.0);
+        assert_eq!(hm.filled_cells, 100 * 40);
+        assert!(hm.max_mm >= 12.87 && hm.max_mm <= 15.0, "{}", hm.max_mm);
+        // Highest cell is yellow-ish, lowest dark.
+        let hi = hm.image.get_pixel(12 + 99, 12 + 20);
+        let lo = hm.image.get_pixel(12, 12 + 20);
+        assert!(hi.0[0] as u32 + hi.0[1] as u32 > lo.0[0] as u32 + lo.0[1] as u32 + 150);
+    }
+
+    #[test]
+    fn nice_steps() {
+        assert_eq!(nice_step(3.7), 5.0);
+        assert_eq!(nice_step(0.21), 0.25);
+        assert_eq!(nice_step(12.0), 20.0);
+    }
+}

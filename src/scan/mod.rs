@@ -1,0 +1,92 @@
+//! A scan from end to end: devices, the stage registry, the threaded pipeline, the files.
+
+pub mod config;
+mod grid;
+pub mod item;
+mod registry;
+mod run;
+pub mod sim;
+pub mod stages;
+pub mod summary;
+
+pub use config::{LoadedConfig, ScanConfig};
+pub use grid::ScanGrid;
+pub use registry::{registry, ScanContext};
+pub use run::{run_scan, ScanError, ScanOptions, ScanProgress};
+pub use summary::{ScanSummary, TruthSource, TruthStats};
+
+use footscan_hal::{Camera, Slider};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+
+/// The camera and slider a scan drives, whatever backend they come from.
+pub struct Devices {
+    pub camera: Box<dyn Camera>,
+    pub slider: Box<dyn Slider>,
+}
+
+/// The motion of one scan, derived from the config.
+#[derive(Clone, Debug)]
+pub struct ScanPlan {
+    pub start_mm: f64,
+    pub end_mm: f64,
+    pub step_mm: f64,
+    /// step x fps x 60.
+    pub feed_mm_min: f64,
+    pub approach_feed_mm_min: f64,
+    pub poll_period: Duration,
+    pub frame_timeout: Duration,
+    pub move_timeout: Duration,
+}
+
+impl ScanPlan {
+    pub fn from_config(c: &ScanConfig) -> Self {
+        let s = &c.scan;
+        let feed = s.step_mm * c.camera.fps * 60.0;
+        let travel_s = (s.end_mm - s.start_mm).abs() / (feed / 60.0);
+        ScanPlan {
+            start_mm: s.start_mm,
+            end_mm: s.end_mm,
+            step_mm: s.step_mm,
+            feed_mm_min: feed,
+            approach_feed_mm_min: s.approach_feed_mm_min,
+            poll_period: Duration::from_secs_f64(1.0 / s.status_poll_hz),
+            frame_timeout: Duration::from_secs_f64((10.0 / c.camera.fps).max(1.0)),
+            move_timeout: Duration::from_secs_f64(travel_s.max(10.0) * 2.0 + 10.0),
+        }
+    }
+
+    /// Frames a complete scan yields at the nominal step.
+    pub fn expected_frames(&self) -> u64 {
+        ((self.end_mm - self.start_mm) / self.step_mm).floor() as u64 + 1
+    }
+}
+
+/// Live counts of the acquisition, for progress and the summary.
+#[derive(Debug, Default)]
+pub struct ScanCounters {
+    frames: AtomicU64,
+    dropped: AtomicU64,
+    stationary: AtomicU64,
+}
+
+impl ScanCounters {
+    pub fn add_frame(&self) {
+        self.frames.fetch_add(1, Ordering::Relaxed);
+    }
+    pub fn add_dropped(&self, n: u64) {
+        self.dropped.fetch_add(n, Ordering::Relaxed);
+    }
+    pub fn add_stationary(&self, n: u64) {
+        self.stationary.fetch_add(n, Ordering::Relaxed);
+    }
+    pub fn frames(&self) -> u64 {
+        self.frames.load(Ordering::Relaxed)
+    }
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+    pub fn stationary(&self) -> u64 {
+        self.stationary.load(Ordering::Relaxed)
+    }
+}

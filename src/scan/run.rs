@@ -1,0 +1,173 @@
+//! Runs one scan: backend, calibration, pipeline, summary; the scan directory keeps the
+//! reason of a failed scan.
+
+use super::config::{Backend, LoadedConfig};
+use super::item::Item;
+use super::summary::{ScanSummary, StageReport};
+use super::{registry, sim, ScanContext, ScanCounters, ScanPlan};
+use crate::calib::Calibration;
+use crate::pipeline::{BuildError, PipelineError, StageStats};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+pub struct ScanOptions {
+    pub out_dir: PathBuf,
+    /// A calibration file; default for simulated scans: the simulator's true model.
+    pub calibration: Option<PathBuf>,
+}
+
+/// Progress as the scan runs.
+#[derive(Clone, Debug)]
+pub struct ScanProgress {
+    pub frames: u64,
+    pub expected_frames: u64,
+    pub dropped: u64,
+    pub stages: Vec<StageStats>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ScanError {
+    #[error("{0}")]
+    Config(String),
+    #[error("cannot use scan directory {path}: {source}")]
+    OutDir {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("scanner setup failed: {0}")]
+    Setup(String),
+    #[error(transparent)]
+    Pipeline(#[from] PipelineError),
+    #[error("writing {path}: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// Scan with `cfg`, writing into `opts.out_dir`; `progress` is called a few times a second.
+pub fn run_scan(
+    cfg: &LoadedConfig,
+    opts: &ScanOptions,
+    mut progress: impl FnMut(&ScanProgress),
+) -> Result<ScanSummary, ScanError> {
+    let started = Instant::now();
+    std::fs::create_dir_all(&opts.out_dir).map_err(|source| ScanError::OutDir {
+        path: opts.out_dir.clone(),
+        source,
+    })?;
+    let plan = ScanPlan::from_config(&cfg.config);
+    let counters = Arc::new(ScanCounters::default());
+    let result = (|| -> Result<ScanSummary, ScanError> {
+        let Backend::Sim = cfg.config.scanner.backend;
+        let (devices, backend) =
+            sim::open(&cfg.config).map_err(|e| ScanError::Setup(e.to_string()))?;
+        let calibration = match &opts.calibration {
+            Some(p) => Calibration::load(p).map_err(|e| ScanError::Setup(e.to_string()))?,
+            None => sim::true_calibration(&cfg.config),
+        };
+        let cal_path = opts.out_dir.join("calibration.toml");
+        calibration
+            .save(&cal_path)
+            .map_err(|e| ScanError::Setup(e.to_string()))?;
+        let ctx = ScanContext {
+            out_dir: opts.out_dir.clone(),
+            plan: plan.clone(),
+            devices: Mutex::new(Some(devices)),
+            calibration: Some(calibration),
+            truth: Some(sim::truth_source(&backend)),
+            counters: counters.clone(),
+        };
+        let pipeline = registry()
+            .build(&cfg.config.pipeline, &ctx)
+            .map_err(|e| ScanError::Config(describe_build_error(cfg, &e)))?;
+        let running = pipeline.start();
+        while !running.is_finished() {
+            progress(&ScanProgress {
+                frames: counters.frames(),
+                expected_frames: plan.expected_frames(),
+                dropped: counters.dropped(),
+                stages: running.stats(),
+            });
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        let report = running.wait()?;
+        drop(backend);
+        let mut summary = report
+            .outputs
+            .into_iter()
+            .find_map(|i| match i {
+                Item::Summary(s) => Some(*s),
+                _ => None,
+            })
+            .unwrap_or_else(|| ScanSummary::without_grid(report.cancelled));
+        summary.stages = report.stages.iter().map(stage_report).collect();
+        Ok(summary)
+    })();
+    let mut summary = match result {
+        Ok(s) => s,
+        Err(e) => {
+            let mut s = ScanSummary::failed(&e.to_string());
+            if let ScanError::Pipeline(PipelineError::Stage { stats, .. }) = &e {
+                s.stages = stats.iter().map(stage_report).collect();
+            }
+            finish(&mut s, &counters, started);
+            write_summary(&opts.out_dir, &s)?;
+            return Err(e);
+        }
+    };
+    finish(&mut summary, &counters, started);
+    write_summary(&opts.out_dir, &summary)?;
+    Ok(summary)
+}
+
+fn finish(s: &mut ScanSummary, counters: &ScanCounters, started: Instant) {
+    s.frames = counters.frames();
+    s.dropped_frames = counters.dropped();
+    s.stationary_frames = counters.stationary();
+    s.seconds = started.elapsed().as_secs_f64();
+}
+
+fn write_summary(dir: &Path, s: &ScanSummary) -> Result<(), ScanError> {
+    let path = dir.join("scan.json");
+    let json = serde_json::to_vec_pretty(s).expect("summary serialises");
+    crate::io::write_atomic(&path, &json).map_err(|source| ScanError::Write { path, source })
+}
+
+fn stage_report(s: &StageStats) -> StageReport {
+    StageReport {
+        name: s.name.clone(),
+        input: s.input,
+        output: s.output,
+        dropped: s.dropped,
+        mean_latency_ms: s.mean_latency_ms,
+        max_latency_ms: s.max_latency_ms,
+        blocked_ms: s.blocked_ms,
+    }
+}
+
+/// Build errors with the config file, line and column of the offending key.
+pub fn describe_build_error(cfg: &LoadedConfig, e: &BuildError) -> String {
+    let file = cfg.path.display();
+    match e {
+        BuildError::Factory { index, source, .. } => {
+            let msg = source.to_string();
+            let key = backticked(&msg).unwrap_or("stage");
+            let at = cfg.locate_stage_key(*index, key).unwrap_or_default();
+            format!("config {file}: {e}{at}")
+        }
+        BuildError::UnknownStage { index, .. } => {
+            let at = cfg.locate_stage_key(*index, "stage").unwrap_or_default();
+            format!("config {file}: {e}{at}")
+        }
+        _ => format!("config {file}: {e}"),
+    }
+}
+
+/// The first `word` quoted in backticks (serde names unknown fields this way).
+fn backticked(msg: &str) -> Option<&str> {
+    let start = msg.find('`')? + 1;
+    let len = msg[start..].find('`')?;
+    Some(&msg[start..start + len])
+}

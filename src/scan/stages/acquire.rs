@@ -1,0 +1,251 @@
+//! The source stage: frames from the camera, each labelled with the slider position at its
+//! capture time (SPEC section 3, continuous mode).
+//!
+//! A poller thread owns the slider while the head moves and timestamps every status report;
+//! each frame's X is interpolated between the two reports around its capture timestamp, so a
+//! frame is never labelled with a position it was not taken at.
+
+use crate::pipeline::{BoxError, Emitter, Source};
+use crate::scan::item::{AcquiredFrame, FrameMeta, Item};
+use crate::scan::{Devices, ScanCounters, ScanPlan};
+use crossbeam_channel::{Receiver, RecvTimeoutError};
+use footscan_hal::{Camera, HalError, Slider, SliderState, SliderStatus, Timestamp};
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+pub struct Acquire {
+    devices: Option<Devices>,
+    plan: ScanPlan,
+    counters: Arc<ScanCounters>,
+}
+
+impl Acquire {
+    pub fn new(devices: Devices, plan: ScanPlan, counters: Arc<ScanCounters>) -> Self {
+        Acquire {
+            devices: Some(devices),
+            plan,
+            counters,
+        }
+    }
+}
+
+/// Slider reports while the scan move runs; ends when the head is idle at the target.
+enum Poll {
+    Status(SliderStatus),
+    Done,
+    Failed(HalError),
+}
+
+fn poll_slider(
+    slider: &mut dyn Slider,
+    period: Duration,
+    abort: &AtomicBool,
+    tx: crossbeam_channel::Sender<Poll>,
+) {
+    let mut moved = false;
+    loop {
+        if abort.load(Ordering::Relaxed) {
+            let _ = slider.stop();
+            let _ = tx.send(Poll::Done);
+            return;
+        }
+        let next = Timestamp::now().add(period);
+        match slider.status() {
+            Ok(st) => {
+                let _ = tx.send(Poll::Status(st));
+                if st.state == SliderState::Alarm {
+                    let _ = tx.send(Poll::Failed(HalError::Alarm {
+                        device: "slider".into(),
+                        code: 0,
+                        message: "controller entered the alarm state during the scan move".into(),
+                    }));
+                    return;
+                }
+                moved |= st.state.is_moving();
+                if moved && st.state == SliderState::Idle {
+                    let _ = tx.send(Poll::Done);
+                    return;
+                }
+            }
+            Err(e) => {
+                let _ = tx.send(Poll::Failed(e));
+                return;
+            }
+        }
+        next.sleep_until();
+    }
+}
+
+/// Linear interpolation of X over timestamped reports.
+#[derive(Default)]
+struct Track {
+    samples: VecDeque<(Timestamp, f64)>,
+}
+
+impl Track {
+    fn push(&mut self, s: &SliderStatus) {
+        self.samples.push_back((s.timestamp, s.x_mm));
+    }
+    fn last_time(&self) -> Option<Timestamp> {
+        self.samples.back().map(|s| s.0)
+    }
+    /// X at `t`, or None if `t` is outside the reports seen so far.
+    fn at(&mut self, t: Timestamp) -> Option<f64> {
+        // Keep two samples before t: frames arrive in time order.
+        while self.samples.len() > 2 && self.samples[1].0 <= t {
+            self.samples.pop_front();
+        }
+        let (t0, x0) = *self.samples.front()?;
+        if t < t0 {
+            return None;
+        }
+        for w in self.samples.iter().zip(self.samples.iter().skip(1)) {
+            let ((ta, xa), (tb, xb)) = (*w.0, *w.1);
+            if ta <= t && t <= tb {
+                let span = tb.secs_after(ta);
+                return Some(if span <= 0.0 {
+                    xb
+                } else {
+                    xa + (xb - xa) * t.secs_after(ta) / span
+                });
+            }
+        }
+        if self.samples.len() == 1 && t == t0 {
+            return Some(x0);
+        }
+        None
+    }
+}
+
+impl Source<Item> for Acquire {
+    fn run(&mut self, out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        let Devices {
+            mut camera,
+            mut slider,
+        } = self.devices.take().ok_or("acquire stage run twice")?;
+        let plan = self.plan.clone();
+        slider.move_to(plan.start_mm, plan.approach_feed_mm_min)?;
+        slider.wait_idle(plan.move_timeout)?;
+        camera.start()?;
+        let before = slider.status()?;
+        slider.move_to(plan.end_mm, plan.feed_mm_min)?;
+
+        let abort = AtomicBool::new(false);
+        let (tx, rx) = crossbeam_channel::unbounded();
+        let result = std::thread::scope(|s| {
+            let poller = std::thread::Builder::new()
+                .name("slider-poll".into())
+                .spawn_scoped(s, || poll_slider(slider.as_mut(), plan.poll_period, &abort, tx))
+                .expect("spawn slider poller");
+            let r = self.frames(camera.as_mut(), &rx, before, out, &plan);
+            if r.is_err() || out.is_cancelled() {
+                abort.store(true, Ordering::Relaxed);
+            }
+            let _ = poller.join();
+            r
+        });
+        let _ = camera.stop();
+        result
+    }
+}
+
+impl Acquire {
+    fn frames(
+        &self,
+        camera: &mut dyn Camera,
+        rx: &Receiver<Poll>,
+        before: SliderStatus,
+        out: &mut Emitter<Item>,
+        plan: &ScanPlan,
+    ) -> Result<(), BoxError> {
+        let mut track = Track::default();
+        track.push(&before);
+        let mut done = false;
+        let mut last_seq: Option<u64> = None;
+        let mut last_x = f64::NEG_INFINITY;
+        let mut index = 0u64;
+        let min_advance = plan.step_mm * 0.05;
+        while !out.is_cancelled() {
+            let frame = camera.next_frame(plan.frame_timeout)?;
+            if let Some(prev) = last_seq {
+                let gap = frame.seq.saturating_sub(prev + 1);
+                if gap > 0 {
+                    out.dropped(gap);
+                    self.counters.add_dropped(gap);
+                }
+            }
+            last_seq = Some(frame.seq);
+            // Wait for a report at or after this frame's capture time.
+            while !done && track.last_time().is_none_or(|t| t < frame.timestamp) {
+                match rx.recv_timeout(plan.move_timeout) {
+                    Ok(Poll::Status(st)) => track.push(&st),
+                    Ok(Poll::Done) => done = true,
+                    Ok(Poll::Failed(e)) => return Err(e.into()),
+                    Err(RecvTimeoutError::Timeout) => {
+                        return Err("no slider status report within the move timeout".into())
+                    }
+                    Err(RecvTimeoutError::Disconnected) => done = true,
+                }
+            }
+            let Some(x) = track.at(frame.timestamp) else {
+                if done {
+                    break; // taken after the move ended
+                }
+                continue; // before the first report
+            };
+            if x < last_x + min_advance {
+                self.counters.add_stationary(1);
+                if done {
+                    break;
+                }
+                continue;
+            }
+            last_x = x;
+            let meta = FrameMeta {
+                index,
+                seq: frame.seq,
+                timestamp: frame.timestamp,
+                x_mm: x,
+            };
+            index += 1;
+            self.counters.add_frame();
+            if out.emit(Item::Frame(AcquiredFrame { meta, frame })).is_err() {
+                break;
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn st(t_ms: u64, x: f64) -> SliderStatus {
+        SliderStatus {
+            state: SliderState::Run,
+            x_mm: x,
+            feed_mm_min: 0.0,
+            timestamp: Timestamp {
+                nanos: t_ms * 1_000_000,
+            },
+        }
+    }
+
+    #[test]
+    fn track_interpolates_between_reports() {
+        let mut tr = Track::default();
+        tr.push(&st(0, 0.0));
+        tr.push(&st(10, 1.0));
+        tr.push(&st(20, 3.0));
+        let t = |ms: f64| Timestamp {
+            nanos: (ms * 1e6) as u64,
+        };
+        assert_eq!(tr.at(t(5.0)), Some(0.5));
+        assert_eq!(tr.at(t(15.0)), Some(2.0));
+        assert_eq!(tr.at(t(25.0)), None);
+        assert!((tr.at(t(19.0)).unwrap() - 2.8).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,9 @@
+//! The scan stages, each registered under a name for `[[pipeline.stages]]`.
+
+mod acquire;
+mod process;
+mod sinks;
+
+pub use acquire::Acquire;
+pub use process::{Accumulate, Detect, Triangulate};
+pub use sinks::{HeightMapSink, PlySink, SummarySink};

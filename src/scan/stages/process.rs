@@ -1,0 +1,98 @@
+//! Per-frame processing: detection, triangulation, accumulation into the scan grid.
+
+use crate::calib::Triangulator;
+use crate::detect::{Detector, LinePeak};
+use crate::pipeline::{BoxError, Emitter, Stage};
+use crate::scan::item::{unexpected, FrameLines, FramePoints, Item};
+use crate::scan::ScanGrid;
+use std::sync::Arc;
+
+pub struct Detect {
+    name: &'static str,
+    detector: Box<dyn Detector>,
+}
+
+impl Detect {
+    pub fn new(name: &'static str, detector: Box<dyn Detector>) -> Self {
+        Detect { name, detector }
+    }
+}
+
+impl Stage<Item> for Detect {
+    fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        let Item::Frame(af) = item else {
+            return Err(unexpected(self.name, &item, "frames"));
+        };
+        let mut lines = vec![LinePeak::NONE; af.frame.height as usize];
+        self.detector.detect(&af.frame, &mut lines);
+        drop(af.frame); // hand the buffer back to the camera's pool before blocking downstream
+        let _ = out.emit(Item::Lines(FrameLines {
+            meta: af.meta,
+            lines,
+        }));
+        Ok(())
+    }
+}
+
+pub struct Triangulate {
+    tri: Triangulator,
+}
+
+impl Triangulate {
+    pub fn new(tri: Triangulator) -> Self {
+        Triangulate { tri }
+    }
+}
+
+impl Stage<Item> for Triangulate {
+    fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        let Item::Lines(fl) = item else {
+            return Err(unexpected("triangulate", &item, "lines"));
+        };
+        let x = fl.meta.x_mm;
+        let points = fl
+            .lines
+            .iter()
+            .enumerate()
+            .map(|(r, l)| {
+                l.is_valid()
+                    .then(|| self.tri.point(x, l.col, r as f64))
+                    .flatten()
+                    .unwrap_or([f64::NAN; 3])
+            })
+            .collect();
+        let _ = out.emit(Item::Points(FramePoints {
+            meta: fl.meta,
+            lines: fl.lines,
+            points,
+        }));
+        Ok(())
+    }
+}
+
+/// Collects frames into the scan grid and emits it once the scan ends.
+#[derive(Default)]
+pub struct Accumulate {
+    grid: Option<ScanGrid>,
+}
+
+impl Stage<Item> for Accumulate {
+    fn process(&mut self, item: Item, _out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        let Item::Points(fp) = item else {
+            return Err(unexpected("accumulate", &item, "points"));
+        };
+        self.grid
+            .get_or_insert_with(|| ScanGrid::new(fp.points.len()))
+            .push(fp);
+        Ok(())
+    }
+
+    fn finish(&mut self, out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        let grid = self
+            .grid
+            .take()
+            .ok_or("the scan produced no frames: nothing to accumulate")?;
+        let _ = out.emit(Item::Grid(Arc::new(grid)));
+        Ok(())
+    }
+}

@@ -1,0 +1,61 @@
+//! Sinks: files written from the finished scan grid. Each passes the grid on so sinks chain.
+
+use crate::io::{render_heightmap, write_ply_points};
+use crate::pipeline::{BoxError, Emitter, Stage};
+use crate::scan::item::{unexpected, Item};
+use crate::scan::summary::{summarize, TruthSource};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+pub struct PlySink {
+    pub path: PathBuf,
+}
+
+impl Stage<Item> for PlySink {
+    fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        let Item::Grid(grid) = &item else {
+            return Err(unexpected("sink.ply", &item, "the scan grid"));
+        };
+        let (pts, q): (Vec<[f64; 3]>, Vec<f32>) =
+            grid.valid().map(|(_, _, p, l)| (*p, l.quality)).unzip();
+        write_ply_points(&self.path, &pts, &q)
+            .map_err(|e| format!("writing {}: {e}", self.path.display()))?;
+        let _ = out.emit(item);
+        Ok(())
+    }
+}
+
+pub struct HeightMapSink {
+    pub path: PathBuf,
+    pub cell_mm: f64,
+}
+
+impl Stage<Item> for HeightMapSink {
+    fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        let Item::Grid(grid) = &item else {
+            return Err(unexpected("sink.heightmap", &item, "the scan grid"));
+        };
+        let pts: Vec<[f64; 3]> = grid.valid().map(|(_, _, p, _)| *p).collect();
+        render_heightmap(&pts, self.cell_mm)
+            .save(&self.path)
+            .map_err(|e| format!("writing {}: {e}", self.path.display()))?;
+        let _ = out.emit(item);
+        Ok(())
+    }
+}
+
+/// Emits the scan summary (point count and, for simulated scans, error against ground truth).
+pub struct SummarySink {
+    pub truth: Option<Arc<dyn TruthSource>>,
+}
+
+impl Stage<Item> for SummarySink {
+    fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        let Item::Grid(grid) = &item else {
+            return Err(unexpected("sink.summary", &item, "the scan grid"));
+        };
+        let summary = summarize(grid, self.truth.as_deref());
+        let _ = out.emit(Item::Summary(Box::new(summary)));
+        Ok(())
+    }
+}

@@ -1,0 +1,188 @@
+//! The scan summary written as scan.json, with the error against ground truth where a
+//! simulator supplied it.
+
+use super::ScanGrid;
+use serde::Serialize;
+
+/// Ground truth per (camera sequence number, row), from a simulator.
+pub trait TruthSource: Send + Sync {
+    /// `None`: no truth recorded for that frame; `Some(None)`: the row truly has no line.
+    fn point(&self, seq: u64, row: usize) -> Option<Option<[f64; 3]>>;
+}
+
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct TruthStats {
+    /// 3D distance between each scanned point and the true surface point of the same
+    /// frame and row.
+    pub rms_mm: f64,
+    pub max_mm: f64,
+    pub p99_mm: f64,
+    /// Height (z) error alone.
+    pub height_rms_mm: f64,
+    /// Points compared.
+    pub compared: usize,
+    /// Rows with a true line where no point was produced.
+    pub missed_rows: usize,
+    /// Points where the truth has no line (spurious detections).
+    pub spurious_points: usize,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct StageReport {
+    pub name: String,
+    #[serde(rename = "in")]
+    pub input: u64,
+    #[serde(rename = "out")]
+    pub output: u64,
+    pub dropped: u64,
+    pub mean_latency_ms: f64,
+    pub max_latency_ms: f64,
+    pub blocked_ms: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ScanSummary {
+    /// "complete", "failed" or "cancelled".
+    pub status: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    pub frames: u64,
+    pub dropped_frames: u64,
+    /// Frames taken while the head had not advanced (start of the move), not used.
+    pub stationary_frames: u64,
+    pub points: usize,
+    pub seconds: f64,
+    /// Slider range actually covered (mm).
+    pub x_range_mm: [f64; 2],
+    pub stages: Vec<StageReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truth: Option<TruthStats>,
+}
+
+/// Point count and truth comparison of a finished grid; run totals are filled in by the caller.
+pub fn summarize(grid: &ScanGrid, truth: Option<&dyn TruthSource>) -> ScanSummary {
+    let xs = grid.frames.iter().map(|f| f.x_mm);
+    let x_range_mm = [
+        xs.clone().fold(f64::INFINITY, f64::min),
+        xs.fold(f64::NEG_INFINITY, f64::max),
+    ];
+    ScanSummary {
+        status: "complete".into(),
+        reason: None,
+        frames: grid.frames.len() as u64,
+        dropped_frames: 0,
+        stationary_frames: 0,
+        points: grid.valid_count(),
+        seconds: 0.0,
+        x_range_mm,
+        stages: Vec::new(),
+        truth: truth.map(|t| compare(grid, t)),
+    }
+}
+
+fn compare(grid: &ScanGrid, truth: &dyn TruthSource) -> TruthStats {
+    let mut errs = Vec::new();
+    let (mut sum2, mut hsum2) = (0.0, 0.0);
+    let mut s = TruthStats::default();
+    for (i, meta) in grid.frames.iter().enumerate() {
+        for row in 0..grid.rows {
+            let p = grid.point(i, row);
+            match (truth.point(meta.seq, row), p[0].is_finite()) {
+                (None, _) => {}
+                (Some(None), true) => s.spurious_points += 1,
+                (Some(None), false) => {}
+                (Some(Some(_)), false) => s.missed_rows += 1,
+                (Some(Some(t)), true) => {
+                    let d2: f64 = (0..3).map(|k| (p[k] - t[k]).powi(2)).sum();
+                    sum2 += d2;
+                    hsum2 += (p[2] - t[2]).powi(2);
+                    errs.push(d2.sqrt());
+                }
+            }
+        }
+    }
+    s.compared = errs.len();
+    if !errs.is_empty() {
+        let n = errs.len() as f64;
+        s.rms_mm = (sum2 / n).sqrt();
+        s.height_rms_mm = (hsum2 / n).sqrt();
+        errs.sort_by(f64::total_cmp);
+        s.max_mm = *errs.last().unwrap();
+        s.p99_mm = errs[((errs.len() - 1) as f64 * 0.99) as usize];
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::LinePeak;
+    use crate::scan::item::{FrameMeta, FramePoints};
+    use footscan_hal::Timestamp;
+
+    struct Flat;
+    impl TruthSource for Flat {
+        fn point(&self, seq: u64, row: usize) -> Option<Option<[f64; 3]>> {
+            (seq < 2).then_some((row < 2).then_some([seq as f64, row as f64, 0.0]))
+        }
+    }
+
+    #[test]
+    fn compares_rows_with_truth() {
+        let mut g = ScanGrid::new(3);
+        for seq in 0..3u64 {
+            let pts = vec![
+                [seq as f64, 0.0, 0.3],
+                [f64::NAN; 3],
+                [seq as f64, 2.0, 0.0],
+            ];
+            g.push(FramePoints {
+                meta: FrameMeta {
+                    index: seq,
+                    seq,
+                    timestamp: Timestamp::default(),
+                    x_mm: seq as f64,
+                },
+                lines: vec![LinePeak::NONE; 3],
+                points: pts,
+            });
+        }
+        let s = summarize(&g, Some(&Flat));
+        let t = s.truth.unwrap();
+        assert_eq!(t.compared, 2);
+        assert_eq!(t.missed_rows, 2);
+        assert_eq!(t.spurious_points, 2);
+        assert!((t.rms_mm - 0.3).abs() < 1e-12 && (t.max_mm - 0.3).abs() < 1e-12);
+        assert_eq!(s.points, 6);
+        assert_eq!(s.x_range_mm, [0.0, 2.0]);
+    }
+}
+
+impl ScanSummary {
+    fn empty(status: &str) -> Self {
+        ScanSummary {
+            status: status.into(),
+            reason: None,
+            frames: 0,
+            dropped_frames: 0,
+            stationary_frames: 0,
+            points: 0,
+            seconds: 0.0,
+            x_range_mm: [f64::NAN; 2],
+            stages: Vec::new(),
+            truth: None,
+        }
+    }
+
+    /// A scan that ended without a grid (cancelled before any frame, or no summary stage).
+    pub fn without_grid(cancelled: bool) -> Self {
+        Self::empty(if cancelled { "cancelled" } else { "complete" })
+    }
+
+    pub fn failed(reason: &str) -> Self {
+        ScanSummary {
+            reason: Some(reason.to_string()),
+            ..Self::empty("failed")
+        }
+    }
+}
