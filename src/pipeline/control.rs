@@ -3,8 +3,9 @@
 //!
 //! Cancelling drops the only `Sender` of a zero-message channel, so every thread waiting in
 //! `select!` on its `Receiver` (blocked in `emit()` or waiting for input) wakes at once, with
-//! no polling. The first failure is recorded before the run is cancelled, under one lock, so an
-//! error another node hits *because of* the cancellation can never replace the original cause.
+//! no polling. The first failure is recorded before the run is cancelled, under one lock, and a
+//! failing node keeps its channel ends open until it has recorded its failure, so an error
+//! another node hits *because of* the failure can never replace the original cause.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};

@@ -12,7 +12,7 @@ use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::{select, Receiver};
-use tracing::{debug, info_span, warn};
+use tracing::{debug, info_span, warn, Span};
 
 use super::control::{CancelHandle, RunControl};
 use super::emitter::{Cancelled, Emitter, Msg, Output};
@@ -107,11 +107,18 @@ impl<T: Send + 'static> Pipeline<T> {
         Ok(Self { capacity, nodes })
     }
 
-    /// Spawn one thread per node (named after the node) and return at once.
+    /// Run to the end on the calling thread's behalf: `self.start().wait()`.
+    pub fn run(self) -> Result<RunReport<T>, PipelineError> {
+        self.start().wait()
+    }
+
+    /// Spawn one thread per node (named after the node) and return at once. Each thread enters
+    /// a `stage` span whose parent is the caller's current span (e.g. the scan's).
     ///
     /// If a thread cannot be spawned, that node is reported as failed by [`Running::wait`].
     pub fn start(self) -> Running<T> {
         let ctl = RunControl::new();
+        let parent = Span::current();
         let started = Instant::now();
         let count = self.nodes.len();
         let mut counters = Vec::with_capacity(count);
@@ -127,10 +134,11 @@ impl<T: Send + 'static> Pipeline<T> {
                 (Output::Collect(Vec::new()), None)
             };
             let emitter = Emitter::new(out, ctl.clone(), stage_counters.clone());
-            let (thread_name, thread_ctl, node_input) = (name.clone(), ctl.clone(), input.take());
+            let (thread_ctl, node_input) = (ctl.clone(), input.take());
+            let span = info_span!(parent: &parent, "stage", name = %name);
             let spawned = thread::Builder::new()
                 .name(name.clone())
-                .spawn(move || run_node(&thread_name, node, node_input, emitter, &thread_ctl));
+                .spawn(move || span.in_scope(|| run_node(node, node_input, emitter, &thread_ctl)));
             let handle = match spawned {
                 Ok(h) => Some(h),
                 Err(e) => {
@@ -156,7 +164,7 @@ impl<T: Send + 'static> Pipeline<T> {
 }
 
 /// A pipeline whose threads are running. Dropping it without [`wait`](Self::wait) cancels the
-/// run and joins the threads.
+/// run and joins the threads (so it blocks until every source honours the cancel).
 pub struct Running<T> {
     ctl: Arc<RunControl>,
     counters: Vec<Arc<StageCounters>>,
@@ -256,18 +264,18 @@ enum Ending {
 }
 
 fn run_node<T>(
-    name: &str,
     mut node: Node<T>,
     input: Option<Receiver<Msg<T>>>,
     mut out: Emitter<T>,
     ctl: &RunControl,
 ) -> NodeExit<T> {
-    let span = info_span!("stage", name = %name);
-    let _entered = span.enter();
     debug!("stage started");
-    let result = catch_unwind(AssertUnwindSafe(|| match (&mut node, input) {
+    // `input` and `out` (the channel ends) must outlive the failure report below: dropping the
+    // receiver first would let the upstream see a closed channel, fail, and win the race to
+    // report, masking this node's real error.
+    let result = catch_unwind(AssertUnwindSafe(|| match (&mut node, input.as_ref()) {
         (Node::Source(source), _) => drive_source(source.as_mut(), &mut out),
-        (Node::Stage(stage), Some(rx)) => drive_stage(stage.as_mut(), &rx, &mut out),
+        (Node::Stage(stage), Some(rx)) => drive_stage(stage.as_mut(), rx, &mut out),
         (Node::Stage(_), None) => Err("internal error: stage has no input".into()),
     }));
     let error: Option<BoxError> = match result {
@@ -281,7 +289,7 @@ fn run_node<T>(
     let state = match error {
         None => StageState::Finished,
         Some(e) if e.is::<Cancelled>() => StageState::Cancelled,
-        Some(e) => match ctl.fail(name, e) {
+        Some(e) => match ctl.fail(out.counters.name(), e) {
             Ok(()) => StageState::Failed,
             Err(e) => {
                 warn!(error = %e, "stage error after the run was cancelled; ignored");
@@ -298,6 +306,7 @@ fn run_node<T>(
         dropped = s.dropped,
         "stage ended"
     );
+    drop(input);
     drop(node);
     NodeExit {
         state,

@@ -98,6 +98,10 @@ impl StageCounters {
         }
     }
 
+    pub(crate) fn name(&self) -> &str {
+        &self.name
+    }
+
     pub(crate) fn add_input(&self) {
         self.input.fetch_add(1, Ordering::Relaxed);
     }
