@@ -8,10 +8,10 @@
 use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
 use std::time::Duration;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Where a node is in its life.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum StageState {
     /// The thread is running (or about to).
@@ -53,7 +53,7 @@ impl StageState {
 ///   for the source, time between consecutive emits (from `run()` start for the first). Both
 ///   exclude time spent blocked in `emit()` under backpressure, which is `blocked_ms` (total).
 ///   `finish()` is not counted as an item.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StageStats {
     pub name: String,
     pub state: StageState,
