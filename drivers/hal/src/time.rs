@@ -19,6 +19,8 @@ impl Timestamp {
         // SAFETY: clock_gettime writes into the timespec we own; CLOCK_MONOTONIC always exists on Linux.
         let rc = unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
         debug_assert_eq!(rc, 0);
+        // time_t and c_long are i32 on 32-bit targets.
+        #[allow(clippy::unnecessary_cast)]
         Self::from_timespec(ts.tv_sec as i64, ts.tv_nsec as i64)
     }
 
@@ -48,17 +50,21 @@ impl Timestamp {
         (self.nanos as i128 - other.nanos as i128) as f64 * 1e-9
     }
 
-    pub fn add(self, d: Duration) -> Self {
-        Self {
-            nanos: self.nanos + d.as_nanos() as u64,
-        }
-    }
 
     /// Sleep until this instant (returns at once if it has passed).
     pub fn sleep_until(self) {
         let now = Timestamp::now();
         if self > now {
             std::thread::sleep(self.since(now));
+        }
+    }
+}
+
+impl std::ops::Add<Duration> for Timestamp {
+    type Output = Timestamp;
+    fn add(self, d: Duration) -> Self {
+        Self {
+            nanos: self.nanos + d.as_nanos() as u64,
         }
     }
 }
@@ -77,7 +83,7 @@ mod tests {
         assert_eq!(a.since(b), Duration::ZERO);
         assert!((b.secs_after(a) - b.since(a).as_secs_f64()).abs() < 1e-9);
         assert!(a.secs_after(b) < 0.0);
-        let c = a.add(Duration::from_micros(1500));
+        let c = a + Duration::from_micros(1500);
         assert_eq!(c.nanos - a.nanos, 1_500_000);
         assert_eq!(Timestamp::from_timespec(2, 5).nanos, 2_000_000_005);
     }

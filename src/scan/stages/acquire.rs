@@ -51,7 +51,7 @@ fn poll_slider(
             let _ = tx.send(Poll::Done);
             return;
         }
-        let next = Timestamp::now().add(period);
+        let next = Timestamp::now() + period;
         match slider.status() {
             Ok(st) => {
                 let _ = tx.send(Poll::Status(st));
