@@ -189,7 +189,7 @@ impl GrblEmulator {
             config: config.clone(),
         });
         let (tx, rx) = crossbeam_channel::unbounded();
-        let server = Server::new(
+        let mut server = Server::new(
             shared.clone(),
             pty,
             wake_rx,
@@ -197,6 +197,7 @@ impl GrblEmulator {
             config.rx_buffer,
             config.status_latency_us,
         );
+        server.power_up();
         let thread = std::thread::Builder::new()
             .name("grbl-emulator".into())
             .spawn(move || server.run())?;

@@ -124,12 +124,17 @@ impl Server {
         }
     }
 
-    pub fn run(mut self) {
-        // Power-up.
+    /// Power-up messages, written before the thread starts so that they are in the pty before
+    /// `spawn` returns (a client that flushes its input on open then never sees them late).
+    pub fn power_up(&mut self) {
         self.emit(BANNER);
         if self.machine().alarm {
             self.emit("[MSG:'$H'|'$X' to unlock]");
         }
+        self.flush(now_s());
+    }
+
+    pub fn run(mut self) {
         let mut buf = [0u8; 256];
         loop {
             while let Ok(cmd) = self.cmds.try_recv() {
