@@ -13,9 +13,9 @@
 //! M5 = 0.54 BW:
 //! - heel cap: the disc of radius H centred at the heel centre (H, 0), for x' <= H;
 //! - sides, for H < x' <= x_f = 0.80 L: -w_l(x') <= y' <= w_m(x'), where the medial half-width
-//!   w_m passes through the stations (H, H), (0.42 L, 0.92 H) [waist], (0.72 L, M1) [first
-//!   metatarsal head] and the lateral w_l through (H, H), (0.35 L, 0.95 H) [waist],
-//!   (0.64 L, M5) [fifth metatarsal head]; between stations a monotone cubic Hermite with zero
+//!   w_m passes through the stations (H, H), (0.42 L, 0.92 H) (waist), (0.72 L, M1) (first
+//!   metatarsal head) and the lateral w_l through (H, H), (0.35 L, 0.95 H) (waist),
+//!   (0.64 L, M5) (fifth metatarsal head); between stations a monotone cubic Hermite with zero
 //!   slope at each station (every station is an extremum, so each extreme is exactly there);
 //!   beyond the metatarsal head station each side is the quarter ellipse
 //!   w = W sqrt(1 - ((x' - x_W) / (x_f - x_W))^2), closing at (x_f, 0);

@@ -10,8 +10,8 @@
 //! - Projection of P: p = R^T (P - C); xn = p.x/p.z, yn = p.y/p.z; r2 = xn^2 + yn^2;
 //!   rad = 1 + k1 r2 + k2 r2^2; xd = xn rad + 2 p1 xn yn + p2 (r2 + 2 xn^2);
 //!   yd = yn rad + p1 (r2 + 2 yn^2) + 2 p2 xn yn; c = cx + F xd; r = cy + F yd.
-//! - Laser plane: x = X + L + tan(a) y + tan(b) z with a = laser_tilt_deg[0] (yaw),
-//!   b = laser_tilt_deg[1] (pitch), in radians.
+//! - Laser plane: x = X + L + tan(a) y + tan(b) z with a = `laser_tilt_deg[0]` (yaw),
+//!   b = `laser_tilt_deg[1]` (pitch), in radians.
 //!
 //! [`Optics`] is the serde configuration record; [`Projector`] is the same model with the
 //! rotation and tangents precomputed, for hot loops.

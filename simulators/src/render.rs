@@ -22,7 +22,8 @@
 //! `A * integral over [c - 0.5, c + 0.5] of exp(-(u - mu)^2 / (2 sigma^2)) du` with
 //! `A = peak_dn * gain` (reflectance is 1 for every surface: no shading model), evaluated with
 //! erf over mu +- 6 sigma. With [`NoiseConfig::glass_reflection`] > 0 every row also gets a line
-//! of amplitude `glass_reflection * A` at the glass (h = 0) column. The value of a pixel is
+//! of amplitude `glass_reflection * A` at the glass (h = 0) column (where the sole touches the
+//! glass the two coincide and add). The value of a pixel is
 //! `ambient_dn * gain + signal`; with noise enabled, the signal is first multiplied by
 //! `max(0, 1 + speckle * N(0,1))`, then Gaussian noise of variance
 //! `mean * gain / electrons_per_dn + read_noise_dn^2` is added (shot noise as the Gaussian
@@ -402,6 +403,14 @@ impl Renderer {
             0.0
         };
         (shot + self.noise.read_noise_dn * self.noise.read_noise_dn).sqrt()
+    }
+
+    /// Render frame `frame_index` with the head at `physical_x` into new buffers.
+    pub fn render(&mut self, physical_x: f64, frame_index: u64) -> (Pixels, FrameTruth) {
+        let mut pixels = Pixels::Gray8(Vec::new());
+        let mut truth = FrameTruth::default();
+        self.render_into(physical_x, frame_index, &mut pixels, &mut truth);
+        (pixels, truth)
     }
 
     /// Render the frame with the head at `physical_x` into `pixels` (replaced by a buffer of

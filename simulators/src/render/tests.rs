@@ -103,10 +103,27 @@ fn foot_truth_appears_only_where_the_plane_meets_the_foot() {
 }
 
 fn frame(r: &mut Renderer, x: f64, k: u64) -> (Pixels, FrameTruth) {
+    r.render(x, k)
+}
+
+#[test]
+fn render_into_reuses_the_buffers() {
+    let foot = Foot::new(FootParams::default()).unwrap();
+    let mut r = renderer(Optics::default(), NoiseConfig::default(), Scene::Foot(foot));
     let mut px = Pixels::Gray8(Vec::new());
     let mut t = FrameTruth::default();
-    r.render_into(x, k, &mut px, &mut t);
-    (px, t)
+    r.render_into(100.0, 0, &mut px, &mut t);
+    let ptrs = |px: &Pixels, t: &FrameTruth| match px {
+        Pixels::Gray8(v) => (v.as_ptr() as usize, t.rows.as_ptr() as usize),
+        Pixels::Gray16(_) => unreachable!(),
+    };
+    let before = ptrs(&px, &t);
+    for k in 1..4 {
+        r.render_into(100.0 + k as f64, k, &mut px, &mut t);
+        assert_eq!(ptrs(&px, &t), before);
+    }
+    assert_eq!(px.len(), 1280 * 1024);
+    assert_eq!(t.rows.len(), 1024);
 }
 
 fn centroid(row: &[f64], col: f64, amb: f64, reach: f64) -> f64 {
