@@ -87,6 +87,8 @@ pub struct GrblSlider {
     settings_acc: SliderSettings,
     feedback: Vec<String>,
     jogging: bool,
+    /// When the bytes now at the end of `rx` arrived.
+    rx_time: Timestamp,
 }
 
 fn midpoint(a: Timestamp, b: Timestamp) -> Timestamp {
@@ -119,6 +121,7 @@ impl GrblSlider {
             settings_acc: SliderSettings::new(),
             feedback: Vec::new(),
             jogging: false,
+            rx_time: Timestamp::default(),
         }
     }
 
@@ -225,6 +228,7 @@ impl GrblSlider {
         match port.read(&mut buf) {
             Ok(0) => Err(self.lost("end of file on the port (hung up)")),
             Ok(n) => {
+                self.rx_time = Timestamp::now();
                 self.rx.extend_from_slice(&buf[..n]);
                 Ok(true)
             }
@@ -265,7 +269,7 @@ impl GrblSlider {
     fn pump(&mut self, deadline: Instant) -> HalResult<bool> {
         loop {
             if let Some(line) = self.take_line()? {
-                self.route(&line, Timestamp::now())?;
+                self.route(&line, self.rx_time)?;
                 return Ok(true);
             }
             if Instant::now() >= deadline {
@@ -279,7 +283,7 @@ impl GrblSlider {
     fn drain_pending(&mut self) -> HalResult<()> {
         loop {
             while let Some(line) = self.take_line()? {
-                self.route(&line, Timestamp::now())?;
+                self.route(&line, self.rx_time)?;
             }
             if !self.read_some(Instant::now())? {
                 return Ok(());
@@ -659,9 +663,20 @@ impl Slider for GrblSlider {
         let port = serialport::new(&self.port_name, self.config.baud)
             .timeout(self.config.response_timeout)
             .open()
-            .map_err(|e| HalError::Io {
-                device: self.port_name.clone(),
-                source: e.into(),
+            .map_err(|e| {
+                let absent = matches!(e.kind, serialport::ErrorKind::NoDevice)
+                    || matches!(e.kind, serialport::ErrorKind::Io(ErrorKind::NotFound));
+                if absent {
+                    HalError::Disconnected {
+                        device: self.port_name.clone(),
+                        reason: format!("cannot open: {e}"),
+                    }
+                } else {
+                    HalError::Io {
+                        device: self.port_name.clone(),
+                        source: e.into(),
+                    }
+                }
             })?;
         let _ = port.clear(ClearBuffer::All);
         self.port = Some(port);

@@ -231,7 +231,8 @@ fn disconnect_is_reported() {
     std::thread::sleep(Duration::from_millis(1500));
     assert_eq!(emu.position_source().physical_x(Timestamp::now()), 50.0);
     // Reconnecting to a vanished port fails cleanly.
-    assert!(s.connect().is_err());
+    let e = s.connect().unwrap_err();
+    assert!(e.is_disconnect(), "{e}");
 }
 
 #[test]

@@ -427,3 +427,43 @@ fn planner_holds_fifteen_blocks_and_counting_never_overflows() {
     }
     assert!(emu.rx_overflow_bytes() > 0);
 }
+
+#[test]
+fn physical_position_has_scale_and_backlash() {
+    let (emu, mut c) = setup(EmulatorConfig {
+        slider_scale: 1.01,
+        backlash_mm: 0.2,
+        ..Default::default()
+    });
+    c.ready();
+    let pos = emu.position_source();
+    assert_eq!(pos.physical_x(Timestamp::now()), 0.0);
+    c.ok("G0 X100");
+    c.wait_state("Idle", S5);
+    let now = Timestamp::now();
+    // The controller reports the motor; the carriage trails by the play, times the scale.
+    assert_eq!(c.status().x(), 100.0);
+    assert!((pos.physical_x(now) - 1.01 * 99.8).abs() < 1e-9);
+    // A reversal smaller than the play does not move the carriage.
+    c.ok("G0 X99.9");
+    c.wait_state("Idle", S5);
+    assert!((pos.physical_x(Timestamp::now()) - 1.01 * 99.8).abs() < 1e-9);
+    c.ok("G0 X50");
+    c.wait_state("Idle", S5);
+    assert!((pos.physical_x(Timestamp::now()) - 1.01 * 50.0).abs() < 1e-9);
+    // The past is still there.
+    assert!((pos.physical_x(now) - 1.01 * 99.8).abs() < 1e-9);
+}
+
+#[test]
+fn status_latency_delays_the_report() {
+    let (_emu, mut c) = setup(EmulatorConfig {
+        status_latency_us: 30_000,
+        ..Default::default()
+    });
+    c.reset();
+    for _ in 0..3 {
+        let r = c.status();
+        assert!(r.received.secs_after(r.sent) >= 0.03, "{r:?}");
+    }
+}
