@@ -467,3 +467,16 @@ fn status_latency_delays_the_report() {
         assert!(r.received.secs_after(r.sent) >= 0.03, "{r:?}");
     }
 }
+
+#[test]
+fn dwell_waits_for_the_planner_then_dwells() {
+    let (_emu, mut c) = setup(EmulatorConfig::default());
+    c.ready();
+    c.ok("G1 X10 F3000"); // 0.3 s
+    let t0 = Timestamp::now();
+    c.ok("G4 P0.2");
+    let took = Timestamp::now().secs_after(t0);
+    assert!((0.49..2.0).contains(&took), "G4 answered after {took} s");
+    assert_eq!(c.status().state(), "Idle");
+    assert_eq!(c.cmd("G4"), ["error:28"], "P is required");
+}
