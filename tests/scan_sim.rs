@@ -31,13 +31,28 @@ fn simulated_scan_meets_accuracy_bound() {
         "{} spurious points",
         t.spurious_points
     );
-    for f in ["points.ply", "heightmap.png", "scan.json", "calibration.toml"] {
+    for f in [
+        "points.ply",
+        "heightmap.png",
+        "scan.json",
+        "calibration.toml",
+    ] {
         let p = dir.path().join(f);
-        assert!(p.metadata().map(|m| m.len() > 100).unwrap_or(false), "{f} missing or empty");
+        assert!(
+            p.metadata().map(|m| m.len() > 100).unwrap_or(false),
+            "{f} missing or empty"
+        );
     }
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.path().join("scan.json")).unwrap()).unwrap();
-    for k in ["frames", "dropped_frames", "points", "seconds", "stages", "truth"] {
+    for k in [
+        "frames",
+        "dropped_frames",
+        "points",
+        "seconds",
+        "stages",
+        "truth",
+    ] {
         assert!(json.get(k).is_some(), "scan.json lacks {k}");
     }
     let stages = json["stages"].as_array().unwrap();

@@ -7,7 +7,11 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
 #[derive(Parser)]
-#[command(name = "footscan", version, about = "Laser-line foot scanner and last-design toolkit")]
+#[command(
+    name = "footscan",
+    version,
+    about = "Laser-line foot scanner and last-design toolkit"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -44,8 +48,7 @@ enum Command {
 fn main() -> Result<()> {
     tracing_subscriber::fmt()
         .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| "warn".into()),
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
         )
         .with_writer(std::io::stderr)
         .init();
@@ -71,7 +74,12 @@ fn main() -> Result<()> {
     }
 }
 
-fn run_scan(config: PathBuf, out: PathBuf, calibration: Option<PathBuf>, quiet: bool) -> Result<()> {
+fn run_scan(
+    config: PathBuf,
+    out: PathBuf,
+    calibration: Option<PathBuf>,
+    quiet: bool,
+) -> Result<()> {
     let cfg = LoadedConfig::load(&config)?;
     let bar = if quiet {
         ProgressBar::hidden()
@@ -79,9 +87,11 @@ fn run_scan(config: PathBuf, out: PathBuf, calibration: Option<PathBuf>, quiet: 
         ProgressBar::new(0)
     };
     bar.set_style(
-        ProgressStyle::with_template("{spinner} scanning [{bar:40}] {pos}/{len} frames {msg} ({elapsed})")
-            .expect("progress template")
-            .progress_chars("=> "),
+        ProgressStyle::with_template(
+            "{spinner} scanning [{bar:40}] {pos}/{len} frames {msg} ({elapsed})",
+        )
+        .expect("progress template")
+        .progress_chars("=> "),
     );
     let opts = ScanOptions {
         out_dir: out.clone(),
@@ -92,7 +102,12 @@ fn run_scan(config: PathBuf, out: PathBuf, calibration: Option<PathBuf>, quiet: 
         bar.set_position(p.frames.min(p.expected_frames));
         bar.set_message(format!("{} dropped", p.dropped));
     })
-    .with_context(|| format!("scan failed; the reason is kept in {}", out.join("scan.json").display()))?;
+    .with_context(|| {
+        format!(
+            "scan failed; the reason is kept in {}",
+            out.join("scan.json").display()
+        )
+    })?;
     bar.finish_and_clear();
     println!(
         "scan complete: {} frames ({} dropped), {} points in {:.1} s",
@@ -110,6 +125,9 @@ fn run_scan(config: PathBuf, out: PathBuf, calibration: Option<PathBuf>, quiet: 
             s.name, s.input, s.output, s.dropped, s.mean_latency_ms, s.max_latency_ms
         );
     }
-    println!("wrote {}/{{points.ply, heightmap.png, scan.json, calibration.toml}}", out.display());
+    println!(
+        "wrote {}/{{points.ply, heightmap.png, scan.json, calibration.toml}}",
+        out.display()
+    );
     Ok(())
 }

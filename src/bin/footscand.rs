@@ -1,1 +1,3 @@
-fn main() { println!("footscand {}", env!("CARGO_PKG_VERSION")); }
+fn main() {
+    println!("footscand {}", env!("CARGO_PKG_VERSION"));
+}

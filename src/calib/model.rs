@@ -266,7 +266,11 @@ pub(crate) mod tests {
             let [c, r] = m.project(sx, [x, y, z]).unwrap();
             let p = t.point(sx, c, r).unwrap();
             for k in 0..3 {
-                assert!((p[k] - [x, y, z][k]).abs() < 1e-9, "{p:?} vs {:?}", [x, y, z]);
+                assert!(
+                    (p[k] - [x, y, z][k]).abs() < 1e-9,
+                    "{p:?} vs {:?}",
+                    [x, y, z]
+                );
             }
         }
     }

@@ -96,7 +96,9 @@ mod tests {
         (0..w)
             .map(|i| {
                 let d = i as f64 - c0;
-                (bg + peak * (-d * d / (2.0 * sigma * sigma)).exp()).round().min(255.0) as u8
+                (bg + peak * (-d * d / (2.0 * sigma * sigma)).exp())
+                    .round()
+                    .min(255.0) as u8
             })
             .collect()
     }

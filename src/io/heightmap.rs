@@ -28,7 +28,8 @@ const FG: Rgb<u8> = Rgb([230, 230, 230]);
 pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
     assert!(cell_mm > 0.0);
     let finite = points.iter().filter(|p| p.iter().all(|v| v.is_finite()));
-    let (mut x0, mut x1, mut y0, mut y1, mut zmax) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN, 0.0f64);
+    let (mut x0, mut x1, mut y0, mut y1, mut zmax) =
+        (f64::MAX, f64::MIN, f64::MAX, f64::MIN, 0.0f64);
     let mut any = false;
     for p in finite.clone() {
         any = true;
@@ -51,6 +52,7 @@ pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
         sum[j * w + i] += p[2];
         n[j * w + i] += 1;
     }
+    fill_single_gaps(&mut sum, &mut n, w, h);
     // A round top of scale so the legend reads well.
     let step = nice_step(zmax.max(1.0) / 5.0);
     let max_mm = (zmax.max(1.0) / step).ceil() * step;
@@ -68,7 +70,11 @@ pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
             if n[k] > 0 {
                 filled += 1;
                 let z = sum[k] / n[k] as f64;
-                image.put_pixel(margin + i as u32, margin + title_h + j as u32, colour(z / max_mm));
+                image.put_pixel(
+                    margin + i as u32,
+                    margin + title_h + j as u32,
+                    colour(z / max_mm),
+                );
             }
         }
     }
@@ -98,13 +104,42 @@ pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
         for u in 16..20 {
             image.put_pixel(bx + u, y, FG);
         }
-        draw_text(&mut image, bx + 23, y.saturating_sub(3), &format_tick(v, step));
+        draw_text(
+            &mut image,
+            bx + 23,
+            y.saturating_sub(3),
+            &format_tick(v, step),
+        );
     }
     draw_text(&mut image, bx, by + bh + 2, "mm");
     HeightMapImage {
         image,
         max_mm,
         filled_cells: filled,
+    }
+}
+
+/// Cells as wide as the frame spacing alias into empty stripes; fill an empty cell whose two
+/// neighbours along x (or else along y) are filled with their mean. Wider gaps stay empty.
+fn fill_single_gaps(sum: &mut [f64], n: &mut [u32], w: usize, h: usize) {
+    let mean = |k: usize, sum: &[f64], n: &[u32]| sum[k] / n[k] as f64;
+    let mut fills = Vec::new();
+    for j in 0..h {
+        for i in 0..w {
+            let k = j * w + i;
+            if n[k] > 0 {
+                continue;
+            }
+            if i > 0 && i + 1 < w && n[k - 1] > 0 && n[k + 1] > 0 {
+                fills.push((k, 0.5 * (mean(k - 1, sum, n) + mean(k + 1, sum, n))));
+            } else if j > 0 && j + 1 < h && n[k - w] > 0 && n[k + w] > 0 {
+                fills.push((k, 0.5 * (mean(k - w, sum, n) + mean(k + w, sum, n))));
+            }
+        }
+    }
+    for (k, z) in fills {
+        sum[k] = z;
+        n[k] = 1;
     }
 }
 
@@ -173,6 +208,19 @@ mod tests {
             .collect();
         let hm = render_heightmap(&pts, 1.0);
         assert_eq!(hm.filled_cells, 100 * 40);
+        // Every other column missing: filled; a two-cell gap is left.
+        let sparse: Vec<[f64; 3]> = pts
+            .iter()
+            .filter(|p| p[0] as i32 % 2 == 0 || p[0] > 90.0)
+            .copied()
+            .collect();
+        assert_eq!(render_heightmap(&sparse, 1.0).filled_cells, 100 * 40);
+        let gap: Vec<[f64; 3]> = pts
+            .iter()
+            .filter(|p| p[0] != 50.0 && p[0] != 51.0)
+            .copied()
+            .collect();
+        assert_eq!(render_heightmap(&gap, 1.0).filled_cells, 98 * 40);
         assert!(hm.max_mm >= 12.87 && hm.max_mm <= 15.0, "{}", hm.max_mm);
         // Highest cell is yellow-ish, lowest dark.
         let hi = hm.image.get_pixel(12 + 99, 12 + 20);

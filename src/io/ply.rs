@@ -1,4 +1,3 @@
-use std::io::Write;
 use std::path::Path;
 
 /// Write a binary little-endian PLY point cloud (x, y, z in mm as float, plus a per-point

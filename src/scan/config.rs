@@ -164,7 +164,11 @@ impl LoadedConfig {
         let c = &self.config.camera;
         let at = |key: &str| self.locate(&["scan", key]).unwrap_or_default();
         if !(s.step_mm > 0.0 && s.step_mm.is_finite()) {
-            return Err(format!("scan.step_mm = {}{}: must be > 0", s.step_mm, at("step_mm")));
+            return Err(format!(
+                "scan.step_mm = {}{}: must be > 0",
+                s.step_mm,
+                at("step_mm")
+            ));
         }
         if s.end_mm <= s.start_mm {
             return Err(format!(

@@ -21,7 +21,11 @@ impl ScanGrid {
     }
 
     pub fn push(&mut self, fp: FramePoints) {
-        assert_eq!(fp.points.len(), self.rows, "frame with a different row count");
+        assert_eq!(
+            fp.points.len(),
+            self.rows,
+            "frame with a different row count"
+        );
         self.frames.push(fp.meta);
         self.lines.extend_from_slice(&fp.lines);
         self.points.extend_from_slice(&fp.points);

@@ -1,6 +1,8 @@
 //! The scan stages by name, with their parameters.
 
-use super::stages::{Accumulate, Acquire, Detect, HeightMapSink, PlySink, SummarySink, Triangulate};
+use super::stages::{
+    Accumulate, Acquire, Detect, HeightMapSink, PlySink, SummarySink, Triangulate,
+};
 use super::{item::Item, Devices, ScanCounters, ScanPlan, TruthSource};
 use crate::calib::Calibration;
 use crate::detect::CogDetector;
@@ -94,7 +96,9 @@ pub fn registry() -> Registry<Item, ScanContext> {
         |p, _ctx: &ScanContext| {
             let p: CogParams = params(p)?;
             if !(p.threshold > 0.0 && p.threshold < 255.0) {
-                return Err(format!("threshold = {}: valid range is (0, 255) DN", p.threshold).into());
+                return Err(
+                    format!("threshold = {}: valid range is (0, 255) DN", p.threshold).into(),
+                );
             }
             Ok(Node::stage(Detect::new(
                 "detect.cog",

@@ -1,7 +1,7 @@
 //! The simulator backend: the GRBL emulator on a pseudo-terminal reached through the real
 //! serial driver, and the simulated camera rendering the foot at the head's true position.
 
-use super::config::{SceneKind, ScanConfig};
+use super::config::{ScanConfig, SceneKind};
 use super::{Devices, TruthSource};
 use crate::calib::{Calibration, CameraModel};
 use footscan_grbl::{GrblConfig, GrblSlider};
@@ -22,11 +22,16 @@ pub struct SimBackend {
 }
 
 /// Start the emulator, connect the GRBL driver to its pty, home, and build the camera.
-pub fn open(cfg: &ScanConfig) -> Result<(Devices, SimBackend), Box<dyn std::error::Error + Send + Sync>> {
+pub fn open(
+    cfg: &ScanConfig,
+) -> Result<(Devices, SimBackend), Box<dyn std::error::Error + Send + Sync>> {
     let sim = &cfg.sim;
     let emulator = GrblEmulator::spawn(sim.slider.clone())
         .map_err(|e| format!("starting the GRBL emulator: {e}"))?;
-    let mut slider = GrblSlider::new(emulator.port_path().to_string_lossy(), GrblConfig::default());
+    let mut slider = GrblSlider::new(
+        emulator.port_path().to_string_lossy(),
+        GrblConfig::default(),
+    );
     slider.connect()?;
     if cfg.scan.home {
         slider.home(Duration::from_secs(30))?;
@@ -45,7 +50,12 @@ pub fn open(cfg: &ScanConfig) -> Result<(Devices, SimBackend), Box<dyn std::erro
         ),
     };
     let renderer = Renderer::new(sim.optics.clone(), sim.noise.clone(), scene, sim.seed)?;
-    let mut camera = SimCamera::new(renderer, cfg.camera.fps, emulator.position_source(), sim.seed);
+    let mut camera = SimCamera::new(
+        renderer,
+        cfg.camera.fps,
+        emulator.position_source(),
+        sim.seed,
+    )?;
     camera.set_exposure_us(cfg.camera.exposure_us)?;
     camera.set_gain(cfg.camera.gain)?;
     let truth_log = camera.truth_log();
@@ -90,11 +100,17 @@ pub fn true_calibration(cfg: &ScanConfig) -> Calibration {
 }
 
 impl TruthSource for TruthLog {
-    fn point(&self, seq: u64, row: usize) -> Option<Option<[f64; 3]>> {
-        self.with(seq, |t| match t.rows.get(row) {
-            Some(RowTruth::Line { point, .. }) => Some(point),
-            _ => None,
-        })
+    fn frame(&self, seq: u64) -> Option<Vec<Option<[f64; 3]>>> {
+        let t = self.get(seq)?;
+        Some(
+            t.rows
+                .iter()
+                .map(|r| match r {
+                    RowTruth::Line { point, .. } => Some(*point),
+                    RowTruth::NoLine => None,
+                })
+                .collect(),
+        )
     }
 }
 

@@ -4,10 +4,11 @@
 use super::ScanGrid;
 use serde::Serialize;
 
-/// Ground truth per (camera sequence number, row), from a simulator.
+/// Ground truth per frame (camera sequence number), from a simulator.
 pub trait TruthSource: Send + Sync {
-    /// `None`: no truth recorded for that frame; `Some(None)`: the row truly has no line.
-    fn point(&self, seq: u64, row: usize) -> Option<Option<[f64; 3]>>;
+    /// The true surface point of every row (`None` where the row truly has no line), or
+    /// `None` if no truth was recorded for that frame.
+    fn frame(&self, seq: u64) -> Option<Vec<Option<[f64; 3]>>>;
 }
 
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
@@ -85,14 +86,16 @@ fn compare(grid: &ScanGrid, truth: &dyn TruthSource) -> TruthStats {
     let (mut sum2, mut hsum2) = (0.0, 0.0);
     let mut s = TruthStats::default();
     for (i, meta) in grid.frames.iter().enumerate() {
-        for row in 0..grid.rows {
+        let Some(rows) = truth.frame(meta.seq) else {
+            continue;
+        };
+        for (row, t) in rows.iter().enumerate().take(grid.rows) {
             let p = grid.point(i, row);
-            match (truth.point(meta.seq, row), p[0].is_finite()) {
-                (None, _) => {}
-                (Some(None), true) => s.spurious_points += 1,
-                (Some(None), false) => {}
-                (Some(Some(_)), false) => s.missed_rows += 1,
-                (Some(Some(t)), true) => {
+            match (t, p[0].is_finite()) {
+                (None, true) => s.spurious_points += 1,
+                (None, false) => {}
+                (Some(_), false) => s.missed_rows += 1,
+                (Some(t), true) => {
                     let d2: f64 = (0..3).map(|k| (p[k] - t[k]).powi(2)).sum();
                     sum2 += d2;
                     hsum2 += (p[2] - t[2]).powi(2);
@@ -113,6 +116,35 @@ fn compare(grid: &ScanGrid, truth: &dyn TruthSource) -> TruthStats {
     s
 }
 
+impl ScanSummary {
+    fn empty(status: &str) -> Self {
+        ScanSummary {
+            status: status.into(),
+            reason: None,
+            frames: 0,
+            dropped_frames: 0,
+            stationary_frames: 0,
+            points: 0,
+            seconds: 0.0,
+            x_range_mm: [f64::NAN; 2],
+            stages: Vec::new(),
+            truth: None,
+        }
+    }
+
+    /// A scan that ended without a grid (cancelled before any frame, or no summary stage).
+    pub fn without_grid(cancelled: bool) -> Self {
+        Self::empty(if cancelled { "cancelled" } else { "complete" })
+    }
+
+    pub fn failed(reason: &str) -> Self {
+        ScanSummary {
+            reason: Some(reason.to_string()),
+            ..Self::empty("failed")
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -122,8 +154,12 @@ mod tests {
 
     struct Flat;
     impl TruthSource for Flat {
-        fn point(&self, seq: u64, row: usize) -> Option<Option<[f64; 3]>> {
-            (seq < 2).then_some((row < 2).then_some([seq as f64, row as f64, 0.0]))
+        fn frame(&self, seq: u64) -> Option<Vec<Option<[f64; 3]>>> {
+            (seq < 2).then(|| {
+                (0..3)
+                    .map(|row| (row < 2).then_some([seq as f64, row as f64, 0.0]))
+                    .collect()
+            })
         }
     }
 
@@ -155,34 +191,5 @@ mod tests {
         assert!((t.rms_mm - 0.3).abs() < 1e-12 && (t.max_mm - 0.3).abs() < 1e-12);
         assert_eq!(s.points, 6);
         assert_eq!(s.x_range_mm, [0.0, 2.0]);
-    }
-}
-
-impl ScanSummary {
-    fn empty(status: &str) -> Self {
-        ScanSummary {
-            status: status.into(),
-            reason: None,
-            frames: 0,
-            dropped_frames: 0,
-            stationary_frames: 0,
-            points: 0,
-            seconds: 0.0,
-            x_range_mm: [f64::NAN; 2],
-            stages: Vec::new(),
-            truth: None,
-        }
-    }
-
-    /// A scan that ended without a grid (cancelled before any frame, or no summary stage).
-    pub fn without_grid(cancelled: bool) -> Self {
-        Self::empty(if cancelled { "cancelled" } else { "complete" })
-    }
-
-    pub fn failed(reason: &str) -> Self {
-        ScanSummary {
-            reason: Some(reason.to_string()),
-            ..Self::empty("failed")
-        }
     }
 }

@@ -34,7 +34,10 @@ impl SliderState {
     }
 
     pub fn is_moving(self) -> bool {
-        matches!(self, SliderState::Run | SliderState::Jog | SliderState::Home)
+        matches!(
+            self,
+            SliderState::Run | SliderState::Jog | SliderState::Home
+        )
     }
 }
 

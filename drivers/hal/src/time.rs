@@ -5,7 +5,9 @@ use std::time::Duration;
 ///
 /// `std::time::Instant` is monotonic too but opaque; V4L2 buffer timestamps arrive as raw
 /// `CLOCK_MONOTONIC` values, so the whole system shares this plain representation.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize,
+)]
 pub struct Timestamp {
     pub nanos: u64,
 }
@@ -49,7 +51,6 @@ impl Timestamp {
     pub fn secs_after(self, other: Timestamp) -> f64 {
         (self.nanos as i128 - other.nanos as i128) as f64 * 1e-9
     }
-
 
     /// Sleep until this instant (returns at once if it has passed).
     pub fn sleep_until(self) {

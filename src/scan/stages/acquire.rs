@@ -137,7 +137,9 @@ impl Source<Item> for Acquire {
         let result = std::thread::scope(|s| {
             let poller = std::thread::Builder::new()
                 .name("slider-poll".into())
-                .spawn_scoped(s, || poll_slider(slider.as_mut(), plan.poll_period, &abort, tx))
+                .spawn_scoped(s, || {
+                    poll_slider(slider.as_mut(), plan.poll_period, &abort, tx)
+                })
                 .expect("spawn slider poller");
             let r = self.frames(camera.as_mut(), &rx, before, out, &plan);
             if r.is_err() || out.is_cancelled() {
@@ -211,7 +213,10 @@ impl Acquire {
             };
             index += 1;
             self.counters.add_frame();
-            if out.emit(Item::Frame(AcquiredFrame { meta, frame })).is_err() {
+            if out
+                .emit(Item::Frame(AcquiredFrame { meta, frame }))
+                .is_err()
+            {
                 break;
             }
         }
