@@ -43,10 +43,7 @@ fn unknown_stage_parameter_names_key_line_and_column() {
     let cfg =
         LoadedConfig::parse(Path::new("sim.toml"), text).expect("parses: params are per stage");
     let dir = tempfile::tempdir().unwrap();
-    let opts = ScanOptions {
-        out_dir: dir.path().to_owned(),
-        calibration: None,
-    };
+    let opts = ScanOptions::new(dir.path());
     let e = run_scan(&cfg, &opts, |_| {}).unwrap_err().to_string();
     assert!(e.contains("treshold") && e.contains("detect.cog"), "{e}");
     assert!(e.contains(&format!("line {line}, column 1")), "{e}");
@@ -64,10 +61,7 @@ fn unknown_stage_name_lists_valid_ones() {
     let line = line_of(&text, "detect.magic");
     let cfg = LoadedConfig::parse(Path::new("sim.toml"), text).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let opts = ScanOptions {
-        out_dir: dir.path().to_owned(),
-        calibration: None,
-    };
+    let opts = ScanOptions::new(dir.path());
     let e = run_scan(&cfg, &opts, |_| {}).unwrap_err().to_string();
     assert!(
         e.contains("detect.magic") && e.contains("detect.cog"),

@@ -12,10 +12,7 @@ fn sim_config() -> LoadedConfig {
 fn simulated_scan_meets_accuracy_bound() {
     let cfg = sim_config();
     let dir = tempfile::tempdir().unwrap();
-    let opts = ScanOptions {
-        out_dir: dir.path().to_owned(),
-        calibration: None,
-    };
+    let opts = ScanOptions::new(dir.path());
     let s = run_scan(&cfg, &opts, |_| {}).expect("scan runs");
     assert_eq!(s.status, "complete");
     // The nominal step gives 641 frames over 0..320 mm; allow for drops on a loaded machine.

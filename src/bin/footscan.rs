@@ -45,7 +45,28 @@ enum Command {
     Stages,
 }
 
-fn main() -> Result<()> {
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            // Library errors often repeat their cause in their own message; print each once.
+            let mut msg = String::new();
+            for cause in e.chain().map(|c| c.to_string()) {
+                if !msg.contains(&cause) {
+                    msg = if msg.is_empty() {
+                        cause
+                    } else {
+                        format!("{msg}: {cause}")
+                    };
+                }
+            }
+            eprintln!("error: {msg}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> Result<()> {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
@@ -93,10 +114,18 @@ fn run_scan(
         .expect("progress template")
         .progress_chars("=> "),
     );
-    let opts = ScanOptions {
-        out_dir: out.clone(),
-        calibration,
-    };
+    let mut opts = ScanOptions::new(&out);
+    opts.calibration = calibration;
+    let cancel = opts.cancel.clone();
+    // First Ctrl-C stops the slider and ends the scan cleanly; a second one exits at once.
+    ctrlc::set_handler(move || {
+        if cancel.is_cancelled() {
+            std::process::exit(130);
+        }
+        eprintln!("\ncancelling the scan (Ctrl-C again to quit at once)");
+        cancel.cancel();
+    })
+    .context("installing the Ctrl-C handler")?;
     let summary = scan::run_scan(&cfg, &opts, |p| {
         bar.set_length(p.expected_frames);
         bar.set_position(p.frames.min(p.expected_frames));
@@ -104,11 +133,21 @@ fn run_scan(
     })
     .with_context(|| {
         format!(
-            "scan failed; the reason is kept in {}",
+            "scan failed (the reason is kept in {})",
             out.join("scan.json").display()
         )
     })?;
     bar.finish_and_clear();
+    if summary.status != "complete" {
+        println!(
+            "scan {}: {} ({} frames; kept in {})",
+            summary.status,
+            summary.reason.as_deref().unwrap_or(""),
+            summary.frames,
+            out.join("scan.json").display()
+        );
+        return Ok(());
+    }
     println!(
         "scan complete: {} frames ({} dropped), {} points in {:.1} s",
         summary.frames, summary.dropped_frames, summary.points, summary.seconds

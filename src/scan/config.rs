@@ -92,6 +92,23 @@ pub struct SimSection {
     pub noise: footscan_sim::render::NoiseConfig,
     pub foot: footscan_sim::foot::FootParams,
     pub slider: footscan_sim::grbl::EmulatorConfig,
+    pub faults: SimFaults,
+}
+
+/// Faults injected into a simulated scan, in seconds after the scanner is opened (for tests
+/// and for rehearsing how an operator sees a failing scan).
+#[derive(Clone, Debug, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimFaults {
+    /// The controller raises ALARM:`slider_alarm_code`.
+    pub slider_alarm_after_s: Option<f64>,
+    pub slider_alarm_code: Option<u8>,
+    /// The controller stops answering.
+    pub slider_silent_after_s: Option<f64>,
+    /// The serial line drops.
+    pub slider_disconnect_after_s: Option<f64>,
+    /// The camera cable is pulled.
+    pub camera_unplug_after_s: Option<f64>,
 }
 
 impl Default for SimSection {
@@ -104,6 +121,7 @@ impl Default for SimSection {
             noise: Default::default(),
             foot: Default::default(),
             slider: Default::default(),
+            faults: Default::default(),
         }
     }
 }

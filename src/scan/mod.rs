@@ -12,7 +12,7 @@ pub mod summary;
 pub use config::{LoadedConfig, ScanConfig};
 pub use grid::ScanGrid;
 pub use registry::{registry, ScanContext};
-pub use run::{run_scan, ScanError, ScanOptions, ScanProgress};
+pub use run::{run_scan, CancelToken, ScanError, ScanOptions, ScanProgress};
 pub use summary::{ScanSummary, TruthSource, TruthStats};
 
 use footscan_hal::{Camera, Slider};

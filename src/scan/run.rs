@@ -8,6 +8,7 @@ use super::{registry, sim, ScanContext, ScanCounters, ScanPlan};
 use crate::calib::Calibration;
 use crate::pipeline::{BuildError, PipelineError, StageStats};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -15,6 +16,32 @@ pub struct ScanOptions {
     pub out_dir: PathBuf,
     /// A calibration file; default for simulated scans: the simulator's true model.
     pub calibration: Option<PathBuf>,
+    /// Set from anywhere to stop the scan: the slider is stopped, nothing is written as
+    /// complete, and scan.json says "cancelled".
+    pub cancel: CancelToken,
+}
+
+impl ScanOptions {
+    pub fn new(out_dir: impl Into<PathBuf>) -> Self {
+        ScanOptions {
+            out_dir: out_dir.into(),
+            calibration: None,
+            cancel: CancelToken::default(),
+        }
+    }
+}
+
+/// A shareable "stop the scan" flag.
+#[derive(Clone, Debug, Default)]
+pub struct CancelToken(Arc<AtomicBool>);
+
+impl CancelToken {
+    pub fn cancel(&self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
+    pub fn is_cancelled(&self) -> bool {
+        self.0.load(Ordering::SeqCst)
+    }
 }
 
 /// Progress as the scan runs.
@@ -84,6 +111,9 @@ pub fn run_scan(
             .map_err(|e| ScanError::Config(describe_build_error(cfg, &e)))?;
         let running = pipeline.start();
         while !running.is_finished() {
+            if opts.cancel.is_cancelled() {
+                running.cancel();
+            }
             progress(&ScanProgress {
                 frames: counters.frames(),
                 expected_frames: plan.expected_frames(),
@@ -102,6 +132,10 @@ pub fn run_scan(
                 _ => None,
             })
             .unwrap_or_else(|| ScanSummary::without_grid(report.cancelled));
+        if report.cancelled {
+            summary.status = "cancelled".into();
+            summary.reason = Some("cancelled before the scan completed".into());
+        }
         summary.stages = report.stages.iter().map(stage_report).collect();
         Ok(summary)
     })();

@@ -1,14 +1,14 @@
 //! The simulator backend: the GRBL emulator on a pseudo-terminal reached through the real
 //! serial driver, and the simulated camera rendering the foot at the head's true position.
 
-use super::config::{ScanConfig, SceneKind};
+use super::config::{ScanConfig, SceneKind, SimFaults};
 use super::{Devices, TruthSource};
 use crate::calib::{Calibration, CameraModel};
 use footscan_grbl::{GrblConfig, GrblSlider};
 use footscan_hal::{Camera, Slider};
-use footscan_sim::camera::{SimCamera, TruthLog};
+use footscan_sim::camera::{CameraFaults, SimCamera, TruthLog};
 use footscan_sim::foot::Foot;
-use footscan_sim::grbl::GrblEmulator;
+use footscan_sim::grbl::{Fault, GrblEmulator};
 use footscan_sim::optics::Optics;
 use footscan_sim::render::{Renderer, RowTruth, Scene};
 use std::sync::Arc;
@@ -16,9 +16,55 @@ use std::time::Duration;
 
 /// Keeps the emulator alive for the scan and holds the simulator's ground truth.
 pub struct SimBackend {
-    pub emulator: GrblEmulator,
+    pub emulator: Arc<GrblEmulator>,
     pub truth_log: TruthLog,
     pub foot: Option<Foot>,
+    /// Dropping it ends the fault timer.
+    _faults: Option<crossbeam_channel::Sender<()>>,
+}
+
+/// Inject the configured faults on a timer that ends when the backend is dropped.
+fn schedule_faults(
+    f: &SimFaults,
+    emulator: &Arc<GrblEmulator>,
+    camera: CameraFaults,
+) -> Option<crossbeam_channel::Sender<()>> {
+    let mut plan: Vec<(f64, Box<dyn FnOnce() + Send>)> = Vec::new();
+    if let Some(t) = f.slider_alarm_after_s {
+        let (e, code) = (emulator.clone(), f.slider_alarm_code.unwrap_or(1));
+        plan.push((t, Box::new(move || e.inject(Fault::Alarm(code)))));
+    }
+    if let Some(t) = f.slider_silent_after_s {
+        let e = emulator.clone();
+        plan.push((t, Box::new(move || e.inject(Fault::Silence(true)))));
+    }
+    if let Some(t) = f.slider_disconnect_after_s {
+        let e = emulator.clone();
+        plan.push((t, Box::new(move || e.inject(Fault::Disconnect))));
+    }
+    if let Some(t) = f.camera_unplug_after_s {
+        plan.push((t, Box::new(move || camera.unplug())));
+    }
+    if plan.is_empty() {
+        return None;
+    }
+    plan.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (tx, rx) = crossbeam_channel::bounded::<()>(0);
+    let start = std::time::Instant::now();
+    std::thread::Builder::new()
+        .name("sim-faults".into())
+        .spawn(move || {
+            for (t, inject) in plan {
+                let wait = Duration::from_secs_f64(t.max(0.0)).saturating_sub(start.elapsed());
+                if rx.recv_timeout(wait) != Err(crossbeam_channel::RecvTimeoutError::Timeout) {
+                    return; // backend dropped: the scan is over
+                }
+                tracing::info!(after_s = t, "injecting simulated fault");
+                inject();
+            }
+        })
+        .expect("spawn fault timer");
+    Some(tx)
 }
 
 /// Start the emulator, connect the GRBL driver to its pty, home, and build the camera.
@@ -26,8 +72,10 @@ pub fn open(
     cfg: &ScanConfig,
 ) -> Result<(Devices, SimBackend), Box<dyn std::error::Error + Send + Sync>> {
     let sim = &cfg.sim;
-    let emulator = GrblEmulator::spawn(sim.slider.clone())
-        .map_err(|e| format!("starting the GRBL emulator: {e}"))?;
+    let emulator = Arc::new(
+        GrblEmulator::spawn(sim.slider.clone())
+            .map_err(|e| format!("starting the GRBL emulator: {e}"))?,
+    );
     let mut slider = GrblSlider::new(
         emulator.port_path().to_string_lossy(),
         GrblConfig::default(),
@@ -59,6 +107,7 @@ pub fn open(
     camera.set_exposure_us(cfg.camera.exposure_us)?;
     camera.set_gain(cfg.camera.gain)?;
     let truth_log = camera.truth_log();
+    let faults = schedule_faults(&sim.faults, &emulator, camera.faults());
     Ok((
         Devices {
             camera: Box::new(camera),
@@ -68,6 +117,7 @@ pub fn open(
             emulator,
             truth_log,
             foot,
+            _faults: faults,
         },
     ))
 }

@@ -56,11 +56,17 @@ fn poll_slider(
             Ok(st) => {
                 let _ = tx.send(Poll::Status(st));
                 if st.state == SliderState::Alarm {
-                    let _ = tx.send(Poll::Failed(HalError::Alarm {
-                        device: "slider".into(),
-                        code: 0,
-                        message: "controller entered the alarm state during the scan move".into(),
-                    }));
+                    // The driver knows which alarm it was; wait_idle reports it.
+                    let e = match slider.wait_idle(Duration::from_millis(50)) {
+                        Err(e @ HalError::Alarm { .. }) => e,
+                        _ => HalError::Alarm {
+                            device: "slider".into(),
+                            code: 0,
+                            message: "controller entered the alarm state during the scan move"
+                                .into(),
+                        },
+                    };
+                    let _ = tx.send(Poll::Failed(e));
                     return;
                 }
                 moved |= st.state.is_moving();
