@@ -5,8 +5,10 @@
 //! Bezier detector of SPEC section 4 and the other baselines plug in beside it.
 
 mod cog;
+mod stages;
 
 pub use cog::CogDetector;
+pub use stages::register_stages;
 
 use footscan_hal::Frame;
 use serde::Serialize;

@@ -11,7 +11,7 @@ pub mod summary;
 
 pub use config::{LoadedConfig, ScanConfig};
 pub use grid::ScanGrid;
-pub use registry::{registry, ScanContext};
+pub use registry::{params, registry, ScanContext};
 pub use run::{run_scan, CancelToken, ScanError, ScanOptions, ScanProgress};
 pub use summary::{ScanSummary, TruthSource, TruthStats};
 

@@ -1,11 +1,10 @@
 //! The scan stages by name, with their parameters.
 
 use super::stages::{
-    Accumulate, Acquire, Detect, HeightMapSink, PlySink, SummarySink, Triangulate,
+    Accumulate, Acquire, GridSink, HeightMapSink, PlySink, SummarySink, Triangulate,
 };
 use super::{item::Item, Devices, ScanCounters, ScanPlan, TruthSource};
 use crate::calib::Calibration;
-use crate::detect::CogDetector;
 use crate::pipeline::{BoxError, Node, Registry};
 use serde::de::DeserializeOwned;
 use serde::Deserialize;
@@ -22,23 +21,15 @@ pub struct ScanContext {
     pub counters: Arc<ScanCounters>,
 }
 
-fn params<P: DeserializeOwned>(t: &toml::Table) -> Result<P, BoxError> {
+/// A stage's parameters as its typed, `deny_unknown_fields` struct; serde's message names the
+/// offending key, which the config layer turns into a line and column.
+pub fn params<P: DeserializeOwned>(t: &toml::Table) -> Result<P, BoxError> {
     P::deserialize(toml::Value::Table(t.clone())).map_err(|e| e.message().trim().to_string().into())
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct NoParams {}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct CogParams {
-    #[serde(default = "default_threshold")]
-    threshold: f32,
-}
-fn default_threshold() -> f32 {
-    30.0
-}
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -49,7 +40,7 @@ struct TriangulateParams {
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-struct PlyParams {
+struct FileParams {
     file: Option<String>,
 }
 
@@ -90,22 +81,7 @@ pub fn registry() -> Registry<Item, ScanContext> {
             )))
         },
     );
-    r.register(
-        "detect.cog",
-        "laser line per row by thresholded centre of gravity (threshold, DN)",
-        |p, _ctx: &ScanContext| {
-            let p: CogParams = params(p)?;
-            if !(p.threshold > 0.0 && p.threshold < 255.0) {
-                return Err(
-                    format!("threshold = {}: valid range is (0, 255) DN", p.threshold).into(),
-                );
-            }
-            Ok(Node::stage(Detect::new(
-                "detect.cog",
-                Box::new(CogDetector::new(p.threshold)),
-            )))
-        },
-    );
+    crate::detect::register_stages(&mut r);
     r.register(
         "triangulate",
         "3D point per row from the calibration (calibration = file, optional)",
@@ -132,7 +108,7 @@ pub fn registry() -> Registry<Item, ScanContext> {
         "sink.ply",
         "writes the point cloud as binary PLY (file, default points.ply)",
         |p, ctx: &ScanContext| {
-            let p: PlyParams = params(p)?;
+            let p: FileParams = params(p)?;
             Ok(Node::stage(PlySink {
                 path: file_in(ctx, p.file, "points.ply")?,
             }))
@@ -150,6 +126,16 @@ pub fn registry() -> Registry<Item, ScanContext> {
             Ok(Node::stage(HeightMapSink {
                 path: file_in(ctx, p.file, "heightmap.png")?,
                 cell_mm,
+            }))
+        },
+    );
+    r.register(
+        "sink.grid",
+        "saves the scan grid as grid.bin for later model and measure runs (file)",
+        |p, ctx: &ScanContext| {
+            let p: FileParams = params(p)?;
+            Ok(Node::stage(GridSink {
+                path: file_in(ctx, p.file, "grid.bin")?,
             }))
         },
     );

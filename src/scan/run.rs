@@ -94,6 +94,12 @@ pub fn run_scan(
             Some(p) => Calibration::load(p).map_err(|e| ScanError::Setup(e.to_string()))?,
             None => sim::true_calibration(&cfg.config),
         };
+        if let Some(foot) = &backend.foot {
+            let path = opts.out_dir.join("truth.json");
+            let json = serde_json::to_vec_pretty(&foot.truth()).expect("truth serialises");
+            crate::io::write_atomic(&path, &json)
+                .map_err(|source| ScanError::Write { path, source })?;
+        }
         let cal_path = opts.out_dir.join("calibration.toml");
         calibration
             .save(&cal_path)

@@ -6,4 +6,4 @@ mod sinks;
 
 pub use acquire::Acquire;
 pub use process::{Accumulate, Detect, Triangulate};
-pub use sinks::{HeightMapSink, PlySink, SummarySink};
+pub use sinks::{GridSink, HeightMapSink, PlySink, SummarySink};

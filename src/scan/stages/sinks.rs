@@ -1,8 +1,9 @@
-//! Sinks: files written from the finished scan grid. Each passes the grid on so sinks chain.
+//! Sinks: files written from the finished scan grid. Each passes on every item (the grid and
+//! whatever it does not handle) so sinks and model stages chain in any order after accumulate.
 
 use crate::io::{render_heightmap, write_ply_points};
 use crate::pipeline::{BoxError, Emitter, Stage};
-use crate::scan::item::{unexpected, Item};
+use crate::scan::item::Item;
 use crate::scan::summary::{summarize, TruthSource};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -14,7 +15,8 @@ pub struct PlySink {
 impl Stage<Item> for PlySink {
     fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
         let Item::Grid(grid) = &item else {
-            return Err(unexpected("sink.ply", &item, "the scan grid"));
+            let _ = out.emit(item);
+            return Ok(());
         };
         let (pts, q): (Vec<[f64; 3]>, Vec<f32>) =
             grid.valid().map(|(_, _, p, l)| (*p, l.quality)).unzip();
@@ -33,7 +35,8 @@ pub struct HeightMapSink {
 impl Stage<Item> for HeightMapSink {
     fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
         let Item::Grid(grid) = &item else {
-            return Err(unexpected("sink.heightmap", &item, "the scan grid"));
+            let _ = out.emit(item);
+            return Ok(());
         };
         let pts: Vec<[f64; 3]> = grid.valid().map(|(_, _, p, _)| *p).collect();
         render_heightmap(&pts, self.cell_mm)
@@ -52,10 +55,28 @@ pub struct SummarySink {
 impl Stage<Item> for SummarySink {
     fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
         let Item::Grid(grid) = &item else {
-            return Err(unexpected("sink.summary", &item, "the scan grid"));
+            let _ = out.emit(item);
+            return Ok(());
         };
         let summary = summarize(grid, self.truth.as_deref());
+        let _ = out.emit(item);
         let _ = out.emit(Item::Summary(Box::new(summary)));
+        Ok(())
+    }
+}
+
+/// Saves the grid as grid.bin so `footscan model` and `footscan measure` can reuse a scan.
+pub struct GridSink {
+    pub path: PathBuf,
+}
+
+impl Stage<Item> for GridSink {
+    fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        if let Item::Grid(grid) = &item {
+            grid.save(&self.path)
+                .map_err(|e| format!("writing {}: {e}", self.path.display()))?;
+        }
+        let _ = out.emit(item);
         Ok(())
     }
 }

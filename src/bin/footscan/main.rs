@@ -1,0 +1,101 @@
+//! The footscan command line: a thin shell over the library. One file per command.
+
+mod bench;
+mod scan;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+use footscan::scan::{self as fscan, LoadedConfig};
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "footscan",
+    version,
+    about = "Laser-line foot scanner and last-design toolkit"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a scan and write points.ply, heightmap.png, scan.json and calibration.toml to --out.
+    Scan {
+        /// Scanner configuration (see config/sim.toml).
+        #[arg(long, default_value = "config/sim.toml")]
+        config: PathBuf,
+        /// Scan directory to create or overwrite.
+        #[arg(long)]
+        out: PathBuf,
+        /// Calibration TOML (default for the simulator: its true model).
+        #[arg(long)]
+        calibration: Option<PathBuf>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Write the simulated scanner's true calibration as a calibration TOML.
+    SimCalibration {
+        #[arg(long, default_value = "config/sim.toml")]
+        config: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// List the pipeline stages a config may name.
+    Stages,
+    /// Measure speed and accuracy (see `footscan bench --help`).
+    Bench(bench::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            // Library errors often repeat their cause in their own message; print each once.
+            let mut msg = String::new();
+            for cause in e.chain().map(|c| c.to_string()) {
+                if !msg.contains(&cause) {
+                    msg = if msg.is_empty() {
+                        cause
+                    } else {
+                        format!("{msg}: {cause}")
+                    };
+                }
+            }
+            eprintln!("error: {msg}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    match Cli::parse().command {
+        Command::Scan {
+            config,
+            out,
+            calibration,
+            quiet,
+        } => scan::run(config, out, calibration, quiet),
+        Command::SimCalibration { config, out } => {
+            let cfg = LoadedConfig::load(&config)?;
+            fscan::sim::true_calibration(&cfg.config).save(&out)?;
+            println!("wrote {}", out.display());
+            Ok(())
+        }
+        Command::Stages => {
+            for (name, desc) in fscan::registry().entries() {
+                println!("{name:16} {desc}");
+            }
+            Ok(())
+        }
+        Command::Bench(args) => bench::run(args),
+    }
+}

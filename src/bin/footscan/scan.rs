@@ -1,0 +1,77 @@
+//! `footscan scan`: a scan with a progress bar and a printed summary.
+
+use anyhow::{Context, Result};
+use footscan::scan::{self, LoadedConfig, ScanOptions};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::PathBuf;
+
+pub fn run(config: PathBuf, out: PathBuf, calibration: Option<PathBuf>, quiet: bool) -> Result<()> {
+    let cfg = LoadedConfig::load(&config)?;
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(0)
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} scanning [{bar:40}] {pos}/{len} frames {msg} ({elapsed})",
+        )
+        .expect("progress template")
+        .progress_chars("=> "),
+    );
+    let mut opts = ScanOptions::new(&out);
+    opts.calibration = calibration;
+    let cancel = opts.cancel.clone();
+    // First Ctrl-C stops the slider and ends the scan cleanly; a second one exits at once.
+    ctrlc::set_handler(move || {
+        if cancel.is_cancelled() {
+            std::process::exit(130);
+        }
+        eprintln!("\ncancelling the scan (Ctrl-C again to quit at once)");
+        cancel.cancel();
+    })
+    .context("installing the Ctrl-C handler")?;
+    let summary = scan::run_scan(&cfg, &opts, |p| {
+        bar.set_length(p.expected_frames);
+        bar.set_position(p.frames.min(p.expected_frames));
+        bar.set_message(format!("{} dropped", p.dropped));
+    })
+    .with_context(|| {
+        format!(
+            "scan failed (the reason is kept in {})",
+            out.join("scan.json").display()
+        )
+    })?;
+    bar.finish_and_clear();
+    if summary.status != "complete" {
+        println!(
+            "scan {}: {} ({} frames; kept in {})",
+            summary.status,
+            summary.reason.as_deref().unwrap_or(""),
+            summary.frames,
+            out.join("scan.json").display()
+        );
+        return Ok(());
+    }
+    println!(
+        "scan complete: {} frames ({} dropped), {} points in {:.1} s",
+        summary.frames, summary.dropped_frames, summary.points, summary.seconds
+    );
+    if let Some(t) = &summary.truth {
+        println!(
+            "against ground truth: 3D RMS {:.4} mm, max {:.4} mm, p99 {:.4} mm, height RMS {:.4} mm ({} points; {} missed rows, {} spurious)",
+            t.rms_mm, t.max_mm, t.p99_mm, t.height_rms_mm, t.compared, t.missed_rows, t.spurious_points
+        );
+    }
+    for s in &summary.stages {
+        println!(
+            "  stage {:16} in {:6} out {:6} dropped {:4} mean {:7.3} ms max {:7.3} ms",
+            s.name, s.input, s.output, s.dropped, s.mean_latency_ms, s.max_latency_ms
+        );
+    }
+    println!(
+        "wrote {}/{{points.ply, heightmap.png, scan.json, calibration.toml}}",
+        out.display()
+    );
+    Ok(())
+}
