@@ -7,7 +7,10 @@
 pub mod bench;
 pub mod calib;
 pub mod detect;
+pub mod geom;
 pub mod io;
+pub mod measure;
 pub mod pipeline;
 pub mod scan;
+pub mod surface;
 pub mod util;

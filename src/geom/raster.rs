@@ -1,0 +1,74 @@
+/// Heights on a regular (x, y) grid in world millimetres: what the plantar model evaluates to
+/// and what measurement works on. Cell (i, j) is centred at (x0 + i·cell, y0 + j·cell);
+/// NaN marks cells outside the footprint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeightMap {
+    pub x0: f64,
+    pub y0: f64,
+    pub cell_mm: f64,
+    pub nx: usize,
+    pub ny: usize,
+    /// Row-major by y: `z[j * nx + i]`.
+    pub z: Vec<f64>,
+}
+
+impl HeightMap {
+    pub fn new(x0: f64, y0: f64, cell_mm: f64, nx: usize, ny: usize) -> Self {
+        assert!(cell_mm > 0.0, "cell size must be positive");
+        HeightMap {
+            x0,
+            y0,
+            cell_mm,
+            nx,
+            ny,
+            z: vec![f64::NAN; nx * ny],
+        }
+    }
+
+    pub fn x(&self, i: usize) -> f64 {
+        self.x0 + i as f64 * self.cell_mm
+    }
+
+    pub fn y(&self, j: usize) -> f64 {
+        self.y0 + j as f64 * self.cell_mm
+    }
+
+    pub fn get(&self, i: usize, j: usize) -> f64 {
+        self.z[j * self.nx + i]
+    }
+
+    pub fn set(&mut self, i: usize, j: usize, z: f64) {
+        self.z[j * self.nx + i] = z;
+    }
+
+    /// Nearest cell of a world point, if inside the map.
+    pub fn cell_of(&self, x: f64, y: f64) -> Option<(usize, usize)> {
+        let i = ((x - self.x0) / self.cell_mm).round();
+        let j = ((y - self.y0) / self.cell_mm).round();
+        (i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny)
+            .then(|| (i as usize, j as usize))
+    }
+
+    /// Cells with a height.
+    pub fn valid_count(&self) -> usize {
+        self.z.iter().filter(|z| z.is_finite()).count()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cell_centres_and_lookup() {
+        let mut m = HeightMap::new(10.0, -5.0, 0.5, 4, 3);
+        assert_eq!(m.valid_count(), 0);
+        m.set(3, 2, 1.5);
+        assert_eq!(m.get(3, 2), 1.5);
+        assert_eq!((m.x(3), m.y(2)), (11.5, -4.0));
+        assert_eq!(m.cell_of(11.6, -4.1), Some((3, 2)));
+        assert_eq!(m.cell_of(12.0, -4.0), None);
+        assert_eq!(m.cell_of(9.7, -5.0), None);
+        assert_eq!(m.valid_count(), 1);
+    }
+}

@@ -1,0 +1,1 @@
+//! Foot landmarks and measurements (SPEC section 8).
