@@ -10,6 +10,8 @@ pub enum Item {
     Lines(FrameLines),
     Points(FramePoints),
     Grid(Arc<ScanGrid>),
+    /// The plantar model built from the grid (stage `model.bezier`).
+    Model(Arc<crate::surface::BezierNetwork>),
     Summary(Box<super::summary::ScanSummary>),
 }
 
@@ -20,6 +22,7 @@ impl Item {
             Item::Lines(_) => "lines",
             Item::Points(_) => "points",
             Item::Grid(_) => "grid",
+            Item::Model(_) => "model",
             Item::Summary(_) => "summary",
         }
     }

@@ -1,2 +1,31 @@
 //! The plantar surface model (SPEC section 7): the Bezier network of seed 002 and the
 //! comparators of its Table 1.
+//!
+//! - [`BezierNetwork`]: segments of 4 x 4 grid points (stride 3) storing C_ij = W_ij P_ij for
+//!   x, y and z; it interpolates every grid point, evaluates at any (s, t), over a regular
+//!   (x, y) grid ([`BezierNetwork::eval_heightmap`]) and gives normals.
+//! - Continuity, honestly: every basis function has zero derivative at t = 0 and t = 1, so the
+//!   first derivative across a segment edge vanishes and the surface's tangent plane there is
+//!   set by second derivatives, which differ from side to side:
+//!   [`BezierNetwork::continuity`] measures the normal-angle jump.
+
+// Index loops read as the matrix algebra they implement.
+#![allow(clippy::needless_range_loop)]
+
+mod basis;
+mod grid;
+mod network;
+pub mod ops;
+
+pub use basis::{basis, basis_d1, basis_d2, interpolation_matrix};
+pub use grid::{PointGrid, Subsample};
+pub use network::{BezierNetwork, Continuity, Segment};
+
+/// Errors building a surface model.
+#[derive(Debug, thiserror::Error)]
+pub enum SurfaceError {
+    #[error("grid of {nu} x {nv} points: a surface model needs at least 2 x 2")]
+    GridTooSmall { nu: usize, nv: usize },
+    #[error("the grid has no valid point: nothing to model")]
+    Empty,
+}

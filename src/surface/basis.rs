@@ -1,0 +1,134 @@
+//! The network's basis (SPEC section 7) and the per-period interpolation matrices.
+//!
+//! b0 = (1 + 4t)(1 - t)^4, b1 = 10 t^2 (1 - t)^3, b2 = 10 t^3 (1 - t)^2, b3 = (5 - 4t) t^4:
+//! the quintic Bernstein basis with doubled end control points (b0 = B0 + B1, b3 = B4 + B5),
+//! so every b_i has zero derivative at t = 0 and t = 1.
+
+use super::ops::Scalar;
+
+/// b0..b3 at `t`, generic so the operation counter can run the same code.
+#[inline(always)]
+pub fn basis<T: Scalar>(t: T) -> [T; 4] {
+    let one = T::from_f64(1.0);
+    let s = one - t;
+    let t2 = t * t;
+    let s2 = s * s;
+    let ten = T::from_f64(10.0);
+    let four = T::from_f64(4.0);
+    [
+        (one + four * t) * (s2 * s2),
+        ten * t2 * (s2 * s),
+        ten * (t2 * t) * s2,
+        (T::from_f64(5.0) - four * t) * (t2 * t2),
+    ]
+}
+
+/// First derivatives b0'..b3' at `t`.
+#[inline]
+pub fn basis_d1(t: f64) -> [f64; 4] {
+    let s = 1.0 - t;
+    [
+        -20.0 * t * s * s * s,
+        10.0 * t * s * s * (2.0 - 5.0 * t),
+        10.0 * t * t * s * (3.0 - 5.0 * t),
+        20.0 * t * t * t * s,
+    ]
+}
+
+/// Second derivatives b0''..b3'' at `t`.
+#[inline]
+pub fn basis_d2(t: f64) -> [f64; 4] {
+    let s = 1.0 - t;
+    [
+        -20.0 * s * s * (1.0 - 4.0 * t),
+        10.0 * s * (2.0 - 16.0 * t + 20.0 * t * t),
+        10.0 * t * (6.0 - 24.0 * t + 20.0 * t * t),
+        20.0 * t * t * (3.0 - 4.0 * t),
+    ]
+}
+
+/// The 4 x (k + 1) matrix E_k taking the k + 1 grid points of a segment side with period k
+/// to its 4 coefficients, C = E_u P E_v^T.
+///
+/// - k = 3: E = M^-1 with M[a][b] = b_b(a/3), in exact rationals: the corners pass through,
+///   the inner pair solves the 2x2 system of eq. 6-7 (the 4x4 system of eq. 8 is its tensor
+///   product).
+/// - k = 2 (edge segment with 3 points): nodes at t = 0, 1/2, 1, corners pass through and the
+///   two inner coefficients are equal: C1 = C2 = (16 P1 - 3 P0 - 3 P2) / 10.
+/// - k = 1 (edge segment with 2 points): C1 = (3 P0 + 2 P1) / 5, C2 = (2 P0 + 3 P1) / 5, the
+///   coefficients a linear function would have if the ends were not doubled.
+pub fn interpolation_matrix(k: usize) -> &'static [[f64; 4]] {
+    const E3: [[f64; 4]; 4] = [
+        [1.0, 0.0, 0.0, 0.0],
+        [-71.0 / 40.0, 162.0 / 40.0, -81.0 / 40.0, 30.0 / 40.0],
+        [30.0 / 40.0, -81.0 / 40.0, 162.0 / 40.0, -71.0 / 40.0],
+        [0.0, 0.0, 0.0, 1.0],
+    ];
+    const E2: [[f64; 4]; 4] = [
+        [1.0, 0.0, 0.0, 0.0],
+        [-0.3, 1.6, -0.3, 0.0],
+        [-0.3, 1.6, -0.3, 0.0],
+        [0.0, 0.0, 1.0, 0.0],
+    ];
+    const E1: [[f64; 4]; 4] = [
+        [1.0, 0.0, 0.0, 0.0],
+        [0.6, 0.4, 0.0, 0.0],
+        [0.4, 0.6, 0.0, 0.0],
+        [0.0, 1.0, 0.0, 0.0],
+    ];
+    match k {
+        3 => &E3,
+        2 => &E2,
+        1 => &E1,
+        _ => panic!("segment period {k}: must be 1, 2 or 3"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn basis_is_a_partition_of_unity_with_flat_ends() {
+        for k in 0..=20 {
+            let t = k as f64 / 20.0;
+            let b = basis(t);
+            assert!((b.iter().sum::<f64>() - 1.0).abs() < 1e-14);
+            // Derivatives against central differences.
+            let h = 1e-6;
+            let (bp, bm) = (basis(t + h), basis(t - h));
+            let d1 = basis_d1(t);
+            let (dp, dm) = (basis_d1(t + h), basis_d1(t - h));
+            let d2 = basis_d2(t);
+            for i in 0..4 {
+                assert!(
+                    (d1[i] - (bp[i] - bm[i]) / (2.0 * h)).abs() < 1e-7,
+                    "b{i}' at {t}"
+                );
+                assert!(
+                    (d2[i] - (dp[i] - dm[i]) / (2.0 * h)).abs() < 1e-6,
+                    "b{i}'' at {t}"
+                );
+            }
+        }
+        for t in [0.0, 1.0] {
+            assert!(basis_d1(t).iter().all(|d| *d == 0.0));
+        }
+    }
+
+    #[test]
+    fn interpolation_matrices_reproduce_the_nodes() {
+        for k in 1..=3 {
+            let e = interpolation_matrix(k);
+            for node in 0..=k {
+                let b = basis(node as f64 / k as f64);
+                for p in 0..=k {
+                    // Value at node `node` of the curve through the unit vector e_p.
+                    let v: f64 = (0..4).map(|i| b[i] * e[i][p]).sum();
+                    let want = if p == node { 1.0 } else { 0.0 };
+                    assert!((v - want).abs() < 1e-14, "k={k} node={node} p={p}: {v}");
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,703 @@
+//! The Bezier network of seed 002 (eq. 5, 25-29; SPEC section 7) over a grid of 3D points.
+//!
+//! The grid is cut into segments of 4 x 4 points with stride 3 (neighbours share an edge row
+//! or column); where fewer than 4 points remain at the grid's end the segment has the shorter
+//! period (see [`interpolation_matrix`]). Each segment stores the products C_ij = W_ij P_ij
+//! of x, y and z (never W_ij alone: P_ij = 0 is common), computed as C = E_u P E_v^T, and
+//! interpolates its points exactly. A segment with a missing point (outside the footprint) is
+//! left out and counted.
+//!
+//! Parameters: a global (s, t) in grid index units, s in [0, nu - 1] along frames and t in
+//! [0, nv - 1] along rows; segment (a, b) covers s in [3a, 3a + k_u], local u = (s - 3a)/k_u.
+
+use super::basis::{basis, basis_d1, basis_d2, interpolation_matrix};
+use super::grid::{is_point, PointGrid};
+use super::ops::{dot, Scalar};
+use super::SurfaceError;
+use crate::geom::HeightMap;
+use std::sync::OnceLock;
+
+const NONE: u32 = u32::MAX;
+
+/// One segment: its lattice position and the 16 products C_ij of x, y and z.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Segment {
+    pub a: u32,
+    pub b: u32,
+    /// `c[coord][i * 4 + j]`, i along u, j along v; coord 0 = x, 1 = y, 2 = z.
+    pub c: [[f64; 16]; 3],
+}
+
+#[derive(Debug)]
+pub struct BezierNetwork {
+    nu: usize,
+    nv: usize,
+    su: usize,
+    sv: usize,
+    /// Lattice cell (a * sv + b) to its index in `segs`, or NONE when left out.
+    index: Vec<u32>,
+    segs: Vec<Segment>,
+    skipped: usize,
+    locator: OnceLock<Locator>,
+}
+
+/// Normal-angle jumps across shared segment edges.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Continuity {
+    /// Shared edges between two modelled segments.
+    pub edges: usize,
+    /// Points compared (samples per edge x edges).
+    pub samples: usize,
+    pub max_deg: f64,
+    pub mean_deg: f64,
+}
+
+/// Number of segments along a side of `n` points, and the period of segment `a`.
+fn segments_along(n: usize) -> usize {
+    (n - 1).div_ceil(3)
+}
+
+fn period(n: usize, a: usize) -> usize {
+    (n - 1 - 3 * a).min(3)
+}
+
+impl BezierNetwork {
+    /// Build the network from a grid with at least 2 x 2 points.
+    pub fn build(grid: &PointGrid) -> Result<Self, SurfaceError> {
+        let (nu, nv) = (grid.nu, grid.nv);
+        if nu < 2 || nv < 2 {
+            return Err(SurfaceError::GridTooSmall { nu, nv });
+        }
+        let (su, sv) = (segments_along(nu), segments_along(nv));
+        let mut index = vec![NONE; su * sv];
+        let mut segs = Vec::with_capacity(su * sv);
+        let mut skipped = 0;
+        for a in 0..su {
+            let ku = period(nu, a);
+            let eu = interpolation_matrix(ku);
+            for b in 0..sv {
+                let kv = period(nv, b);
+                let ev = interpolation_matrix(kv);
+                let (i0, j0) = (3 * a, 3 * b);
+                let mut p = [[[0.0; 4]; 4]; 3]; // p[coord][i][j]
+                let mut ok = true;
+                'pts: for di in 0..=ku {
+                    for dj in 0..=kv {
+                        let q = grid.get(i0 + di, j0 + dj);
+                        if !is_point(&q) {
+                            ok = false;
+                            break 'pts;
+                        }
+                        for k in 0..3 {
+                            p[k][di][dj] = q[k];
+                        }
+                    }
+                }
+                if !ok {
+                    skipped += 1;
+                    continue;
+                }
+                let mut c = [[0.0; 16]; 3];
+                for k in 0..3 {
+                    // t = E_u P (4 x (kv+1)), then C = t E_v^T.
+                    let mut t = [[0.0; 4]; 4];
+                    for (i, row) in t.iter_mut().enumerate() {
+                        for (dj, r) in row.iter_mut().enumerate().take(kv + 1) {
+                            *r = (0..=ku).map(|di| eu[i][di] * p[k][di][dj]).sum();
+                        }
+                    }
+                    for i in 0..4 {
+                        for j in 0..4 {
+                            c[k][i * 4 + j] = (0..=kv).map(|dj| t[i][dj] * ev[j][dj]).sum();
+                        }
+                    }
+                }
+                index[a * sv + b] = segs.len() as u32;
+                segs.push(Segment {
+                    a: a as u32,
+                    b: b as u32,
+                    c,
+                });
+            }
+        }
+        Ok(BezierNetwork {
+            nu,
+            nv,
+            su,
+            sv,
+            index,
+            segs,
+            skipped,
+            locator: OnceLock::new(),
+        })
+    }
+
+    /// Grid points along u and v.
+    pub fn grid_size(&self) -> (usize, usize) {
+        (self.nu, self.nv)
+    }
+
+    /// Segment lattice along u and v.
+    pub fn lattice(&self) -> (usize, usize) {
+        (self.su, self.sv)
+    }
+
+    /// The modelled segments.
+    pub fn segments(&self) -> &[Segment] {
+        &self.segs
+    }
+
+    /// Lattice segments left out because a point was missing.
+    pub fn skipped(&self) -> usize {
+        self.skipped
+    }
+
+    /// Bytes the model occupies: the coefficients plus the lattice index.
+    pub fn bytes(&self) -> usize {
+        self.segs.len() * std::mem::size_of::<Segment>() + self.index.len() * 4
+    }
+
+    /// The segment at lattice (a, b), if modelled.
+    pub fn segment(&self, a: usize, b: usize) -> Option<&Segment> {
+        if a >= self.su || b >= self.sv {
+            return None;
+        }
+        let k = self.index[a * self.sv + b];
+        (k != NONE).then(|| &self.segs[k as usize])
+    }
+
+    /// Global (s, t) to (segment, u, v); None outside the grid or where the segment is missing.
+    pub fn locate_param(&self, s: f64, t: f64) -> Option<(&Segment, f64, f64)> {
+        let (smax, tmax) = ((self.nu - 1) as f64, (self.nv - 1) as f64);
+        if !(0.0..=smax).contains(&s) || !(0.0..=tmax).contains(&t) {
+            return None;
+        }
+        let a = ((s / 3.0).floor() as usize).min(self.su - 1);
+        let b = ((t / 3.0).floor() as usize).min(self.sv - 1);
+        let seg = self.segment(a, b)?;
+        let u = (s - 3.0 * a as f64) / period(self.nu, a) as f64;
+        let v = (t - 3.0 * b as f64) / period(self.nv, b) as f64;
+        Some((seg, u, v))
+    }
+
+    /// (x, y, z) at global parameters (s, t).
+    pub fn eval(&self, s: f64, t: f64) -> Option<[f64; 3]> {
+        let (seg, u, v) = self.locate_param(s, t)?;
+        Some(seg.eval(u, v))
+    }
+
+    /// Unit normal at (s, t), oriented as S_u x S_v (+z for a grid with x along frames and y
+    /// along rows). On segment edges, where the first derivative across the edge vanishes,
+    /// the one-sided limit of the tangent (the second derivative) is used.
+    pub fn normal(&self, s: f64, t: f64) -> Option<[f64; 3]> {
+        let (seg, u, v) = self.locate_param(s, t)?;
+        Some(seg.normal(u, v))
+    }
+
+    /// Height z at world (x, y): the (u, v) with x(u, v) = x, y(u, v) = y found by Newton's
+    /// method in the segments whose bounding box holds (x, y). None outside the model.
+    pub fn height_at(&self, x: f64, y: f64) -> Option<f64> {
+        self.point_at(x, y).map(|(p, _, _)| p[2])
+    }
+
+    /// The model point over world (x, y) and its global parameters (s, t).
+    pub fn point_at(&self, x: f64, y: f64) -> Option<([f64; 3], f64, f64)> {
+        let loc = self.locator.get_or_init(|| Locator::new(&self.segs));
+        for &k in loc.candidates(x, y) {
+            let seg = &self.segs[k as usize];
+            if let Some((u, v)) = seg.invert(x, y) {
+                let (a, b) = (seg.a as usize, seg.b as usize);
+                let s = 3.0 * a as f64 + u * period(self.nu, a) as f64;
+                let t = 3.0 * b as f64 + v * period(self.nv, b) as f64;
+                return Some((seg.eval(u, v), s, t));
+            }
+        }
+        None
+    }
+
+    /// Evaluate every segment at the local parameters `us x vs` (the same pattern in each,
+    /// so the basis is computed once, as in the paper's Fig. 11), appending (x, y, z).
+    pub fn eval_pattern(&self, us: &[f64], vs: &[f64], out: &mut Vec<[f64; 3]>) {
+        let bu: Vec<[f64; 4]> = us.iter().map(|&u| basis(u)).collect();
+        let bv: Vec<[f64; 4]> = vs.iter().map(|&v| basis(v)).collect();
+        out.reserve(self.segs.len() * us.len() * vs.len());
+        for seg in &self.segs {
+            for bu in &bu {
+                // r[k][j] = sum_i bu_i C_ij, then the point is sum_j bv_j r[k][j].
+                let mut r = [[0.0; 4]; 3];
+                for (k, rk) in r.iter_mut().enumerate() {
+                    for (j, rkj) in rk.iter_mut().enumerate() {
+                        let c = &seg.c[k];
+                        *rkj =
+                            bu[0] * c[j] + bu[1] * c[4 + j] + bu[2] * c[8 + j] + bu[3] * c[12 + j];
+                    }
+                }
+                for bv in &bv {
+                    out.push([dot(&r[0], bv), dot(&r[1], bv), dot(&r[2], bv)]);
+                }
+            }
+        }
+    }
+
+    /// Heights on a regular (x, y) grid with cells of `cell_mm`, NaN outside the model: each
+    /// segment's cells (those in the bounding box of its coefficients, which holds the patch)
+    /// are inverted to (u, v) by Newton's method and z evaluated there.
+    pub fn eval_heightmap(&self, cell_mm: f64) -> HeightMap {
+        assert!(cell_mm > 0.0, "cell size must be positive");
+        let boxes: Vec<[f64; 4]> = self.segs.iter().map(Segment::bbox).collect();
+        if boxes.is_empty() {
+            return HeightMap::new(0.0, 0.0, cell_mm, 0, 0);
+        }
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for b in &boxes {
+            x0 = x0.min(b[0]);
+            x1 = x1.max(b[1]);
+            y0 = y0.min(b[2]);
+            y1 = y1.max(b[3]);
+        }
+        let x0 = (x0 / cell_mm).floor() * cell_mm;
+        let y0 = (y0 / cell_mm).floor() * cell_mm;
+        let nx = ((x1 - x0) / cell_mm).floor() as usize + 1;
+        let ny = ((y1 - y0) / cell_mm).floor() as usize + 1;
+        let mut map = HeightMap::new(x0, y0, cell_mm, nx, ny);
+        for (seg, b) in self.segs.iter().zip(&boxes) {
+            let i0 = ((b[0] - x0) / cell_mm).ceil().max(0.0) as usize;
+            let i1 = (((b[1] - x0) / cell_mm).floor() as usize).min(nx - 1);
+            let j0 = ((b[2] - y0) / cell_mm).ceil().max(0.0) as usize;
+            let j1 = (((b[3] - y0) / cell_mm).floor() as usize).min(ny - 1);
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    if map.get(i, j).is_finite() {
+                        continue;
+                    }
+                    if let Some((u, v)) = seg.invert(map.x(i), map.y(j)) {
+                        map.set(i, j, seg.eval_coord(2, u, v));
+                    }
+                }
+            }
+        }
+        map
+    }
+
+    /// Normal-angle jump across every edge shared by two modelled segments, sampled at
+    /// `per_edge` points strictly inside the edge (the corners, where both tangents vanish,
+    /// are excluded). Both sides share the edge curve (C0), but the cross-edge tangent of each
+    /// side is its second derivative there, so the jump is not zero in general.
+    pub fn continuity(&self, per_edge: usize) -> Continuity {
+        let mut c = Continuity::default();
+        let mut sum = 0.0;
+        let mut add = |n1: [f64; 3], n2: [f64; 3]| {
+            let d = (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]).clamp(-1.0, 1.0);
+            let ang = d.acos().to_degrees();
+            if ang.is_finite() {
+                sum += ang;
+                c.samples += 1;
+                c.max_deg = c.max_deg.max(ang);
+            }
+        };
+        let ts: Vec<f64> = (0..per_edge)
+            .map(|k| (k as f64 + 0.5) / per_edge as f64)
+            .collect();
+        for a in 0..self.su {
+            for b in 0..self.sv {
+                let Some(s0) = self.segment(a, b) else {
+                    continue;
+                };
+                if let Some(s1) = self.segment(a + 1, b) {
+                    c.edges += 1;
+                    for &t in &ts {
+                        add(s0.normal(1.0, t), s1.normal(0.0, t));
+                    }
+                }
+                if let Some(s1) = self.segment(a, b + 1) {
+                    c.edges += 1;
+                    for &t in &ts {
+                        add(s0.normal(t, 1.0), s1.normal(t, 0.0));
+                    }
+                }
+            }
+        }
+        if c.samples > 0 {
+            c.mean_deg = sum / c.samples as f64;
+        }
+        c
+    }
+}
+
+impl Segment {
+    /// One coordinate at local (u, v): 16 products and the basis in both directions.
+    #[inline]
+    pub fn eval_coord_generic<T: Scalar>(&self, k: usize, u: T, v: T) -> T {
+        let bu = basis(u);
+        let bv = basis(v);
+        let c = &self.c[k];
+        let mut r = [T::from_f64(0.0); 4];
+        for (j, rj) in r.iter_mut().enumerate() {
+            let col = [
+                T::from_f64(c[j]),
+                T::from_f64(c[4 + j]),
+                T::from_f64(c[8 + j]),
+                T::from_f64(c[12 + j]),
+            ];
+            *rj = dot(&bu, &col);
+        }
+        dot(&r, &bv)
+    }
+
+    #[inline]
+    pub fn eval_coord(&self, k: usize, u: f64, v: f64) -> f64 {
+        self.eval_coord_generic(k, u, v)
+    }
+
+    pub fn eval(&self, u: f64, v: f64) -> [f64; 3] {
+        [
+            self.eval_coord(0, u, v),
+            self.eval_coord(1, u, v),
+            self.eval_coord(2, u, v),
+        ]
+    }
+
+    fn contract(&self, k: usize, bu: &[f64; 4], bv: &[f64; 4]) -> f64 {
+        let c = &self.c[k];
+        let mut s = 0.0;
+        for i in 0..4 {
+            for j in 0..4 {
+                s += bu[i] * bv[j] * c[i * 4 + j];
+            }
+        }
+        s
+    }
+
+    /// Value and first partial derivatives of x and y: ([x, y], [x_u, y_u], [x_v, y_v]).
+    fn xy_d1(&self, u: f64, v: f64) -> ([f64; 2], [f64; 2], [f64; 2]) {
+        let (bu, bv, du, dv) = (basis(u), basis(v), basis_d1(u), basis_d1(v));
+        let f = |k| {
+            (
+                self.contract(k, &bu, &bv),
+                self.contract(k, &du, &bv),
+                self.contract(k, &bu, &dv),
+            )
+        };
+        let (x, xu, xv) = f(0);
+        let (y, yu, yv) = f(1);
+        ([x, y], [xu, yu], [xv, yv])
+    }
+
+    /// Tangent along u (or v) with the edge limit: where the first derivative vanishes the
+    /// direction of the second derivative, signed toward increasing parameter.
+    fn tangent(&self, u: f64, v: f64, along_u: bool) -> [f64; 3] {
+        let (bu, bv) = (basis(u), basis(v));
+        let (d1, d2, t) = if along_u {
+            ((basis_d1(u), bv), (basis_d2(u), bv), u)
+        } else {
+            ((bu, basis_d1(v)), (bu, basis_d2(v)), v)
+        };
+        let first = [0, 1, 2].map(|k| self.contract(k, &d1.0, &d1.1));
+        let second = [0, 1, 2].map(|k| self.contract(k, &d2.0, &d2.1));
+        let n1 = norm(first);
+        let n2 = norm(second);
+        if n1 > 1e-12 * (1.0 + n2) {
+            first
+        } else {
+            let sign = if t < 0.5 { 1.0 } else { -1.0 };
+            second.map(|c| c * sign)
+        }
+    }
+
+    /// Unit normal S_u x S_v at local (u, v) (see [`BezierNetwork::normal`]).
+    pub fn normal(&self, u: f64, v: f64) -> [f64; 3] {
+        let a = self.tangent(u, v, true);
+        let b = self.tangent(u, v, false);
+        let n = [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ];
+        let l = norm(n);
+        n.map(|c| c / l)
+    }
+
+    /// Bounding box (x0, x1, y0, y1) of the x and y coefficients: the patch lies inside it
+    /// (the quintic Bernstein form with doubled ends has control points C_ij).
+    pub fn bbox(&self) -> [f64; 4] {
+        let (mut b0, mut b1, mut b2, mut b3) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for i in 0..16 {
+            b0 = b0.min(self.c[0][i]);
+            b1 = b1.max(self.c[0][i]);
+            b2 = b2.min(self.c[1][i]);
+            b3 = b3.max(self.c[1][i]);
+        }
+        [b0, b1, b2, b3]
+    }
+
+    /// Local (u, v) in [0, 1]^2 with (x, y)(u, v) = (x, y) to 1e-9 mm, by Newton's method
+    /// clamped to the unit square. Start: the affine map through three corners. Where the
+    /// Jacobian is singular (on an edge, where the across-edge derivative vanishes) the
+    /// iterate is nudged 1e-3 inward. None if it does not converge inside the square.
+    pub fn invert(&self, x: f64, y: f64) -> Option<(f64, f64)> {
+        const TOL: f64 = 1e-9;
+        let p00 = [self.c[0][0], self.c[1][0]];
+        let p10 = [self.c[0][12], self.c[1][12]];
+        let p01 = [self.c[0][3], self.c[1][3]];
+        let (ex, ey) = (
+            [p10[0] - p00[0], p10[1] - p00[1]],
+            [p01[0] - p00[0], p01[1] - p00[1]],
+        );
+        let det = ex[0] * ey[1] - ex[1] * ey[0];
+        let (dx, dy) = (x - p00[0], y - p00[1]);
+        let (mut u, mut v) = if det.abs() > 1e-300 {
+            (
+                ((dx * ey[1] - dy * ey[0]) / det).clamp(0.0, 1.0),
+                ((ex[0] * dy - ex[1] * dx) / det).clamp(0.0, 1.0),
+            )
+        } else {
+            (0.5, 0.5)
+        };
+        let mut best = f64::INFINITY;
+        let mut stuck = 0;
+        for _ in 0..60 {
+            let (p, du, dv) = self.xy_d1(u, v);
+            let (rx, ry) = (p[0] - x, p[1] - y);
+            let r = rx.abs().max(ry.abs());
+            if r < TOL {
+                return Some((u, v));
+            }
+            if r >= best {
+                stuck += 1;
+                if stuck > 4 {
+                    return None;
+                }
+            } else {
+                best = r;
+                stuck = 0;
+            }
+            let det = du[0] * dv[1] - dv[0] * du[1];
+            let scale = (du[0].abs() + du[1].abs() + dv[0].abs() + dv[1].abs()).powi(2);
+            if det.abs() <= 1e-14 * scale.max(1e-300) {
+                u += (0.5 - u).signum() * 1e-3;
+                v += (0.5 - v).signum() * 1e-3;
+                continue;
+            }
+            let su = (rx * dv[1] - ry * dv[0]) / det;
+            let sv = (du[0] * ry - du[1] * rx) / det;
+            u = (u - su).clamp(0.0, 1.0);
+            v = (v - sv).clamp(0.0, 1.0);
+        }
+        None
+    }
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+/// Uniform buckets over the segments' bounding boxes, for point location.
+#[derive(Debug)]
+struct Locator {
+    x0: f64,
+    y0: f64,
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl Locator {
+    fn new(segs: &[Segment]) -> Self {
+        let boxes: Vec<[f64; 4]> = segs.iter().map(Segment::bbox).collect();
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        let mut size = Vec::with_capacity(boxes.len());
+        for b in &boxes {
+            x0 = x0.min(b[0]);
+            x1 = x1.max(b[1]);
+            y0 = y0.min(b[2]);
+            y1 = y1.max(b[3]);
+            size.push((b[1] - b[0]).max(b[3] - b[2]));
+        }
+        if boxes.is_empty() {
+            return Locator {
+                x0: 0.0,
+                y0: 0.0,
+                cell: 1.0,
+                nx: 0,
+                ny: 0,
+                start: vec![0],
+                items: Vec::new(),
+            };
+        }
+        size.sort_by(f64::total_cmp);
+        let cell = (2.0 * size[size.len() / 2]).max(1e-6);
+        let nx = (((x1 - x0) / cell).floor() as usize + 1).min(1 << 14);
+        let ny = (((y1 - y0) / cell).floor() as usize + 1).min(1 << 14);
+        let cell = cell.max((x1 - x0) / nx as f64).max((y1 - y0) / ny as f64) * (1.0 + 1e-12);
+        let range = |b: &[f64; 4]| {
+            let i0 = ((b[0] - x0) / cell) as usize;
+            let i1 = (((b[1] - x0) / cell) as usize).min(nx - 1);
+            let j0 = ((b[2] - y0) / cell) as usize;
+            let j1 = (((b[3] - y0) / cell) as usize).min(ny - 1);
+            (i0, i1, j0, j1)
+        };
+        let mut count = vec![0u32; nx * ny + 1];
+        for b in &boxes {
+            let (i0, i1, j0, j1) = range(b);
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    count[j * nx + i + 1] += 1;
+                }
+            }
+        }
+        for k in 1..count.len() {
+            count[k] += count[k - 1];
+        }
+        let mut fill = count.clone();
+        let mut items = vec![0u32; *count.last().unwrap() as usize];
+        for (s, b) in boxes.iter().enumerate() {
+            let (i0, i1, j0, j1) = range(b);
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    let slot = &mut fill[j * nx + i];
+                    items[*slot as usize] = s as u32;
+                    *slot += 1;
+                }
+            }
+        }
+        Locator {
+            x0,
+            y0,
+            cell,
+            nx,
+            ny,
+            start: count,
+            items,
+        }
+    }
+
+    fn candidates(&self, x: f64, y: f64) -> &[u32] {
+        let (fx, fy) = ((x - self.x0) / self.cell, (y - self.y0) / self.cell);
+        if !(fx >= 0.0 && fy >= 0.0) {
+            return &[];
+        }
+        let (i, j) = (fx as usize, fy as usize);
+        if i >= self.nx || j >= self.ny {
+            return &[];
+        }
+        let k = j * self.nx + i;
+        &self.items[self.start[k] as usize..self.start[k + 1] as usize]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A smooth surface on an irregular grid (x spacing varies, y depends on z).
+    fn wavy(nu: usize, nv: usize) -> PointGrid {
+        let mut pts = Vec::new();
+        for i in 0..nu {
+            let x = i as f64 * 0.5 + 0.02 * (i as f64 * 0.3).sin();
+            for j in 0..nv {
+                let y0 = j as f64 * 0.25;
+                let z = 3.0 + (x * 0.2).sin() * (y0 * 0.3).cos();
+                pts.push([x, y0 * (1.0 + z / 250.0), z]);
+            }
+        }
+        PointGrid::new(nu, nv, pts)
+    }
+
+    #[test]
+    fn interpolates_every_point_with_short_edge_segments() {
+        for (nu, nv) in [(10, 13), (11, 12), (12, 11), (2, 2), (3, 4)] {
+            let g = wavy(nu, nv);
+            let n = BezierNetwork::build(&g).unwrap();
+            assert_eq!(n.skipped(), 0);
+            for i in 0..nu {
+                for j in 0..nv {
+                    let p = n.eval(i as f64, j as f64).unwrap();
+                    let q = g.get(i, j);
+                    for k in 0..3 {
+                        assert!(
+                            (p[k] - q[k]).abs() < 1e-9,
+                            "{nu}x{nv} ({i},{j}) {p:?} {q:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn missing_points_drop_their_segments() {
+        let mut g = wavy(10, 10);
+        g.points[4 * 10 + 4] = [f64::NAN; 3]; // inside segment (1, 1) only
+        g.points[3 * 10 + 5] = [f64::NAN; 3]; // on the shared edge of (0, 1) and (1, 1)
+        let n = BezierNetwork::build(&g).unwrap();
+        assert_eq!(n.lattice(), (3, 3));
+        assert_eq!(n.skipped(), 2);
+        assert!(n.segment(1, 1).is_none() && n.segment(0, 1).is_none());
+        assert!(n.eval(4.0, 4.0).is_none());
+        assert!(n.eval(7.0, 7.0).is_some());
+    }
+
+    #[test]
+    fn inversion_and_heightmap_agree_with_parametric_points() {
+        let g = wavy(31, 40);
+        let n = BezierNetwork::build(&g).unwrap();
+        for &(s, t) in &[
+            (1.3, 2.2),
+            (3.0, 4.5),
+            (17.25, 30.0),
+            (29.9, 38.1),
+            (6.0, 9.0),
+        ] {
+            let p = n.eval(s, t).unwrap();
+            let (q, s2, t2) = n.point_at(p[0], p[1]).unwrap();
+            assert!((q[2] - p[2]).abs() < 1e-8, "({s},{t}): {p:?} vs {q:?}");
+            assert!(
+                (s2 - s).abs() < 1e-3 && (t2 - t).abs() < 1e-3,
+                "({s},{t}) -> ({s2},{t2})"
+            );
+        }
+        let m = n.eval_heightmap(0.3);
+        assert!(m.valid_count() > 1000);
+        let mut checked = 0;
+        for j in 0..m.ny {
+            for i in 0..m.nx {
+                let z = m.get(i, j);
+                if z.is_finite() {
+                    let h = n.height_at(m.x(i), m.y(j)).unwrap();
+                    assert!((h - z).abs() < 1e-6);
+                    checked += 1;
+                }
+            }
+        }
+        assert_eq!(checked, m.valid_count());
+        // Interior cells are all covered.
+        let (x, y) = (7.0, 5.0);
+        let (i, j) = m.cell_of(x, y).unwrap();
+        assert!(m.get(i, j).is_finite());
+    }
+
+    #[test]
+    fn normals_point_up_and_edges_show_a_jump() {
+        let g = wavy(31, 40);
+        let n = BezierNetwork::build(&g).unwrap();
+        let nn = n.normal(4.0, 5.5).unwrap();
+        assert!(nn[2] > 0.9);
+        assert!(((nn[0].powi(2) + nn[1].powi(2) + nn[2].powi(2)).sqrt() - 1.0).abs() < 1e-12);
+        let c = n.continuity(8);
+        assert_eq!(c.edges, 9 * 13 + 10 * 12);
+        assert!(c.max_deg > 0.0 && c.max_deg < 10.0, "{c:?}");
+        // A plane z = 0.1 x + 0.2 y on a uniform grid has no jump.
+        let mut pts = Vec::new();
+        for i in 0..10 {
+            for j in 0..10 {
+                let (x, y) = (i as f64, j as f64 * 0.5);
+                pts.push([x, y, 0.1 * x + 0.2 * y]);
+            }
+        }
+        let p = BezierNetwork::build(&PointGrid::new(10, 10, pts)).unwrap();
+        let c = p.continuity(8);
+        assert!(c.max_deg < 1e-5, "{c:?}"); // acos near 1 resolves ~1e-6 deg
+    }
+}
