@@ -13,9 +13,12 @@
 #![allow(clippy::needless_range_loop)]
 
 mod basis;
+pub mod bspline;
+pub mod compare;
 mod grid;
 mod network;
 pub mod ops;
+pub mod poly;
 
 pub use basis::{basis, basis_d1, basis_d2, interpolation_matrix};
 pub use grid::{PointGrid, Subsample};
@@ -26,6 +29,10 @@ pub use network::{BezierNetwork, Continuity, Segment};
 pub enum SurfaceError {
     #[error("grid of {nu} x {nv} points: a surface model needs at least 2 x 2")]
     GridTooSmall { nu: usize, nv: usize },
-    #[error("the grid has no valid point: nothing to model")]
+    #[error("the grid has too few valid points to model")]
     Empty,
+    #[error("a tensor-product fit needs a complete grid: fill the missing points first")]
+    Incomplete,
+    #[error("the least-squares system is singular (too few points for the basis)")]
+    Singular,
 }
