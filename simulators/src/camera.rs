@@ -18,8 +18,12 @@
 //! - [`SimCamera::inject_unplug`] (or a [`CameraFaults`] handle from another thread) makes the
 //!   next `next_frame` return [`HalError::Disconnected`] and stops the stream; while unplugged,
 //!   `start` and `next_frame` keep failing with `Disconnected` until [`CameraFaults::replug`].
+//! - What stands on the glass can change between frames (calibration: the operator puts the
+//!   next target in place): [`SimCamera::set_scene`], or a [`SceneHandle`] from another owner;
+//!   the next frame rendered shows the new scene.
 
-use crate::render::{FrameTruth, Renderer};
+use crate::optics::SimError;
+use crate::render::{FrameTruth, Renderer, Scene};
 use crate::PositionSource;
 use footscan_hal::{Camera, CameraInfo, Frame, FramePool, HalError, HalResult, Timestamp};
 use std::collections::BTreeMap;
@@ -78,6 +82,22 @@ impl TruthLog {
     }
 }
 
+/// Changes the scene of a [`SimCamera`] that another owner holds; the next frame rendered
+/// shows it. Cloning shares the handle.
+#[derive(Clone, Debug, Default)]
+pub struct SceneHandle(Arc<Mutex<Option<Scene>>>);
+
+impl SceneHandle {
+    /// Show `scene` from the next frame on.
+    pub fn set(&self, scene: Scene) {
+        *self.0.lock().unwrap_or_else(|e| e.into_inner()) = Some(scene);
+    }
+
+    fn take(&self) -> Option<Scene> {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).take()
+    }
+}
+
 /// Fault injection for a [`SimCamera`] that another thread owns.
 #[derive(Clone, Debug, Default)]
 pub struct CameraFaults {
@@ -118,6 +138,7 @@ pub struct SimCamera {
     next_seq: u64,
     truth: TruthLog,
     faults: CameraFaults,
+    scene: SceneHandle,
     scratch: FrameTruth,
 }
 
@@ -164,6 +185,7 @@ impl SimCamera {
             next_seq: 0,
             truth: TruthLog::new(),
             faults: CameraFaults::default(),
+            scene: SceneHandle::default(),
             scratch: FrameTruth::default(),
         })
     }
@@ -185,6 +207,20 @@ impl SimCamera {
 
     pub fn renderer(&self) -> &Renderer {
         &self.renderer
+    }
+
+    /// Render `scene` from now on (same optics, noise, seed and gain).
+    pub fn set_scene(&mut self, scene: Scene) -> Result<(), SimError> {
+        let r = &self.renderer;
+        let mut next = Renderer::new(r.optics().clone(), r.noise().clone(), scene, r.seed())?;
+        next.set_gain(r.gain())?;
+        self.renderer = next;
+        Ok(())
+    }
+
+    /// A handle that changes the scene while someone else owns the camera.
+    pub fn scene_handle(&self) -> SceneHandle {
+        self.scene.clone()
     }
 
     pub fn fps(&self) -> f64 {
@@ -277,6 +313,13 @@ impl Camera for SimCamera {
                 continue;
             }
             self.stream = Some(s);
+            if let Some(scene) = self.scene.take() {
+                self.set_scene(scene)
+                    .map_err(|e| HalError::InvalidArgument {
+                        device: self.name.clone(),
+                        detail: format!("scene: {e}"),
+                    })?;
+            }
             let x = self.position.physical_x(tk);
             let mut frame = self.pool.take(k, tk);
             self.renderer
@@ -389,6 +432,35 @@ mod tests {
         assert_eq!(log.len(), 15);
         assert_eq!(log.drain().len(), 15);
         assert!(log.is_empty());
+    }
+
+    #[test]
+    fn the_scene_changes_from_the_next_frame() {
+        let mut cam = camera(
+            200.0,
+            NoiseConfig::noise_free(),
+            Arc::new(crate::FixedPosition(0.0)),
+        );
+        let handle = cam.scene_handle();
+        let log = cam.truth_log();
+        cam.set_gain(1.5).unwrap();
+        cam.start().unwrap();
+        let z = |seq: u64| match log.get(seq).unwrap().rows[128] {
+            RowTruth::Line { point, .. } => point[2],
+            RowTruth::NoLine => f64::NAN,
+        };
+        let a = cam.next_frame(Duration::from_millis(500)).unwrap().seq;
+        assert_eq!(z(a), 5.0);
+        handle.set(Scene::Plate { height_mm: 12.0 });
+        let b = cam.next_frame(Duration::from_millis(500)).unwrap().seq;
+        assert_eq!(z(b), 12.0);
+        assert_eq!(cam.gain(), 1.5, "gain survives the swap");
+        cam.set_scene(Scene::Empty).unwrap();
+        let c = cam.next_frame(Duration::from_millis(500)).unwrap().seq;
+        assert!(z(c).is_nan());
+        handle.set(Scene::Plate { height_mm: -3.0 });
+        let e = cam.next_frame(Duration::from_millis(500)).unwrap_err();
+        assert!(e.to_string().contains("plate.height_mm"), "{e}");
     }
 
     #[test]

@@ -5,13 +5,15 @@
 //! - [`optics`]: the general optical model of SPEC section 2;
 //! - [`render`]: frames and their per-row ground truth;
 //! - [`camera`]: a [`footscan_hal::Camera`] that renders at the slider's true position;
-//! - [`grbl`]: a GRBL 1.1 emulator on a pseudo-terminal.
+//! - [`grbl`]: a GRBL 1.1 emulator on a pseudo-terminal;
+//! - [`targets`]: calibration targets (staircase gauge block, checkerboard images).
 
 pub mod camera;
 pub mod foot;
 pub mod grbl;
 pub mod optics;
 pub mod render;
+pub mod targets;
 
 use footscan_hal::Timestamp;
 
