@@ -2,6 +2,7 @@
 //! print as a table or serialise as JSON. Timings are measured here, never asserted in tests.
 
 pub mod render;
+pub mod surface;
 
 /// Run `f` on the calling thread pinned to one core where the OS allows, so "per core"
 /// figures mean what they say.
