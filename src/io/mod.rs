@@ -1,9 +1,11 @@
 //! File formats and renderings: PLY point clouds, PNG height maps, atomic file writes.
 
 mod heightmap;
+mod mesh;
 mod ply;
 
 pub use heightmap::{render_heightmap, HeightMapImage};
+pub use mesh::{write_obj, write_ply_mesh, write_stl};
 pub use ply::write_ply_points;
 
 use std::io::Write;

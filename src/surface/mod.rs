@@ -16,12 +16,14 @@ mod basis;
 pub mod bspline;
 pub mod compare;
 mod grid;
+mod mesh;
 mod network;
 pub mod ops;
 pub mod poly;
 
 pub use basis::{basis, basis_d1, basis_d2, interpolation_matrix};
 pub use grid::{PointGrid, Subsample};
+pub use mesh::Mesh;
 pub use network::{BezierNetwork, Continuity, Segment};
 
 /// Errors building a surface model.
