@@ -33,6 +33,7 @@ fn simulated_scan_meets_accuracy_bound() {
         "heightmap.png",
         "scan.json",
         "calibration.toml",
+        "model.stl",
     ] {
         let p = dir.path().join(f);
         assert!(
@@ -53,7 +54,7 @@ fn simulated_scan_meets_accuracy_bound() {
         assert!(json.get(k).is_some(), "scan.json lacks {k}");
     }
     let stages = json["stages"].as_array().unwrap();
-    assert_eq!(stages.len(), 8);
+    assert_eq!(stages.len(), 9);
     for st in stages {
         for k in ["name", "in", "out", "dropped", "mean_latency_ms"] {
             assert!(st.get(k).is_some(), "stage entry lacks {k}: {st}");

@@ -104,6 +104,7 @@ pub fn registry() -> Registry<Item, ScanContext> {
             Ok(Node::stage(Accumulate::default()))
         },
     );
+    crate::surface::register_stages(&mut r);
     r.register(
         "sink.ply",
         "writes the point cloud as binary PLY (file, default points.ply)",

@@ -1,6 +1,7 @@
 //! The footscan command line: a thin shell over the library. One file per command.
 
 mod bench;
+mod model;
 mod scan;
 
 use anyhow::Result;
@@ -45,6 +46,8 @@ enum Command {
     },
     /// List the pipeline stages a config may name.
     Stages,
+    /// Build the Bezier-network plantar model of a saved scan and write it as closed meshes.
+    Model(model::Args),
     /// Measure speed and accuracy (see `footscan bench --help`).
     Bench(bench::Args),
 }
@@ -96,6 +99,7 @@ fn run() -> Result<()> {
             }
             Ok(())
         }
+        Command::Model(args) => model::run(args),
         Command::Bench(args) => bench::run(args),
     }
 }
