@@ -3,7 +3,6 @@
 //! 3e-5 mm at 300 mm) and with 6 decimals in OBJ.
 
 use crate::surface::Mesh;
-use std::io::Write;
 use std::path::Path;
 
 /// Binary STL: facet normals from the winding (counter-clockwise seen from outside).

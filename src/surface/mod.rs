@@ -15,16 +15,20 @@
 mod basis;
 pub mod bspline;
 pub mod compare;
+mod export;
 mod grid;
 mod mesh;
 mod network;
 pub mod ops;
 pub mod poly;
+mod stage;
 
 pub use basis::{basis, basis_d1, basis_d2, interpolation_matrix};
+pub use export::{build_scan_model, model_scan, write_model, MeshFiles, ModelSummary};
 pub use grid::{PointGrid, Subsample};
 pub use mesh::Mesh;
 pub use network::{BezierNetwork, Continuity, Segment};
+pub use stage::register_stages;
 
 /// Errors building a surface model.
 #[derive(Debug, thiserror::Error)]
@@ -37,4 +41,11 @@ pub enum SurfaceError {
     Incomplete,
     #[error("the least-squares system is singular (too few points for the basis)")]
     Singular,
+    #[error("cell_mm = {0}: must be positive")]
+    BadCell(f64),
+    #[error("writing {path}: {source}")]
+    Write {
+        path: std::path::PathBuf,
+        source: std::io::Error,
+    },
 }
