@@ -796,7 +796,11 @@ fn segment(
         } else {
             brent(ctx, a, b, target)
         };
-        let Some(s) = s else { continue };
+        // Across a jump of the height field (a riser) row(y) is discontinuous: Brent then
+        // closes in on the jump without a root, and that row has no crossing here.
+        let Some(s) = s.filter(|s| (s.row - target).abs() < 1e-6) else {
+            continue;
+        };
         if s.col < -0.5 || s.col > optics.width as f64 - 0.5 {
             continue;
         }

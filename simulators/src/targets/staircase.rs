@@ -224,6 +224,56 @@ mod tests {
     }
 
     #[test]
+    fn rendered_truth_is_exact_across_risers() {
+        use crate::optics::Optics;
+        use crate::render::{NoiseConfig, Renderer, RowTruth, Scene};
+        let o = Optics::default();
+        let s = Staircase::new(
+            StaircaseGeometry {
+                heights_mm: vec![7.0, 14.0, 21.0],
+                lengths_mm: vec![20.0; 3],
+                width_mm: 60.0,
+            },
+            Placement {
+                x_mm: 120.0,
+                y_mm: -27.0,
+                yaw_deg: 3.0,
+            },
+        )
+        .unwrap();
+        let r = Renderer::new(
+            o.clone(),
+            NoiseConfig::noise_free(),
+            Scene::Surface(std::sync::Arc::new(s.clone())),
+            1,
+        )
+        .unwrap();
+        let proj = o.projector();
+        let mut crossings = 0;
+        // Head positions where a riser crosses the line inside the frame.
+        for x in (0..40).map(|i| 68.0 + 0.25 * i as f64) {
+            let t = r.truth(x);
+            let mut heights = Vec::new();
+            for (row, rt) in t.rows.iter().enumerate() {
+                let RowTruth::Line { col, point } = rt else {
+                    continue;
+                };
+                let img = proj.project(x, *point).unwrap();
+                assert!(
+                    (img[1] - row as f64).abs() < 1e-6,
+                    "x {x} row {row}: {img:?}"
+                );
+                assert!((img[0] - col).abs() < 1e-9);
+                assert_eq!(s.height(point[0], point[1]), Some(point[2]));
+                heights.push(point[2]);
+            }
+            heights.dedup();
+            crossings += usize::from(heights.len() > 1);
+        }
+        assert!(crossings > 5, "{crossings} frames with a riser");
+    }
+
+    #[test]
     fn tilted_plane_sees_the_lowest_face_and_gaps_at_risers() {
         let s = block(0.0);
         // Step faces: 6 mm on x in [100, 110), 12 on [110, 120), 18 on [120, 140).
