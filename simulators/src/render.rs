@@ -5,8 +5,10 @@
 //! scene's height field in a curve. Parametrised by world y, its point is
 //! `(x0(y) + tan(b) z, y, z)` with `x0(y) = X + L + tan(a) y` and `z` solving
 //! `z = height(x0(y) + tan(b) z, y)` ([`Surface::plane_height`]). The curve is sampled every
-//! 0.1 mm of y, ends of the valid stretches are located by bisection to 1e-11 mm, and for every
-//! integer row r between two consecutive samples the y where the projected row equals r is
+//! 0.1 mm of y, ends of the valid stretches and jumps of the height field (steps: consecutive
+//! samples more than 0.5 mm apart in height) are located by bisection to 1e-11 mm, and for
+//! every integer row r between two consecutive samples of one side the y where the projected
+//! row equals r is
 //! found by Brent's method (|row - r| < 1e-10 px). The truth column is the projected column of
 //! that point. Rules:
 //! - [`RowTruth::NoLine`] where the plane meets no surface in the row, or the point projects
@@ -735,6 +737,16 @@ fn compute_truth(
         let y = y0 + (y1 - y0) * i as f64 / n as f64;
         let cur = ctx.eval(y);
         match (prev, cur) {
+            (Some(a), Some(b)) if (b.p[2] - a.p[2]).abs() > JUMP_MM => {
+                // Possibly a jump of the height field (a step): image each side separately.
+                let (ea, eb) = jump(&ctx, a, b);
+                if let Some(ea) = ea {
+                    segment(&ctx, a, ea, cam, optics, truth);
+                }
+                if let Some(eb) = eb {
+                    segment(&ctx, eb, b, cam, optics, truth);
+                }
+            }
             (Some(a), Some(b)) => segment(&ctx, a, b, cam, optics, truth),
             (Some(a), None) => {
                 if let Some(e) = edge(&ctx, a.y, y) {
@@ -751,6 +763,26 @@ fn compute_truth(
         prev = cur;
         prev_y = y;
     }
+}
+
+/// Height change between two samples beyond which [`jump`] looks for a discontinuity.
+const JUMP_MM: f64 = 0.5;
+
+/// Where the height field jumps between samples `a` and `b` (a step of a staircase): the last
+/// sample on `a`'s side and the first on `b`'s, by bisection to 1e-11 mm (a sample belongs to
+/// the side whose height it is nearer). On a continuous steep stretch this splits it at a
+/// point, which loses nothing. A gap with no surface in between ends at the gap's edges.
+fn jump(ctx: &TruthCtx, a: Sample, b: Sample) -> (Option<Sample>, Option<Sample>) {
+    let (mut lo, mut hi) = (a, b);
+    while (hi.y - lo.y).abs() > 1e-11 {
+        let mid = 0.5 * (lo.y + hi.y);
+        match ctx.eval(mid) {
+            Some(m) if (m.p[2] - a.p[2]).abs() <= (m.p[2] - b.p[2]).abs() => lo = m,
+            Some(m) => hi = m,
+            None => return (edge(ctx, lo.y, mid), edge(ctx, hi.y, mid)),
+        }
+    }
+    (Some(lo), Some(hi))
 }
 
 /// The last valid sample between `valid_y` (valid) and `invalid_y` (invalid), by bisection.

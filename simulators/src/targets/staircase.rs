@@ -235,7 +235,7 @@ mod tests {
                 width_mm: 60.0,
             },
             Placement {
-                x_mm: 120.0,
+                x_mm: 122.0,
                 y_mm: -27.0,
                 yaw_deg: 3.0,
             },
@@ -251,7 +251,7 @@ mod tests {
         let proj = o.projector();
         let mut crossings = 0;
         // Head positions where a riser crosses the line inside the frame.
-        for x in (0..40).map(|i| 68.0 + 0.25 * i as f64) {
+        for x in (0..60).map(|i| 66.0 + 0.1 * i as f64) {
             let t = r.truth(x);
             let mut heights = Vec::new();
             for (row, rt) in t.rows.iter().enumerate() {
@@ -265,6 +265,27 @@ mod tests {
                 );
                 assert!((img[0] - col).abs() < 1e-9);
                 assert_eq!(s.height(point[0], point[1]), Some(point[2]));
+                // No lower face crosses this row: the lower face, nearer the camera, would win.
+                for &hl in s.geometry().heights_mm.iter().filter(|&&hl| hl < point[2]) {
+                    let at = |y: f64| {
+                        let p = [proj.laser_x(x, y, hl), y, hl];
+                        (proj.project(x, p).unwrap()[1] - row as f64, p)
+                    };
+                    let mut y = point[1];
+                    for _ in 0..30 {
+                        let (f, _) = at(y);
+                        let d = (at(y + 1e-6).0 - f) / 1e-6;
+                        y -= f / d;
+                    }
+                    let (f, p) = at(y);
+                    assert!(f.abs() < 1e-6);
+                    assert_ne!(
+                        s.height(p[0], p[1]),
+                        Some(hl),
+                        "x {x} row {row}: face {} shown over face {hl}",
+                        point[2]
+                    );
+                }
                 heights.push(point[2]);
             }
             heights.dedup();
