@@ -46,7 +46,7 @@ impl HeightMap {
         let i = ((x - self.x0) / self.cell_mm).round();
         let j = ((y - self.y0) / self.cell_mm).round();
         (i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny)
-            .then(|| (i as usize, j as usize))
+            .then_some((i as usize, j as usize))
     }
 
     /// Cells with a height.

@@ -1,1 +1,77 @@
-//! Foot landmarks and measurements (SPEC section 8).
+//! Foot landmarks and measurements (SPEC section 8) from a plantar height map.
+//!
+//! Input: a [`HeightMap`] (heights in mm on regular cells, NaN outside the footprint), from the
+//! plantar model or rasterised from the scan grid ([`rasterize_grid`]). Output:
+//! [`Measurements`], written as `measurements.json`, and a labelled PNG
+//! ([`crate::io::render_plantar`]). Everything is computed from the height map alone; the
+//! simulator's truth only enters through [`compare_with_truth`] for tests and reports.
+//!
+//! # Operational definitions
+//! Footprint: the 4-connected regions of valid cells; the largest is the body (the toe-less
+//! sole), regions of at least 0.5 % of its area in front of its centroid are toe pads (the
+//! scanner sees no sole between the toes and the ball, so they come apart); smaller specks
+//! are ignored. Outlines: marching squares halfway between inside and outside cell centres.
+//! Extreme points are located between outline vertices by a two-sided parabola fit over the
+//! outline near the extreme ([`fit::peak_vertex`]).
+//!
+//! - Axis: from the heel centre to the second metatarsal head. The height map shows no bones,
+//!   so the second metatarsal head is found by the rule that the second metatarsal is the
+//!   longest: its head directs the most anterior part of the toe-less forefoot. The axis
+//!   direction is iterated to the fixed point where the line from the heel centre meets the
+//!   body outline at its most anterior point along that line (the body front). The head
+//!   itself is placed on the axis level with the first metatarsal head (the heads of the
+//!   first two metatarsals lie at about the same distance from the heel).
+//! - Heel centre: centre of the circle fitted to the heel outline from the rearmost point up
+//!   to the level of the circle's centre (iterated), i.e. the middle of the widest heel
+//!   breadth for a round heel. Heel point: rearmost outline point along the axis; toe tip:
+//!   most anterior point of the footprint (toes included); foot length: their distance
+//!   along the axis.
+//! - Medial side: the side of the axis holding the largest toe pad (the hallux); without toe
+//!   pads, the side with the higher midfoot (the medial arch). A right foot has its medial
+//!   side to the left of the heel-to-toe axis seen from above.
+//! - First / fifth metatarsal heads: most medial / most lateral body outline points in the
+//!   front 60 % of the length; ball width: the sum of their distances from the axis.
+//! - Waist inner / outer: the medial / lateral body outline points nearest the axis between
+//!   the heel centre and the metatarsal head of that side.
+//! - Mid-foot width: breadth of the footprint perpendicular to the axis at half the length.
+//!   Heel width: maximum breadth perpendicular to the axis over the rear quarter, on side
+//!   profiles smoothed over 2 mm (outline quantisation would otherwise bias a maximum up).
+//! - Hallux point: most medial outline point of the hallux pad.
+//! - Arch height: highest point of the medial arch vault that still faces the glass: the
+//!   maximum sole height, over the medial half of the middle third of the body, among
+//!   points where the sole (a plane fitted over 1 mm) slopes less than 0.1 (6 degrees).
+//!   Toward the medial border the sole turns up into the side wall of the foot; that wall
+//!   is not arch. (The scan cannot see the edge rounding radius the simulator's definition
+//!   uses; this rule needs none.)
+//! - Arch index (Cavanagh-Rodgers): contact = cells with h <= 1 mm on the body (toes
+//!   excluded); the body from the heel point to its most anterior point along the axis is
+//!   cut in three equal lengths; index = middle third's contact area over the total.
+
+mod fit;
+mod foot;
+mod outline;
+mod raster;
+mod stage;
+mod truth;
+
+pub use foot::{measure_foot, Measurements, Side};
+pub use outline::{line_crossings, regions, signed_area, simplify, Region};
+pub use raster::{grid_truncation, rasterize_grid};
+pub use stage::{measure_scan_dir, register_stages, MeasureOutput};
+pub use truth::{compare_with_truth, ErrorKind, ErrorRow, TruthComparison};
+
+/// Why a height map could not be measured.
+#[derive(Debug, thiserror::Error)]
+pub enum MeasureError {
+    #[error("the height map has no valid cells: no footprint to measure")]
+    NoFootprint,
+    #[error(
+        "the largest footprint region is {area_mm2:.0} mm^2; a foot needs at least {min_mm2:.0} mm^2 \
+         (is the foot on the glass and inside the scanned range?)"
+    )]
+    TooSmall { area_mm2: f64, min_mm2: f64 },
+    #[error("cannot locate the {what}: {why}")]
+    Landmark { what: &'static str, why: String },
+    #[error("scan grid: {0}")]
+    Grid(String),
+}

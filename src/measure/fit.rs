@@ -1,0 +1,200 @@
+//! Small least-squares fits used to place landmarks between outline vertices.
+
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+
+/// Least-squares circle through `pts`: algebraic (Kasa) start, then Gauss-Newton on the
+/// geometric distances. Returns (centre, radius), or None for fewer than 3 usable points.
+pub fn fit_circle(pts: &[[f64; 2]]) -> Option<([f64; 2], f64)> {
+    if pts.len() < 3 {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let (mx, my) = (
+        pts.iter().map(|p| p[0]).sum::<f64>() / n,
+        pts.iter().map(|p| p[1]).sum::<f64>() / n,
+    );
+    // x^2 + y^2 + D x + E y + F = 0 on centred coordinates.
+    let mut ata = Matrix3::zeros();
+    let mut atb = Vector3::zeros();
+    for p in pts {
+        let (x, y) = (p[0] - mx, p[1] - my);
+        let row = Vector3::new(x, y, 1.0);
+        ata += row * row.transpose();
+        atb += row * (-(x * x + y * y));
+    }
+    let s = ata.lu().solve(&atb)?;
+    let (mut cx, mut cy) = (-s[0] / 2.0, -s[1] / 2.0);
+    let mut r = (cx * cx + cy * cy - s[2]).max(0.0).sqrt();
+    for _ in 0..20 {
+        let mut jtj = Matrix3::zeros();
+        let mut jtr = Vector3::zeros();
+        for p in pts {
+            let (dx, dy) = (p[0] - mx - cx, p[1] - my - cy);
+            let d = (dx * dx + dy * dy).sqrt().max(1e-12);
+            let res = d - r;
+            let j = Vector3::new(-dx / d, -dy / d, -1.0);
+            jtj += j * j.transpose();
+            jtr += j * res;
+        }
+        let step = jtj.lu().solve(&(-jtr))?;
+        cx += step[0];
+        cy += step[1];
+        r += step[2];
+        if step.norm() < 1e-10 {
+            break;
+        }
+    }
+    (r.is_finite() && r > 0.0).then_some(([cx + mx, cy + my], r))
+}
+
+/// The top of a peak sampled as (t, s) pairs (s = height of the outline in the direction the
+/// landmark is extreme in, t = position across it): the model is two half-curves with a
+/// common vertex and zero slope there, s = a - k1 d^2 [- q1 d^4] for d = t - t0 < 0 and
+/// a - k2 d^2 [- q2 d^4] for d > 0 (quartic terms with `quartic`, for wider windows), so a
+/// peak whose flanks curve differently (a rounded front next to a long flat side) is located
+/// without the pull toward the flat side a single parabola has. Returns (t0, a), or None
+/// when there are too few samples.
+pub fn peak_vertex(ts: &[f64], ss: &[f64], quartic: bool) -> Option<(f64, f64)> {
+    if ts.len() < 7 {
+        return None;
+    }
+    let lo = ts.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = ts.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if hi - lo <= 0.0 {
+        return None;
+    }
+    let np = if quartic { 5 } else { 3 };
+    let row = |t: f64, t0: f64| -> [f64; 5] {
+        let d2 = (t - t0) * (t - t0);
+        let d4 = if quartic { d2 * d2 } else { 0.0 };
+        if t < t0 {
+            [1.0, -d2, 0.0, -d4, 0.0]
+        } else {
+            [1.0, 0.0, -d2, 0.0, -d4]
+        }
+    };
+    // Residual and vertex height of the best linear coefficients for a given t0.
+    let fit = |t0: f64| -> Option<(f64, f64)> {
+        let mut ata = DMatrix::<f64>::zeros(np, np);
+        let mut atb = DVector::<f64>::zeros(np);
+        for (&t, &s) in ts.iter().zip(ss) {
+            let r = row(t, t0);
+            for a in 0..np {
+                atb[a] += r[a] * s;
+                for b in 0..np {
+                    ata[(a, b)] += r[a] * r[b];
+                }
+            }
+        }
+        // Regularise a flank without samples (vertex at the window end).
+        let scale = ata[(0, 0)].max(1.0) * 1e-12;
+        for a in 1..np {
+            ata[(a, a)] += scale;
+        }
+        let c = ata.lu().solve(&atb)?;
+        let res: f64 = ts
+            .iter()
+            .zip(ss)
+            .map(|(&t, &s)| {
+                let r = row(t, t0);
+                let m: f64 = (0..np).map(|a| r[a] * c[a]).sum();
+                (s - m).powi(2)
+            })
+            .sum();
+        Some((res, c[0]))
+    };
+    let n = 200;
+    let mut best = (f64::INFINITY, lo, 0.0);
+    for q in 0..=n {
+        let t0 = lo + (hi - lo) * q as f64 / n as f64;
+        if let Some((r, a)) = fit(t0) {
+            if r < best.0 {
+                best = (r, t0, a);
+            }
+        }
+    }
+    // Golden-section refinement around the best grid point.
+    let step = (hi - lo) / n as f64;
+    let (mut a, mut b) = ((best.1 - step).max(lo), (best.1 + step).min(hi));
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..40 {
+        let (c, d) = (b - g * (b - a), a + g * (b - a));
+        let (rc, rd) = (
+            fit(c).map_or(f64::INFINITY, |f| f.0),
+            fit(d).map_or(f64::INFINITY, |f| f.0),
+        );
+        if rc < rd {
+            b = d;
+        } else {
+            a = c;
+        }
+    }
+    let t0 = 0.5 * (a + b);
+    let (_, s0) = fit(t0)?;
+    Some((t0, s0))
+}
+
+/// Local quadratic regression of `ss` over `ts` at `t`, with samples within `half` of it
+/// (tricube weights); the smoothed value, or None with fewer than 3 samples.
+pub fn local_quadratic(ts: &[f64], ss: &[f64], t: f64, half: f64) -> Option<f64> {
+    let mut ata = Matrix3::zeros();
+    let mut atb = Vector3::zeros();
+    let mut n = 0;
+    for (&ti, &si) in ts.iter().zip(ss) {
+        let u = (ti - t) / half;
+        if u.abs() >= 1.0 {
+            continue;
+        }
+        let w = (1.0 - u.abs().powi(3)).powi(3);
+        let row = Vector3::new(1.0, u, u * u);
+        ata += row * row.transpose() * w;
+        atb += row * (si * w);
+        n += 1;
+    }
+    if n < 3 {
+        return None;
+    }
+    ata.lu().solve(&atb).map(|c| c[0])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn circle_through_an_arc() {
+        let pts: Vec<[f64; 2]> = (0..50)
+            .map(|k| {
+                let a = 2.0 + 1.5 * k as f64 / 49.0;
+                [5.0 + 31.0 * a.cos(), -7.0 + 31.0 * a.sin()]
+            })
+            .collect();
+        let (c, r) = fit_circle(&pts).unwrap();
+        assert!(
+            (c[0] - 5.0).abs() < 1e-6 && (c[1] + 7.0).abs() < 1e-6,
+            "{c:?}"
+        );
+        assert!((r - 31.0).abs() < 1e-6);
+        assert!(fit_circle(&pts[..2]).is_none());
+    }
+
+    #[test]
+    fn asymmetric_peak_vertex() {
+        // A flat flank (k = 0.002) on the left, a sharp one (k = 0.06) on the right.
+        let (t0, a) = (1.3, 7.0);
+        let ts: Vec<f64> = (0..300).map(|k| -15.0 + 0.07 * k as f64).collect();
+        let ss: Vec<f64> = ts
+            .iter()
+            .map(|&t| {
+                let k = if t < t0 { 0.002 } else { 0.06 };
+                a - k * (t - t0) * (t - t0)
+            })
+            .collect();
+        let (t, s) = peak_vertex(&ts, &ss, false).unwrap();
+        let (t4, s4) = peak_vertex(&ts, &ss, true).unwrap();
+        assert!((t4 - t0).abs() < 1e-4 && (s4 - a).abs() < 1e-6, "{t4} {s4}");
+        assert!((t - t0).abs() < 1e-4 && (s - a).abs() < 1e-6, "{t} {s}");
+        let v = local_quadratic(&ts, &ss, -5.0, 2.0).unwrap();
+        assert!((v - (a - 0.002 * 6.3 * 6.3)).abs() < 1e-9);
+    }
+}

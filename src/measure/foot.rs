@@ -1,0 +1,473 @@
+//! The measurement procedure of SPEC section 8 on a height map (definitions in the module doc
+//! of [`crate::measure`]).
+
+use super::fit::{fit_circle, local_quadratic, peak_vertex};
+use super::outline::{line_crossings, regions, simplify, Region};
+use super::MeasureError;
+use crate::geom::HeightMap;
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Side {
+    Left,
+    Right,
+}
+
+/// Foot measurements, world millimetres; points are [x, y] on the glass.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Measurements {
+    pub side: Side,
+    pub heel_point: [f64; 2],
+    pub toe_tip: [f64; 2],
+    /// The foot axis: heel centre to second metatarsal head, and its unit direction.
+    pub heel_centre: [f64; 2],
+    pub mt2_head: [f64; 2],
+    pub axis_dir: [f64; 2],
+    /// Axis direction counterclockwise from +x, degrees.
+    pub axis_angle_deg: f64,
+    pub foot_length_mm: f64,
+    pub mt1_head: [f64; 2],
+    pub mt5_head: [f64; 2],
+    pub ball_width_mm: f64,
+    pub waist_inner: [f64; 2],
+    pub waist_outer: [f64; 2],
+    pub midfoot_width_mm: f64,
+    pub midfoot_inner: [f64; 2],
+    pub midfoot_outer: [f64; 2],
+    pub heel_width_mm: f64,
+    pub heel_width_inner: [f64; 2],
+    pub heel_width_outer: [f64; 2],
+    pub hallux_point: [f64; 2],
+    pub arch_height_mm: f64,
+    pub arch_point: [f64; 2],
+    pub arch_index: f64,
+    /// Toe-less contact area (h <= 1 mm) and its thirds, heel first (mm^2).
+    pub contact_area_mm2: f64,
+    pub contact_thirds_mm2: [f64; 3],
+    /// Most anterior point of the toe-less footprint along the axis (end of the arch-index
+    /// interval).
+    pub body_front: [f64; 2],
+    /// Body outline (toes excluded), counterclockwise, simplified to 0.02 mm.
+    pub outline: Vec<[f64; 2]>,
+    /// Toe pad outlines, hallux first.
+    pub toe_outlines: Vec<Vec<[f64; 2]>>,
+    /// Cell size of the height map measured (mm).
+    pub cell_mm: f64,
+    /// Why some figures may be wrong (e.g. the footprint is cut off); empty when none.
+    #[serde(default)]
+    pub warnings: Vec<String>,
+}
+
+/// Contact threshold of the arch index (mm).
+const CONTACT_MM: f64 = 1.0;
+/// Toe pads: regions of at least this fraction of the body's area.
+const MIN_TOE_FRACTION: f64 = 0.005;
+/// Smallest body accepted as a foot (mm^2).
+const MIN_BODY_MM2: f64 = 4000.0;
+/// Arch vault: slope limit and plane-fit radius (mm).
+const ARCH_SLOPE: f64 = 0.1;
+const ARCH_FIT_RADIUS: f64 = 1.0;
+/// Depth of the body front used to locate its most anterior point (mm).
+const FRONT_DEPTH: f64 = 3.0;
+
+fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
+    a[0] * b[0] + a[1] * b[1]
+}
+fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    [a[0] - b[0], a[1] - b[1]]
+}
+fn add_scaled(a: [f64; 2], d: [f64; 2], s: f64) -> [f64; 2] {
+    [a[0] + s * d[0], a[1] + s * d[1]]
+}
+fn perp(d: [f64; 2]) -> [f64; 2] {
+    [-d[1], d[0]]
+}
+fn unit(d: [f64; 2]) -> [f64; 2] {
+    let n = d[0].hypot(d[1]);
+    [d[0] / n, d[1] / n]
+}
+
+/// Extreme point of a closed outline in direction `dir`, among vertices passing `keep`: the
+/// best vertex, then a two-sided parabola over the contiguous run of kept vertices within
+/// `depth` mm of it. None when no vertex is kept.
+fn extreme(
+    outline: &[[f64; 2]],
+    dir: [f64; 2],
+    depth: f64,
+    quartic: bool,
+    keep: impl Fn([f64; 2]) -> bool,
+) -> Option<[f64; 2]> {
+    let n = outline.len();
+    let s = |k: usize| dot(outline[k % n], dir);
+    let best = (0..n)
+        .filter(|&k| keep(outline[k]))
+        .max_by(|&a, &b| s(a).total_cmp(&s(b)))?;
+    let top = s(best);
+    let within = |k: usize| keep(outline[k % n]) && s(k) >= top - depth;
+    let mut ks = vec![best];
+    let mut k = best;
+    while ks.len() < n && within(k + 1) {
+        k += 1;
+        ks.push(k % n);
+    }
+    let mut k = best + n;
+    while ks.len() < n && within(k - 1) {
+        k -= 1;
+        ks.push(k % n);
+    }
+    let across = perp(dir);
+    let ts: Vec<f64> = ks.iter().map(|&k| dot(outline[k], across)).collect();
+    let ss: Vec<f64> = ks.iter().map(|&k| dot(outline[k], dir)).collect();
+    let (t0, s0) = peak_vertex(&ts, &ss, quartic).unwrap_or((dot(outline[best], across), top));
+    Some([s0 * dir[0] + t0 * across[0], s0 * dir[1] + t0 * across[1]])
+}
+
+/// Principal direction of a region's cells (unit, sign arbitrary).
+fn principal_axis(map: &HeightMap, r: &Region) -> [f64; 2] {
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for &k in &r.cells {
+        let (dx, dy) = (
+            map.x(k % map.nx) - r.centroid[0],
+            map.y(k / map.nx) - r.centroid[1],
+        );
+        sxx += dx * dx;
+        sxy += dx * dy;
+        syy += dy * dy;
+    }
+    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    [angle.cos(), angle.sin()]
+}
+
+/// Measure a foot on `map` (see the module doc of [`crate::measure`] for every definition).
+pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
+    let mut regs = regions(map);
+    if regs.is_empty() {
+        return Err(MeasureError::NoFootprint);
+    }
+    let body = regs.remove(0);
+    if body.area_mm2 < MIN_BODY_MM2 {
+        return Err(MeasureError::TooSmall {
+            area_mm2: body.area_mm2,
+            min_mm2: MIN_BODY_MM2,
+        });
+    }
+    let bo = &body.outline;
+    // Initial axis: principal direction, toes (or else +x, the scanner's heel-to-toe
+    // direction) in front.
+    let mut u = principal_axis(map, &body);
+    let extent = {
+        let s: Vec<f64> = bo.iter().map(|&p| dot(p, u)).collect();
+        s.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+            - s.iter().copied().fold(f64::INFINITY, f64::min)
+    };
+    let big: Vec<&Region> = regs
+        .iter()
+        .filter(|r| r.area_mm2 >= MIN_TOE_FRACTION * body.area_mm2)
+        .collect();
+    let toe_pull = big.iter().fold([0.0, 0.0], |acc, r| {
+        add_scaled(acc, sub(r.centroid, body.centroid), r.area_mm2)
+    });
+    let forward = if big.is_empty() { [1.0, 0.0] } else { toe_pull };
+    if dot(u, forward) < 0.0 {
+        u = [-u[0], -u[1]];
+    }
+    let mut toes: Vec<&Region> = big
+        .into_iter()
+        .filter(|r| dot(sub(r.centroid, body.centroid), u) > 0.25 * extent)
+        .collect();
+    toes.sort_by(|a, b| b.area_mm2.total_cmp(&a.area_mm2));
+
+    // Axis: heel circle centre to the body front, iterated to the fixed point.
+    let mut band = 0.12 * extent;
+    let mut centre = body.centroid;
+    let mut radius = 0.0;
+    let mut front = body.centroid;
+    for it in 0..60 {
+        let s_min = bo.iter().map(|&p| dot(p, u)).fold(f64::INFINITY, f64::min);
+        let heel: Vec<[f64; 2]> = bo
+            .iter()
+            .copied()
+            .filter(|&p| dot(p, u) <= s_min + band)
+            .collect();
+        let (c, r) = fit_circle(&heel).ok_or_else(|| MeasureError::Landmark {
+            what: "heel centre",
+            why: format!("{} heel outline points do not fit a circle", heel.len()),
+        })?;
+        (centre, radius, band) = (c, r, r.min(0.3 * extent));
+        front = extreme(bo, u, FRONT_DEPTH, true, |_| true).expect("non-empty outline");
+        let nu = unit(sub(front, centre));
+        let change = (nu[0] * u[1] - nu[1] * u[0]).abs();
+        u = nu;
+        if it > 2 && change < 1e-9 {
+            break;
+        }
+    }
+
+    // Medial side: the hallux side, else the higher midfoot.
+    let left = perp(u);
+    let sign = match toes.first() {
+        Some(h) => dot(sub(h.centroid, centre), left).signum(),
+        None => arch_side(map, &body, centre, u, extent),
+    };
+    let m = [sign * left[0], sign * left[1]];
+    let side = if sign > 0.0 { Side::Right } else { Side::Left };
+
+    // Rearmost point of the heel circle along the axis (on the axis by construction).
+    let heel_point = add_scaled(centre, u, -radius);
+    // Toe tip: most anterior point over the body and the toe pads.
+    let mut toe_tip = extreme(bo, u, 1.0, false, |_| true).expect("non-empty outline");
+    for t in &toes {
+        let p = extreme(&t.outline, u, 1.0, false, |_| true).expect("non-empty outline");
+        if dot(p, u) > dot(toe_tip, u) {
+            toe_tip = p;
+        }
+    }
+    let xl = |p: [f64; 2]| dot(sub(p, heel_point), u);
+    let yl = |p: [f64; 2]| dot(sub(p, heel_point), m);
+    let to_world = |x: f64, y: f64| add_scaled(add_scaled(heel_point, u, x), m, y);
+    let length = xl(toe_tip);
+    let missing = |what: &'static str| MeasureError::Landmark {
+        what,
+        why: "no outline point in its search region".into(),
+    };
+    let neg_m = [-m[0], -m[1]];
+    let mt1 =
+        extreme(bo, m, 0.7, false, |p| xl(p) >= 0.4 * length).ok_or_else(|| missing("MT1 head"))?;
+    let mt5 = extreme(bo, neg_m, 0.7, false, |p| xl(p) >= 0.4 * length)
+        .ok_or_else(|| missing("MT5 head"))?;
+    let ball_width = yl(mt1) - yl(mt5);
+    // The axis passes through the heel centre; coordinates relative to the heel point,
+    // which lies on it.
+    let yc = yl(centre);
+    let mt2 = to_world(xl(mt1), yc);
+    let xc = xl(centre);
+    let waist_inner = extreme(bo, neg_m, 0.5, false, |p| {
+        yl(p) > yc && (xc..=xl(mt1)).contains(&xl(p))
+    })
+    .ok_or_else(|| missing("inner waist point"))?;
+    let waist_outer = extreme(bo, m, 0.5, false, |p| {
+        yl(p) < yc && (xc..=xl(mt5)).contains(&xl(p))
+    })
+    .ok_or_else(|| missing("outer waist point"))?;
+
+    // Mid-foot width over every outline (body and toes).
+    let all: Vec<&[[f64; 2]]> = std::iter::once(bo.as_slice())
+        .chain(toes.iter().map(|t| t.outline.as_slice()))
+        .collect();
+    let mid = to_world(length / 2.0, 0.0);
+    let ts: Vec<f64> = all.iter().flat_map(|o| line_crossings(o, mid, m)).collect();
+    if ts.len() < 2 {
+        return Err(missing("mid-foot breadth"));
+    }
+    let (t_lo, t_hi) = (
+        ts.iter().copied().fold(f64::INFINITY, f64::min),
+        ts.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    );
+    let (midfoot_inner, midfoot_outer) = (add_scaled(mid, m, t_hi), add_scaled(mid, m, t_lo));
+
+    let (heel_width, hw_in, hw_out) =
+        heel_width(bo, map.cell_mm, length, to_world, m).ok_or_else(|| missing("heel width"))?;
+
+    let hallux_point = match toes.first() {
+        Some(h) => extreme(&h.outline, m, 1.0, false, |_| true).expect("non-empty outline"),
+        None => toe_tip,
+    };
+
+    let x_front = xl(front);
+    let (arch_height, arch_point) = arch_height(map, &body, x_front, &xl, &yl, yc)
+        .ok_or_else(|| missing("arch height (no gently sloping medial midfoot)"))?;
+    let thirds = contact_thirds(map, &body, x_front, &xl);
+    let total: f64 = thirds.iter().sum();
+    if total <= 0.0 {
+        return Err(missing("contact area"));
+    }
+
+    Ok(Measurements {
+        side,
+        heel_point,
+        toe_tip,
+        heel_centre: centre,
+        mt2_head: mt2,
+        axis_dir: u,
+        axis_angle_deg: u[1].atan2(u[0]).to_degrees(),
+        foot_length_mm: length,
+        mt1_head: mt1,
+        mt5_head: mt5,
+        ball_width_mm: ball_width,
+        waist_inner,
+        waist_outer,
+        midfoot_width_mm: t_hi - t_lo,
+        midfoot_inner,
+        midfoot_outer,
+        heel_width_mm: heel_width,
+        heel_width_inner: hw_in,
+        heel_width_outer: hw_out,
+        hallux_point,
+        arch_height_mm: arch_height,
+        arch_point,
+        arch_index: thirds[1] / total,
+        contact_area_mm2: total,
+        contact_thirds_mm2: thirds,
+        body_front: front,
+        outline: simplify(bo, 0.02),
+        toe_outlines: toes.iter().map(|t| simplify(&t.outline, 0.02)).collect(),
+        cell_mm: map.cell_mm,
+        warnings: Vec::new(),
+    })
+}
+
+/// +1 when the midfoot is higher to the left of the axis `u` than to the right, else -1.
+fn arch_side(map: &HeightMap, body: &Region, c: [f64; 2], u: [f64; 2], extent: f64) -> f64 {
+    let left = perp(u);
+    let (mut l, mut r) = (0.0, 0.0);
+    for &k in &body.cells {
+        let p = [map.x(k % map.nx), map.y(k / map.nx)];
+        let x = dot(sub(p, c), u);
+        if (0.15 * extent..0.45 * extent).contains(&x) {
+            if dot(sub(p, c), left) > 0.0 {
+                l += map.z[k];
+            } else {
+                r += map.z[k];
+            }
+        }
+    }
+    if l >= r {
+        1.0
+    } else {
+        -1.0
+    }
+}
+
+/// Maximum breadth perpendicular to the axis over the rear quarter, on side profiles
+/// smoothed over +-2 mm. Returns (width, medial end, lateral end).
+fn heel_width(
+    bo: &[[f64; 2]],
+    cell: f64,
+    length: f64,
+    to_world: impl Fn(f64, f64) -> [f64; 2],
+    m: [f64; 2],
+) -> Option<(f64, [f64; 2], [f64; 2])> {
+    let step = (cell / 2.0).max(0.05);
+    let n = (length / 4.0 / step).ceil() as usize;
+    let (mut xs, mut med, mut lat) = (Vec::new(), Vec::new(), Vec::new());
+    // Stations from 2 mm behind the heel point (none cross) to 2 mm past the quarter, so the
+    // smoothing has samples on both sides of the range.
+    let extra = (2.0 / step).ceil() as usize;
+    for q in 0..=n + extra {
+        let x = q as f64 * step;
+        let o = to_world(x, 0.0);
+        let ts = line_crossings(bo, o, m);
+        if ts.len() >= 2 {
+            xs.push(x);
+            med.push(ts.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+            lat.push(ts.iter().copied().fold(f64::INFINITY, f64::min));
+        }
+    }
+    let mut best: Option<(f64, f64, f64, f64)> = None;
+    for &x in xs.iter().filter(|&&x| x <= length / 4.0) {
+        let (Some(a), Some(b)) = (
+            local_quadratic(&xs, &med, x, 2.0),
+            local_quadratic(&xs, &lat, x, 2.0),
+        ) else {
+            continue;
+        };
+        if best.is_none_or(|bw| a - b > bw.0) {
+            best = Some((a - b, x, a, b));
+        }
+    }
+    let (w, x, a, b) = best?;
+    Some((w, to_world(x, a), to_world(x, b)))
+}
+
+/// Highest gently sloping sole point over the medial half of the middle third of the body
+/// (x' in [x_f/3, 2 x_f/3], medial of the axis): plane fits over ARCH_FIT_RADIUS.
+fn arch_height(
+    map: &HeightMap,
+    body: &Region,
+    x_front: f64,
+    xl: &impl Fn([f64; 2]) -> f64,
+    yl: &impl Fn([f64; 2]) -> f64,
+    y_axis: f64,
+) -> Option<(f64, [f64; 2])> {
+    let cell = map.cell_mm;
+    let rad = (ARCH_FIT_RADIUS / cell).ceil() as isize;
+    // Evaluate on cells about 0.2 mm apart.
+    let stride = ((0.2 / cell).round() as usize).max(1);
+    let mut best: Option<(f64, [f64; 2])> = None;
+    for &k in &body.cells {
+        let (i, j) = (k % map.nx, k / map.nx);
+        if i % stride != 0 || j % stride != 0 {
+            continue;
+        }
+        let p = [map.x(i), map.y(j)];
+        let x = xl(p);
+        if x < x_front / 3.0 || x > 2.0 * x_front / 3.0 || yl(p) < y_axis {
+            continue;
+        }
+        // Plane z = a + b dx + c dy over the disc.
+        let (mut n, mut total) = (0usize, 0usize);
+        let mut s = [0.0f64; 9]; // sums: 1, dx, dy, dx2, dxdy, dy2, z, zdx, zdy
+        for dj in -rad..=rad {
+            for di in -rad..=rad {
+                let (dx, dy) = (di as f64 * cell, dj as f64 * cell);
+                if dx * dx + dy * dy > ARCH_FIT_RADIUS * ARCH_FIT_RADIUS {
+                    continue;
+                }
+                total += 1;
+                let (ii, jj) = (i as isize + di, j as isize + dj);
+                if ii < 0 || jj < 0 || ii >= map.nx as isize || jj >= map.ny as isize {
+                    continue;
+                }
+                let z = map.get(ii as usize, jj as usize);
+                if !z.is_finite() {
+                    continue;
+                }
+                n += 1;
+                for (v, add) in
+                    s.iter_mut()
+                        .zip([1.0, dx, dy, dx * dx, dx * dy, dy * dy, z, z * dx, z * dy])
+                {
+                    *v += add;
+                }
+            }
+        }
+        // The whole disc must be on the sole: no fits across the outline.
+        if n < total {
+            continue;
+        }
+        let a = nalgebra::Matrix3::new(s[0], s[1], s[2], s[1], s[3], s[4], s[2], s[4], s[5]);
+        let Some(c) = a.lu().solve(&nalgebra::Vector3::new(s[6], s[7], s[8])) else {
+            continue;
+        };
+        if c[1].hypot(c[2]) > ARCH_SLOPE {
+            continue;
+        }
+        if best.is_none_or(|b| c[0] > b.0) {
+            best = Some((c[0], p));
+        }
+    }
+    best
+}
+
+/// Contact area (h <= 1 mm) of the body in the three equal thirds of [0, x_front].
+fn contact_thirds(
+    map: &HeightMap,
+    body: &Region,
+    x_front: f64,
+    xl: &impl Fn([f64; 2]) -> f64,
+) -> [f64; 3] {
+    let mut t = [0.0; 3];
+    let a = map.cell_mm * map.cell_mm;
+    for &k in &body.cells {
+        if map.z[k] > CONTACT_MM {
+            continue;
+        }
+        let x = xl([map.x(k % map.nx), map.y(k / map.nx)]);
+        if !(0.0..x_front).contains(&x) {
+            continue;
+        }
+        t[((3.0 * x / x_front) as usize).min(2)] += a;
+    }
+    t
+}

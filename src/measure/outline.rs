@@ -1,0 +1,314 @@
+//! The footprint of a height map: connected regions of valid cells and their outlines.
+//!
+//! A cell is in the footprint when its height is finite. Regions are 4-connected (cells that
+//! touch only at a corner are apart, as toes separated by a one-cell gap should be). A region's
+//! outline is traced by marching squares on the cell centres with the boundary halfway between
+//! an inside and an outside centre: for a map whose valid cells are those with the centre in
+//! the footprint, each outline vertex is within half a cell of the true outline, without bias.
+
+use crate::geom::HeightMap;
+
+/// One 4-connected region of valid cells.
+#[derive(Clone, Debug)]
+pub struct Region {
+    /// Cell indices `j * nx + i`.
+    pub cells: Vec<usize>,
+    /// Area in mm^2.
+    pub area_mm2: f64,
+    /// Mean cell centre (world mm).
+    pub centroid: [f64; 2],
+    /// Outer outline, counterclockwise, world mm (last vertex not repeated).
+    pub outline: Vec<[f64; 2]>,
+}
+
+/// The 4-connected regions of the valid cells of `map`, largest first, each with its outline.
+pub fn regions(map: &HeightMap) -> Vec<Region> {
+    let (nx, ny) = (map.nx, map.ny);
+    let valid: Vec<bool> = map.z.iter().map(|z| z.is_finite()).collect();
+    let mut label = vec![u32::MAX; nx * ny];
+    let mut out = Vec::new();
+    let mut stack = Vec::new();
+    for start in 0..nx * ny {
+        if !valid[start] || label[start] != u32::MAX {
+            continue;
+        }
+        let id = out.len() as u32;
+        let mut cells = Vec::new();
+        label[start] = id;
+        stack.push(start);
+        while let Some(k) = stack.pop() {
+            cells.push(k);
+            let (i, j) = (k % nx, k / nx);
+            let mut visit = |n: usize| {
+                if valid[n] && label[n] == u32::MAX {
+                    label[n] = id;
+                    stack.push(n);
+                }
+            };
+            if i > 0 {
+                visit(k - 1);
+            }
+            if i + 1 < nx {
+                visit(k + 1);
+            }
+            if j > 0 {
+                visit(k - nx);
+            }
+            if j + 1 < ny {
+                visit(k + nx);
+            }
+        }
+        let (mut sx, mut sy) = (0.0, 0.0);
+        for &k in &cells {
+            sx += map.x(k % nx);
+            sy += map.y(k / nx);
+        }
+        let n = cells.len() as f64;
+        out.push(Region {
+            area_mm2: n * map.cell_mm * map.cell_mm,
+            centroid: [sx / n, sy / n],
+            outline: Vec::new(),
+            cells,
+        });
+    }
+    for (id, r) in out.iter_mut().enumerate() {
+        r.outline = outer_outline(map, &label, id as u32, &r.cells);
+    }
+    out.sort_by_key(|r| std::cmp::Reverse(r.cells.len()));
+    out
+}
+
+/// Marching squares over the bounding box of one region (label `id`), padded by one cell;
+/// returns the loop of largest area (the outer boundary; holes are clockwise and smaller).
+fn outer_outline(map: &HeightMap, label: &[u32], id: u32, cells: &[usize]) -> Vec<[f64; 2]> {
+    let nx = map.nx;
+    let (mut i0, mut i1, mut j0, mut j1) = (usize::MAX, 0, usize::MAX, 0);
+    for &k in cells {
+        let (i, j) = (k % nx, k / nx);
+        i0 = i0.min(i);
+        i1 = i1.max(i);
+        j0 = j0.min(j);
+        j1 = j1.max(j);
+    }
+    // Local padded grid: local (a, b) = cell (i0 + a - 1, j0 + b - 1).
+    let w = i1 - i0 + 3;
+    let h = j1 - j0 + 3;
+    let inside = |a: usize, b: usize| -> bool {
+        if a == 0 || b == 0 || a >= w - 1 || b >= h - 1 {
+            return false;
+        }
+        label[(j0 + b - 1) * nx + (i0 + a - 1)] == id
+    };
+    // Crossing points are identified by the edge between two sample points: horizontal edge
+    // (a, b)-(a+1, b) is 2 (b w + a), vertical (a, b)-(a, b+1) is 2 (b w + a) + 1.
+    let hid = |a: usize, b: usize| 2 * (b * w + a);
+    let vid = |a: usize, b: usize| 2 * (b * w + a) + 1;
+    let mut next = std::collections::HashMap::new();
+    for b in 0..h - 1 {
+        for a in 0..w - 1 {
+            // Corners counterclockwise (x right, y up): (a,b), (a+1,b), (a+1,b+1), (a,b+1).
+            let c = [
+                inside(a, b),
+                inside(a + 1, b),
+                inside(a + 1, b + 1),
+                inside(a, b + 1),
+            ];
+            if c.iter().all(|&v| v) || c.iter().all(|&v| !v) {
+                continue;
+            }
+            // Edge k joins corner k to corner k+1.
+            let edges = [hid(a, b), vid(a + 1, b), hid(a, b + 1), vid(a, b)];
+            for k in 0..4 {
+                // An exit edge: inside -> outside going counterclockwise. The segment with
+                // the inside on its left runs from it back (clockwise) to the first crossed
+                // edge, which cuts off the inside corners between them (saddles stay apart).
+                if c[k] && !c[(k + 1) % 4] {
+                    let mut e = (k + 3) % 4;
+                    while c[e] == c[(e + 1) % 4] {
+                        e = (e + 3) % 4;
+                    }
+                    next.insert(edges[k], edges[e]);
+                }
+            }
+        }
+    }
+    let point = |e: usize| -> [f64; 2] {
+        let (k, vertical) = (e / 2, e % 2 == 1);
+        let (a, b) = ((k % w) as f64, (k / w) as f64);
+        let (a, b) = if vertical { (a, b + 0.5) } else { (a + 0.5, b) };
+        [
+            map.x0 + (i0 as f64 + a - 1.0) * map.cell_mm,
+            map.y0 + (j0 as f64 + b - 1.0) * map.cell_mm,
+        ]
+    };
+    let mut best: Vec<[f64; 2]> = Vec::new();
+    let mut best_area = f64::NEG_INFINITY;
+    let mut seen = std::collections::HashSet::new();
+    let mut starts: Vec<usize> = next.keys().copied().collect();
+    starts.sort_unstable();
+    for s in starts {
+        if seen.contains(&s) {
+            continue;
+        }
+        let mut ring = Vec::new();
+        let mut e = s;
+        loop {
+            seen.insert(e);
+            ring.push(point(e));
+            e = next[&e];
+            if e == s {
+                break;
+            }
+        }
+        let a = signed_area(&ring);
+        if a > best_area {
+            best_area = a;
+            best = ring;
+        }
+    }
+    best
+}
+
+/// Signed area of a closed polygon (counterclockwise positive).
+pub fn signed_area(p: &[[f64; 2]]) -> f64 {
+    let n = p.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (p[i], p[(i + 1) % n]);
+            a[0] * b[1] - b[0] * a[1]
+        })
+        .sum::<f64>()
+        / 2.0
+}
+
+/// Parameters t where the line `o + t d` crosses the closed polygon `p`.
+pub fn line_crossings(p: &[[f64; 2]], o: [f64; 2], d: [f64; 2]) -> Vec<f64> {
+    let n = [-d[1], d[0]];
+    let side = |q: [f64; 2]| (q[0] - o[0]) * n[0] + (q[1] - o[1]) * n[1];
+    let along = |q: [f64; 2]| (q[0] - o[0]) * d[0] + (q[1] - o[1]) * d[1];
+    let mut ts = Vec::new();
+    for i in 0..p.len() {
+        let (a, b) = (p[i], p[(i + 1) % p.len()]);
+        let (sa, sb) = (side(a), side(b));
+        if (sa < 0.0) != (sb < 0.0) {
+            let f = sa / (sa - sb);
+            ts.push(along(a) + f * (along(b) - along(a)));
+        }
+    }
+    ts
+}
+
+/// Douglas-Peucker simplification of a closed polygon to `tol` mm.
+pub fn simplify(p: &[[f64; 2]], tol: f64) -> Vec<[f64; 2]> {
+    if p.len() < 4 {
+        return p.to_vec();
+    }
+    // Split the ring at vertex 0 and the vertex farthest from it.
+    let far = (1..p.len())
+        .max_by(|&a, &b| dist2(p[0], p[a]).total_cmp(&dist2(p[0], p[b])))
+        .unwrap_or(1);
+    let mut keep = vec![false; p.len() + 1];
+    keep[0] = true;
+    keep[far] = true;
+    keep[p.len()] = true;
+    let ring: Vec<[f64; 2]> = p.iter().copied().chain(std::iter::once(p[0])).collect();
+    let mut stack = vec![(0, far), (far, p.len())];
+    while let Some((a, b)) = stack.pop() {
+        let (mut worst, mut at) = (0.0, 0);
+        for k in a + 1..b {
+            let d = seg_dist(ring[k], ring[a], ring[b]);
+            if d > worst {
+                (worst, at) = (d, k);
+            }
+        }
+        if worst > tol {
+            keep[at] = true;
+            stack.push((a, at));
+            stack.push((at, b));
+        }
+    }
+    (0..p.len()).filter(|&k| keep[k]).map(|k| p[k]).collect()
+}
+
+fn dist2(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)
+}
+
+fn seg_dist(q: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let l2 = dx * dx + dy * dy;
+    let t = if l2 > 0.0 {
+        (((q[0] - a[0]) * dx + (q[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    dist2(q, [a[0] + t * dx, a[1] + t * dy]).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn disc_map(cx: f64, cy: f64, r: f64, cell: f64) -> HeightMap {
+        let n = ((2.0 * r + 4.0) / cell) as usize;
+        let mut m = HeightMap::new(cx - r - 2.0, cy - r - 2.0, cell, n, n);
+        for j in 0..n {
+            for i in 0..n {
+                if (m.x(i) - cx).powi(2) + (m.y(j) - cy).powi(2) <= r * r {
+                    m.set(i, j, 0.0);
+                }
+            }
+        }
+        m
+    }
+
+    #[test]
+    fn disc_outline_is_close_and_counterclockwise() {
+        let m = disc_map(3.0, -2.0, 10.0, 0.2);
+        let rs = regions(&m);
+        assert_eq!(rs.len(), 1);
+        let o = &rs[0].outline;
+        assert!(signed_area(o) > 0.0);
+        for p in o {
+            let r = ((p[0] - 3.0).powi(2) + (p[1] + 2.0).powi(2)).sqrt();
+            assert!((r - 10.0).abs() < 0.15, "vertex at radius {r}");
+        }
+        let area = signed_area(o);
+        let truth = std::f64::consts::PI * 100.0;
+        assert!((area - truth).abs() / truth < 0.01, "{area} vs {truth}");
+        assert!((rs[0].area_mm2 - truth).abs() / truth < 0.01);
+        // A line through the centre crosses twice, 20 mm apart.
+        let t = line_crossings(o, [3.0, -2.0], [0.6, 0.8]);
+        assert_eq!(t.len(), 2);
+        assert!(((t[0] - t[1]).abs() - 20.0).abs() < 0.2, "{t:?}");
+        let s = simplify(o, 0.05);
+        assert!(
+            s.len() < o.len() / 2 && s.len() > 20,
+            "{} of {}",
+            s.len(),
+            o.len()
+        );
+    }
+
+    #[test]
+    fn diagonal_cells_are_apart_and_holes_ignored() {
+        let mut m = HeightMap::new(0.0, 0.0, 1.0, 12, 12);
+        for (i, j) in [(1, 1), (2, 2)] {
+            m.set(i, j, 0.0);
+        }
+        // A ring with a hole.
+        for j in 5..10 {
+            for i in 5..10 {
+                if !(i == 7 && j == 7) {
+                    m.set(i, j, 1.0);
+                }
+            }
+        }
+        let rs = regions(&m);
+        assert_eq!(rs.len(), 3);
+        assert_eq!(rs[0].cells.len(), 24);
+        assert!((signed_area(&rs[0].outline) - 24.5).abs() < 1e-9);
+        assert!((signed_area(&rs[1].outline) - 0.5).abs() < 1e-9);
+        assert!((rs[0].centroid[0] - 7.0).abs() < 1e-9);
+    }
+}
