@@ -26,6 +26,17 @@ impl PointGrid {
         PointGrid { nu, nv, points }
     }
 
+    /// A height function sampled at `xs` (u) by `ys` (v); NaN where it has no value.
+    pub fn sample(f: impl Fn(f64, f64) -> Option<f64>, xs: &[f64], ys: &[f64]) -> Self {
+        let mut pts = Vec::with_capacity(xs.len() * ys.len());
+        for &x in xs {
+            for &y in ys {
+                pts.push(f(x, y).map_or([f64::NAN; 3], |z| [x, y, z]));
+            }
+        }
+        PointGrid::new(xs.len(), ys.len(), pts)
+    }
+
     /// The whole scan grid: u = frame, v = row.
     pub fn from_scan(g: &ScanGrid) -> Self {
         PointGrid::new(g.frames.len(), g.rows, g.points.clone())
