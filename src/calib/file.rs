@@ -1,4 +1,5 @@
-use super::CameraModel;
+use super::bezier_depth::BezierDepth;
+use super::{CameraModel, Triangulator};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -18,6 +19,10 @@ pub struct Calibration {
     /// Fit residuals by target (RMS, px or mm as the key says).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub residuals: BTreeMap<String, f64>,
+    /// Heights from a Bezier depth network instead of the laser plane (method `bezier`); x and
+    /// y still come from `model`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bezier: Option<BezierDepth>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -51,7 +56,26 @@ impl Calibration {
     pub fn parse(text: &str) -> Result<Self, String> {
         let c: Calibration = toml::from_str(text).map_err(|e| e.to_string())?;
         c.model.validate()?;
+        if let Some(b) = &c.bezier {
+            if b.reference_col.len() != c.model.height as usize || b.blocks.is_empty() {
+                return Err(format!(
+                    "bezier: {} reference rows and {} blocks for a {}-row camera",
+                    b.reference_col.len(),
+                    b.blocks.len(),
+                    c.model.height
+                ));
+            }
+        }
         Ok(c)
+    }
+
+    /// The triangulator this calibration defines (with its depth network, if any).
+    pub fn triangulator(&self) -> Triangulator {
+        let t = self.model.triangulator();
+        match &self.bezier {
+            Some(b) => t.with_depth(b.clone()),
+            None => t,
+        }
     }
 
     /// Written atomically; an invalid model is refused rather than saved.
@@ -85,6 +109,7 @@ mod tests {
             model: default_model(),
             stddev: BTreeMap::new(),
             residuals: [("plate_rms_px".to_string(), 0.01)].into(),
+            bezier: None,
         };
         c.save(&path).unwrap();
         assert_eq!(Calibration::load(&path).unwrap(), c);

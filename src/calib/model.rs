@@ -27,13 +27,15 @@ pub struct CameraModel {
     pub slider_scale: f64,
 }
 
-/// Precomputed trigonometry for the per-row hot path.
+/// Precomputed trigonometry for the per-row hot path; optionally a Bezier depth network that
+/// gives the height instead of the laser plane.
 #[derive(Clone, Debug)]
 pub struct Triangulator {
     m: CameraModel,
     r: [[f64; 3]; 3],
     tan_a: f64,
     tan_b: f64,
+    depth: Option<std::sync::Arc<super::bezier_depth::BezierDepth>>,
 }
 
 impl CameraModel {
@@ -56,6 +58,7 @@ impl CameraModel {
             tan_a: a.tan(),
             tan_b: b.tan(),
             m: self.clone(),
+            depth: None,
         }
     }
 
@@ -162,6 +165,12 @@ impl Triangulator {
         &self.m
     }
 
+    /// Take heights from `depth` (the point is then where the pixel's ray reaches that height).
+    pub fn with_depth(mut self, depth: super::bezier_depth::BezierDepth) -> Self {
+        self.depth = Some(std::sync::Arc::new(depth));
+        self
+    }
+
     /// 3D point of the laser line seen at (col, row) with the slider reporting `slider_x`:
     /// the pixel's ray intersected with the laser plane. None if the ray is parallel to the
     /// plane or the intersection lies behind the camera.
@@ -176,6 +185,14 @@ impl Triangulator {
         ];
         let xs = m.slider_scale * slider_x;
         let o = [xs, 0.0, -m.d_mm];
+        if let Some(depth) = &self.depth {
+            let h = depth.height(row, col)?;
+            if d[2] <= 1e-12 {
+                return None;
+            }
+            let t = (h + m.d_mm) / d[2];
+            return Some([o[0] + t * d[0], o[1] + t * d[1], h]);
+        }
         // plane: x - tan_a*y - tan_b*z = xs + L
         let denom = d[0] - self.tan_a * d[1] - self.tan_b * d[2];
         if denom.abs() < 1e-12 {

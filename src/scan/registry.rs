@@ -93,7 +93,7 @@ pub fn registry() -> Registry<Item, ScanContext> {
                     "no calibration: pass --calibration FILE or set calibration = \"FILE\" on this stage",
                 )?,
             };
-            Ok(Node::stage(Triangulate::new(cal.model.triangulator())))
+            Ok(Node::stage(Triangulate::new(cal.triangulator())))
         },
     );
     r.register(
@@ -105,6 +105,7 @@ pub fn registry() -> Registry<Item, ScanContext> {
         },
     );
     crate::surface::register_stages(&mut r);
+    crate::measure::register_stages(&mut r);
     r.register(
         "sink.ply",
         "writes the point cloud as binary PLY (file, default points.ply)",

@@ -146,6 +146,7 @@ pub fn true_calibration(cfg: &ScanConfig) -> Calibration {
         },
         stddev: Default::default(),
         residuals: Default::default(),
+        bezier: None,
     }
 }
 

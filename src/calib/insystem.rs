@@ -1,0 +1,534 @@
+//! In-system calibration (SPEC section 6; seed 002 section 4, recast): the scanner calibrates
+//! itself from the line on a flat plate at known heights, a staircase gauge block of known
+//! step heights, step lengths and width, and its own slider positions.
+//!
+//! 1. Start: the closed forms of eq. 20-21 per row ([`super::closed_form`]) give c_x, D and
+//!    F L; the block's known width gives F (and so L), the block's sides seen at several
+//!    heights give c_y, its sides and risers its pose.
+//! 2. A Levenberg-Marquardt fit of the general model of SPEC section 2 over every row of every
+//!    target: F, c_x, c_y, D, L, k1, k2, the laser plane's yaw and pitch, the slider scale, and
+//!    the block's pose (x, y, yaw) as nuisance parameters. Residuals: the height of each plate
+//!    and step row against its known height (in px of column through dh/dc), and the row of
+//!    each end of the line at a side or riser of the block against the model's prediction of
+//!    that edge (half a row from the last row that shows the line).
+//! 3. The covariance of the fit (residuals in units of their measured noise: the spread of
+//!    repeated plate frames, and 1/sqrt(12) row for an end) gives a standard deviation per
+//!    parameter and, propagated through the triangulation, a height uncertainty (eq. 30-31).
+//!
+//! # What the laser line cannot tell (the gauge)
+//! Every observation is a point of the laser plane, which moves with the camera: the data fix
+//! the mapping from the laser plane to the image (a homography plus distortion), nothing
+//! else. A rotation of the camera about its own centre by a small angle t about the y axis
+//! changes that mapping only by a shift of c_x by about -F tan t, of D by about +L tan t and of
+//! the laser pitch (second-order terms: ~1e-6 px); likewise rotation about x against c_y, and
+//! roll against the laser yaw. The camera tilts are therefore fixed at zero: the fitted c_x,
+//! c_y, D and laser tilts are those of the equivalent untilted camera, which triangulates every
+//! point of the laser plane to within the fit's residuals. With a camera tilted by t about y
+//! (0.3 deg on the default simulated scanner) the fitted c_x differs from the lens's principal
+//! point by F tan t (10.5 px) and D by L tan t (0.37 mm): not an error of any height, but not
+//! the lens's own c_x either. The paper's claim that f and the pixel size are found separately
+//! (eq. 22-24, by moving the lens) does not apply here: only F = f/eta is observable.
+
+use super::acquire::InsystemData;
+use super::closed_form;
+use super::lm;
+use super::stair::{self, Edge};
+use super::{CalibError, CameraModel};
+use footscan_sim::targets::Placement;
+use nalgebra::DMatrix;
+use std::collections::BTreeMap;
+
+/// Tuning of the fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InsystemOptions {
+    /// Use every n-th row of a staircase piece for the height residuals.
+    pub stair_row_stride: usize,
+    /// Rows next to a piece's end left out of the height residuals.
+    pub end_margin_rows: usize,
+    /// Solver budget (function evaluations per parameter).
+    pub patience: usize,
+}
+
+impl Default for InsystemOptions {
+    fn default() -> Self {
+        InsystemOptions {
+            stair_row_stride: 4,
+            end_margin_rows: 3,
+            patience: 100,
+        }
+    }
+}
+
+/// Fitted parameters in order: the model's, then the block's pose.
+pub const PARAMS: [&str; 13] = [
+    "f_px",
+    "cx",
+    "cy",
+    "d_mm",
+    "l_mm",
+    "k1",
+    "k2",
+    "laser_tilt_deg[0]",
+    "laser_tilt_deg[1]",
+    "slider_scale",
+    "staircase.x_mm",
+    "staircase.y_mm",
+    "staircase.yaw_deg",
+];
+const MODEL_PARAMS: usize = 10;
+const STEPS: [f64; 13] = [
+    1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-6, 1e-6, 1e-5, 1e-5, 1e-8, 1e-4, 1e-4, 1e-5,
+];
+
+/// The result of an in-system calibration.
+#[derive(Clone, Debug)]
+pub struct InsystemFit {
+    pub model: CameraModel,
+    /// Standard deviation of every fitted model parameter (names as in the model).
+    pub stddev: BTreeMap<String, f64>,
+    /// Residual RMS by target and the paper's checks (see [`fit_insystem`]).
+    pub residuals: BTreeMap<String, f64>,
+    /// The staircase's pose found by the fit, with standard deviations.
+    pub block: Placement,
+    pub block_stddev: [f64; 3],
+    /// The per-row closed forms the fit started from.
+    pub closed_form: closed_form::Summary,
+    /// The model the fit started from.
+    pub start: CameraModel,
+    /// Covariance of [`PARAMS`].
+    pub covariance: DMatrix<f64>,
+    /// Condition number of the scaled normal matrix.
+    pub condition: f64,
+    pub evaluations: usize,
+    /// Single-frame detection noise measured on the plate (px).
+    pub detection_noise_px: f64,
+}
+
+struct RowObs {
+    x_mm: f64,
+    row: f64,
+    col: f64,
+    h: f64,
+    /// 1 / (|dh/dc| sigma_col): turns a height error into a normalised column residual.
+    weight: f64,
+    plate: Option<usize>,
+}
+
+#[derive(Clone, Copy)]
+enum EdgeKind {
+    Side { w: f64 },
+    Riser { u: f64 },
+}
+
+struct EdgeObs {
+    x_mm: f64,
+    h: f64,
+    kind: EdgeKind,
+    row: f64,
+}
+
+/// Quantisation of an end to whole rows: uniform over one row.
+const EDGE_SIGMA: f64 = 0.288_675_134_594_812_9;
+
+fn model_of(x: &[f64], width: u32, height: u32) -> CameraModel {
+    CameraModel {
+        width,
+        height,
+        f_px: x[0],
+        cx: x[1],
+        cy: x[2],
+        d_mm: x[3],
+        l_mm: x[4],
+        k1: x[5],
+        k2: x[6],
+        p1: 0.0,
+        p2: 0.0,
+        camera_tilt_deg: [0.0; 3],
+        laser_tilt_deg: [x[7], x[8]],
+        slider_scale: x[9],
+    }
+}
+
+/// Calibrate from in-system data. Residual keys: `plate_<h>mm_rms_px` (column residual RMS per
+/// plate height), `staircase_rows_rms_px`, `staircase_edges_rms_px` (rows),
+/// `closed_form_cx_spread_px` and `closed_form_d_spread_mm` (spread of the per-row eq. 20-21
+/// solutions), `parallel_x_rms_mm` and `parallel_y_rms_mm` (eq. 18-19: departure of k(s) and
+/// q(t) from first order), `detection_noise_px`, `u_h_detection_mm` (one frame, h = 0),
+/// `u_h_model_mm` (calibration parameters), `u_h_mm` (both, eq. 30), `fit_reduced_chi2`.
+pub fn fit_insystem(
+    data: &InsystemData,
+    opts: &InsystemOptions,
+) -> Result<InsystemFit, CalibError> {
+    let (w, h) = (data.width, data.height);
+    // Heights actually seen.
+    let usable: Vec<&super::acquire::PlateObservation> = data
+        .plates
+        .iter()
+        .filter(|p| p.col.iter().filter(|c| c.is_finite()).count() >= 16)
+        .collect();
+    if let Some(p) = data
+        .plates
+        .iter()
+        .find(|p| !usable.iter().any(|u| std::ptr::eq(*u, *p)))
+    {
+        return Err(CalibError::NoUsableRows {
+            target: format!("the plate at {} mm", p.height_mm),
+            detail: format!(
+                "the line was found in {} rows over {} frames: check that the plate is in view \
+                 and lit by the laser, and the detector threshold",
+                p.col.iter().filter(|c| c.is_finite()).count(),
+                p.frames
+            ),
+        });
+    }
+    let mut distinct: Vec<f64> = usable.iter().map(|p| p.height_mm).collect();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+    if distinct.len() < 3 {
+        return Err(CalibError::TooFewHeights {
+            got: distinct.len(),
+            need: 3,
+            heights: format!("{distinct:?} mm"),
+        });
+    }
+    let plates: Vec<super::acquire::PlateObservation> = usable.into_iter().cloned().collect();
+    // 1. Closed forms.
+    let rows = closed_form::per_row(&plates);
+    let cf = closed_form::summarize(&rows).ok_or_else(|| CalibError::NoUsableRows {
+        target: "the plate".into(),
+        detail: "no row has the line at three heights".into(),
+    })?;
+    let z_ideal = |_: usize, c: f64| cf.fl / (c - cf.cx) - cf.d_mm;
+    let steps = stair::assign_steps(data, &z_ideal);
+    let pieces = stair::pieces(&steps);
+    if pieces.is_empty() {
+        return Err(CalibError::NoUsableRows {
+            target: "the staircase gauge block".into(),
+            detail: format!(
+                "no frame of the {}-frame pass shows the line on a step at one of the drawing's \
+                 heights {:?} mm",
+                data.stair.len(),
+                data.staircase.heights_mm
+            ),
+        });
+    }
+    let f0 = stair::scale(data, &pieces, cf.d_mm)?;
+    let cy0 = 0.5 * (h as f64 - 1.0);
+    let mut x0 = [
+        f0,
+        cf.cx,
+        cy0,
+        cf.d_mm,
+        cf.fl / f0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        1.0,
+        0.0,
+        0.0,
+        0.0,
+    ];
+    let pose0 = stair::block_pose(data, &pieces, &model_of(&x0, w, h))?;
+    x0[10] = pose0.0;
+    x0[11] = pose0.1;
+    x0[12] = pose0.2;
+    let start = model_of(&x0, w, h);
+    // 2. Observations and weights.
+    let noise = pooled_noise(&plates);
+    let tri0 = start.triangulator();
+    let slope = |x_mm: f64, row: f64, col: f64| -> Option<f64> {
+        let a = tri0.point(x_mm, col - 0.5, row)?[2];
+        let b = tri0.point(x_mm, col + 0.5, row)?[2];
+        Some((b - a).abs())
+    };
+    let mut obs = Vec::new();
+    for (k, p) in plates.iter().enumerate() {
+        let sigma = (pooled_noise(std::slice::from_ref(p)) / (p.frames as f64).sqrt()).max(0.003);
+        for (r, &c) in p.col.iter().enumerate() {
+            if let (true, Some(g)) = (c.is_finite(), slope(0.0, r as f64, c)) {
+                obs.push(RowObs {
+                    x_mm: 0.0,
+                    row: r as f64,
+                    col: c,
+                    h: p.height_mm,
+                    weight: 1.0 / (g * sigma),
+                    plate: Some(k),
+                });
+            }
+        }
+    }
+    let g_heights = &data.staircase.heights_mm;
+    let mut edges = Vec::new();
+    let stride = opts.stair_row_stride.max(1);
+    for p in &pieces {
+        let f = &data.stair[p.frame];
+        let hj = g_heights[p.step];
+        let m = opts.end_margin_rows;
+        let mut r = p.first + m;
+        while r + m <= p.last {
+            if let Some(g) = slope(f.x_mm, r as f64, f.col[r]) {
+                obs.push(RowObs {
+                    x_mm: f.x_mm,
+                    row: r as f64,
+                    col: f.col[r],
+                    h: hj,
+                    weight: 1.0 / (g * noise.max(0.01)),
+                    plate: None,
+                });
+            }
+            r += stride;
+        }
+    }
+    for e in stair::identify_ends(data, &pieces, &start, pose0, 3.0) {
+        let p = &pieces[e.piece];
+        let row = if e.first { p.first } else { p.last };
+        edges.push(EdgeObs {
+            x_mm: data.stair[p.frame].x_mm,
+            h: g_heights[p.step],
+            kind: match e.edge {
+                Edge::Side { w } => EdgeKind::Side { w },
+                Edge::Face { u } => EdgeKind::Riser { u },
+            },
+            row: if e.first {
+                row as f64 - 0.5
+            } else {
+                row as f64 + 0.5
+            },
+        });
+    }
+    // 3. The fit.
+    let residual = |x: &[f64], out: &mut Vec<f64>| {
+        out.clear();
+        let m = model_of(x, w, h);
+        let tri = m.triangulator();
+        for o in &obs {
+            out.push(match tri.point(o.x_mm, o.col, o.row) {
+                Some(p) => (p[2] - o.h) * o.weight,
+                None => 1e6,
+            });
+        }
+        for e in &edges {
+            out.push(match edge_row(&m, [x[10], x[11], x[12]], e) {
+                Some(r) => (r - e.row) / EDGE_SIGMA,
+                None => 1e6,
+            });
+        }
+    };
+    let sol = lm::solve(&residual, &x0, &STEPS, opts.patience).map_err(|detail| {
+        CalibError::NotConverged {
+            what: "the in-system fit of the general model".into(),
+            detail,
+        }
+    })?;
+    let model = model_of(&sol.x, w, h);
+    model
+        .validate()
+        .map_err(|e| CalibError::Implausible(format!("fitted model: {e}")))?;
+    // Residuals by target, in px.
+    let mut residuals = BTreeMap::new();
+    let mut per_plate = vec![(0.0, 0usize); plates.len()];
+    let mut stair_rows = (0.0, 0usize);
+    for (o, r) in obs.iter().zip(&sol.residuals) {
+        let px = r * noise_of(o, &plates, noise);
+        match o.plate {
+            Some(k) => {
+                per_plate[k].0 += px * px;
+                per_plate[k].1 += 1;
+            }
+            None => {
+                stair_rows.0 += px * px;
+                stair_rows.1 += 1;
+            }
+        }
+    }
+    for (p, (s, n)) in plates.iter().zip(&per_plate) {
+        residuals.insert(
+            format!("plate_{}mm_rms_px", p.height_mm),
+            (s / (*n).max(1) as f64).sqrt(),
+        );
+    }
+    residuals.insert(
+        "staircase_rows_rms_px".into(),
+        (stair_rows.0 / stair_rows.1.max(1) as f64).sqrt(),
+    );
+    let edge_res = &sol.residuals[obs.len()..];
+    residuals.insert("staircase_edges_rms_px".into(), rms(edge_res) * EDGE_SIGMA);
+    let worst_plate = per_plate
+        .iter()
+        .map(|(s, n)| (s / (*n).max(1) as f64).sqrt())
+        .fold(0.0, f64::max);
+    if worst_plate > 1.0 {
+        return Err(CalibError::Implausible(format!(
+            "a plate's line is {worst_plate:.2} px RMS from the fitted model (expected a few \
+             hundredths): the data do not fit a scanner; check the targets and the detector"
+        )));
+    }
+    residuals.insert("closed_form_cx_spread_px".into(), cf.cx_spread);
+    residuals.insert("closed_form_d_spread_mm".into(), cf.d_spread);
+    residuals.insert("parallel_x_rms_mm".into(), parallel_x(&plates, &model));
+    residuals.insert("parallel_y_rms_mm".into(), parallel_y(&edges, &model));
+    residuals.insert("fit_reduced_chi2".into(), sol.reduced_chi2);
+    // Uncertainty (eq. 30-31).
+    let u = super::uncertainty::height_uncertainty(
+        &model,
+        &sol.covariance
+            .view((0, 0), (MODEL_PARAMS, MODEL_PARAMS))
+            .into_owned(),
+        &plates,
+        noise,
+        &|x| model_of(x, w, h),
+        &sol.x[..MODEL_PARAMS],
+        &STEPS[..MODEL_PARAMS],
+    );
+    residuals.insert("detection_noise_px".into(), noise);
+    residuals.insert("u_h_detection_mm".into(), u.detection_mm);
+    residuals.insert("u_h_model_mm".into(), u.model_mm);
+    residuals.insert("u_h_mm".into(), u.total_mm);
+    let sd = |k: usize| sol.covariance[(k, k)].max(0.0).sqrt();
+    let stddev = (0..MODEL_PARAMS)
+        .map(|k| (PARAMS[k].to_string(), sd(k)))
+        .collect();
+    Ok(InsystemFit {
+        model,
+        stddev,
+        residuals,
+        block: Placement {
+            x_mm: sol.x[10],
+            y_mm: sol.x[11],
+            yaw_deg: sol.x[12],
+        },
+        block_stddev: [sd(10), sd(11), sd(12)],
+        closed_form: cf,
+        start,
+        covariance: sol.covariance,
+        condition: sol.condition,
+        evaluations: sol.evaluations,
+        detection_noise_px: noise,
+    })
+}
+
+fn noise_of(o: &RowObs, plates: &[super::acquire::PlateObservation], noise: f64) -> f64 {
+    match o.plate {
+        Some(k) => (pooled_noise(std::slice::from_ref(&plates[k]))
+            / (plates[k].frames as f64).sqrt())
+        .max(0.003),
+        None => noise.max(0.01),
+    }
+}
+
+/// Single-frame detection noise: RMS over rows of the per-row spread of repeated frames.
+pub fn pooled_noise(plates: &[super::acquire::PlateObservation]) -> f64 {
+    let v: Vec<f64> = plates
+        .iter()
+        .flat_map(|p| p.std.iter().copied())
+        .filter(|s| s.is_finite())
+        .collect();
+    if v.is_empty() {
+        return 0.0;
+    }
+    (v.iter().map(|s| s * s).sum::<f64>() / v.len() as f64).sqrt()
+}
+
+fn rms(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
+}
+
+/// Predicted image row of the edge point: where the laser plane at the step's height meets a
+/// side (w = const) or a riser (u = const) of the block at pose (x0, y0, yaw).
+fn edge_row(m: &CameraModel, pose: [f64; 3], e: &EdgeObs) -> Option<f64> {
+    let [x0, y0, yaw] = pose;
+    let (sn, cs) = yaw.to_radians().sin_cos();
+    let ta = m.laser_tilt_deg[0].to_radians().tan();
+    let tb = m.laser_tilt_deg[1].to_radians().tan();
+    // Laser line at height h: x = xs + ta y.
+    let xs = m.slider_scale * e.x_mm + m.l_mm + tb * e.h;
+    let y = match e.kind {
+        EdgeKind::Side { w } => {
+            let den = cs - ta * sn;
+            (den.abs() > 1e-9).then(|| (w + y0 * cs + (xs - x0) * sn) / den)?
+        }
+        EdgeKind::Riser { u } => {
+            let den = ta * cs + sn;
+            (den.abs() > 1e-6).then(|| (u - (xs - x0) * cs + y0 * sn) / den)?
+        }
+    };
+    m.project(e.x_mm, [xs + ta * y, y, e.h]).map(|p| p[1])
+}
+
+/// Eq. 18 as a check: per row, k = (c - c_x) h / F against s = c_0 - c should be a straight
+/// line; RMS of the departure (mm) over all rows, from the plate data.
+fn parallel_x(plates: &[super::acquire::PlateObservation], m: &CameraModel) -> f64 {
+    let Some(base) = plates
+        .iter()
+        .min_by(|a, b| a.height_mm.total_cmp(&b.height_mm))
+    else {
+        return f64::NAN;
+    };
+    let rows = base.col.len();
+    let mut sum = 0.0;
+    let mut n = 0usize;
+    for r in 0..rows {
+        let pts: Vec<(f64, f64)> = plates
+            .iter()
+            .filter(|p| p.col[r].is_finite() && base.col[r].is_finite())
+            .map(|p| {
+                let k = (p.col[r] - m.cx) * p.height_mm / m.f_px;
+                (base.col[r] - p.col[r], k)
+            })
+            .collect();
+        if pts.len() < 3 {
+            continue;
+        }
+        for res in line_residuals(&pts) {
+            sum += res * res;
+            n += 1;
+        }
+    }
+    if n == 0 {
+        f64::NAN
+    } else {
+        (sum / n as f64).sqrt()
+    }
+}
+
+/// Eq. 19 as a check: along each side of the block, q = (r - c_y)(D + h) / F (the world y the
+/// ideal model gives the side's row) against the laser's x should be a straight line over all
+/// steps; RMS of the departure (mm).
+fn parallel_y(edges: &[EdgeObs], m: &CameraModel) -> f64 {
+    let mut all = Vec::new();
+    for side in [0.0, 1.0] {
+        let pts: Vec<(f64, f64)> = edges
+            .iter()
+            .filter_map(|e| match e.kind {
+                EdgeKind::Side { w } if (w > 0.0) == (side > 0.0) => Some((
+                    m.slider_scale * e.x_mm + m.l_mm,
+                    (e.row - m.cy) * (m.d_mm + e.h) / m.f_px,
+                )),
+                _ => None,
+            })
+            .collect();
+        if pts.len() >= 3 {
+            all.extend(line_residuals(&pts));
+        }
+    }
+    if all.is_empty() {
+        f64::NAN
+    } else {
+        rms(&all)
+    }
+}
+
+/// Residuals of the least-squares straight line through `pts`.
+fn line_residuals(pts: &[(f64, f64)]) -> Vec<f64> {
+    let n = pts.len() as f64;
+    let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
+    let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let b = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    pts.iter().map(|p| p.1 - my - b * (p.0 - mx)).collect()
+}
