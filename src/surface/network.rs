@@ -50,6 +50,8 @@ pub struct Continuity {
     pub samples: usize,
     pub max_deg: f64,
     pub mean_deg: f64,
+    /// 95th percentile.
+    pub p95_deg: f64,
 }
 
 /// Number of segments along a side of `n` points, and the period of segment `a`.
@@ -285,14 +287,12 @@ impl BezierNetwork {
     /// side is its second derivative there, so the jump is not zero in general.
     pub fn continuity(&self, per_edge: usize) -> Continuity {
         let mut c = Continuity::default();
-        let mut sum = 0.0;
+        let mut all = Vec::new();
         let mut add = |n1: [f64; 3], n2: [f64; 3]| {
             let d = (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]).clamp(-1.0, 1.0);
             let ang = d.acos().to_degrees();
             if ang.is_finite() {
-                sum += ang;
-                c.samples += 1;
-                c.max_deg = c.max_deg.max(ang);
+                all.push(ang);
             }
         };
         let ts: Vec<f64> = (0..per_edge)
@@ -317,8 +317,12 @@ impl BezierNetwork {
                 }
             }
         }
-        if c.samples > 0 {
-            c.mean_deg = sum / c.samples as f64;
+        if !all.is_empty() {
+            all.sort_by(f64::total_cmp);
+            c.samples = all.len();
+            c.mean_deg = all.iter().sum::<f64>() / all.len() as f64;
+            c.max_deg = all[all.len() - 1];
+            c.p95_deg = all[(all.len() - 1) * 95 / 100];
         }
         c
     }
