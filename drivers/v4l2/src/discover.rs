@@ -104,6 +104,28 @@ pub fn formats(dev: &v4l::Device) -> io::Result<Vec<FormatInfo>> {
     Ok(out)
 }
 
+/// A fourcc as text: `GREY`, `Y16`, and `Y16-BE` for the big-endian variants (bit 31 set).
+pub fn fourcc_name(f: v4l::FourCC) -> String {
+    let mut r = f.repr;
+    let be = r[3] & 0x80 != 0;
+    r[3] &= 0x7f;
+    let mut s: String = r
+        .iter()
+        .map(|&b| {
+            if b.is_ascii_graphic() || b == b' ' {
+                b as char
+            } else {
+                '?'
+            }
+        })
+        .collect();
+    s.truncate(s.trim_end().len());
+    if be {
+        s.push_str("-BE");
+    }
+    s
+}
+
 /// Describe one node (any kind; formats are listed for capture nodes only).
 pub fn describe(path: &Path) -> io::Result<DeviceInfo> {
     let dev = v4l::Device::with_path(path)?;
@@ -158,6 +180,20 @@ mod tests {
         for c in &cams {
             assert!(c.caps.is_capture());
         }
+    }
+
+    #[test]
+    fn fourcc_names() {
+        assert_eq!(fourcc_name(v4l::FourCC::new(b"GREY")), "GREY");
+        assert_eq!(fourcc_name(v4l::FourCC::new(b"Y10 ")), "Y10");
+        assert_eq!(
+            fourcc_name(v4l::FourCC::new(&[b'Y', b'1', b'6', b' ' | 0x80])),
+            "Y16-BE"
+        );
+        assert_eq!(
+            fourcc_name(v4l::FourCC::new(&[b'A', 1, b'B', b'C'])),
+            "A?BC"
+        );
     }
 
     #[test]

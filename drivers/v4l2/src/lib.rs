@@ -25,3 +25,5 @@ pub mod sys;
 pub use camera::{io_error, StreamStats, V4l2Camera, V4l2Config};
 pub use format::{ConvertError, Converter, SourceFormat};
 pub use stream::{Direction, MmapQueue, SeqTracker, TimestampSource};
+/// The `v4l` crate this driver is built on, for callers that need more of it.
+pub use v4l;

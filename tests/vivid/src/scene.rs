@@ -1,0 +1,65 @@
+//! The frames pushed through the loop: the simulator's laser line over the parametric foot,
+//! with the frame id in the first rows, and their ground truth.
+
+use crate::code;
+use footscan_hal::{PixelFormat, Pixels};
+use footscan_sim::foot::{Foot, FootParams};
+use footscan_sim::optics::Optics;
+use footscan_sim::render::{FrameTruth, NoiseConfig, Renderer, Scene};
+
+/// Distinct images in the cycle (frame id k shows image k % CYCLE).
+pub const CYCLE: u32 = 16;
+const SEED: u64 = 7;
+
+/// The simulated scanner scaled to `width` x `height` (focal length scaled with the width so
+/// the laser line stays in the image; principal point near the centre).
+pub fn optics(width: u32, height: u32) -> Optics {
+    let d = Optics::default();
+    let s = width as f64 / d.width as f64;
+    Optics {
+        width,
+        height,
+        f_px: d.f_px * s,
+        cx: width as f64 / 2.0 + 3.7 * s,
+        cy: height as f64 / 2.0 - 2.1 * s,
+        ..d
+    }
+}
+
+/// Renders the frame of any id, independently of any other instance.
+pub struct Frames {
+    renderer: Renderer,
+    width: usize,
+}
+
+impl Frames {
+    pub fn new(width: u32, height: u32) -> Self {
+        let foot = Foot::new(FootParams::default()).expect("default foot");
+        let noise = NoiseConfig {
+            format: PixelFormat::Gray8,
+            ..NoiseConfig::default()
+        };
+        let renderer = Renderer::new(optics(width, height), noise, Scene::Foot(foot), SEED)
+            .expect("valid optics");
+        Frames {
+            renderer,
+            width: width as usize,
+        }
+    }
+
+    /// Head position of image `j`: the line sweeps the foot from heel to toes.
+    fn slider_x(j: u32) -> f64 {
+        60.0 + 14.0 * j as f64
+    }
+
+    /// The image and truth of frame `id` (noise drawn for image `id % CYCLE`), id code included.
+    pub fn render(&mut self, id: u32) -> (Vec<u8>, FrameTruth) {
+        let j = id % CYCLE;
+        let (px, truth) = self.renderer.render(Self::slider_x(j), j as u64);
+        let Pixels::Gray8(mut v) = px else {
+            unreachable!("Gray8 configured")
+        };
+        code::write_id(&mut v, self.width, id);
+        (v, truth)
+    }
+}
