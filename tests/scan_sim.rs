@@ -34,6 +34,8 @@ fn simulated_scan_meets_accuracy_bound() {
         "scan.json",
         "calibration.toml",
         "model.stl",
+        "measurements.json",
+        "plantar.png",
     ] {
         let p = dir.path().join(f);
         assert!(
@@ -54,7 +56,7 @@ fn simulated_scan_meets_accuracy_bound() {
         assert!(json.get(k).is_some(), "scan.json lacks {k}");
     }
     let stages = json["stages"].as_array().unwrap();
-    assert_eq!(stages.len(), 9);
+    assert_eq!(stages.len(), 10);
     for st in stages {
         for k in ["name", "in", "out", "dropped", "mean_latency_ms"] {
             assert!(st.get(k).is_some(), "stage entry lacks {k}: {st}");

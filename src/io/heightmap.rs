@@ -21,8 +21,8 @@ impl HeightMapImage {
     }
 }
 
-const BG: Rgb<u8> = Rgb([24, 24, 28]);
-const FG: Rgb<u8> = Rgb([230, 230, 230]);
+pub(crate) const BG: Rgb<u8> = Rgb([24, 24, 28]);
+pub(crate) const FG: Rgb<u8> = Rgb([230, 230, 230]);
 
 /// Rasterise points (mm) into `cell_mm` cells (mean height per cell) and colour them.
 pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
@@ -143,7 +143,7 @@ fn fill_single_gaps(sum: &mut [f64], n: &mut [u32], w: usize, h: usize) {
     }
 }
 
-fn nice_step(raw: f64) -> f64 {
+pub(crate) fn nice_step(raw: f64) -> f64 {
     let p = 10f64.powf(raw.log10().floor());
     for m in [1.0, 2.0, 2.5, 5.0, 10.0] {
         if m * p >= raw {
@@ -153,7 +153,7 @@ fn nice_step(raw: f64) -> f64 {
     10.0 * p
 }
 
-fn format_tick(v: f64, step: f64) -> String {
+pub(crate) fn format_tick(v: f64, step: f64) -> String {
     if step.fract().abs() < 1e-9 {
         format!("{v:.0}")
     } else {
@@ -162,7 +162,7 @@ fn format_tick(v: f64, step: f64) -> String {
 }
 
 /// Perceptually ordered dark-blue -> green -> yellow ramp (viridis-like, piecewise linear).
-fn colour(t: f64) -> Rgb<u8> {
+pub(crate) fn colour(t: f64) -> Rgb<u8> {
     const STOPS: [[f64; 3]; 5] = [
         [68.0, 1.0, 84.0],
         [59.0, 82.0, 139.0],

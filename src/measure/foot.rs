@@ -54,6 +54,9 @@ pub struct Measurements {
     pub toe_outlines: Vec<Vec<[f64; 2]>>,
     /// Cell size of the height map measured (mm).
     pub cell_mm: f64,
+    /// Where the heights came from ("height map", "scan grid", "bezier model ...").
+    #[serde(default)]
+    pub heights_from: String,
     /// Why some figures may be wrong (e.g. the footprint is cut off); empty when none.
     #[serde(default)]
     pub warnings: Vec<String>,
@@ -313,6 +316,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         outline: simplify(bo, 0.02),
         toe_outlines: toes.iter().map(|t| simplify(&t.outline, 0.02)).collect(),
         cell_mm: map.cell_mm,
+        heights_from: "height map".into(),
         warnings: Vec::new(),
     })
 }

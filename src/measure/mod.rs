@@ -57,7 +57,10 @@ mod truth;
 pub use foot::{measure_foot, Measurements, Side};
 pub use outline::{line_crossings, regions, signed_area, simplify, Region};
 pub use raster::{grid_truncation, rasterize_grid};
-pub use stage::{measure_scan_dir, register_stages, MeasureOutput};
+pub use stage::{
+    measure_grid, measure_scan_dir, register_stages, scan_heightmap, write_measurements,
+    MeasureOutput, DEFAULT_CELL_MM,
+};
 pub use truth::{compare_with_truth, ErrorKind, ErrorRow, TruthComparison};
 
 /// Why a height map could not be measured.
@@ -74,4 +77,11 @@ pub enum MeasureError {
     Landmark { what: &'static str, why: String },
     #[error("scan grid: {0}")]
     Grid(String),
+    #[error("plantar model of {0}")]
+    Model(String),
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: std::path::PathBuf,
+        source: std::io::Error,
+    },
 }

@@ -525,3 +525,92 @@ fn fill_piece(map: &mut HeightMap, i: usize, x: f64, w: f64, piece: &Piece) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::LinePeak;
+    use crate::scan::item::{FrameMeta, FramePoints};
+
+    /// Frames every 0.5 mm, rows every 0.125 mm (the default scanner's sampling) of a height
+    /// field `h` (None outside), rows and frames offset from the shape by fractions.
+    fn grid(h: impl Fn(f64, f64) -> Option<f64>, x: (f64, f64), rows: usize) -> ScanGrid {
+        let mut g = ScanGrid::new(rows);
+        let n = ((x.1 - x.0) / 0.5) as usize;
+        for f in 0..=n {
+            let xf = x.0 + 0.5 * f as f64 + 0.13;
+            let points = (0..rows)
+                .map(|r| {
+                    let y = (r as f64 - rows as f64 / 2.0) * 0.125 + 0.037;
+                    h(xf, y).map_or([f64::NAN; 3], |z| [xf, y, z])
+                })
+                .collect();
+            g.push(FramePoints {
+                meta: FrameMeta {
+                    index: f as u64,
+                    seq: f as u64,
+                    timestamp: footscan_hal::Timestamp { nanos: 0 },
+                    x_mm: xf - 70.0,
+                },
+                lines: vec![LinePeak::NONE; rows],
+                points,
+            });
+        }
+        g
+    }
+
+    #[test]
+    fn disc_and_ellipse_are_rasterised_to_their_outline() {
+        // A disc (heel-like, r = 30) and a small ellipse (toe-like), apart along x.
+        let h = |x: f64, y: f64| -> Option<f64> {
+            let d = ((x - 40.0).powi(2) + y * y).sqrt();
+            let e = ((x - 90.0) / 12.0).powi(2) + ((y - 5.0) / 7.0).powi(2);
+            (d <= 30.0 || e <= 1.0).then_some(0.3 * x / 10.0)
+        };
+        let g = grid(h, (0.0, 110.0), 640);
+        assert!(grid_truncation(&g).is_empty());
+        let map = rasterize_grid(&g, 0.1).unwrap();
+        let regions = crate::measure::regions(&map);
+        assert_eq!(regions.len(), 2);
+        let disc = std::f64::consts::PI * 900.0;
+        let ell = std::f64::consts::PI * 84.0;
+        assert!(
+            (regions[0].area_mm2 - disc).abs() / disc < 0.003,
+            "{}",
+            regions[0].area_mm2
+        );
+        assert!(
+            (regions[1].area_mm2 - ell).abs() / ell < 0.01,
+            "{}",
+            regions[1].area_mm2
+        );
+        // Ends along x (between frames) within 0.1 mm.
+        let xs = |r: &crate::measure::Region| {
+            r.outline
+                .iter()
+                .map(|p| p[0])
+                .fold((f64::MAX, f64::MIN), |a, x| (a.0.min(x), a.1.max(x)))
+        };
+        let (a, b) = xs(&regions[0]);
+        assert!((a - 10.0).abs() < 0.1 && (b - 70.0).abs() < 0.1, "{a} {b}");
+        let (a, b) = xs(&regions[1]);
+        assert!((a - 78.0).abs() < 0.1 && (b - 102.0).abs() < 0.1, "{a} {b}");
+        // Heights interpolated between frames.
+        let (i, j) = map.cell_of(40.0, 0.0).unwrap();
+        assert!((map.get(i, j) - 1.2).abs() < 1e-9);
+    }
+
+    #[test]
+    fn cut_off_footprints_are_reported() {
+        // Reaches both image rows (|y| > 40 is out of view) and the last frame.
+        let h = |x: f64, y: f64| ((x - 70.0).powi(2) + y * y <= 2500.0).then_some(0.0);
+        let g = grid(h, (0.0, 80.0), 640);
+        let w = grid_truncation(&g);
+        assert_eq!(w.len(), 3, "{w:?}");
+        assert!(w[0].contains("first image row") && w[0].contains("cut off"));
+        assert!(w[1].contains("last image row"));
+        assert!(w[2].contains("last frame"));
+        assert!(rasterize_grid(&g, 0.0).is_err());
+        assert!(rasterize_grid(&ScanGrid::new(4), 0.1).is_err());
+    }
+}

@@ -1,6 +1,7 @@
 //! The footscan command line: a thin shell over the library. One file per command.
 
 mod bench;
+mod measure;
 mod model;
 mod scan;
 
@@ -48,6 +49,8 @@ enum Command {
     Stages,
     /// Build the Bezier-network plantar model of a saved scan and write it as closed meshes.
     Model(model::Args),
+    /// Foot measurements of a saved scan: measurements.json and plantar.png in the scan directory.
+    Measure(measure::Args),
     /// Measure speed and accuracy (see `footscan bench --help`).
     Bench(bench::Args),
 }
@@ -100,6 +103,7 @@ fn run() -> Result<()> {
             Ok(())
         }
         Command::Model(args) => model::run(args),
+        Command::Measure(args) => measure::run(args),
         Command::Bench(args) => bench::run(args),
     }
 }
