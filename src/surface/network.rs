@@ -268,13 +268,35 @@ impl BezierNetwork {
             let j0 = ((b[2] - y0) / cell_mm).ceil().max(0.0) as usize;
             let j1 = (((b[3] - y0) / cell_mm).floor() as usize).min(ny - 1);
             for j in j0..=j1 {
+                // Start each cell from its left neighbours' solutions (extrapolated) when
+                // they had one.
+                let mut prev: Option<(f64, f64)> = None;
+                let mut prev2: Option<(f64, f64)> = None;
                 for i in i0..=i1 {
                     if map.get(i, j).is_finite() {
+                        (prev, prev2) = (None, None);
                         continue;
                     }
-                    if let Some((u, v)) = seg.invert(map.x(i), map.y(j)) {
+                    let guess = match (prev, prev2) {
+                        (Some(a), Some(b)) => Some((
+                            (2.0 * a.0 - b.0).clamp(0.0, 1.0),
+                            (2.0 * a.1 - b.1).clamp(0.0, 1.0),
+                        )),
+                        (a, _) => a,
+                    };
+                    let (x, y) = (map.x(i), map.y(j));
+                    // 1e-7 mm in (x, y) is far below any height the map can show.
+                    let found = match guess {
+                        Some(p) => seg
+                            .invert_tol(x, y, Some(p), 1e-7)
+                            .or_else(|| seg.invert_tol(x, y, None, 1e-7)),
+                        None => seg.invert_tol(x, y, None, 1e-7),
+                    };
+                    if let Some((u, v)) = found {
                         map.set(i, j, seg.eval_coord(2, u, v));
                     }
+                    prev2 = if found.is_some() { prev } else { None };
+                    prev = found;
                 }
             }
         }
@@ -375,12 +397,16 @@ impl Segment {
     /// Value and first partial derivatives of x and y: ([x, y], [x_u, y_u], [x_v, y_v]).
     fn xy_d1(&self, u: f64, v: f64) -> ([f64; 2], [f64; 2], [f64; 2]) {
         let (bu, bv, du, dv) = (basis(u), basis(v), basis_d1(u), basis_d1(v));
-        let f = |k| {
-            (
-                self.contract(k, &bu, &bv),
-                self.contract(k, &du, &bv),
-                self.contract(k, &bu, &dv),
-            )
+        let f = |k: usize| {
+            // Contract along u first (value and derivative rows), then along v.
+            let c = &self.c[k];
+            let (mut r, mut d) = ([0.0; 4], [0.0; 4]);
+            for j in 0..4 {
+                let col = [c[j], c[4 + j], c[8 + j], c[12 + j]];
+                r[j] = dot(&bu, &col);
+                d[j] = dot(&du, &col);
+            }
+            (dot(&r, &bv), dot(&d, &bv), dot(&r, &dv))
         };
         let (x, xu, xv) = f(0);
         let (y, yu, yv) = f(1);
@@ -439,31 +465,38 @@ impl Segment {
     /// Jacobian is singular (on an edge, where the across-edge derivative vanishes) the
     /// iterate is nudged 1e-3 inward. None if it does not converge inside the square.
     pub fn invert(&self, x: f64, y: f64) -> Option<(f64, f64)> {
-        const TOL: f64 = 1e-9;
-        let p00 = [self.c[0][0], self.c[1][0]];
-        let p10 = [self.c[0][12], self.c[1][12]];
-        let p01 = [self.c[0][3], self.c[1][3]];
-        let (ex, ey) = (
-            [p10[0] - p00[0], p10[1] - p00[1]],
-            [p01[0] - p00[0], p01[1] - p00[1]],
-        );
-        let det = ex[0] * ey[1] - ex[1] * ey[0];
-        let (dx, dy) = (x - p00[0], y - p00[1]);
-        let (mut u, mut v) = if det.abs() > 1e-300 {
-            (
-                ((dx * ey[1] - dy * ey[0]) / det).clamp(0.0, 1.0),
-                ((ex[0] * dy - ex[1] * dx) / det).clamp(0.0, 1.0),
-            )
-        } else {
-            (0.5, 0.5)
+        self.invert_from(x, y, None)
+    }
+
+    /// [`Segment::invert`] starting from `start` (e.g. the solution of a neighbouring point)
+    /// instead of the affine guess. A point outside the patch is given up on once the
+    /// iterate has been clamped on the same side of the square three times running (the map
+    /// is close to affine, and near an edge, where it flattens, Newton undershoots rather
+    /// than overshoots, so repeated clamping means the point is outside).
+    pub fn invert_from(&self, x: f64, y: f64, start: Option<(f64, f64)>) -> Option<(f64, f64)> {
+        self.invert_tol(x, y, start, 1e-9)
+    }
+
+    /// Newton's method of [`Segment::invert_from`] to a residual of `tol` mm in x and y.
+    fn invert_tol(
+        &self,
+        x: f64,
+        y: f64,
+        start: Option<(f64, f64)>,
+        tol: f64,
+    ) -> Option<(f64, f64)> {
+        let (mut u, mut v) = match start {
+            Some(s) => s,
+            None => self.affine_guess(x, y),
         };
+        let mut clamped = (0u8, 0u32); // (side code, consecutive count)
         let mut best = f64::INFINITY;
         let mut stuck = 0;
         for _ in 0..60 {
             let (p, du, dv) = self.xy_d1(u, v);
             let (rx, ry) = (p[0] - x, p[1] - y);
             let r = rx.abs().max(ry.abs());
-            if r < TOL {
+            if r < tol {
                 return Some((u, v));
             }
             if r >= best {
@@ -484,10 +517,52 @@ impl Segment {
             }
             let su = (rx * dv[1] - ry * dv[0]) / det;
             let sv = (du[0] * ry - du[1] * rx) / det;
-            u = (u - su).clamp(0.0, 1.0);
-            v = (v - sv).clamp(0.0, 1.0);
+            let (nu, nv) = (u - su, v - sv);
+            // Quadratic convergence: the residual after this step is about |x''| |step|^2,
+            // with |x''| at most ~50 times the first derivatives' size here. Accept without
+            // another evaluation when that is below the tolerance.
+            let size = du[0].abs() + du[1].abs() + dv[0].abs() + dv[1].abs();
+            let inside = (0.0..=1.0).contains(&nu) && (0.0..=1.0).contains(&nv);
+            if inside && 50.0 * size * (su * su + sv * sv) < tol {
+                return Some((nu, nv));
+            }
+            let side = (nu < 0.0) as u8
+                | ((nu > 1.0) as u8) << 1
+                | ((nv < 0.0) as u8) << 2
+                | ((nv > 1.0) as u8) << 3;
+            if side != 0 && side == clamped.0 {
+                clamped.1 += 1;
+                if clamped.1 >= 3 {
+                    return None;
+                }
+            } else {
+                clamped = (side, (side != 0) as u32);
+            }
+            u = nu.clamp(0.0, 1.0);
+            v = nv.clamp(0.0, 1.0);
         }
         None
+    }
+
+    /// (u, v) of (x, y) under the affine map through corners (0,0), (1,0), (0,1).
+    fn affine_guess(&self, x: f64, y: f64) -> (f64, f64) {
+        let p00 = [self.c[0][0], self.c[1][0]];
+        let p10 = [self.c[0][12], self.c[1][12]];
+        let p01 = [self.c[0][3], self.c[1][3]];
+        let (ex, ey) = (
+            [p10[0] - p00[0], p10[1] - p00[1]],
+            [p01[0] - p00[0], p01[1] - p00[1]],
+        );
+        let det = ex[0] * ey[1] - ex[1] * ey[0];
+        let (dx, dy) = (x - p00[0], y - p00[1]);
+        if det.abs() > 1e-300 {
+            (
+                ((dx * ey[1] - dy * ey[0]) / det).clamp(0.0, 1.0),
+                ((ex[0] * dy - ex[1] * dx) / det).clamp(0.0, 1.0),
+            )
+        } else {
+            (0.5, 0.5)
+        }
     }
 }
 
