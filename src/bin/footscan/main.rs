@@ -1,6 +1,7 @@
 //! The footscan command line: a thin shell over the library. One file per command.
 
 mod bench;
+mod detect;
 mod measure;
 mod model;
 mod scan;
@@ -53,6 +54,8 @@ enum Command {
     Measure(measure::Args),
     /// Measure speed and accuracy (see `footscan bench --help`).
     Bench(bench::Args),
+    /// Run a laser-line detector on recorded frames and write one CSV line per image row.
+    Detect(detect::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -105,5 +108,6 @@ fn run() -> Result<()> {
         Command::Model(args) => model::run(args),
         Command::Measure(args) => measure::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::Detect(args) => detect::run(args),
     }
 }

@@ -1,0 +1,233 @@
+//! Bernstein (Bezier) curves of a window of pixel intensities (SPEC section 4, seed 002
+//! eq. 11-12) and the root of their derivative.
+//!
+//! For a window of n + 1 samples I_0..I_n at uniform positions x_i = x_0 + i, the curve is
+//! x(t) = x_0 + n t, I(t) = sum B_i^n(t) I_i, and I'(t) = n sum B_i^(n-1)(t) d_i with
+//! d_i = I_(i+1) - I_i. Two ways to find I'(t*) = 0:
+//! - [`bisect_literal`]: the paper's, de Casteljau evaluation of I'(t) and bisection on [0, 1];
+//! - [`root_near`]: the same root, from the factorisation
+//!   sum B_i^(n-1)(t) d_i = (1 - t)^(n-1) p(s), p(s) = sum C(n-1, i) d_i s^i, s = t / (1 - t),
+//!   so the sign of I'(t) is the sign of a polynomial evaluated by Horner's rule in O(n);
+//!   a bracket is found next to a starting t and closed by Newton steps kept inside it.
+
+/// Largest window (n + 1 samples) the Bezier detectors accept.
+pub const MAX_N: usize = 48;
+
+/// Binomial coefficients C(k, i) for k < MAX_N.
+pub struct Binomials {
+    rows: Vec<[f64; MAX_N]>,
+}
+
+impl Binomials {
+    pub fn new() -> Self {
+        let mut rows = vec![[0.0; MAX_N]; MAX_N];
+        for k in 0..MAX_N {
+            rows[k][0] = 1.0;
+            for i in 1..=k {
+                rows[k][i] = rows[k - 1][i - 1] + if i < k { rows[k - 1][i] } else { 0.0 };
+            }
+        }
+        Binomials { rows }
+    }
+    #[inline]
+    pub fn row(&self, k: usize) -> &[f64; MAX_N] {
+        &self.rows[k]
+    }
+}
+
+impl Default for Binomials {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// The paper's method: I'(t) by de Casteljau on the difference control points `d`
+/// (d_i = I_(i+1) - I_i, i < n), bisection on [0, 1] to |dt| < 1e-9. Without a sign change
+/// the maximum of I(t) is at an end: the end with the larger I is returned.
+pub fn bisect_literal(samples: &[f64]) -> f64 {
+    let n = samples.len() - 1;
+    let mut d = [0.0f64; MAX_N];
+    for i in 0..n {
+        d[i] = samples[i + 1] - samples[i];
+    }
+    let dprime = |t: f64| -> f64 {
+        let mut b = [0.0f64; MAX_N];
+        b[..n].copy_from_slice(&d[..n]);
+        for k in (1..n).rev() {
+            for i in 0..k {
+                b[i] = (1.0 - t) * b[i] + t * b[i + 1];
+            }
+        }
+        b[0]
+    };
+    let (mut a, mut b) = (0.0f64, 1.0f64);
+    let fa = dprime(a);
+    let fb = dprime(b);
+    if fa <= 0.0 && fb <= 0.0 || fa >= 0.0 && fb >= 0.0 {
+        return if samples[0] >= samples[n] { 0.0 } else { 1.0 };
+    }
+    let rising_at_a = fa > 0.0;
+    while b - a > 1e-9 {
+        let c = 0.5 * (a + b);
+        let fc = dprime(c);
+        if (fc > 0.0) == rising_at_a {
+            a = c;
+        } else {
+            b = c;
+        }
+    }
+    0.5 * (a + b)
+}
+
+/// p(s) and p'(s) for p(s) = sum a_i s^i.
+#[inline(always)]
+fn horner(a: &[f64], s: f64) -> (f64, f64) {
+    let mut p = 0.0;
+    let mut dp = 0.0;
+    for &c in a.iter().rev() {
+        dp = dp * s + p;
+        p = p * s + c;
+    }
+    (p, dp)
+}
+
+/// Root t* of I'(t) (a maximum of I: + to - crossing) nearest `t0`, to |n dt| < 1e-6 px.
+/// `samples` are the n + 1 window values; `binom` from [`Binomials`]. None if I'(t) has no
+/// + to - crossing in [0, 1].
+pub fn root_near(samples: &[f32], binom: &Binomials, t0: f64) -> Option<f64> {
+    let n = samples.len() - 1;
+    debug_assert!(n >= 2 && n < MAX_N);
+    let c = binom.row(n - 1);
+    let mut a = [0.0f64; MAX_N];
+    for i in 0..n {
+        a[i] = c[i] * (samples[i + 1] - samples[i]) as f64;
+    }
+    let a = &a[..n];
+    // Fast path: Newton on p(s) from the starting point; a maximum has p' < 0 at the root.
+    {
+        let tc = t0.clamp(0.02, 0.98);
+        let mut s = tc / (1.0 - tc);
+        for _ in 0..8 {
+            let (p, dp) = horner(a, s);
+            if !(dp < 0.0) {
+                break;
+            }
+            let ds = p / dp;
+            s -= ds;
+            if !(s > 0.0 && s < 1e6) {
+                break;
+            }
+            let scale = 1.0 + s;
+            if ds.abs() < 1e-6 * scale * scale / n as f64 {
+                return Some(s / scale);
+            }
+        }
+    }
+    // g(t) = p(t / (1 - t)), same sign as I'(t) on [0, 1).
+    let g = |t: f64| -> (f64, f64) {
+        if t >= 1.0 {
+            // Sign at t = 1 is the sign of the leading coefficient.
+            return (a[n - 1], 0.0);
+        }
+        let u = 1.0 - t;
+        let (p, dp) = horner(a, t / u);
+        (p, dp / (u * u))
+    };
+    // Bracket [lo, hi] with g(lo) > 0 >= g(hi), searched outward from t0 in steps of half a px.
+    let step = 0.5 / n as f64;
+    let t0 = t0.clamp(0.0, 1.0);
+    let (g0, _) = g(t0);
+    let (mut lo, mut hi);
+    if g0 > 0.0 {
+        lo = t0;
+        hi = t0;
+        loop {
+            let t = (hi + step).min(1.0);
+            if g(t).0 <= 0.0 {
+                hi = t;
+                break;
+            }
+            lo = t;
+            hi = t;
+            if t >= 1.0 {
+                return None;
+            }
+        }
+    } else {
+        hi = t0;
+        lo = t0;
+        loop {
+            let t = (lo - step).max(0.0);
+            if g(t).0 > 0.0 {
+                lo = t;
+                break;
+            }
+            hi = t;
+            lo = t;
+            if t <= 0.0 {
+                return None;
+            }
+        }
+    }
+    // Newton inside the bracket, bisection when a step leaves it.
+    let mut t = 0.5 * (lo + hi);
+    for _ in 0..40 {
+        let (f, df) = g(t);
+        if f > 0.0 {
+            lo = t;
+        } else {
+            hi = t;
+        }
+        let mut next = if df < 0.0 { t - f / df } else { f64::NAN };
+        if !(next > lo && next < hi) {
+            next = 0.5 * (lo + hi);
+        }
+        let done = (next - t).abs() < 1e-7 / n as f64 || hi - lo < 1e-9;
+        t = next;
+        if done {
+            break;
+        }
+    }
+    Some(t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn window(c: f64, sigma: f64, n: usize, x0: f64) -> Vec<f64> {
+        (0..=n)
+            .map(|i| {
+                let d = x0 + i as f64 - c;
+                8.0 + 180.0 * (-d * d / (2.0 * sigma * sigma)).exp()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn literal_and_fast_roots_agree() {
+        let b = Binomials::new();
+        for n in [4usize, 6, 7, 10, 15] {
+            for k in 0..20 {
+                let c = 10.0 + k as f64 * 0.05;
+                let x0 = (10.0 - n as f64 / 2.0).floor();
+                let s = window(c, 1.6, n, x0);
+                let s32: Vec<f32> = s.iter().map(|&v| v as f32).collect();
+                let t1 = bisect_literal(&s);
+                let t2 = root_near(&s32, &b, 0.5).unwrap();
+                assert!((t1 - t2).abs() < 1e-5, "n {n} c {c}: {t1} vs {t2}");
+            }
+        }
+    }
+
+    #[test]
+    fn symmetric_window_gives_its_centre() {
+        let b = Binomials::new();
+        let s: Vec<f32> = window(5.0, 1.6, 10, 0.0)
+            .iter()
+            .map(|&v| v as f32)
+            .collect();
+        let t = root_near(&s, &b, 0.3).unwrap();
+        assert!((t - 0.5).abs() < 1e-7);
+    }
+}

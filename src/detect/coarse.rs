@@ -1,0 +1,531 @@
+//! The coarse search every detector shares: per row, the line's integer peak, its extent, a
+//! width, and the reasons to reject the row (below threshold, saturated, ambiguous, border),
+//! with specular spikes skipped.
+//!
+//! Speed: the only pass over every pixel is [`block_max`], the maximum of each 64-pixel block,
+//! written as fixed-size folds the compiler turns into packed max instructions. The row's
+//! maximum, its position, and the second peak outside the line are then found from the block
+//! maxima (20 per 1280-pixel row) and the pixels of one or two blocks.
+
+use super::Reject;
+
+/// A pixel type of a frame (Gray8 or Gray16).
+pub trait Px: Copy + Ord + Default + Send + Sync + 'static {
+    /// Full scale (saturation) value.
+    const FULL: u32;
+    /// 8-bit DN to this format's units.
+    const SCALE: f32;
+    fn f(self) -> f32;
+}
+
+impl Px for u8 {
+    const FULL: u32 = 255;
+    const SCALE: f32 = 1.0;
+    #[inline(always)]
+    fn f(self) -> f32 {
+        self as f32
+    }
+}
+
+impl Px for u16 {
+    const FULL: u32 = 65535;
+    const SCALE: f32 = 257.0;
+    #[inline(always)]
+    fn f(self) -> f32 {
+        self as f32
+    }
+}
+
+/// Settings of the coarse search, in 8-bit DN (scaled by 257 for Gray16).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoarseConfig {
+    /// A row's peak must exceed this (DN) to hold a line.
+    pub threshold: f32,
+    /// A second peak outside the line of at least this fraction of the line's peak (above the
+    /// background) makes the row ambiguous. > 1 disables the test.
+    pub ambiguity: f32,
+    /// Rows whose saturated run is longer than this (px) are rejected as saturated.
+    pub max_saturated_px: usize,
+    /// Skip specular spikes: saturated runs of at most 6 px whose neighbours are dark.
+    pub skip_spikes: bool,
+}
+
+impl Default for CoarseConfig {
+    fn default() -> Self {
+        CoarseConfig {
+            threshold: 30.0,
+            ambiguity: 0.8,
+            max_saturated_px: 12,
+            skip_spikes: true,
+        }
+    }
+}
+
+impl CoarseConfig {
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.threshold > 0.0 && self.threshold < 255.0) {
+            return Err(format!(
+                "threshold = {}: valid range is (0, 255) DN",
+                self.threshold
+            ));
+        }
+        if !(self.ambiguity > 0.0) {
+            return Err(format!(
+                "ambiguity = {}: must be > 0 (a fraction of the peak; > 1 disables the test)",
+                self.ambiguity
+            ));
+        }
+        if self.max_saturated_px == 0 {
+            return Err("max_saturated_px must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
+/// The line's peak in one row, as the coarse search found it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Peak {
+    /// Integer column of the maximum (centre of a flat top).
+    pub m: usize,
+    /// The flat top (equal maximal values) around `m`, inclusive.
+    pub top_lo: usize,
+    pub top_hi: usize,
+    /// Peak value (frame units).
+    pub peak: f32,
+    /// Run of pixels above the threshold around the peak, inclusive.
+    pub lo: usize,
+    pub hi: usize,
+    /// Local background (frame units).
+    pub bg: f32,
+    /// Width above half the peak (over the background), px, interpolated.
+    pub width: f32,
+    /// Saturated pixels at the peak (0 if none).
+    pub saturated: u16,
+    /// Highest value outside the line, relative to the peak (both over the background).
+    pub second: f32,
+    /// Specular spikes skipped in this row (columns, inclusive; `spike_count` of them), for
+    /// estimators whose window reaches them.
+    pub spikes: [(u32, u32); 2],
+    pub spike_count: u8,
+}
+
+impl Peak {
+    /// Whether a skipped spike overlaps columns [a, b].
+    #[inline]
+    pub fn spike_in(&self, a: usize, b: usize) -> bool {
+        self.spikes[..self.spike_count as usize]
+            .iter()
+            .any(|&(x, y)| (x as usize) <= b && (y as usize) >= a)
+    }
+}
+
+impl Peak {
+    /// 0..1: signal over threshold, uniqueness, saturation.
+    pub fn quality(&self, threshold: f32, full: f32) -> f32 {
+        let sig = ((self.peak - threshold) / (0.5 * full - threshold).max(1.0)).clamp(0.0, 1.0);
+        let uniq = (1.0 - self.second).clamp(0.0, 1.0);
+        let sat = if self.saturated > 0 { 0.5 } else { 1.0 };
+        sig * uniq * sat
+    }
+}
+
+/// Pixels per block of the block-maximum pass.
+pub const BLOCK: usize = 64;
+
+/// Scratch for the coarse search: the block maxima of one row.
+#[derive(Default, Debug, Clone)]
+pub struct CoarseScratch<T> {
+    blocks: Vec<T>,
+}
+
+impl<T: Px> CoarseScratch<T> {
+    /// The block buffer for rows of `w` pixels (allocates only when `w` changes).
+    pub fn for_width(&mut self, w: usize) -> &mut [T] {
+        let nb = w.div_ceil(BLOCK);
+        if self.blocks.len() != nb {
+            self.blocks.resize(nb, T::default());
+        }
+        &mut self.blocks
+    }
+}
+
+/// Maximum of each 64-pixel block of `row` into `blocks` (`row.len().div_ceil(64)` of them).
+#[inline]
+pub fn block_max<T: Px>(row: &[T], blocks: &mut [T]) {
+    let full = row.len() / BLOCK;
+    let (body, tail) = row.split_at(full * BLOCK);
+    for (b, ch) in blocks.iter_mut().zip(body.chunks_exact(BLOCK)) {
+        let ch: &[T; BLOCK] = ch.try_into().expect("block size");
+        // A vertical max of the four 16-pixel quarters, then the reduction.
+        let mut m = [T::default(); 16];
+        for i in 0..16 {
+            m[i] = ch[i].max(ch[i + 16]).max(ch[i + 32].max(ch[i + 48]));
+        }
+        *b = m.iter().copied().fold(T::default(), T::max);
+    }
+    if !tail.is_empty() {
+        blocks[full] = tail.iter().copied().fold(T::default(), T::max);
+    }
+}
+
+/// Sum of every byte of a frame: the memory-bandwidth floor a detector is compared with.
+/// SSE2 `psadbw` on x86_64 (16 bytes per instruction into two u64 lanes), portable elsewhere.
+pub fn sum_bytes(px: &[u8]) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::*;
+        let mut chunks = px.chunks_exact(64);
+        // SAFETY: SSE2 is part of the x86_64 baseline; loads are unaligned loads of in-bounds
+        // 16-byte pieces of each 64-byte chunk.
+        let total = unsafe {
+            let zero = _mm_setzero_si128();
+            let (mut a, mut b, mut c, mut d) = (zero, zero, zero, zero);
+            for ch in &mut chunks {
+                let p = ch.as_ptr() as *const __m128i;
+                a = _mm_add_epi64(a, _mm_sad_epu8(_mm_loadu_si128(p), zero));
+                b = _mm_add_epi64(b, _mm_sad_epu8(_mm_loadu_si128(p.add(1)), zero));
+                c = _mm_add_epi64(c, _mm_sad_epu8(_mm_loadu_si128(p.add(2)), zero));
+                d = _mm_add_epi64(d, _mm_sad_epu8(_mm_loadu_si128(p.add(3)), zero));
+            }
+            let s = _mm_add_epi64(_mm_add_epi64(a, b), _mm_add_epi64(c, d));
+            let mut lanes = [0u64; 2];
+            _mm_storeu_si128(lanes.as_mut_ptr() as *mut __m128i, s);
+            lanes[0] + lanes[1]
+        };
+        total + chunks.remainder().iter().map(|&v| v as u64).sum::<u64>()
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        px.iter().map(|&v| v as u64).sum()
+    }
+}
+
+/// Excluded column ranges (spikes, the line itself) when looking for a maximum.
+#[derive(Clone, Copy, Default)]
+struct Ranges {
+    r: [(usize, usize); 6],
+    n: usize,
+}
+
+impl Ranges {
+    fn push(&mut self, lo: usize, hi: usize) {
+        if self.n < self.r.len() {
+            self.r[self.n] = (lo, hi);
+            self.n += 1;
+            self.r[..self.n].sort_unstable();
+        }
+    }
+}
+
+/// Maximum of a short slice: 16 lanes, vectorised.
+#[inline]
+fn seg_max<T: Px>(s: &[T]) -> T {
+    let mut acc = [T::default(); 16];
+    let mut it = s.chunks_exact(16);
+    for c in &mut it {
+        for i in 0..16 {
+            acc[i] = acc[i].max(c[i]);
+        }
+    }
+    let m = acc.iter().copied().fold(T::default(), T::max);
+    it.remainder().iter().copied().fold(m, T::max)
+}
+
+/// Maximum of the row outside `ex`, from the block maxima: the value and the first position of
+/// it (the position only if `want_pos`; value 0 and position 0 if nothing is left).
+fn max_outside<T: Px>(row: &[T], blocks: &[T], ex: &Ranges, want_pos: bool) -> (T, usize) {
+    let w = row.len();
+    let mut best = T::default();
+    // Where the best lies: [lo, hi] of a whole block or of a piece of one.
+    let mut at: Option<(usize, usize)> = None;
+    for (b, &bm) in blocks.iter().enumerate() {
+        if at.is_some() && bm <= best {
+            continue;
+        }
+        let (b0, b1) = (b * BLOCK, ((b + 1) * BLOCK).min(w) - 1);
+        let hit = ex.r[..ex.n].iter().any(|&(a, z)| a <= b1 && z >= b0);
+        if !hit {
+            best = bm;
+            at = Some((b0, b1));
+            continue;
+        }
+        // The pieces of the block outside the (sorted) ranges.
+        let mut start = b0;
+        let piece = |a: usize, z: usize, best: &mut T, at: &mut Option<(usize, usize)>| {
+            let m = seg_max(&row[a..=z]);
+            if at.is_none() || m > *best {
+                *best = m;
+                *at = Some((a, z));
+            }
+        };
+        for &(lo, hi) in &ex.r[..ex.n] {
+            if hi < start {
+                continue;
+            }
+            if lo > b1 {
+                break;
+            }
+            if lo > start {
+                piece(start, lo - 1, &mut best, &mut at);
+            }
+            start = hi + 1;
+            if start > b1 {
+                break;
+            }
+        }
+        if start <= b1 {
+            piece(start, b1, &mut best, &mut at);
+        }
+    }
+    match at {
+        Some((a, z)) if want_pos => (
+            best,
+            a + row[a..=z].iter().position(|&v| v == best).unwrap_or(0),
+        ),
+        Some(_) => (best, 0),
+        None => (T::default(), 0),
+    }
+}
+
+/// The row's maximum and its first position, from the block maxima.
+#[inline]
+fn first_max<T: Px>(row: &[T], blocks: &[T]) -> (T, usize) {
+    let m = blocks.iter().copied().fold(T::default(), T::max);
+    let b = blocks.iter().position(|&v| v == m).unwrap_or(0);
+    let b0 = b * BLOCK;
+    let end = (b0 + BLOCK).min(row.len());
+    (
+        m,
+        b0 + row[b0..end].iter().position(|&v| v == m).unwrap_or(0),
+    )
+}
+
+/// The row's maximum outside [lo, hi] (0 if nothing is left), from the block maxima.
+#[inline]
+fn max_excluding<T: Px>(row: &[T], blocks: &[T], lo: usize, hi: usize) -> T {
+    let (bl, bh) = (lo / BLOCK, hi / BLOCK);
+    let end = ((bh + 1) * BLOCK).min(row.len());
+    let mut m = blocks[..bl].iter().copied().fold(T::default(), T::max);
+    m = blocks[bh + 1..].iter().copied().fold(m, T::max);
+    m.max(seg_max(&row[bl * BLOCK..lo]))
+        .max(seg_max(&row[(hi + 1).min(end)..end]))
+}
+
+/// If a specular spike (a saturated run of at most 6 px, one or two overlapping spike discs,
+/// whose neighbours are below a quarter of
+/// full scale) is at `pos`, the columns to exclude.
+fn spike_at<T: Px>(row: &[T], pos: usize, cfg: &CoarseConfig) -> Option<(usize, usize)> {
+    let w = row.len();
+    let v = row[pos];
+    if !cfg.skip_spikes || (v.f() as u32) < T::FULL {
+        return None;
+    }
+    let (mut a, mut b) = (pos, pos);
+    while a > 0 && row[a - 1] == v {
+        a -= 1;
+    }
+    while b + 1 < w && row[b + 1] == v {
+        b += 1;
+    }
+    let dark = 0.25 * T::FULL as f32;
+    let left = if a > 0 { row[a - 1].f() } else { 0.0 };
+    let right = if b + 1 < w { row[b + 1].f() } else { 0.0 };
+    (b - a < 6 && left < dark && right < dark).then(|| (a.saturating_sub(1), (b + 1).min(w - 1)))
+}
+
+/// The coarse search of one row whose block maxima ([`block_max`]) are `blocks`.
+/// `Err((reason, intensity))` when no line is accepted.
+pub fn coarse_row<T: Px>(
+    row: &[T],
+    blocks: &[T],
+    cfg: &CoarseConfig,
+) -> Result<Peak, (Reject, f32)> {
+    let w = row.len();
+    if w < 3 {
+        return Err((Reject::Border, 0.0));
+    }
+    let thr = cfg.threshold * T::SCALE;
+    let full = T::FULL as f32;
+    let mut ex = Ranges::default();
+    let (mut m0, mut m1, mut top);
+    loop {
+        let (v, pos) = if ex.n == 0 {
+            first_max(row, blocks)
+        } else {
+            max_outside(row, blocks, &ex, true)
+        };
+        let vf = v.f();
+        if vf <= thr {
+            return Err((Reject::BelowThreshold, vf));
+        }
+        // Flat top: equal values around the maximum.
+        let (mut a, mut b) = (pos, pos);
+        while a > 0 && row[a - 1] == v {
+            a -= 1;
+        }
+        while b + 1 < w && row[b + 1] == v {
+            b += 1;
+        }
+        top = vf;
+        m0 = a;
+        m1 = b;
+        if let Some((sa, sb)) = spike_at(row, pos, cfg) {
+            if ex.n + 1 < ex.r.len() {
+                ex.push(sa, sb);
+                continue;
+            }
+        }
+        break;
+    }
+    let saturated = if top >= full { m1 - m0 + 1 } else { 0 };
+    if saturated > cfg.max_saturated_px {
+        return Err((Reject::Saturated, top));
+    }
+    let m = (m0 + m1) / 2;
+    // Run above the threshold.
+    let mut lo = m0;
+    while lo > 0 && row[lo - 1].f() > thr {
+        lo -= 1;
+    }
+    let mut hi = m1;
+    while hi + 1 < w && row[hi + 1].f() > thr {
+        hi += 1;
+    }
+    if lo == 0 || hi + 1 == w {
+        return Err((Reject::Border, top));
+    }
+    // Background: the lowest of the two pixels beyond each end of the run.
+    let mut bg = row[lo - 1].f().min(row[hi + 1].f());
+    if lo >= 2 {
+        bg = bg.min(row[lo - 2].f());
+    }
+    if hi + 2 < w {
+        bg = bg.min(row[hi + 2].f());
+    }
+    // Width at half height, linear interpolation at both crossings.
+    let half = bg + 0.5 * (top - bg);
+    let mut l = m0;
+    while l > lo && row[l - 1].f() >= half {
+        l -= 1;
+    }
+    let xl = {
+        let (v0, v1) = (row[l - 1].f(), row[l].f());
+        (l - 1) as f32 + ((half - v0) / (v1 - v0).max(1e-6)).clamp(0.0, 1.0)
+    };
+    let mut r = m1;
+    while r < hi && row[r + 1].f() >= half {
+        r += 1;
+    }
+    let xr = {
+        let (v0, v1) = (row[r].f(), row[r + 1].f());
+        r as f32 + ((v0 - half) / (v0 - v1).max(1e-6)).clamp(0.0, 1.0)
+    };
+    let width = (xr - xl).max(0.5);
+    // A second peak outside the line and its immediate surroundings (spikes skipped).
+    let mut second = 0.0;
+    if cfg.ambiguity <= 1.0 {
+        let gap = (width as usize + 1).max(2);
+        let (a, z) = (lo.saturating_sub(gap), (hi + gap).min(w - 1));
+        let rel = |v: T| ((v.f() - bg) / (top - bg).max(1.0)).max(0.0);
+        let mut v2 = if ex.n == 0 {
+            max_excluding(row, blocks, a, z)
+        } else {
+            T::default()
+        };
+        if ex.n > 0 || (v2.f() > thr && rel(v2) >= cfg.ambiguity) {
+            // Rare: look closer, skipping spikes.
+            ex.push(a, z);
+            loop {
+                let (v, pos) = max_outside(row, blocks, &ex, true);
+                v2 = v;
+                if v.f() <= thr || rel(v) < cfg.ambiguity || ex.n + 1 >= ex.r.len() {
+                    break;
+                }
+                match spike_at(row, pos, cfg) {
+                    Some((sa, sb)) => ex.push(sa, sb),
+                    None => break,
+                }
+            }
+        }
+        second = rel(v2);
+        if v2.f() > thr && second >= cfg.ambiguity {
+            return Err((Reject::Ambiguous, top));
+        }
+    }
+    let mut spikes = [(0u32, 0u32); 2];
+    let mut spike_count = 0u8;
+    for &(x, y) in &ex.r[..ex.n] {
+        // Spike ranges are at most 8 px; the line's own exclusion is not a spike.
+        if y - x <= 7 && (y < lo || x > hi) && (spike_count as usize) < spikes.len() {
+            spikes[spike_count as usize] = (x as u32, y as u32);
+            spike_count += 1;
+        }
+    }
+    Ok(Peak {
+        spikes,
+        spike_count,
+        m,
+        top_lo: m0,
+        top_hi: m1,
+        peak: top,
+        lo,
+        hi,
+        bg,
+        width,
+        saturated: saturated as u16,
+        second,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(row: &[u8], cfg: &CoarseConfig) -> Result<Peak, (Reject, f32)> {
+        let mut s = CoarseScratch::default();
+        let blocks = s.for_width(row.len());
+        block_max(row, blocks);
+        coarse_row(row, blocks, cfg)
+    }
+
+    fn line(w: usize, c: f64, sigma: f64, a: f64) -> Vec<u8> {
+        (0..w)
+            .map(|i| {
+                let d = i as f64 - c;
+                (8.0 + a * (-d * d / (2.0 * sigma * sigma)).exp())
+                    .round()
+                    .min(255.0) as u8
+            })
+            .collect()
+    }
+
+    #[test]
+    fn block_max_matches_scalar() {
+        for len in [1usize, 63, 64, 65, 200, 1280] {
+            let row: Vec<u8> = (0..len).map(|i| ((i * 37 + 11) % 251) as u8).collect();
+            let mut b = vec![0u8; len.div_ceil(BLOCK)];
+            block_max(&row, &mut b);
+            for (k, &v) in b.iter().enumerate() {
+                let s = &row[k * BLOCK..((k + 1) * BLOCK).min(len)];
+                assert_eq!(v, *s.iter().max().unwrap());
+            }
+        }
+    }
+
+    #[test]
+    fn finds_peak_width_and_skips_spike() {
+        let mut row = line(300, 150.3, 1.6, 180.0);
+        let p = run(&row, &CoarseConfig::default()).unwrap();
+        assert_eq!(p.m, 150);
+        assert!((p.width - 3.77).abs() < 0.4, "{}", p.width);
+        row[170..173].fill(255);
+        let p = run(&row, &CoarseConfig::default()).unwrap();
+        assert_eq!(p.m, 150);
+    }
+
+    #[test]
+    fn sum_bytes_is_exact() {
+        let v: Vec<u8> = (0..100_003).map(|i| (i % 256) as u8).collect();
+        assert_eq!(sum_bytes(&v), v.iter().map(|&x| x as u64).sum::<u64>());
+    }
+}

@@ -1,0 +1,89 @@
+//! Recorded frames for `footscan detect`: PNG files (Gray8 or Gray16; colour images are
+//! converted to gray) or directories of them, and the peaks CSV.
+
+use super::LinePeak;
+use footscan_hal::{Frame, Pixels, Timestamp};
+use image::DynamicImage;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The PNG files named by `inputs`, in order: a file as given, a directory as its `*.png`
+/// files (case-insensitive extension) in name order. Frame index = position in this list.
+pub fn collect_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
+    let mut files = Vec::new();
+    for p in inputs {
+        if p.is_dir() {
+            let mut v: Vec<PathBuf> = std::fs::read_dir(p)
+                .map_err(|e| format!("{}: {e}", p.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| {
+                    f.is_file()
+                        && f.extension()
+                            .and_then(|x| x.to_str())
+                            .is_some_and(|x| x.eq_ignore_ascii_case("png"))
+                })
+                .collect();
+            v.sort();
+            if v.is_empty() {
+                return Err(format!("{}: no .png files in this directory", p.display()));
+            }
+            files.extend(v);
+        } else if p.is_file() {
+            files.push(p.clone());
+        } else {
+            return Err(format!("{}: no such file or directory", p.display()));
+        }
+    }
+    if files.is_empty() {
+        return Err("no input frames".into());
+    }
+    Ok(files)
+}
+
+/// Read one PNG as a frame (`seq` = its index). 8-bit gray stays Gray8, 16-bit gray Gray16;
+/// colour is converted to gray of its own depth.
+pub fn load_png(path: &Path, seq: u64) -> Result<Frame, String> {
+    let img = image::ImageReader::open(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?
+        .with_guessed_format()
+        .map_err(|e| format!("{}: {e}", path.display()))?
+        .decode()
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let (w, h) = (img.width(), img.height());
+    let pixels = match img {
+        DynamicImage::ImageLuma8(b) => Pixels::Gray8(b.into_raw()),
+        DynamicImage::ImageLuma16(b) => Pixels::Gray16(b.into_raw()),
+        DynamicImage::ImageLumaA8(_) | DynamicImage::ImageRgb8(_) | DynamicImage::ImageRgba8(_) => {
+            Pixels::Gray8(img.to_luma8().into_raw())
+        }
+        other => Pixels::Gray16(other.to_luma16().into_raw()),
+    };
+    if w == 0 || h == 0 {
+        return Err(format!("{}: empty image", path.display()));
+    }
+    Ok(Frame::new(seq, Timestamp::default(), w, h, pixels))
+}
+
+/// The CSV header of `footscan detect`.
+pub const CSV_HEADER: &str = "frame,row,col,intensity,width,quality";
+
+/// One line per row: `frame,row,col,intensity,width,quality`, col empty where no line was
+/// accepted (width and quality then 0).
+pub fn write_csv_rows<W: Write>(
+    out: &mut W,
+    frame: usize,
+    peaks: &[LinePeak],
+) -> std::io::Result<()> {
+    for (r, p) in peaks.iter().enumerate() {
+        if p.is_valid() {
+            writeln!(
+                out,
+                "{frame},{r},{:.4},{},{:.3},{:.3}",
+                p.col, p.intensity, p.width, p.quality
+            )?;
+        } else {
+            writeln!(out, "{frame},{r},,{},0,0", p.intensity)?;
+        }
+    }
+    Ok(())
+}
