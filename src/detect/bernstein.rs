@@ -96,7 +96,7 @@ fn horner(a: &[f64], s: f64) -> (f64, f64) {
 /// + to - crossing in [0, 1].
 pub fn root_near(samples: &[f32], binom: &Binomials, t0: f64) -> Option<f64> {
     let n = samples.len() - 1;
-    debug_assert!(n >= 2 && n < MAX_N);
+    debug_assert!((2..MAX_N).contains(&n));
     let c = binom.row(n - 1);
     let mut a = [0.0f64; MAX_N];
     for i in 0..n {
@@ -109,7 +109,7 @@ pub fn root_near(samples: &[f32], binom: &Binomials, t0: f64) -> Option<f64> {
         let mut s = tc / (1.0 - tc);
         for _ in 0..8 {
             let (p, dp) = horner(a, s);
-            if !(dp < 0.0) {
+            if dp.partial_cmp(&0.0) != Some(std::cmp::Ordering::Less) {
                 break;
             }
             let ds = p / dp;

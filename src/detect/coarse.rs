@@ -69,7 +69,7 @@ impl CoarseConfig {
                 self.threshold
             ));
         }
-        if !(self.ambiguity > 0.0) {
+        if self.ambiguity.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return Err(format!(
                 "ambiguity = {}: must be > 0 (a fraction of the peak; > 1 disables the test)",
                 self.ambiguity

@@ -220,7 +220,7 @@ pub fn held_out(
                 continue;
             }
             k += 1;
-            if k % stride.max(1) == 0 {
+            if k.is_multiple_of(stride.max(1)) {
                 out.push(HeldOut {
                     p: full.get(i, j),
                     s0,
