@@ -3,7 +3,7 @@
 # missing, a Rust toolchain through rustup. Safe to run again; it only installs what is absent.
 set -euo pipefail
 
-packages=(pkg-config libudev-dev gcc clang libclang-dev)
+packages=(pkg-config libudev-dev gcc clang libclang-dev libopencv-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

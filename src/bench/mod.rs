@@ -1,6 +1,7 @@
 //! Measurements behind `footscan bench`: each module runs one benchmark and returns rows that
 //! print as a table or serialise as JSON. Timings are measured here, never asserted in tests.
 
+pub mod calibrate;
 pub mod detect;
 pub mod render;
 pub mod surface;

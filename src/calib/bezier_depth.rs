@@ -88,12 +88,74 @@ fn condition(m: &DMatrix<f64>) -> f64 {
     }
 }
 
+/// Least-squares polynomial of `degree` (Chebyshev basis on the row range) through the finite
+/// values of `col`, evaluated where `col` is finite; `degree` 0 returns `col` unchanged.
+pub fn smooth_along_rows(col: &[f64], degree: usize) -> Vec<f64> {
+    let pts: Vec<(usize, f64)> = col
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.is_finite())
+        .map(|(r, &c)| (r, c))
+        .collect();
+    if degree == 0 || pts.len() <= 2 * (degree + 1) {
+        return col.to_vec();
+    }
+    let n = col.len().max(2) as f64;
+    let basis = |r: usize, out: &mut [f64]| {
+        let t = 2.0 * r as f64 / (n - 1.0) - 1.0;
+        out[0] = 1.0;
+        if out.len() > 1 {
+            out[1] = t;
+        }
+        for k in 2..out.len() {
+            out[k] = 2.0 * t * out[k - 1] - out[k - 2];
+        }
+    };
+    let mut a = DMatrix::zeros(pts.len(), degree + 1);
+    let mut row = vec![0.0; degree + 1];
+    for (i, &(r, _)) in pts.iter().enumerate() {
+        basis(r, &mut row);
+        for (k, v) in row.iter().enumerate() {
+            a[(i, k)] = *v;
+        }
+    }
+    let b = nalgebra::DVector::from_iterator(pts.len(), pts.iter().map(|p| p.1));
+    let Ok(coef) = a.svd(true, true).solve(&b, 1e-12) else {
+        return col.to_vec();
+    };
+    col.iter()
+        .enumerate()
+        .map(|(r, &c)| {
+            if c.is_finite() {
+                basis(r, &mut row);
+                row.iter().zip(coef.iter()).map(|(x, y)| x * y).sum()
+            } else {
+                c
+            }
+        })
+        .collect()
+}
+
 impl BezierDepth {
     /// Fit the network to the plate observations (at least 2 heights; the lowest is the
-    /// reference line).
-    pub fn fit(plates: &[PlateObservation], degree_v: usize) -> Result<Self, CalibError> {
+    /// reference line). With `smooth_degree` > 0 each plate's line is first replaced by its
+    /// least-squares polynomial of that degree along the rows (a flat plate's line is a smooth
+    /// curve; this removes the detection noise that interpolation would otherwise carry into
+    /// every row's mapping); the network then passes through these samples exactly.
+    pub fn fit(
+        plates: &[PlateObservation],
+        degree_v: usize,
+        smooth_degree: usize,
+    ) -> Result<Self, CalibError> {
         let degree_v = degree_v.clamp(1, MAX_DEGREE);
-        let mut plates: Vec<&PlateObservation> = plates.iter().collect();
+        let smoothed: Vec<PlateObservation> = plates
+            .iter()
+            .map(|p| PlateObservation {
+                col: smooth_along_rows(&p.col, smooth_degree),
+                ..p.clone()
+            })
+            .collect();
+        let mut plates: Vec<&PlateObservation> = smoothed.iter().collect();
         plates.sort_by(|a, b| a.height_mm.total_cmp(&b.height_mm));
         plates.dedup_by(|a, b| (a.height_mm - b.height_mm).abs() < 1e-9);
         if plates.len() < 2 {
@@ -274,11 +336,11 @@ mod tests {
     fn interpolates_samples_and_holds_between_heights() {
         let heights = [0.0, 7.0, 14.0, 21.0, 28.0, 35.0];
         let plates: Vec<_> = heights.iter().map(|&h| plate(h, 100)).collect();
-        let net = BezierDepth::fit(&plates, 4).unwrap();
+        let net = BezierDepth::fit(&plates, 4, 0).unwrap();
         assert_eq!(net.degree_u, 5);
         assert!(net.condition < 1e3, "condition {}", net.condition);
         // Degree 8 in v is still usable; the condition grows fast with the degree.
-        let c8 = BezierDepth::fit(&plates, 8).unwrap().condition;
+        let c8 = BezierDepth::fit(&plates, 8, 0).unwrap().condition;
         assert!(c8 > net.condition && c8 < 1e5, "{c8}");
         for p in &plates {
             for r in [0usize, 7, 8, 50, 99] {
@@ -301,7 +363,13 @@ mod tests {
         assert!(net.height(100.0, 1200.0).is_none());
         let u = net.detection_uncertainty(0.1);
         assert!(u > 0.03 && u < 0.07, "u_h {u}");
-        assert!(BezierDepth::fit(&plates[..1], 8).is_err());
+        assert!(BezierDepth::fit(&plates[..1], 8, 0).is_err());
+        // Smoothing keeps a smooth line as it is.
+        let s = smooth_along_rows(&plates[2].col, 8);
+        assert!(s
+            .iter()
+            .zip(&plates[2].col)
+            .all(|(a, b)| (a - b).abs() < 1e-6));
     }
 
     #[test]

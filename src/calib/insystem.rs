@@ -129,6 +129,10 @@ struct EdgeObs {
 
 /// Quantisation of an end to whole rows: uniform over one row.
 const EDGE_SIGMA: f64 = 0.288_675_134_594_812_9;
+/// Normalised residuals beyond which an observation is left out of the second fit: an end
+/// more than 1.15 rows from its edge (the quantisation allows 0.5), a row 6 sigma off.
+const EDGE_OUTLIER: f64 = 4.0;
+const ROW_OUTLIER: f64 = 6.0;
 
 fn model_of(x: &[f64], width: u32, height: u32) -> CameraModel {
     CameraModel {
@@ -280,7 +284,7 @@ pub fn fit_insystem(
             r += stride;
         }
     }
-    for e in stair::identify_ends(data, &pieces, &start, pose0, 3.0) {
+    for e in stair::identify_ends(data, &pieces, &start, pose0, 1.5) {
         let p = &pieces[e.piece];
         let row = if e.first { p.first } else { p.last };
         edges.push(EdgeObs {
@@ -297,30 +301,53 @@ pub fn fit_insystem(
             },
         });
     }
-    // 3. The fit.
-    let residual = |x: &[f64], out: &mut Vec<f64>| {
-        out.clear();
-        let m = model_of(x, w, h);
-        let tri = m.triangulator();
-        for o in &obs {
-            out.push(match tri.point(o.x_mm, o.col, o.row) {
-                Some(p) => (p[2] - o.h) * o.weight,
-                None => 1e6,
-            });
-        }
-        for e in &edges {
-            out.push(match edge_row(&m, [x[10], x[11], x[12]], e) {
-                Some(r) => (r - e.row) / EDGE_SIGMA,
-                None => 1e6,
-            });
-        }
-    };
-    let sol = lm::solve(&residual, &x0, &STEPS, opts.patience).map_err(|detail| {
-        CalibError::NotConverged {
+    // 3. The fit, then once more without the observations the model cannot explain (a
+    // detector glitch, an end next to something the identification missed).
+    let solve = |obs: &[RowObs], edges: &[EdgeObs], x0: &[f64]| {
+        let residual = |x: &[f64], out: &mut Vec<f64>| {
+            out.clear();
+            let m = model_of(x, w, h);
+            let tri = m.triangulator();
+            for o in obs {
+                out.push(match tri.point(o.x_mm, o.col, o.row) {
+                    Some(p) => (p[2] - o.h) * o.weight,
+                    None => 1e6,
+                });
+            }
+            for e in edges {
+                out.push(match edge_row(&m, [x[10], x[11], x[12]], e) {
+                    Some(r) => (r - e.row) / EDGE_SIGMA,
+                    None => 1e6,
+                });
+            }
+        };
+        lm::solve(&residual, x0, &STEPS, opts.patience).map_err(|detail| CalibError::NotConverged {
             what: "the in-system fit of the general model".into(),
             detail,
-        }
-    })?;
+        })
+    };
+    let mut sol = solve(&obs, &edges, &x0)?;
+    let (n_obs, n_edges) = (obs.len(), edges.len());
+    let mut keep = sol.residuals.iter().map(|r| r.abs());
+    let keep_obs: Vec<bool> = keep.by_ref().take(n_obs).map(|r| r < ROW_OUTLIER).collect();
+    let keep_edges: Vec<bool> = keep.map(|r| r < EDGE_OUTLIER).collect();
+    let dropped = keep_obs.iter().chain(&keep_edges).filter(|k| !**k).count();
+    if dropped * 100 > n_obs + n_edges {
+        return Err(CalibError::Implausible(format!(
+            "{dropped} of {} observations ({:.1} %) are far from the best fit of the model: \
+             the line positions are not those of a scanner seeing the plan's targets (wrong \
+             heights or block, a detector failing, or a moving target)",
+            n_obs + n_edges,
+            100.0 * dropped as f64 / (n_obs + n_edges) as f64
+        )));
+    }
+    if dropped > 0 {
+        let mut k = keep_obs.iter();
+        obs.retain(|_| *k.next().unwrap_or(&true));
+        let mut k = keep_edges.iter();
+        edges.retain(|_| *k.next().unwrap_or(&true));
+        sol = solve(&obs, &edges, &sol.x)?;
+    }
     let model = model_of(&sol.x, w, h);
     model
         .validate()
@@ -369,6 +396,7 @@ pub fn fit_insystem(
     residuals.insert("parallel_x_rms_mm".into(), parallel_x(&plates, &model));
     residuals.insert("parallel_y_rms_mm".into(), parallel_y(&edges, &model));
     residuals.insert("fit_reduced_chi2".into(), sol.reduced_chi2);
+    residuals.insert("outliers_dropped".into(), dropped as f64);
     // Uncertainty (eq. 30-31).
     let u = super::uncertainty::height_uncertainty(
         &model,

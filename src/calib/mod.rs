@@ -20,7 +20,10 @@ mod file;
 pub mod insystem;
 pub mod lm;
 mod model;
+#[cfg(feature = "opencv")]
+pub mod opencv;
 pub mod plan;
+pub mod run;
 pub mod stair;
 pub mod uncertainty;
 
@@ -28,3 +31,4 @@ pub use error::CalibError;
 pub use file::{Calibration, CalibrationError};
 pub use model::{CameraModel, Triangulator};
 pub use plan::CalibrationPlan;
+pub use run::{calibrate_sim, Method, Outcome};

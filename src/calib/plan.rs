@@ -23,6 +23,12 @@ pub struct CalibrationPlan {
     pub stair_start_mm: f64,
     pub stair_end_mm: f64,
     pub stair_step_mm: f64,
+    /// Degree in v of the Bezier depth network's row blocks (<= 8; see
+    /// [`super::bezier_depth`]).
+    pub bezier_degree_v: usize,
+    /// Degree of the polynomial each plate line is smoothed with along the rows before the
+    /// Bezier network interpolates it (0: the raw per-row positions).
+    pub bezier_smooth_degree: usize,
     /// The checkerboard of the OpenCV reference.
     pub board: Checkerboard,
     /// Where the simulated operator puts the targets (unknown to the calibration).
@@ -49,17 +55,23 @@ pub struct SimPlacements {
 impl Default for CalibrationPlan {
     fn default() -> Self {
         CalibrationPlan {
-            plate_heights_mm: vec![0.0, 7.0, 14.0, 21.0, 28.0, 35.0],
+            plate_heights_mm: vec![0.0, 7.0, 14.0, 21.0, 28.0, 35.0, 42.0, 49.0],
             frames_per_height: 16,
             plate_x_mm: 100.0,
+            // Steps over the whole height range (the sides seen at many heights locate c_y),
+            // out of order along the block: the risers then sit at heights that are not
+            // proportional to their positions, which separates the slider scale from the laser
+            // plane's pitch (both move a riser's apparent x).
             staircase: StaircaseGeometry {
-                heights_mm: vec![7.0, 14.0, 21.0, 28.0],
-                lengths_mm: vec![20.0; 4],
+                heights_mm: vec![21.0, 0.0, 42.0, 7.0, 35.0, 14.0, 49.0, 28.0],
+                lengths_mm: vec![10.0; 8],
                 width_mm: 60.0,
             },
             stair_start_mm: 40.0,
             stair_end_mm: 140.0,
-            stair_step_mm: 0.5,
+            stair_step_mm: 0.25,
+            bezier_degree_v: 4,
+            bezier_smooth_degree: 8,
             board: Checkerboard::default(),
             sim: SimPlacements::default(),
         }
@@ -170,9 +182,37 @@ impl CalibrationPlan {
                 self.stair_start_mm, self.stair_end_mm, self.stair_step_mm
             ));
         }
+        if !(1..=super::bezier_depth::MAX_DEGREE).contains(&self.bezier_degree_v) {
+            return bad(format!(
+                "bezier_degree_v = {}: valid range is 1..=8",
+                self.bezier_degree_v
+            ));
+        }
         self.board
             .validate()
             .map_err(|e| CalibError::Plan(e.to_string()))?;
+        Ok(())
+    }
+
+    /// What the in-system methods need from the plan, checked before anything is acquired.
+    pub fn check_insystem(&self) -> Result<(), CalibError> {
+        let mut h = self.plate_heights_mm.clone();
+        h.sort_by(f64::total_cmp);
+        h.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+        if h.len() < 3 {
+            return Err(CalibError::TooFewHeights {
+                got: h.len(),
+                need: 3,
+                heights: format!("plate_heights_mm = {h:?}"),
+            });
+        }
+        if h.len() > super::bezier_depth::MAX_DEGREE + 1 {
+            return Err(CalibError::Plan(format!(
+                "plate_heights_mm: {} heights; the Bezier network interpolates at most {}",
+                h.len(),
+                super::bezier_depth::MAX_DEGREE + 1
+            )));
+        }
         Ok(())
     }
 

@@ -271,10 +271,11 @@ pub fn block_pose(
 }
 
 /// Identify the block edge at every usable piece end: the end's point, triangulated with the
-/// starting model, in block coordinates at the starting pose, must lie within `tol_mm` of one
-/// candidate edge and no other. Candidates: a free end is a side (w = 0 at a first row,
-/// w = W at a last row) or, on the first or last step, the block's end face; a neighbour end
-/// is the riser between the two steps, used from the lower face only (see [`riser_usable`]).
+/// starting model, in block coordinates at the starting pose, must lie within `tol_mm` of the
+/// edge its kind allows and of no other edge of the block (ends near a corner are left out).
+/// A free end is a side (w = 0 at a first row, w = W at a last row) or, on the first or last
+/// step, the block's end face; a neighbour end is the riser between the two steps, used from
+/// the lower face only (see [`riser_usable`]).
 pub fn identify_ends(
     data: &InsystemData,
     pieces: &[Piece],
@@ -286,6 +287,13 @@ pub fn identify_ends(
     let g = &data.staircase;
     let n = g.heights_mm.len();
     let (sn, cs) = pose.2.to_radians().sin_cos();
+    // Every edge line of the block: both sides and every u = const line (risers, end faces).
+    let mut all = vec![Edge::Side { w: 0.0 }, Edge::Side { w: g.width_mm }];
+    all.extend((0..=n).map(|j| Edge::Face { u: g.step_start(j) }));
+    let dist = |e: &Edge, u: f64, w: f64| match *e {
+        Edge::Side { w: we } => (w - we).abs(),
+        Edge::Face { u: ue } => (u - ue).abs(),
+    };
     let mut out = Vec::new();
     for (i, p) in pieces.iter().enumerate() {
         let f = &data.stair[p.frame];
@@ -315,19 +323,15 @@ pub fn identify_ends(
             };
             let (dx, dy) = (q[0] - pose.0, q[1] - pose.1);
             let (u, w) = (dx * cs + dy * sn, -dx * sn + dy * cs);
-            let near: Vec<Edge> = cands
-                .into_iter()
-                .filter(|e| match *e {
-                    Edge::Side { w: we } => (w - we).abs() < tol_mm,
-                    Edge::Face { u: ue } => (u - ue).abs() < tol_mm,
-                })
-                .collect();
+            let near: Vec<&Edge> = all.iter().filter(|e| dist(e, u, w) < tol_mm).collect();
             if let [edge] = near[..] {
-                out.push(EndEdge {
-                    piece: i,
-                    first,
-                    edge,
-                });
+                if cands.contains(edge) {
+                    out.push(EndEdge {
+                        piece: i,
+                        first,
+                        edge: *edge,
+                    });
+                }
             }
         }
     }

@@ -12,6 +12,22 @@ pub struct Args {
 
 #[derive(Subcommand)]
 enum What {
+    /// Calibration methods side by side: each parameter against the simulator's truth, height
+    /// RMS and max error on a held-out staircase and the simulated foot.
+    Calibrate {
+        #[arg(long, default_value = "config/sim.toml")]
+        config: PathBuf,
+        /// Only these methods (repeatable; default insystem, bezier, opencv).
+        #[arg(long = "method", value_parser = ["insystem", "bezier", "opencv"])]
+        methods: Vec<String>,
+        /// Acquire by rendering frames directly (fast) instead of through the real-time
+        /// simulated camera and slider.
+        #[arg(long)]
+        direct: bool,
+        /// One JSON array of objects (method, params, val_rms_mm, val_max_mm, ...).
+        #[arg(long)]
+        json: bool,
+    },
     /// Plantar surface models (seed 002 Table 1): the Bezier network against least squares,
     /// B-spline approximation, NURBS and C2 B-spline interpolation on one scan, printed beside
     /// the paper's figures.
@@ -58,6 +74,40 @@ enum What {
 
 pub fn run(args: Args) -> Result<()> {
     match args.what {
+        What::Calibrate {
+            config,
+            methods,
+            direct,
+            json,
+        } => {
+            use footscan::bench::calibrate as bc;
+            use footscan::calib::{CalibrationPlan, Method};
+            let cfg = footscan::scan::LoadedConfig::load(&config)?;
+            let methods: Vec<Method> = if methods.is_empty() {
+                Method::ALL.to_vec()
+            } else {
+                methods
+                    .iter()
+                    .map(|m| m.parse().map_err(anyhow::Error::msg))
+                    .collect::<Result<_>>()?
+            };
+            let opts = bc::BenchOptions { methods, direct };
+            let rows = bc::run(
+                &cfg.config,
+                &CalibrationPlan::default(),
+                &opts,
+                &mut |what, done, total| {
+                    eprint!("\r{what} {done}/{total}        ");
+                },
+            )?;
+            eprintln!();
+            if json {
+                println!("{}", serde_json::to_string_pretty(&rows)?);
+            } else {
+                print!("{}", bc::table(&rows));
+            }
+            Ok(())
+        }
         What::Surface { config, scan, json } => {
             let cfg = footscan::scan::LoadedConfig::load(&config)?;
             let grid = footscan::bench::surface::scan_or_load(&cfg, scan.as_deref())

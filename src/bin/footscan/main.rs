@@ -1,6 +1,7 @@
 //! The footscan command line: a thin shell over the library. One file per command.
 
 mod bench;
+mod calibrate;
 mod detect;
 mod measure;
 mod model;
@@ -52,6 +53,8 @@ enum Command {
     Model(model::Args),
     /// Foot measurements of a saved scan: measurements.json and plantar.png in the scan directory.
     Measure(measure::Args),
+    /// Calibrate the scanner (insystem, bezier or the OpenCV reference) into a calibration TOML.
+    Calibrate(calibrate::Args),
     /// Measure speed and accuracy (see `footscan bench --help`).
     Bench(bench::Args),
     /// Run a laser-line detector on recorded frames and write one CSV line per image row.
@@ -107,6 +110,7 @@ fn run() -> Result<()> {
         }
         Command::Model(args) => model::run(args),
         Command::Measure(args) => measure::run(args),
+        Command::Calibrate(args) => calibrate::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Detect(args) => detect::run(args),
     }
