@@ -240,7 +240,7 @@ fn frames_of(grid: &ScanGrid) -> Result<Vec<Frame>, MeasureError> {
 }
 
 /// Half-length (mm along x) of the neighbourhood whose run ends form the envelope.
-const ENVELOPE_HALF_MM: f64 = 4.0;
+const ENVELOPE_HALF_MM: f64 = 8.0;
 /// Largest outward move of a run end by the envelope (mm).
 const ENVELOPE_MAX_MM: f64 = 0.6;
 
@@ -250,7 +250,7 @@ const ENVELOPE_MAX_MM: f64 = 0.6;
 /// long way in y (up to ~0.3 mm). The y of a return is precise (the row fixes it, the
 /// height hardly moves it), so along a side the ends of the same run in neighbouring frames
 /// are the fold minus a random shortfall, and their outer envelope is the fold: fit a
-/// quadratic in x to the last returns over +-4 mm and move the end out to the fit plus the
+/// cubic in x to the last returns over +-8 mm and move the end out to the fit plus the
 /// second largest outward residual (one stray point cannot set it). Only where the side runs
 /// along x (|dy/dx| < 1); ends of the heel, the toes and the ball front keep the half-pitch
 /// margin.
@@ -286,40 +286,47 @@ fn envelope_ends(frames: &mut [Frame]) {
                 .collect()
         })
         .collect();
+    // Outward position of an end: y at the high end, -y at the low end.
+    let out = |kk: usize, ii: usize, is_lo: bool| -> f64 {
+        let r: (f64, f64) = raw[kk][ii];
+        if is_lo {
+            -r.0
+        } else {
+            r.1
+        }
+    };
     let mut new_ends = Vec::new();
     for k in 0..nf {
         let xk = frames[k].x;
         for i in 0..frames[k].runs.len() {
-            let mut samples = vec![(0.0, raw[k][i])];
-            let (mut kk, mut ii) = (k, i);
-            while let Some(p) = prev[kk][ii] {
-                kk -= 1;
-                ii = p;
-                if xk - frames[kk].x > ENVELOPE_HALF_MM {
-                    break;
+            for is_lo in [false, true] {
+                // The same end in the neighbouring frames, while it runs along x: where it
+                // turns steep (the end of a toe or of the ball) no polynomial follows it.
+                let (mut ds, mut vs) = (vec![0.0], vec![out(k, i, is_lo)]);
+                for dir in [-1i64, 1] {
+                    let (mut kk, mut ii) = (k, i);
+                    loop {
+                        let link = if dir < 0 { prev[kk][ii] } else { next[kk][ii] };
+                        let Some(n) = link else { break };
+                        let (k2, i2) = ((kk as i64 + dir) as usize, n);
+                        let dx = (frames[k2].x - frames[kk].x).abs();
+                        let step = (out(k2, i2, is_lo) - out(kk, ii, is_lo)).abs();
+                        if (frames[k2].x - xk).abs() > ENVELOPE_HALF_MM || step > dx {
+                            break;
+                        }
+                        (kk, ii) = (k2, i2);
+                        ds.push(frames[kk].x - xk);
+                        vs.push(out(kk, ii, is_lo));
+                    }
                 }
-                samples.push((frames[kk].x - xk, raw[kk][ii]));
-            }
-            let (mut kk, mut ii) = (k, i);
-            while let Some(n) = next[kk][ii] {
-                kk += 1;
-                ii = n;
-                if frames[kk].x - xk > ENVELOPE_HALF_MM {
-                    break;
+                if ds.len() < 7 {
+                    continue;
                 }
-                samples.push((frames[kk].x - xk, raw[kk][ii]));
-            }
-            if samples.len() < 7 {
-                continue;
-            }
-            let ds: Vec<f64> = samples.iter().map(|s| s.0).collect();
-            let lo: Vec<f64> = samples.iter().map(|s| -s.1 .0).collect();
-            let hi: Vec<f64> = samples.iter().map(|s| s.1 .1).collect();
-            if let Some(e) = envelope(&ds, &hi) {
-                new_ends.push((k, i, false, e));
-            }
-            if let Some(e) = envelope(&ds, &lo) {
-                new_ends.push((k, i, true, -e));
+                let Some((c, off)) = envelope(&ds, &vs) else {
+                    continue;
+                };
+                let end = c[0] + off;
+                new_ends.push((k, i, is_lo, if is_lo { -end } else { end }));
             }
         }
     }
@@ -333,14 +340,15 @@ fn envelope_ends(frames: &mut [Frame]) {
     }
 }
 
-/// Outer envelope at d = 0 of outward positions `v` sampled at offsets `d`: quadratic fit
-/// plus the second largest residual; None where the side is steep (|slope| >= 1).
-fn envelope(d: &[f64], v: &[f64]) -> Option<f64> {
-    use nalgebra::{Matrix3, Vector3};
-    let mut ata = Matrix3::zeros();
-    let mut atb = Vector3::zeros();
+/// Outer envelope of outward positions `v` sampled at offsets `d`: the cubic fit's
+/// coefficients and the offset to add to it (the second largest residual); None where the
+/// side is steep (|slope| >= 1).
+fn envelope(d: &[f64], v: &[f64]) -> Option<(nalgebra::Vector4<f64>, f64)> {
+    use nalgebra::{Matrix4, Vector4};
+    let mut ata = Matrix4::zeros();
+    let mut atb = Vector4::zeros();
     for (&x, &y) in d.iter().zip(v) {
-        let row = Vector3::new(1.0, x, x * x);
+        let row = Vector4::new(1.0, x, x * x, x * x * x);
         ata += row * row.transpose();
         atb += row * y;
     }
@@ -351,10 +359,10 @@ fn envelope(d: &[f64], v: &[f64]) -> Option<f64> {
     let mut res: Vec<f64> = d
         .iter()
         .zip(v)
-        .map(|(&x, &y)| y - (c[0] + c[1] * x + c[2] * x * x))
+        .map(|(&x, &y)| y - (c[0] + x * (c[1] + x * (c[2] + x * c[3]))))
         .collect();
     res.sort_by(|a, b| b.total_cmp(a));
-    Some(c[0] + res[1].max(0.0))
+    Some((c, res[1].max(0.0)))
 }
 
 fn make_run(mut pts: Vec<[f64; 3]>, pitch: f64) -> Run {
