@@ -1,7 +1,9 @@
 //! Foot landmarks and measurements (SPEC section 8) from a plantar height map.
 //!
-//! Input: a [`HeightMap`] (heights in mm on regular cells, NaN outside the footprint), from the
-//! plantar model or rasterised from the scan grid ([`rasterize_grid`]). Output:
+//! Input: a [`HeightMap`](crate::geom::HeightMap) (heights in mm on regular cells, NaN outside the footprint). For a
+//! scan ([`measure_grid`], the `measure.foot` stage, `footscan measure`) the footprint comes
+//! from the scan grid ([`rasterize_grid`], 0.1 mm cells) and the heights from the Bezier model
+//! where it has them ([`scan_heightmap`]). Output:
 //! [`Measurements`], written as `measurements.json`, and a labelled PNG
 //! ([`crate::io::render_plantar`]). Everything is computed from the height map alone; the
 //! simulator's truth only enters through [`compare_with_truth`] for tests and reports.
@@ -12,7 +14,7 @@
 //! scanner sees no sole between the toes and the ball, so they come apart); smaller specks
 //! are ignored. Outlines: marching squares halfway between inside and outside cell centres.
 //! Extreme points are located between outline vertices by a two-sided parabola fit over the
-//! outline near the extreme ([`fit::peak_vertex`]).
+//! outline near the extreme (a common vertex with a different curvature on each side).
 //!
 //! - Axis: from the heel centre to the second metatarsal head. The height map shows no bones,
 //!   so the second metatarsal head is found by the rule that the second metatarsal is the
@@ -46,6 +48,19 @@
 //! - Arch index (Cavanagh-Rodgers): contact = cells with h <= 1 mm on the body (toes
 //!   excluded); the body from the heel point to its most anterior point along the axis is
 //!   cut in three equal lengths; index = middle third's contact area over the total.
+//!
+//! # Accuracy (against the simulator's analytic foot)
+//! On height maps sampled from the analytic foot at 0.1 mm (tests/measure_analytic.rs, six
+//! feet): landmarks within 0.3 mm, lengths and widths within 0.06 mm, axis within 0.07 deg,
+//! arch index within 1e-4. On simulated scans (tests/measure_scan.rs) widths come out 0.1 to
+//! 0.35 mm short: the camera cannot see the rounded sole edge beyond its silhouette (the
+//! last 0.05 to 0.25 mm before the edge turns vertical, more for larger edge radii), and no
+//! rule recovers that from a plantar scan without a model of the edge; a circle fitted to
+//! the visible part of the edge was tried and was too noisy. The second metatarsal head is
+//! placed along the axis by convention (level with the first), 1.7 to 2.5 mm from where the
+//! simulator puts it (0.71 L against 0.72 L); its distance from the true axis is what the
+//! axis depends on and is under 0.2 mm on the analytic maps, 0.5 mm on the scans. Cells coarser than 0.1 mm cost accuracy quickly on
+//! flat stretches of the outline (at 0.2 mm the fifth metatarsal head moves by up to 1 mm).
 
 mod fit;
 mod foot;
