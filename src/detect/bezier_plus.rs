@@ -1,9 +1,10 @@
 //! `bezier-plus`: the paper's Bezier estimator made accurate, robust and fast.
 //!
-//! Per frame, in four passes over the rows (scratch kept between frames, nothing allocated):
+//! Per frame, one pass over the rows (steps 1-3, each row while it is in the L1 cache), then
+//! one over the row results (step 4); scratch is kept between frames, nothing is allocated:
 //! 1. Coarse search (shared with every detector): peak, run, width, rejects, spikes skipped.
-//! 2. Line width: each row's width at half height averaged over the valid rows within
-//!    +-16 rows (prefix sums), so the window follows the line, not per-row speckle.
+//! 2. Line width: a running mean of the rows' widths at half height (weight 1/8 per row), so
+//!    the window follows the line, not per-row speckle.
 //! 3. Bezier estimate per row, the paper's curves x(t), I(t) and the root of I'(t), with:
 //!    - control points sized to the line: bins of b = round(sigma) pixels (b = 1 up to
 //!      sigma 1.5 px), n + 1 of them spanning about +-`window_sigmas` line sigmas, so the
@@ -192,10 +193,7 @@ impl BiasTable {
 pub struct BezierPlus {
     cfg: BezierPlusConfig,
     bias: Option<BiasTable>,
-    peaks: Vec<Result<Peak, (Reject, f32)>>,
     raw: Vec<f64>,
-    sig: Vec<f64>,
-    prefix: Vec<(f64, u32)>,
     d2: Vec<f64>,
     s8: CoarseScratch<u8>,
     s16: CoarseScratch<u16>,
@@ -210,10 +208,7 @@ impl BezierPlus {
         Ok(BezierPlus {
             cfg,
             bias,
-            peaks: Vec::new(),
             raw: Vec::new(),
-            sig: Vec::new(),
-            prefix: Vec::new(),
             d2: Vec::with_capacity(4096),
             s8: CoarseScratch::default(),
             s16: CoarseScratch::default(),
@@ -232,56 +227,35 @@ impl BezierPlus {
         scratch: &mut CoarseScratch<T>,
         out: &mut [LinePeak],
     ) {
-        self.peaks.resize(h, Err((Reject::BelowThreshold, 0.0)));
         self.raw.resize(h, f64::NAN);
-        self.sig.resize(h, 0.0);
-        self.prefix.resize(h + 1, (0.0, 0));
         let cfg = self.cfg.coarse;
-        // 1. Coarse.
-        let blocks = scratch.for_width(w);
-        for (row, p) in px.chunks_exact(w).zip(self.peaks.iter_mut()) {
-            block_max(row, blocks);
-            *p = coarse_row(row, blocks, &cfg);
-        }
-        // 2. Width averaged over +-16 rows.
-        let mut acc = (0.0, 0u32);
-        self.prefix[0] = acc;
-        for (i, p) in self.peaks.iter().enumerate() {
-            if let Ok(pk) = p {
-                if pk.saturated == 0 {
-                    acc.0 += pk.width as f64;
-                    acc.1 += 1;
-                }
-            }
-            self.prefix[i + 1] = acc;
-        }
-        const HALF: usize = 16;
-        for (r, s) in self.sig.iter_mut().enumerate() {
-            let (a, b) = (r.saturating_sub(HALF), (r + HALF + 1).min(h));
-            let (sw, n) = (
-                self.prefix[b].0 - self.prefix[a].0,
-                self.prefix[b].1 - self.prefix[a].1,
-            );
-            *s = if n > 0 {
-                sw / n as f64 / 2.3548
-            } else {
-                match &self.peaks[r] {
-                    Ok(pk) => pk.width as f64 / 2.3548,
-                    Err(_) => 0.0,
-                }
-            };
-        }
-        // 3. Per-row Bezier.
         let binom = binomials();
+        // 1-3 in one pass, each row while it is in the L1 cache. The line width is a running
+        // mean over the preceding valid rows (weight 1/8 per row), started by the first one.
+        let mut width = f64::NAN;
+        let blocks = scratch.for_width(w);
         for (r, row) in px.chunks_exact(w).enumerate() {
-            out[r] = match self.peaks[r] {
+            block_max(row, blocks);
+            out[r] = match coarse_row(row, blocks, &cfg) {
                 Err((why, v)) => {
                     self.raw[r] = f64::NAN;
                     LinePeak::rejected(why, v)
                 }
                 Ok(pk) => {
-                    match estimate_row(row, &pk, self.sig[r], &self.cfg, self.bias.as_ref(), binom)
-                    {
+                    if pk.saturated == 0 {
+                        let wd = pk.width as f64;
+                        width = if width.is_finite() {
+                            width + (wd - width) * 0.125
+                        } else {
+                            wd
+                        };
+                    }
+                    let sigma = if width.is_finite() {
+                        width
+                    } else {
+                        pk.width as f64
+                    } / 2.3548;
+                    match estimate_row(row, &pk, sigma, &self.cfg, self.bias.as_ref(), binom) {
                         Some(c) => {
                             self.raw[r] = c;
                             accepted(c, &pk, &cfg, T::SCALE, T::FULL as f32)

@@ -16,6 +16,11 @@ pub trait Px: Copy + Ord + Default + Send + Sync + 'static {
     /// 8-bit DN to this format's units.
     const SCALE: f32;
     fn f(self) -> f32;
+    /// First index of `v` in `s`, `s.len()` if absent.
+    #[inline]
+    fn position(s: &[Self], v: Self) -> usize {
+        s.iter().position(|&x| x == v).unwrap_or(s.len())
+    }
 }
 
 impl Px for u8 {
@@ -24,6 +29,29 @@ impl Px for u8 {
     #[inline(always)]
     fn f(self) -> f32 {
         self as f32
+    }
+    /// Eight bytes per step: the classic "has a zero byte" test on `word ^ v..v`; its lowest
+    /// set bit always marks the first match.
+    #[inline]
+    fn position(s: &[u8], v: u8) -> usize {
+        const LO: u64 = 0x0101_0101_0101_0101;
+        const HI: u64 = 0x8080_8080_8080_8080;
+        let pat = LO.wrapping_mul(v as u64);
+        let mut chunks = s.chunks_exact(8);
+        let mut base = 0;
+        for c in &mut chunks {
+            let x = u64::from_le_bytes(c.try_into().expect("8 bytes")) ^ pat;
+            let t = x.wrapping_sub(LO) & !x & HI;
+            if t != 0 {
+                return base + (t.trailing_zeros() / 8) as usize;
+            }
+            base += 8;
+        }
+        base + chunks
+            .remainder()
+            .iter()
+            .position(|&x| x == v)
+            .unwrap_or(s.len() - base)
     }
 }
 
@@ -69,7 +97,7 @@ impl CoarseConfig {
                 self.threshold
             ));
         }
-        if self.ambiguity.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        if self.ambiguity.is_nan() || self.ambiguity <= 0.0 {
             return Err(format!(
                 "ambiguity = {}: must be > 0 (a fraction of the peak; > 1 disables the test)",
                 self.ambiguity
@@ -278,10 +306,7 @@ fn max_outside<T: Px>(row: &[T], blocks: &[T], ex: &Ranges, want_pos: bool) -> (
         }
     }
     match at {
-        Some((a, z)) if want_pos => (
-            best,
-            a + row[a..=z].iter().position(|&v| v == best).unwrap_or(0),
-        ),
+        Some((a, z)) if want_pos => (best, a + T::position(&row[a..=z], best).min(z - a)),
         Some(_) => (best, 0),
         None => (T::default(), 0),
     }
@@ -290,14 +315,16 @@ fn max_outside<T: Px>(row: &[T], blocks: &[T], ex: &Ranges, want_pos: bool) -> (
 /// The row's maximum and its first position, from the block maxima.
 #[inline]
 fn first_max<T: Px>(row: &[T], blocks: &[T]) -> (T, usize) {
-    let m = blocks.iter().copied().fold(T::default(), T::max);
-    let b = blocks.iter().position(|&v| v == m).unwrap_or(0);
+    let (mut m, mut b) = (T::default(), 0);
+    for (i, &v) in blocks.iter().enumerate() {
+        if v > m {
+            m = v;
+            b = i;
+        }
+    }
     let b0 = b * BLOCK;
     let end = (b0 + BLOCK).min(row.len());
-    (
-        m,
-        b0 + row[b0..end].iter().position(|&v| v == m).unwrap_or(0),
-    )
+    (m, b0 + T::position(&row[b0..end], m).min(end - b0 - 1))
 }
 
 /// The row's maximum outside [lo, hi] (0 if nothing is left), from the block maxima.
@@ -497,6 +524,25 @@ mod tests {
                     .min(255.0) as u8
             })
             .collect()
+    }
+
+    #[test]
+    fn swar_position_matches_scalar() {
+        let row: Vec<u8> = (0..200).map(|i| ((i * 37 + 11) % 251) as u8).collect();
+        for v in [0u8, 1, 11, 48, 128, 250, 255] {
+            for start in 0..9 {
+                let s = &row[start..];
+                assert_eq!(
+                    <u8 as Px>::position(s, v),
+                    s.iter().position(|&x| x == v).unwrap_or(s.len()),
+                    "{v} {start}"
+                );
+            }
+        }
+        let mut z = vec![7u8; 40];
+        z[17] = 0;
+        z[33] = 0;
+        assert_eq!(<u8 as Px>::position(&z, 0), 17);
     }
 
     #[test]
