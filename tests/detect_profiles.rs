@@ -327,3 +327,49 @@ fn unknown_detector_and_parameters_are_refused() {
     )
     .is_err());
 }
+
+/// Columns of bezier-plus for a vertical line whose column follows `path(row)`, noise-free.
+fn bezier_plus_path(path: impl Fn(usize) -> f64, rows: usize, noise_rows: bool) -> Vec<f64> {
+    let cs: Vec<f64> = (0..rows).map(&path).collect();
+    let mut frame_rows: Vec<Vec<f64>> =
+        cs.iter().map(|&c| row_f(200, &[(c, 1.6, 180.0)])).collect();
+    if noise_rows {
+        // Deterministic +-3 DN ripple so the frame's column noise is not zero.
+        for (r, row) in frame_rows.iter_mut().enumerate() {
+            for (i, v) in row.iter_mut().enumerate() {
+                *v += 3.0 * (((r * 31 + i * 17) % 7) as f64 - 3.0) / 3.0;
+            }
+        }
+    }
+    let out = detect(
+        "bezier-plus",
+        &DetectParams::default(),
+        &frame8(&frame_rows),
+    );
+    out.iter().map(|o| o.col).collect()
+}
+
+#[test]
+fn smoothing_along_the_line_costs_at_most_half_a_millimetre() {
+    // Rows are 0.125 mm apart at the glass: 0.5 mm = 4 rows.
+    // A 0.4 px step: the 10-90 % rise of the measured columns spans at most 4 rows.
+    let base = 100.3;
+    let cols = bezier_plus_path(|r| if r < 60 { base } else { base + 0.4 }, 120, true);
+    let rel: Vec<f64> = cols.iter().map(|c| (c - base) / 0.4).collect();
+    let first = rel.iter().position(|&v| v > 0.1).unwrap();
+    let last = rel.iter().position(|&v| v > 0.9).unwrap();
+    eprintln!("10-90 % rise: {} rows", last - first);
+    assert!(
+        last - first <= 4,
+        "10-90 % rise over {} rows: {:?}",
+        last - first,
+        &rel[50..70]
+    );
+    // A one-row bump of 0.4 px: the response is at most 4 rows wide at half its height.
+    let cols = bezier_plus_path(|r| if r == 60 { base + 0.4 } else { base }, 120, true);
+    let resp: Vec<f64> = cols.iter().map(|c| c - base).collect();
+    let peak = resp.iter().copied().fold(0.0, f64::max);
+    let above = resp.iter().filter(|&&v| v >= 0.5 * peak).count();
+    eprintln!("one-row bump: peak {peak:.3} of 0.4 px, {above} rows at half height");
+    assert!(above <= 4, "FWHM {above} rows: {:?}", &resp[54..67]);
+}
