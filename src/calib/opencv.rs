@@ -125,7 +125,9 @@ pub fn find_corners(
         &mat,
         pattern,
         &mut corners,
-        calib3d::CALIB_CB_ADAPTIVE_THRESH | calib3d::CALIB_CB_NORMALIZE_IMAGE,
+        calib3d::CALIB_CB_ADAPTIVE_THRESH
+            | calib3d::CALIB_CB_NORMALIZE_IMAGE
+            | calib3d::CALIB_CB_FAST_CHECK,
     )
     .map_err(cv)?;
     if !found {
