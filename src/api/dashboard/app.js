@@ -1,0 +1,1 @@
+// footscand dashboard: filled in by the dashboard work.
