@@ -177,6 +177,30 @@ impl<T: Px> CoarseScratch<T> {
     }
 }
 
+/// How many rows ahead [`prefetch_row`] is used.
+pub const PREFETCH_ROWS: usize = 4;
+
+/// Ask the cache for a row ahead of its use (one hint per 64-byte line): the per-row work
+/// between two rows otherwise leaves the hardware prefetcher behind at every page boundary.
+#[inline(always)]
+pub fn prefetch_row<T>(row: &[T]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let bytes = std::mem::size_of_val(row);
+        let p = row.as_ptr() as *const i8;
+        let mut off = 0;
+        while off < bytes {
+            // SAFETY: a prefetch hint has no effect on memory; the address is inside `row`.
+            unsafe {
+                std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.add(off))
+            };
+            off += 64;
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = row;
+}
+
 /// Maximum of each 64-pixel block of `row` into `blocks` (`row.len().div_ceil(64)` of them).
 #[inline]
 pub fn block_max<T: Px>(row: &[T], blocks: &mut [T]) {

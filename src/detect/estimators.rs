@@ -2,7 +2,9 @@
 //! written, and the baselines of SPEC section 4.
 
 use super::bernstein::{bisect_literal, Binomials, MAX_N};
-use super::coarse::{block_max, coarse_row, CoarseConfig, CoarseScratch, Peak, Px};
+use super::coarse::{
+    block_max, coarse_row, prefetch_row, CoarseConfig, CoarseScratch, Peak, Px, PREFETCH_ROWS,
+};
 use super::{Detector, LinePeak, Reject};
 use footscan_hal::{Frame, Pixels};
 
@@ -42,7 +44,10 @@ fn run_rows<T: Px, E: Estimate>(
     out: &mut [LinePeak],
 ) {
     let blocks = scratch.for_width(w);
-    for (row, o) in px.chunks_exact(w).zip(out.iter_mut()) {
+    for (r, (row, o)) in px.chunks_exact(w).zip(out.iter_mut()).enumerate() {
+        if let Some(ahead) = px.get((r + PREFETCH_ROWS) * w..(r + PREFETCH_ROWS + 1) * w) {
+            prefetch_row(ahead);
+        }
         block_max(row, blocks);
         *o = match coarse_row(row, blocks, cfg) {
             Err((r, v)) => LinePeak::rejected(r, v),
