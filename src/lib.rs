@@ -4,6 +4,7 @@
 //! (daemon) are thin shells over it. Hardware is reached only through `footscan-hal`, so the
 //! simulator (`footscan-sim`) is one more backend behind the same traits.
 
+pub mod archive;
 pub mod bench;
 pub mod calib;
 pub mod detect;

@@ -1,0 +1,108 @@
+//! The SQLite index of the archive: one row per scan, a cache of the scan directories'
+//! record.json files (the directories are the truth; [`super::Archive::rebuild`] recreates it).
+
+use super::{ArchiveError, Record, Status};
+use rusqlite::{params, Connection, OptionalExtension};
+use std::path::Path;
+
+pub struct Index {
+    conn: Connection,
+}
+
+const SCHEMA: &str = "CREATE TABLE IF NOT EXISTS scans (
+    id TEXT PRIMARY KEY NOT NULL,
+    subject TEXT NOT NULL,
+    side TEXT NOT NULL,
+    notes TEXT NOT NULL,
+    status TEXT NOT NULL,
+    reason TEXT,
+    started TEXT NOT NULL,
+    finished TEXT,
+    frames INTEGER NOT NULL,
+    points INTEGER NOT NULL
+)";
+
+const COLUMNS: &str = "id, subject, side, notes, status, reason, started, finished, frames, points";
+
+impl Index {
+    pub fn open(path: &Path) -> Result<Index, ArchiveError> {
+        let db = |e: rusqlite::Error| ArchiveError::Index {
+            path: path.to_owned(),
+            source: e,
+        };
+        let conn = Connection::open(path).map_err(db)?;
+        // Rollback journal (no WAL): the index lives beside the scans, and a full disk must
+        // not leave a growing side file; FULL sync because the index is updated rarely.
+        conn.execute_batch("PRAGMA journal_mode=DELETE; PRAGMA synchronous=FULL;")
+            .map_err(db)?;
+        conn.execute(SCHEMA, []).map_err(db)?;
+        Ok(Index { conn })
+    }
+
+    pub fn upsert(&self, r: &Record) -> rusqlite::Result<()> {
+        insert(&self.conn, r)
+    }
+
+    pub fn list(&self) -> rusqlite::Result<Vec<Record>> {
+        let mut st = self
+            .conn
+            .prepare(&format!("SELECT {COLUMNS} FROM scans ORDER BY id DESC"))?;
+        let rows = st.query_map([], row)?;
+        rows.collect()
+    }
+
+    pub fn get(&self, id: &str) -> rusqlite::Result<Option<Record>> {
+        self.conn
+            .query_row(
+                &format!("SELECT {COLUMNS} FROM scans WHERE id = ?1"),
+                [id],
+                row,
+            )
+            .optional()
+    }
+
+    /// Replace every row by `records` in one transaction.
+    pub fn replace_all(&mut self, records: &[Record]) -> rusqlite::Result<()> {
+        let tx = self.conn.transaction()?;
+        tx.execute("DELETE FROM scans", [])?;
+        for r in records {
+            insert(&tx, r)?;
+        }
+        tx.commit()
+    }
+}
+
+fn insert(conn: &Connection, r: &Record) -> rusqlite::Result<()> {
+    conn.execute(
+        &format!("INSERT OR REPLACE INTO scans ({COLUMNS}) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)"),
+        params![
+            r.id,
+            r.subject,
+            r.side,
+            r.notes,
+            r.status.as_str(),
+            r.reason,
+            r.started,
+            r.finished,
+            r.frames as i64,
+            r.points as i64
+        ],
+    )?;
+    Ok(())
+}
+
+fn row(r: &rusqlite::Row<'_>) -> rusqlite::Result<Record> {
+    let status: String = r.get(4)?;
+    Ok(Record {
+        id: r.get(0)?,
+        subject: r.get(1)?,
+        side: r.get(2)?,
+        notes: r.get(3)?,
+        status: Status::parse(&status).unwrap_or(Status::Failed),
+        reason: r.get(5)?,
+        started: r.get(6)?,
+        finished: r.get(7)?,
+        frames: r.get::<_, i64>(8)? as u64,
+        points: r.get::<_, i64>(9)? as u64,
+    })
+}
