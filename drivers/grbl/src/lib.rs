@@ -16,8 +16,10 @@
 
 mod codes;
 mod message;
+mod settings;
 mod slider;
 
 pub use codes::{alarm_message, error_message};
 pub use message::{banner_version, parse_line, parse_status, Message, StatusReport};
-pub use slider::{GrblConfig, GrblSlider};
+pub use settings::{BuildInfo, GrblSettings};
+pub use slider::{GrblConfig, GrblSlider, GrblStats};

@@ -2,6 +2,7 @@
 
 use crate::codes::{alarm_message, error_message};
 use crate::message::{banner_version, parse_line, Message, StatusReport};
+use crate::settings::{BuildInfo, GrblSettings};
 use footscan_hal::{
     HalError, HalResult, Slider, SliderInfo, SliderSettings, SliderState, SliderStatus, Timestamp,
 };
@@ -24,7 +25,8 @@ pub struct GrblConfig {
     /// The homing timeout an application passes to [`Slider::home`] (see
     /// [`GrblSlider::home_configured`]).
     pub homing_timeout: Duration,
-    /// Status polling period of `wait_idle`.
+    /// Status polling period of `wait_idle`, the feed hold and jog cancel waits, and
+    /// [`GrblSlider::poll_status`].
     pub poll_interval: Duration,
     /// Serial RX buffer of the controller for character counting; replaced by the value in
     /// `$I`'s `[OPT:...]` when the controller reports one.
@@ -52,7 +54,28 @@ enum Outcome {
     /// Never answered: the controller alarmed (and discards its input) or reset.
     LostToAlarm(u32),
     LostToReset,
+    /// No `ok`/`error:N` arrived for it before the answer of a later `$G` sync: the controller
+    /// dropped it or it arrived mangled.
+    Lost,
 }
+
+/// Counters of the faults the driver absorbed since it was created.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GrblStats {
+    /// Lines GRBL would never send (line noise, a wrong baud rate), ignored.
+    pub garbage_lines: u64,
+    /// Of those, status reports (`<...`) that did not parse; the `?` was asked again.
+    pub corrupt_reports: u64,
+    /// Answers (`ok`/`error:N`) that never arrived, found by a `$G` resync.
+    pub lost_answers: u64,
+    /// `$G` resyncs of the answer counting (after a timeout or noise while lines were pending).
+    pub resyncs: u64,
+    /// Successful [`GrblSlider::reconnect`]s.
+    pub reconnects: u64,
+}
+
+/// Times a `?` is asked again after a corrupted report before giving up with `BadData`.
+const STATUS_RETRIES: u32 = 3;
 
 #[derive(Clone, Debug)]
 struct InFlight {
@@ -60,6 +83,8 @@ struct InFlight {
     /// Bytes it occupies in the controller's RX buffer (line + '\n').
     len: usize,
     line: String,
+    /// A `$G` sent to resynchronise: answers missing before its `[GC:...]` are lost.
+    sync: bool,
 }
 
 /// A GRBL 1.1 controller driving the scan axis (X) of the slider.
@@ -89,6 +114,15 @@ pub struct GrblSlider {
     jogging: bool,
     /// When the bytes now at the end of `rx` arrived.
     rx_time: Timestamp,
+    build_info: Option<BuildInfo>,
+    stats: GrblStats,
+    /// The answer counting may be off (a timeout, or noise while lines were pending): the
+    /// next command resyncs with `$G` first.
+    unsynced: bool,
+    /// The last few garbage lines, for error messages.
+    garbage: VecDeque<String>,
+    /// The line a resync runs for, and its answer once the resync has seen it.
+    awaited: Option<(u64, Option<(Outcome, String)>)>,
 }
 
 fn midpoint(a: Timestamp, b: Timestamp) -> Timestamp {
@@ -122,6 +156,11 @@ impl GrblSlider {
             feedback: Vec::new(),
             jogging: false,
             rx_time: Timestamp::default(),
+            build_info: None,
+            stats: GrblStats::default(),
+            unsynced: false,
+            garbage: VecDeque::new(),
+            awaited: None,
         }
     }
 
@@ -145,6 +184,14 @@ impl GrblSlider {
     }
     pub fn is_connected(&self) -> bool {
         self.port.is_some()
+    }
+    /// `$I` of the last connect, if the controller answered it.
+    pub fn build_info(&self) -> Option<&BuildInfo> {
+        self.build_info.as_ref()
+    }
+    /// Faults absorbed so far.
+    pub fn stats(&self) -> GrblStats {
+        self.stats
     }
 
     // ----- errors -------------------------------------------------------------------------
@@ -339,6 +386,16 @@ impl GrblSlider {
                 self.lose_in_flight(Outcome::LostToReset);
             }
             Message::Feedback(f) => {
+                if f.starts_with("GC:") {
+                    // `$G` answers in order: every line sent before a sync `$G` and still
+                    // unanswered now has lost its answer.
+                    if let Some(i) = self.in_flight.iter().position(|l| l.sync) {
+                        for l in self.in_flight.drain(..i).collect::<Vec<_>>() {
+                            self.stats.lost_answers += 1;
+                            self.answered.push_back((l.id, Outcome::Lost, l.line));
+                        }
+                    }
+                }
                 if f == "MSG:'$H'|'$X' to unlock" {
                     self.alarm.get_or_insert(0);
                 } else if f == "MSG:Caution: Unlocked" {
@@ -362,8 +419,21 @@ impl GrblSlider {
                 }
             }
             Message::Garbage(g) => {
+                // Tolerated and counted: a mangled status report is asked again by
+                // query_status; anything else may have been a mangled `ok`, so the answer
+                // counting is resynchronised before the next command.
                 let shown: String = g.chars().take(80).collect();
-                return Err(self.bad(format!("unexpected line from the controller: {shown:?}")));
+                tracing::warn!("{}: unexpected line {shown:?}", self.port_name);
+                self.stats.garbage_lines += 1;
+                if g.starts_with('<') {
+                    self.stats.corrupt_reports += 1;
+                } else if !self.in_flight.is_empty() {
+                    self.unsynced = true;
+                }
+                if self.garbage.len() >= 8 {
+                    self.garbage.pop_front();
+                }
+                self.garbage.push_back(shown);
             }
         }
         Ok(())
@@ -377,6 +447,10 @@ impl GrblSlider {
 
     /// Send one line (no line end) and register it for an answer.
     fn send_line(&mut self, line: &str) -> HalResult<u64> {
+        self.send_line_as(line, false)
+    }
+
+    fn send_line_as(&mut self, line: &str, sync: bool) -> HalResult<u64> {
         let line = line.trim();
         if line.len() > MAX_LINE || line.contains(['\n', '\r']) {
             return Err(HalError::InvalidArgument {
@@ -399,6 +473,7 @@ impl GrblSlider {
             id,
             len: bytes.len(),
             line: line.to_string(),
+            sync,
         });
         if let Err(e) = self.write_raw(&bytes) {
             self.in_flight.retain(|f| f.id != id);
@@ -411,13 +486,31 @@ impl GrblSlider {
     /// controller reports motion (a line waiting for planner room is answered only when a
     /// block completes).
     fn wait_answer(&mut self, id: u64, timeout: Duration, patient: bool) -> HalResult<()> {
+        self.wait_answer_with(id, timeout, patient, true)
+    }
+
+    /// With `resync`, a timeout is followed by a `$G` sync that tells a late answer from a
+    /// lost one, so the counting of later answers stays right either way.
+    fn wait_answer_with(
+        &mut self,
+        id: u64,
+        timeout: Duration,
+        patient: bool,
+        resync: bool,
+    ) -> HalResult<()> {
         let mut deadline = Instant::now() + timeout;
+        let mut synced = false;
         loop {
             while let Some(&(aid, _, _)) = self.answered.front() {
                 if aid > id {
                     break;
                 }
                 let (aid, outcome, line) = self.answered.pop_front().expect("front");
+                if aid < id && self.awaited.as_ref().is_some_and(|(w, _)| *w == aid) {
+                    // A resync inside the wait for `aid` settled its fate: hand it back.
+                    self.awaited = Some((aid, Some((outcome, line))));
+                    continue;
+                }
                 if aid < id {
                     if let Outcome::Error(c) = outcome {
                         tracing::warn!(
@@ -436,6 +529,12 @@ impl GrblSlider {
                         device: self.port_name.clone(),
                         reason: format!("the controller reset while `{line}` was pending"),
                     }),
+                    Outcome::Lost => Err(self.timeout(
+                        format!(
+                            "an answer to `{line}` (lost: an ok/error for the lines up to it never arrived; answer counting resynchronised with $G)"
+                        ),
+                        timeout,
+                    )),
                 };
             }
             if !self.in_flight.iter().any(|f| f.id == id) {
@@ -461,9 +560,39 @@ impl GrblSlider {
                     .find(|f| f.id == id)
                     .map(|f| f.line.clone())
                     .unwrap_or_default();
+                if resync && !synced && self.port.is_some() {
+                    synced = true;
+                    // Settles this line's fate: answered late (then returned above) or lost.
+                    self.awaited = Some((id, None));
+                    let r = self.resync();
+                    if let Some((aid, Some((outcome, line)))) = self.awaited.take() {
+                        self.answered.push_front((aid, outcome, line));
+                    }
+                    if r.is_ok() {
+                        continue;
+                    }
+                }
+                self.unsynced = true;
+                if !self.garbage.is_empty() {
+                    let g: Vec<String> = self.garbage.iter().cloned().collect();
+                    return Err(self.bad(format!(
+                        "no answer to `{line}` within {timeout:?}; received instead: {}",
+                        g.join(" | ")
+                    )));
+                }
                 return Err(self.timeout(format!("an answer to `{line}`"), timeout));
             }
         }
+    }
+
+    /// Send `$G` and wait for its answer: GRBL answers lines in order, so any line sent
+    /// before it and still unanswered when its `[GC:...]` arrives has lost its answer.
+    fn resync(&mut self) -> HalResult<()> {
+        self.stats.resyncs += 1;
+        let id = self.send_line_as("$G", true)?;
+        self.wait_answer_with(id, self.config.response_timeout, false, false)?;
+        self.unsynced = false;
+        Ok(())
     }
 
     /// Send a line and wait for its `ok`; returns the feedback lines that arrived meanwhile
@@ -479,6 +608,10 @@ impl GrblSlider {
         patient: bool,
     ) -> HalResult<Vec<String>> {
         self.drain_pending()?;
+        if self.unsynced {
+            self.resync()?;
+        }
+        self.garbage.clear();
         self.feedback.clear();
         let id = self.send_line(line)?;
         self.wait_answer(id, timeout, patient)?;
@@ -490,17 +623,33 @@ impl GrblSlider {
     }
 
     /// Send `?` and wait until `deadline` for the report it triggers.
+    /// A corrupted report (line noise) is asked for again, up to [`STATUS_RETRIES`] times.
     fn query_status(&mut self, deadline: Instant) -> HalResult<SliderStatus> {
         self.drain_pending()?;
-        let before = self.reports;
-        let sent = Timestamp::now();
-        self.realtime(b'?')?;
         let start = Instant::now();
-        while self.reports == before {
-            if !self.pump(deadline)? {
-                return Err(self.timeout("a status report", start.elapsed()));
+        let mut asked = 0;
+        let sent = loop {
+            let before = self.reports;
+            let corrupt_before = self.stats.corrupt_reports;
+            let sent = Timestamp::now();
+            self.realtime(b'?')?;
+            asked += 1;
+            while self.reports == before && self.stats.corrupt_reports == corrupt_before {
+                if !self.pump(deadline)? {
+                    return Err(self.timeout("a status report", start.elapsed()));
+                }
             }
-        }
+            if self.reports != before {
+                break sent;
+            }
+            if asked > STATUS_RETRIES {
+                let last = self.garbage.back().cloned().unwrap_or_default();
+                return Err(self.bad(format!(
+                    "{asked} status reports in a row were corrupted; the last: {last:?}"
+                )));
+            }
+            tracing::debug!("{}: corrupted status report, asking again", self.port_name);
+        };
         let (r, at) = self.last_report.clone().expect("report recorded");
         let x = r
             .machine_x(self.wco.as_deref())
@@ -568,6 +717,10 @@ impl GrblSlider {
         S: AsRef<str>,
     {
         self.drain_pending()?;
+        if self.unsynced {
+            self.resync()?;
+        }
+        self.garbage.clear();
         let cap = self.rx_buffer.saturating_sub(1).max(1);
         let timeout = self.config.response_timeout;
         let mut sent: VecDeque<(u64, usize)> = VecDeque::new();
@@ -640,17 +793,10 @@ impl GrblSlider {
         Ok(())
     }
 
-    /// Soft reset (0x18) and wait for the banner; the planner and RX buffer are cleared.
-    pub fn soft_reset(&mut self) -> HalResult<()> {
-        self.drain_pending()?;
-        let since = self.banners;
-        self.realtime(0x18)?;
-        self.wait_banner(since, self.config.reset_timeout)
-    }
-}
-
-impl Slider for GrblSlider {
-    fn connect(&mut self) -> HalResult<SliderInfo> {
+    /// Open the port, soft reset (0x18), wait for the banner, read `$I` (build info, RX buffer
+    /// size) and a first status report. With `hold_first`, a controller found moving is
+    /// brought to rest before the reset (see [`GrblSlider::reconnect`]).
+    fn open_and_reset(&mut self, hold_first: bool) -> HalResult<SliderInfo> {
         self.port = None;
         self.rx.clear();
         self.in_flight.clear();
@@ -660,6 +806,9 @@ impl Slider for GrblSlider {
         self.last_report = None;
         self.jogging = false;
         self.rx_buffer = self.config.rx_buffer;
+        self.garbage.clear();
+        self.unsynced = false;
+        self.build_info = None;
         let port = serialport::new(&self.port_name, self.config.baud)
             .timeout(self.config.response_timeout)
             .open()
@@ -680,6 +829,10 @@ impl Slider for GrblSlider {
             })?;
         let _ = port.clear(ClearBuffer::All);
         self.port = Some(port);
+        if hold_first {
+            self.bring_to_rest();
+        }
+        self.garbage.clear();
         let since = self.banners;
         self.realtime(0x18)?;
         // Wait for the banner, tolerating noise before it (boot loaders, line garbage).
@@ -689,10 +842,11 @@ impl Slider for GrblSlider {
         while self.banners == since {
             match self.pump(deadline) {
                 Ok(true) => {}
-                Ok(false) if noise.is_empty() => {
-                    return Err(self.timeout("the GRBL banner after a soft reset", timeout));
-                }
                 Ok(false) => {
+                    noise.extend(self.garbage.iter().cloned());
+                    if noise.is_empty() {
+                        return Err(self.timeout("the GRBL banner after a soft reset", timeout));
+                    }
                     return Err(self.bad(format!(
                         "no GRBL banner within {timeout:?}; received instead: {}",
                         noise.join(" | ")
@@ -716,7 +870,11 @@ impl Slider for GrblSlider {
         // then again on our 0x18): it swallows the line, so ask again.
         for attempt in 1.. {
             match self.command("$I") {
-                Ok(_) | Err(HalError::Rejected { .. }) => break,
+                Ok(lines) => {
+                    self.build_info = BuildInfo::parse(&lines);
+                    break;
+                }
+                Err(HalError::Rejected { .. }) => break,
                 Err(HalError::Disconnected { .. }) if self.port.is_some() && attempt < 3 => {
                     tracing::debug!("{}: controller reset again during connect", self.port_name);
                 }
@@ -731,10 +889,165 @@ impl Slider for GrblSlider {
         })
     }
 
+    /// Before a reset on reconnect: a controller that kept power may still be moving; a reset
+    /// then would kill the steppers (ALARM:3, position lost). Cancel a jog, or feed hold a
+    /// program, and wait for the stop. Best effort: a controller that does not answer (it is
+    /// rebooting) is simply reset.
+    fn bring_to_rest(&mut self) {
+        let deadline = Instant::now() + self.config.response_timeout;
+        let Ok(st) = self.query_status(deadline) else {
+            return;
+        };
+        let result = match st.state {
+            SliderState::Jog => self.jog_cancel(),
+            SliderState::Run | SliderState::Hold => self.realtime(b'!').and_then(|_| {
+                let deadline = Instant::now() + self.config.response_timeout;
+                self.wait_hold_complete(deadline).map(|_| ())
+            }),
+            _ => Ok(()),
+        };
+        if let Err(e) = result {
+            tracing::warn!(
+                "{}: could not stop the motion before the reset: {e}",
+                self.port_name
+            );
+        }
+    }
+
+    /// Reopen the port after a disconnect (a USB serial adapter unplugged and back, ideally
+    /// under the same `/dev/serial/by-id/` path): retries opening while the port is absent,
+    /// for up to `wait`, then connects as [`Slider::connect`] does.
+    ///
+    /// A controller that kept power and was moving is brought to rest first (jog cancel, or
+    /// feed hold and wait) so the soft reset keeps its position. Unlock policy: the driver
+    /// never sends `$X` on its own. A controller that comes back locked (it power-cycled
+    /// with homing enabled, or alarmed) is reported by [`GrblSlider::alarm`]; the caller
+    /// homes it, because the position it had is not to be trusted.
+    pub fn reconnect(&mut self, wait: Duration) -> HalResult<SliderInfo> {
+        self.port = None;
+        let deadline = Instant::now() + wait;
+        loop {
+            match self.open_and_reset(true) {
+                Ok(info) => {
+                    self.stats.reconnects += 1;
+                    return Ok(info);
+                }
+                Err(e @ HalError::Disconnected { .. }) => {
+                    if Instant::now() >= deadline {
+                        return Err(e);
+                    }
+                    std::thread::sleep(self.config.poll_interval.max(Duration::from_millis(50)));
+                }
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    /// `$$` as a typed map.
+    pub fn read_settings(&mut self) -> HalResult<GrblSettings> {
+        Ok(GrblSettings {
+            raw: Slider::settings(self)?,
+        })
+    }
+
+    /// Jog cancel (0x85): decelerate a `$J=` jog and drop any queued jogs; waits until the
+    /// controller has left the `Jog` state. A no-op when not jogging.
+    pub fn jog_cancel(&mut self) -> HalResult<()> {
+        self.realtime(0x85)?;
+        self.jogging = false;
+        let deadline = Instant::now() + self.config.response_timeout;
+        loop {
+            let s = self.query_status(deadline)?;
+            if s.state != SliderState::Jog {
+                return Ok(());
+            }
+            if Instant::now() >= deadline {
+                return Err(self.timeout("the jog cancel", self.config.response_timeout));
+            }
+            std::thread::sleep(self.config.poll_interval);
+        }
+    }
+
+    /// Poll `?` at the configured rate (`poll_interval`, scheduled on absolute times so the
+    /// rate does not drift by the round trip) and hand each report, stamped on
+    /// CLOCK_MONOTONIC at the midpoint of query and answer, to `on_report` until it returns
+    /// true. Returns the number of reports; [`HalError::Timeout`] if `on_report` never said
+    /// stop within `timeout`.
+    pub fn poll_status(
+        &mut self,
+        timeout: Duration,
+        mut on_report: impl FnMut(&SliderStatus) -> bool,
+    ) -> HalResult<usize> {
+        let start = Instant::now();
+        let deadline = start + timeout;
+        let period = self.config.poll_interval;
+        let mut n = 0usize;
+        loop {
+            let probe = deadline.min(Instant::now() + self.config.response_timeout);
+            let s = self.query_status(probe)?;
+            n += 1;
+            if on_report(&s) {
+                return Ok(n);
+            }
+            // The next slot after now: a slow answer skips slots rather than bursting.
+            let slots = (start.elapsed().as_nanos() / period.as_nanos().max(1)) as u32 + 1;
+            let next = start + period * slots;
+            let now = Instant::now();
+            if now >= deadline || next >= deadline {
+                return Err(self.timeout(
+                    format!("the status polled {n} times to reach the awaited condition"),
+                    timeout,
+                ));
+            }
+            if next > now {
+                std::thread::sleep(next - now);
+            }
+        }
+    }
+
+    /// Soft reset (0x18) and wait for the banner; the planner and RX buffer are cleared.
+    pub fn soft_reset(&mut self) -> HalResult<()> {
+        self.drain_pending()?;
+        let since = self.banners;
+        self.realtime(0x18)?;
+        self.wait_banner(since, self.config.reset_timeout)
+    }
+}
+
+impl Slider for GrblSlider {
+    fn connect(&mut self) -> HalResult<SliderInfo> {
+        self.open_and_reset(false)
+    }
+
+    /// `$H`: answered when the cycle ends. A failed cycle is the `ALARM:N` GRBL raises (6 to
+    /// 9, with their meaning). A cycle still running at `timeout` is aborted with a soft reset
+    /// (GRBL then raises ALARM:6 and stays locked) so the machine does not keep seeking a
+    /// switch nobody waits for; the error says so.
     fn home(&mut self, timeout: Duration) -> HalResult<()> {
-        self.command_with("$H", timeout, false)?;
-        self.alarm = None;
-        Ok(())
+        self.drain_pending()?;
+        if self.unsynced {
+            self.resync()?;
+        }
+        self.garbage.clear();
+        let id = self.send_line("$H")?;
+        // No $G resync on timeout: GRBL reads no line while homing.
+        match self.wait_answer_with(id, timeout, false, false) {
+            Ok(()) => {
+                self.alarm = None;
+                Ok(())
+            }
+            Err(HalError::Timeout { .. }) if self.port.is_some() => {
+                let aborted = self.soft_reset();
+                Err(self.timeout(
+                    match aborted {
+                        Ok(()) => "the homing cycle ($H) to finish; aborted it with a soft reset: the machine is not homed".to_string(),
+                        Err(e) => format!("the homing cycle ($H) to finish; the soft reset to abort it failed too: {e}"),
+                    },
+                    timeout,
+                ))
+            }
+            Err(e) => Err(e),
+        }
     }
 
     fn move_to(&mut self, x_mm: f64, feed_mm_min: f64) -> HalResult<()> {
@@ -795,22 +1108,8 @@ impl Slider for GrblSlider {
         let deadline = Instant::now() + self.config.response_timeout;
         let s = self.query_status(deadline)?;
         match s.state {
-            SliderState::Jog => {
-                self.realtime(0x85)?;
-                self.jogging = false;
-                // Wait for the jog deceleration; nothing stays queued after a jog cancel.
-                let deadline = Instant::now() + self.config.response_timeout;
-                loop {
-                    let s = self.query_status(deadline)?;
-                    if s.state != SliderState::Jog {
-                        return Ok(());
-                    }
-                    if Instant::now() >= deadline {
-                        return Err(self.timeout("the jog cancel", self.config.response_timeout));
-                    }
-                    std::thread::sleep(self.config.poll_interval);
-                }
-            }
+            // Nothing stays queued after a jog cancel.
+            SliderState::Jog => self.jog_cancel(),
             SliderState::Run | SliderState::Hold => {
                 // Feed hold first so the reset does not kill the steppers mid-motion (which
                 // would lose the position and alarm); then reset to discard the planner.

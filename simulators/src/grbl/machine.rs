@@ -85,6 +85,8 @@ pub(crate) struct Machine {
     pub pending_alarm: Option<(u8, f64)>,
     /// Bytes received beyond the RX buffer by a client that does not count characters.
     pub rx_overflow: u64,
+    /// Most non-realtime bytes ever waiting in the RX buffer at once.
+    pub rx_peak: usize,
 }
 
 impl Machine {
@@ -100,6 +102,7 @@ impl Machine {
             check_mode: false,
             pending_alarm: None,
             rx_overflow: 0,
+            rx_peak: 0,
         }
     }
 

@@ -119,6 +119,16 @@ pub enum Fault {
     Silence(bool),
     /// Close the pty master: the client's port hangs up (EIO / POLLHUP).
     Disconnect,
+    /// The next `$H` fails after `homing_seconds` with `ALARM:N` (8: pull-off did not clear
+    /// the switch, 9: no switch found), answered `ok` as GRBL does after the abort, then the
+    /// reset path: banner and `'$H'|'$X' to unlock`.
+    HomingFail(u8),
+    /// The next N `ok` answers are not sent (a UART that dropped them).
+    DropOk(u32),
+    /// The next N status reports arrive corrupted (a digit of `MPos` replaced by line noise).
+    CorruptStatus(u32),
+    /// The next line is answered `error:N` without being executed.
+    RejectNext(u8),
 }
 
 /// GRBL machine state as reported in `<...|`.
@@ -228,6 +238,35 @@ impl GrblEmulator {
     pub fn inject(&self, fault: Fault) {
         let _ = self.cmds.send(Cmd::Fault(fault));
         pty::wake(&self.wake_tx);
+    }
+
+    /// A USB serial adapter unplugged and plugged back while the controller kept power: the
+    /// client's port hangs up, a new pty serves the same machine (state, position and motion
+    /// carry on). Returns the new port path (point a stable symlink at it with
+    /// [`GrblEmulator::link`]).
+    pub fn replug(&self) -> std::io::Result<PathBuf> {
+        let (tx, rx) = crossbeam_channel::bounded(1);
+        self.cmds
+            .send(Cmd::Replug(tx))
+            .map_err(|_| std::io::Error::other("emulator stopped"))?;
+        pty::wake(&self.wake_tx);
+        rx.recv_timeout(std::time::Duration::from_secs(5))
+            .map_err(|_| std::io::Error::other("emulator did not replug"))?
+    }
+
+    /// Point the symlink `link` at `target` atomically (a `/dev/serial/by-id/...` name that
+    /// follows the device across replugs).
+    pub fn link(target: &Path, link: &Path) -> std::io::Result<()> {
+        let tmp = link.with_extension("relink");
+        let _ = std::fs::remove_file(&tmp);
+        std::os::unix::fs::symlink(target, &tmp)?;
+        std::fs::rename(&tmp, link)
+    }
+
+    /// Most non-realtime bytes that waited in the RX buffer at once (at most `rx_buffer` for
+    /// a client that counts characters).
+    pub fn rx_peak_bytes(&self) -> usize {
+        self.shared.lock().rx_peak
     }
 
     /// Machine (motor) position now, mm.

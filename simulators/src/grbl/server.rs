@@ -12,6 +12,7 @@ use std::sync::{Arc, MutexGuard};
 
 pub(crate) enum Cmd {
     Fault(Fault),
+    Replug(crossbeam_channel::Sender<std::io::Result<std::path::PathBuf>>),
     Stop,
 }
 
@@ -50,6 +51,13 @@ pub(crate) struct Server {
     outbox_bytes: usize,
     wco_counter: u32,
     ovr_counter: u32,
+    /// Injected faults still to fire.
+    homing_fail: Option<u8>,
+    /// The alarm the running homing cycle will end with.
+    homing_failing: Option<u8>,
+    drop_ok: u32,
+    corrupt_status: u32,
+    reject_next: Option<u8>,
 }
 
 fn now_s() -> f64 {
@@ -91,6 +99,11 @@ impl Server {
             outbox_bytes: 0,
             wco_counter: 0,
             ovr_counter: 0,
+            homing_fail: None,
+            homing_failing: None,
+            drop_ok: 0,
+            corrupt_status: 0,
+            reject_next: None,
         }
     }
 
@@ -102,6 +115,10 @@ impl Server {
     }
 
     fn emit_at(&mut self, release: f64, s: &str) {
+        if s == "ok" && self.drop_ok > 0 {
+            self.drop_ok -= 1;
+            return;
+        }
         if self.outbox_bytes + s.len() + 2 > OUTBOX_LIMIT {
             // Nobody is reading the port; a real UART would drop the bytes too.
             return;
@@ -137,16 +154,17 @@ impl Server {
     pub fn run(mut self) {
         let mut buf = [0u8; 256];
         loop {
-            while let Ok(cmd) = self.cmds.try_recv() {
-                match cmd {
-                    Cmd::Stop => return,
-                    Cmd::Fault(f) => self.fault(f),
-                }
+            if !self.handle_cmds() {
+                return;
             }
             if self.pty.is_none() {
-                // Disconnected: nothing left to serve; wait for Stop.
+                // Disconnected: nothing to serve until a replug or Stop.
                 match self.cmds.recv() {
                     Ok(Cmd::Fault(_)) => continue,
+                    Ok(Cmd::Replug(reply)) => {
+                        let _ = reply.send(self.replug());
+                        continue;
+                    }
                     _ => return,
                 }
             }
@@ -180,6 +198,13 @@ impl Server {
             if woke {
                 pty::drain(&self.wake_rx);
             }
+            // Faults injected before the client wrote what just arrived act on it.
+            if !self.handle_cmds() {
+                return;
+            }
+            if self.pty.is_none() {
+                continue;
+            }
             if rev & libc::POLLIN != 0 && !self.silent {
                 let res = pty::read_nb(&self.pty.as_ref().expect("open").master, &mut buf);
                 match res {
@@ -201,9 +226,40 @@ impl Server {
         }
     }
 
+    /// Apply pending commands; false on Stop.
+    fn handle_cmds(&mut self) -> bool {
+        while let Ok(cmd) = self.cmds.try_recv() {
+            match cmd {
+                Cmd::Stop => return false,
+                Cmd::Fault(f) => self.fault(f),
+                Cmd::Replug(reply) => {
+                    let _ = reply.send(self.replug());
+                }
+            }
+        }
+        true
+    }
+
+    /// Hang up the current pty and serve the same machine on a new one.
+    fn replug(&mut self) -> std::io::Result<std::path::PathBuf> {
+        self.pty = None;
+        self.outbox.clear();
+        self.outbox_bytes = 0;
+        self.input.clear();
+        self.last_cr = false;
+        let pty = Pty::open()?;
+        let path = pty.path.clone();
+        self.pty = Some(pty);
+        Ok(path)
+    }
+
     fn fault(&mut self, f: Fault) {
         let now = now_s();
         match f {
+            Fault::HomingFail(code) => self.homing_fail = Some(code),
+            Fault::DropOk(n) => self.drop_ok += n,
+            Fault::CorruptStatus(n) => self.corrupt_status += n,
+            Fault::RejectNext(code) => self.reject_next = Some(code),
             Fault::Silence(s) => self.silent = s,
             Fault::Disconnect => {
                 // Closing the master (and our slave handle) hangs up the client's port.
@@ -235,7 +291,14 @@ impl Server {
         let now = now_s();
         match b {
             b'?' => {
-                let report = self.status_report(now);
+                let mut report = self.status_report(now);
+                if self.corrupt_status > 0 {
+                    self.corrupt_status -= 1;
+                    // Line noise on one character of the position.
+                    if let Some(i) = report.find("Pos:") {
+                        report.replace_range(i + 4..i + 5, "#");
+                    }
+                }
                 self.emit_at(now + self.status_latency, &report);
                 self.flush(now);
             }
@@ -268,6 +331,11 @@ impl Server {
                     m.rx_overflow += 1;
                 }
                 self.input.push_back(b);
+                {
+                    let n = self.input.len();
+                    let mut m = self.machine();
+                    m.rx_peak = m.rx_peak.max(n);
+                }
                 if b == b'\n' || b == b'\r' {
                     self.process_lines();
                 }
@@ -296,6 +364,7 @@ impl Server {
 
     /// GRBL's re-initialisation after a reset or abort: flush input, reset the parser, banner.
     fn reinit(&mut self, now: f64) {
+        self.homing_failing = None;
         self.input.clear();
         self.last_cr = false;
         self.blocked = None;
@@ -348,9 +417,22 @@ impl Server {
                     }
                 };
                 if done {
-                    self.modal.x = 0.0;
                     self.blocked = None;
-                    self.emit("ok");
+                    if let Some(code) = self.homing_failing.take() {
+                        // GRBL: the alarm, the `$H` line's `ok` after the abort, then the
+                        // reset path (banner, lock).
+                        {
+                            let mut m = self.machine();
+                            m.halt(now);
+                            m.alarm = true;
+                        }
+                        self.emit(&format!("ALARM:{code}"));
+                        self.emit("ok");
+                        self.reinit(now);
+                    } else {
+                        self.modal.x = 0.0;
+                        self.emit("ok");
+                    }
                 }
             }
             Some(Blocked::Queue(spec)) => {
@@ -410,6 +492,9 @@ impl Server {
     }
 
     fn execute_line(&mut self, raw: &[u8]) {
+        if let Some(code) = self.reject_next.take() {
+            return self.respond(Err(code));
+        }
         let line = gcode::clean(raw);
         if line.len() > gcode::MAX_LINE {
             return self.respond(Err(err::OVERFLOW));
@@ -606,6 +691,7 @@ impl Server {
                             return Some(Err(err::SETTING_DISABLED));
                         }
                         self.machine().start_homing(now);
+                        self.homing_failing = self.homing_fail.take();
                         self.blocked = Some(Blocked::Homing);
                         self.tick(now);
                         None
