@@ -8,7 +8,7 @@
 //! the calibration detector on the rendered noisy frames (what a scan would see).
 
 use crate::calib::run::{self, Method};
-use crate::calib::{CalibError, Calibration, CalibrationPlan};
+use crate::calib::{untilted_equivalent, CalibError, Calibration, CalibrationPlan};
 use crate::detect::LinePeak;
 use crate::scan::{sim, ScanConfig};
 use footscan_hal::{Frame, Timestamp};
@@ -34,6 +34,9 @@ pub struct ParamError {
 pub struct MethodRow {
     pub method: String,
     pub params: BTreeMap<String, ParamError>,
+    /// The method's model and the truth both reduced to their untilted equivalents
+    /// ([`crate::calib::untilted_equivalent`]): the parameters laser-line data determine.
+    pub params_untilted: BTreeMap<String, ParamError>,
     /// Height error on the validation scans (staircase and foot), exact line positions.
     pub val_rms_mm: f64,
     pub val_max_mm: f64,
@@ -223,6 +226,12 @@ pub fn run(
     progress: &mut dyn FnMut(&str, usize, usize),
 ) -> Result<Vec<MethodRow>, CalibError> {
     let truth = sim::true_calibration(cfg);
+    let truth_untilted = untilted_equivalent(&truth.model)
+        .ok()
+        .map(|(m, _)| Calibration {
+            model: m,
+            ..truth.clone()
+        });
     // Validation scans, shared by every method.
     progress("validation scans", 0, 2);
     let stair_x: Vec<f64> = (0..=95).map(|i| 45.0 + i as f64).collect();
@@ -272,6 +281,7 @@ pub fn run(
         let mut row = MethodRow {
             method: m.name().into(),
             params: BTreeMap::new(),
+            params_untilted: BTreeMap::new(),
             val_rms_mm: f64::NAN,
             val_max_mm: f64::NAN,
             val_staircase_rms_mm: f64::NAN,
@@ -291,6 +301,13 @@ pub fn run(
             Err(e) => row.error = Some(e.to_string()),
             Ok(cal) => {
                 row.params = compare_params(&cal, &truth);
+                if let (Ok((em, _)), Some(et)) = (untilted_equivalent(&cal.model), &truth_untilted)
+                {
+                    let mut e = cal.clone();
+                    e.model = em;
+                    row.params_untilted = compare_params(&e, et);
+                    row.params_untilted.retain(|k, _| UNTILTED.contains(&k.as_str()));
+                }
                 let (se, sd) = height_errors(&cal, &stairs);
                 let (fe, fd) = height_errors(&cal, &feet);
                 row.val_staircase_rms_mm = se.rms();
@@ -331,49 +348,10 @@ pub fn table(rows: &[MethodRow]) -> String {
         s += &format!(" {:>24}", h);
     }
     s += "\n";
-    let names: Vec<String> = rows
-        .iter()
-        .find(|r| !r.params.is_empty())
-        .map(|r| r.params.keys().cloned().collect())
-        .unwrap_or_default();
-    let order = [
-        "f_px",
-        "cx",
-        "cy",
-        "d_mm",
-        "l_mm",
-        "k1",
-        "k2",
-        "p1",
-        "p2",
-        "camera_tilt_deg[0]",
-        "camera_tilt_deg[1]",
-        "camera_tilt_deg[2]",
-        "laser_tilt_deg[0]",
-        "laser_tilt_deg[1]",
-        "slider_scale",
-    ];
-    for name in order.iter().filter(|n| names.iter().any(|k| k == *n)) {
-        let truth = rows
-            .iter()
-            .find_map(|r| r.params.get(*name))
-            .map_or(f64::NAN, |p| p.truth);
-        s += &format!("{:<20} {:>12.6}", name, truth);
-        for r in rows {
-            s += &match r.params.get(*name) {
-                Some(p) => {
-                    let err = match p.rel_error {
-                        Some(e) if ["f_px", "d_mm", "l_mm", "slider_scale"].contains(name) => {
-                            format!("{:.3}%", e * 100.0)
-                        }
-                        _ => format!("{:+.3}", p.value - p.truth),
-                    };
-                    format!(" {:>14.6} {:>9}", p.value, err)
-                }
-                None => format!(" {:>24}", "-"),
-            };
-        }
-        s += "\n";
+    s += &param_rows(rows, |r| &r.params);
+    if rows.iter().any(|r| !r.params_untilted.is_empty()) {
+        s += "untilted equivalents (camera tilt folded into c_x, c_y, D, L, k: what laser-line data determine)\n";
+        s += &param_rows(rows, |r| &r.params_untilted);
     }
     let line = |label: &str, f: &dyn Fn(&MethodRow) -> f64| {
         let mut l = format!("{:<33}", label);
@@ -395,6 +373,71 @@ pub fn table(rows: &[MethodRow]) -> String {
         if let Some(e) = &r.error {
             s += &format!("{}: failed: {e}\n", r.method);
         }
+    }
+    s
+}
+
+/// The parameters of an untilted equivalent that differ from the model's own.
+const UNTILTED: [&str; 8] = [
+    "f_px",
+    "cx",
+    "cy",
+    "d_mm",
+    "l_mm",
+    "k1",
+    "k2",
+    "laser_tilt_deg[0]",
+];
+
+/// One table row per parameter: truth, then each method's value and error.
+fn param_rows(
+    rows: &[MethodRow],
+    params: impl Fn(&MethodRow) -> &BTreeMap<String, ParamError>,
+) -> String {
+    let mut s = String::new();
+    let names: Vec<String> = rows
+        .iter()
+        .find(|r| !params(r).is_empty())
+        .map(|r| params(r).keys().cloned().collect())
+        .unwrap_or_default();
+    let order = [
+        "f_px",
+        "cx",
+        "cy",
+        "d_mm",
+        "l_mm",
+        "k1",
+        "k2",
+        "p1",
+        "p2",
+        "camera_tilt_deg[0]",
+        "camera_tilt_deg[1]",
+        "camera_tilt_deg[2]",
+        "laser_tilt_deg[0]",
+        "laser_tilt_deg[1]",
+        "slider_scale",
+    ];
+    for name in order.iter().filter(|n| names.iter().any(|k| k == *n)) {
+        let truth = rows
+            .iter()
+            .find_map(|r| params(r).get(*name))
+            .map_or(f64::NAN, |p| p.truth);
+        s += &format!("{:<20} {:>12.6}", name, truth);
+        for r in rows {
+            s += &match params(r).get(*name) {
+                Some(p) => {
+                    let err = match p.rel_error {
+                        Some(e) if ["f_px", "d_mm", "l_mm", "slider_scale"].contains(name) => {
+                            format!("{:.3}%", e * 100.0)
+                        }
+                        _ => format!("{:+.3}", p.value - p.truth),
+                    };
+                    format!(" {:>14.6} {:>9}", p.value, err)
+                }
+                None => format!(" {:>24}", "-"),
+            };
+        }
+        s += "\n";
     }
     s
 }

@@ -15,6 +15,7 @@
 pub mod acquire;
 pub mod bezier_depth;
 pub mod closed_form;
+mod gauge;
 mod error;
 mod file;
 pub mod insystem;
@@ -29,6 +30,7 @@ pub mod uncertainty;
 
 pub use error::CalibError;
 pub use file::{Calibration, CalibrationError};
+pub use gauge::untilted_equivalent;
 pub use model::{CameraModel, Triangulator};
 pub use plan::CalibrationPlan;
 pub use run::{calibrate_sim, Method, Outcome};
