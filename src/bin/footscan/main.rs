@@ -62,6 +62,10 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
+    // Output piped into `head` and closed early ends the program quietly, as for any Unix
+    // tool, instead of a panic on the next print.
+    // SAFETY: restoring a signal's default disposition before any thread exists.
+    unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

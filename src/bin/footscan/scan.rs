@@ -69,9 +69,16 @@ pub fn run(config: PathBuf, out: PathBuf, calibration: Option<PathBuf>, quiet: b
             s.name, s.input, s.output, s.dropped, s.mean_latency_ms, s.max_latency_ms
         );
     }
-    println!(
-        "wrote {}/{{points.ply, heightmap.png, scan.json, calibration.toml}}",
-        out.display()
-    );
+    // What the configured sinks actually wrote, not a fixed list.
+    let mut files: Vec<String> = std::fs::read_dir(&out)
+        .map(|d| {
+            d.filter_map(|e| e.ok())
+                .filter(|e| e.path().is_file())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    files.sort();
+    println!("wrote {}/{{{}}}", out.display(), files.join(", "));
     Ok(())
 }
