@@ -4,9 +4,11 @@
 //! (daemon) are thin shells over it. Hardware is reached only through `footscan-hal`, so the
 //! simulator (`footscan-sim`) is one more backend behind the same traits.
 
+pub mod api;
 pub mod archive;
 pub mod bench;
 pub mod calib;
+pub mod daemon;
 pub mod detect;
 pub mod geom;
 pub mod io;

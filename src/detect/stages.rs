@@ -35,10 +35,10 @@ fn stage_name(name: &str) -> &'static str {
 pub fn register_stages(r: &mut Registry<Item, ScanContext>) {
     for name in NAMES {
         let stage = stage_name(name);
-        r.register(stage, describe(name), move |p, _ctx: &ScanContext| {
+        r.register(stage, describe(name), move |p, ctx: &ScanContext| {
             let p: DetectParams = params(p)?;
             let det = build(name, &p)?;
-            Ok(Node::stage(Detect::new(stage, det)))
+            Ok(Node::stage(Detect::new(stage, det).with_tap(ctx.tap.clone())))
         });
     }
 }

@@ -19,6 +19,8 @@ pub struct ScanContext {
     pub calibration: Option<Calibration>,
     pub truth: Option<Arc<dyn TruthSource>>,
     pub counters: Arc<ScanCounters>,
+    /// Live preview of the detect stage's frames and lines (the daemon's).
+    pub tap: Option<Arc<dyn super::stages::FrameTap>>,
 }
 
 /// A stage's parameters as its typed, `deny_unknown_fields` struct; serde's message names the

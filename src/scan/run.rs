@@ -19,6 +19,8 @@ pub struct ScanOptions {
     /// Set from anywhere to stop the scan: the slider is stopped, nothing is written as
     /// complete, and scan.json says "cancelled".
     pub cancel: CancelToken,
+    /// Sees every frame and its detected line (footscand's live preview); never blocks.
+    pub tap: Option<Arc<dyn super::stages::FrameTap>>,
 }
 
 impl ScanOptions {
@@ -27,6 +29,7 @@ impl ScanOptions {
             out_dir: out_dir.into(),
             calibration: None,
             cancel: CancelToken::default(),
+            tap: None,
         }
     }
 }
@@ -111,6 +114,7 @@ pub fn run_scan(
             calibration: Some(calibration),
             truth: Some(sim::truth_source(&backend)),
             counters: counters.clone(),
+            tap: opts.tap.clone(),
         };
         let pipeline = registry()
             .build(&cfg.config.pipeline, &ctx)

@@ -5,16 +5,28 @@ use crate::detect::{Detector, LinePeak};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::{unexpected, FrameLines, FramePoints, Item};
 use crate::scan::ScanGrid;
+use super::FrameTap;
 use std::sync::Arc;
 
 pub struct Detect {
     name: &'static str,
     detector: Box<dyn Detector>,
+    tap: Option<Arc<dyn FrameTap>>,
 }
 
 impl Detect {
     pub fn new(name: &'static str, detector: Box<dyn Detector>) -> Self {
-        Detect { name, detector }
+        Detect {
+            name,
+            detector,
+            tap: None,
+        }
+    }
+
+    /// Show every frame and its line to `tap` (a live preview).
+    pub fn with_tap(mut self, tap: Option<Arc<dyn FrameTap>>) -> Self {
+        self.tap = tap;
+        self
     }
 }
 
@@ -25,6 +37,9 @@ impl Stage<Item> for Detect {
         };
         let mut lines = vec![LinePeak::NONE; af.frame.height as usize];
         self.detector.detect(&af.frame, &mut lines);
+        if let Some(tap) = &self.tap {
+            tap.frame(&af.meta, &af.frame, &lines);
+        }
         drop(af.frame); // hand the buffer back to the camera's pool before blocking downstream
         let _ = out.emit(Item::Lines(FrameLines {
             meta: af.meta,

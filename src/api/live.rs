@@ -1,0 +1,228 @@
+//! Live endpoints: status, the preview frame and line, the event stream, calibration.
+
+use super::{scans::body, ApiError, AppState};
+use crate::calib::Method;
+use crate::daemon::Event;
+use axum::extract::rejection::JsonRejection;
+use axum::extract::{Query, State};
+use axum::http::{header, StatusCode};
+use axum::response::sse::{Event as SseEvent, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use futures_util::stream::Stream;
+use serde::Deserialize;
+use serde_json::{json, Value};
+use std::convert::Infallible;
+use std::time::Duration;
+use tokio::sync::broadcast::error::RecvError;
+
+pub async fn status(State(st): State<AppState>) -> Json<Value> {
+    let d = &st.daemon;
+    let cfg = &d.scanner.config;
+    let backend = serde_json::to_value(cfg.scanner.backend).unwrap_or(Value::Null);
+    let sim = backend == "sim";
+    let scan = d.scan_progress();
+    let running = scan.as_ref().is_some_and(|s| s.state == "running");
+    // What the last scan learnt about the devices: a scan that lost one says so until the
+    // next scan starts.
+    let last_failure = scan
+        .as_ref()
+        .filter(|s| s.state == "failed")
+        .and_then(|s| s.reason.clone())
+        .unwrap_or_default()
+        .to_lowercase();
+    let lost = |what: &str| {
+        last_failure.contains(what)
+            && [
+                "disconnect",
+                "unplug",
+                "no such device",
+                "timed out",
+                "timeout",
+                "alarm",
+            ]
+            .iter()
+            .any(|w| last_failure.contains(w))
+    };
+    let line = d.preview.line();
+    let (w, h) = line
+        .as_ref()
+        .map_or((cfg.sim.optics.width, cfg.sim.optics.height), |l| {
+            (l.width, l.height)
+        });
+    let slider_state = if running {
+        "run"
+    } else if lost("slider") && last_failure.contains("alarm") {
+        "alarm"
+    } else {
+        "idle"
+    };
+    Json(json!({
+        "version": env!("CARGO_PKG_VERSION"),
+        "backend": backend,
+        "devices": {
+            "camera": {
+                "name": if sim { "simulated camera" } else { "V4L2 camera" },
+                "width": w,
+                "height": h,
+                "format": serde_json::to_value(cfg.sim.noise.format).unwrap_or(Value::Null),
+                "connected": !lost("camera"),
+            },
+            "slider": {
+                "name": if sim { "GRBL emulator (pseudo-terminal)" } else { "GRBL controller" },
+                "state": slider_state,
+                "x_mm": d.preview.x_mm(),
+                "connected": !lost("slider"),
+            },
+        },
+        "calibration": d.calibration(),
+        "scan": scan,
+        "calibrating": d.calibrating(),
+    }))
+}
+
+#[derive(Deserialize)]
+pub struct PreviewQuery {
+    width: Option<String>,
+    access_token: Option<String>,
+}
+
+pub async fn preview_png(
+    State(st): State<AppState>,
+    Query(q): Query<PreviewQuery>,
+) -> Result<Response, ApiError> {
+    let _ = q.access_token;
+    let width = match q.width.as_deref() {
+        None => 320,
+        Some(w) => w
+            .parse::<u32>()
+            .ok()
+            .filter(|w| (16..=1280).contains(w))
+            .ok_or_else(|| {
+                ApiError::bad_request(format!(
+                    "width {w:?}: must be an integer in 16..=1280 (default 320)"
+                ))
+            })?,
+    };
+    let preview = st.daemon.preview.clone();
+    let out = tokio::task::spawn_blocking(move || {
+        let img = preview.image(width)?;
+        let mut png = Vec::with_capacity(img.pixels.len() / 2 + 1024);
+        let enc = image::codecs::png::PngEncoder::new_with_quality(
+            &mut png,
+            image::codecs::png::CompressionType::Fast,
+            image::codecs::png::FilterType::Sub,
+        );
+        use image::ImageEncoder;
+        let r = enc.write_image(
+            &img.pixels,
+            img.width,
+            img.height,
+            image::ExtendedColorType::L8,
+        );
+        Some(r.map(|_| (png, img.seq, img.age_ms)))
+    })
+    .await
+    .map_err(ApiError::internal)?;
+    let Some(out) = out else {
+        return Err(ApiError::not_found(
+            "no frame yet: the preview shows the running or last scan's frames",
+        ));
+    };
+    let (png, seq, age_ms) = out.map_err(ApiError::internal)?;
+    Ok((
+        [
+            (header::CONTENT_TYPE, "image/png".to_string()),
+            (header::CACHE_CONTROL, "no-store".to_string()),
+            (
+                header::HeaderName::from_static("x-frame-seq"),
+                seq.to_string(),
+            ),
+            (
+                header::HeaderName::from_static("x-frame-age-ms"),
+                format!("{age_ms:.1}"),
+            ),
+        ],
+        png,
+    )
+        .into_response())
+}
+
+pub async fn preview_line(State(st): State<AppState>) -> Result<Response, ApiError> {
+    let p = st.daemon.preview.clone();
+    let line = tokio::task::spawn_blocking(move || p.line())
+        .await
+        .map_err(ApiError::internal)?
+        .ok_or_else(|| {
+            ApiError::not_found("no frame yet: the preview shows the running or last scan's frames")
+        })?;
+    Ok(([(header::CACHE_CONTROL, "no-store")], Json(line)).into_response())
+}
+
+fn sse(e: &Event) -> SseEvent {
+    SseEvent::default().event(e.name()).data(e.json())
+}
+
+/// Server-sent events; the current scan's progress first (so a client that connects late
+/// sees where it is, or that it has ended), then every event until the daemon stops.
+pub async fn events(
+    State(st): State<AppState>,
+) -> Sse<impl Stream<Item = Result<SseEvent, Infallible>>> {
+    let rx = st.daemon.subscribe();
+    let first = st.daemon.scan_progress().map(Event::Progress);
+    let shutdown = st.shutdown.clone();
+    let stream = futures_util::stream::unfold(
+        (rx, first, shutdown),
+        |(mut rx, mut first, mut shutdown)| async move {
+            if let Some(e) = first.take() {
+                return Some((Ok(sse(&e)), (rx, None, shutdown)));
+            }
+            loop {
+                if *shutdown.borrow() {
+                    return None;
+                }
+                tokio::select! {
+                    r = rx.recv() => match r {
+                        Ok(e) => return Some((Ok(sse(&e)), (rx, None, shutdown))),
+                        Err(RecvError::Lagged(n)) => {
+                            tracing::debug!("event stream lagged by {n} events");
+                        }
+                        Err(RecvError::Closed) => return None,
+                    },
+                    r = shutdown.changed() => if r.is_err() {
+                        return None;
+                    },
+                }
+            }
+        },
+    );
+    Sse::new(stream).keep_alive(
+        KeepAlive::new()
+            .interval(Duration::from_secs(15))
+            .text("keep-alive"),
+    )
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StartCalibration {
+    method: String,
+}
+
+pub async fn calibrate(
+    State(st): State<AppState>,
+    b: Result<Json<StartCalibration>, JsonRejection>,
+) -> Result<Response, ApiError> {
+    let req = body(b)?;
+    let method: Method = req.method.parse().map_err(|_| {
+        ApiError::bad_request(format!(
+            "method {:?}: must be \"insystem\", \"bezier\" or \"opencv\"",
+            req.method.chars().take(80).collect::<String>()
+        ))
+    })?;
+    let d = st.daemon.clone();
+    let id = tokio::task::spawn_blocking(move || d.start_calibration(method))
+        .await
+        .map_err(ApiError::internal)??;
+    Ok((StatusCode::ACCEPTED, Json(json!({ "id": id }))).into_response())
+}

@@ -1,0 +1,264 @@
+//! footscand's HTTP API (docs/API.md): axum over the [`Daemon`] service. JSON everywhere,
+//! errors as `{"error": "..."}` naming the input and what is valid, bodies limited to 16 KiB,
+//! ids and file names validated before any path is built, and a bearer token on every request
+//! but the health check and the static dashboard when one is configured.
+
+mod live;
+mod scans;
+
+use crate::daemon::Daemon;
+use axum::extract::{Request, State};
+use axum::http::{header, HeaderValue, Method, StatusCode};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use std::future::Future;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::watch;
+
+/// Largest request body accepted (the JSON bodies of the API are far smaller).
+pub const BODY_LIMIT: usize = 16 * 1024;
+
+/// Shared by the handlers: the service and the shutdown signal (ends event streams).
+#[derive(Clone)]
+pub struct AppState {
+    pub daemon: Arc<Daemon>,
+    pub shutdown: watch::Receiver<bool>,
+}
+
+/// An error response: a status and a message naming the input and what is valid.
+#[derive(Debug)]
+pub struct ApiError(pub StatusCode, pub String);
+
+impl ApiError {
+    pub fn bad_request(msg: impl Into<String>) -> Self {
+        ApiError(StatusCode::BAD_REQUEST, msg.into())
+    }
+    pub fn not_found(msg: impl Into<String>) -> Self {
+        ApiError(StatusCode::NOT_FOUND, msg.into())
+    }
+    pub fn internal(msg: impl std::fmt::Display) -> Self {
+        tracing::error!("internal error: {msg}");
+        ApiError(StatusCode::INTERNAL_SERVER_ERROR, msg.to_string())
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        (self.0, Json(serde_json::json!({ "error": self.1 }))).into_response()
+    }
+}
+
+impl From<crate::daemon::DaemonError> for ApiError {
+    fn from(e: crate::daemon::DaemonError) -> Self {
+        use crate::daemon::DaemonError as E;
+        match e {
+            E::Busy(m) | E::NotRunning(m) => ApiError(StatusCode::CONFLICT, m),
+            E::NotFound(m) => ApiError::not_found(m),
+            E::Archive(crate::archive::ArchiveError::NotFound(id)) => {
+                ApiError::not_found(format!("scan {id} is not in the archive"))
+            }
+            E::Archive(e) => ApiError(StatusCode::INSUFFICIENT_STORAGE, e.to_string()),
+            E::Setup(m) => ApiError::internal(m),
+        }
+    }
+}
+
+/// The whole API and the dashboard.
+pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
+    let state = AppState { daemon, shutdown };
+    Router::new()
+        .route("/", get(dashboard_index))
+        .route("/app.js", get(dashboard_js))
+        .route("/style.css", get(dashboard_css))
+        .route("/api/health", get(health))
+        .route("/api/status", get(live::status))
+        .route("/api/scans", get(scans::list).post(scans::start))
+        .route("/api/scans/{id}", get(scans::show))
+        .route("/api/scans/{id}/cancel", post(scans::cancel))
+        .route("/api/scans/{id}/files/{name}", get(scans::download))
+        .route("/api/preview.png", get(live::preview_png))
+        .route("/api/preview/line", get(live::preview_line))
+        .route("/api/events", get(live::events))
+        .route("/api/calibrations", post(live::calibrate))
+        .fallback(not_found)
+        .method_not_allowed_fallback(method_not_allowed)
+        .layer(axum::extract::DefaultBodyLimit::max(BODY_LIMIT))
+        .layer(axum::middleware::from_fn_with_state(state.clone(), auth))
+        .with_state(state)
+}
+
+/// Serve until `signal` resolves, then: stop accepting, end event streams, cancel the running
+/// scan (archived as cancelled, "daemon shutting down") and wait for it to be archived; open
+/// downloads get up to 10 s to finish.
+pub async fn serve(
+    daemon: Arc<Daemon>,
+    listener: tokio::net::TcpListener,
+    signal: impl Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    let (tx, rx) = watch::channel(false);
+    let app = router(daemon.clone(), rx.clone());
+    let mut stop = rx.clone();
+    let server = axum::serve(listener, app).with_graceful_shutdown(async move {
+        let _ = stop.wait_for(|s| *s).await;
+    });
+    let mut server = tokio::spawn(async move { server.await });
+    tokio::select! {
+        r = &mut server => return r.map_err(std::io::Error::other)?,
+        _ = signal => {}
+    }
+    tracing::info!("shutting down: no new connections; cancelling the running scan");
+    let _ = tx.send(true);
+    let d = daemon.clone();
+    let job = tokio::task::spawn_blocking(move || d.shutdown());
+    if tokio::time::timeout(Duration::from_secs(10), &mut server)
+        .await
+        .is_err()
+    {
+        tracing::warn!("shutdown: connections still open after 10 s; closing them");
+        server.abort();
+    }
+    let _ = job.await;
+    tracing::info!("footscand stopped");
+    Ok(())
+}
+
+/// The bearer token check: `Authorization: Bearer <token>` or `?access_token=<token>`,
+/// compared in constant time. Health and the static dashboard files (the same bytes for
+/// everyone; the page asks for the token) are open.
+async fn auth(State(st): State<AppState>, req: Request, next: Next) -> Response {
+    let Some(token) = st.daemon.config.token.as_deref() else {
+        return next.run(req).await;
+    };
+    let path = req.uri().path();
+    if req.method() == Method::GET && matches!(path, "/api/health" | "/" | "/app.js" | "/style.css")
+    {
+        return next.run(req).await;
+    }
+    let from_header = req
+        .headers()
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.strip_prefix("Bearer "))
+        .map(str::trim);
+    let from_query = req.uri().query().and_then(|q| {
+        q.split('&')
+            .find_map(|kv| kv.strip_prefix("access_token="))
+            .map(percent_decode)
+    });
+    let ok = [from_header.map(str::to_string), from_query]
+        .into_iter()
+        .flatten()
+        .any(|given| token_eq(given.as_bytes(), token.as_bytes()));
+    if ok {
+        return next.run(req).await;
+    }
+    let mut resp = ApiError(
+        StatusCode::UNAUTHORIZED,
+        "missing or wrong token: send `Authorization: Bearer <token>` or `?access_token=<token>`"
+            .into(),
+    )
+    .into_response();
+    resp.headers_mut().insert(
+        header::WWW_AUTHENTICATE,
+        HeaderValue::from_static("Bearer realm=\"footscand\""),
+    );
+    resp
+}
+
+fn token_eq(a: &[u8], b: &[u8]) -> bool {
+    use subtle::ConstantTimeEq;
+    a.len() == b.len() && bool::from(a.ct_eq(b))
+}
+
+/// `%XX` and `+` decoding of a query value.
+fn percent_decode(s: &str) -> String {
+    let b = s.as_bytes();
+    let hex = |c: u8| (c as char).to_digit(16).map(|d| d as u8);
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        match b[i] {
+            b'%' if i + 2 < b.len() => match (hex(b[i + 1]), hex(b[i + 2])) {
+                (Some(h), Some(l)) => {
+                    out.push(h * 16 + l);
+                    i += 3;
+                    continue;
+                }
+                _ => out.push(b'%'),
+            },
+            b'+' => out.push(b' '),
+            c => out.push(c),
+        }
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+async fn health() -> Json<serde_json::Value> {
+    Json(serde_json::json!({"ok": true, "version": env!("CARGO_PKG_VERSION")}))
+}
+
+async fn not_found(req: Request) -> ApiError {
+    ApiError::not_found(format!(
+        "no such endpoint: {} {} (see docs/API.md)",
+        req.method(),
+        req.uri().path()
+    ))
+}
+
+async fn method_not_allowed(req: Request) -> ApiError {
+    ApiError(
+        StatusCode::METHOD_NOT_ALLOWED,
+        format!(
+            "method {} not allowed on {} (see docs/API.md)",
+            req.method(),
+            req.uri().path()
+        ),
+    )
+}
+
+fn static_file(content_type: &'static str, body: &'static str) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, content_type),
+            (header::CACHE_CONTROL, "no-cache"),
+        ],
+        body,
+    )
+        .into_response()
+}
+
+async fn dashboard_index() -> Response {
+    static_file(
+        "text/html; charset=utf-8",
+        include_str!("dashboard/index.html"),
+    )
+}
+
+async fn dashboard_js() -> Response {
+    static_file(
+        "text/javascript; charset=utf-8",
+        include_str!("dashboard/app.js"),
+    )
+}
+
+async fn dashboard_css() -> Response {
+    static_file(
+        "text/css; charset=utf-8",
+        include_str!("dashboard/style.css"),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn tokens_and_query_decoding() {
+        assert!(super::token_eq(b"abc", b"abc"));
+        assert!(!super::token_eq(b"abc", b"abd"));
+        assert!(!super::token_eq(b"abc", b"abcd"));
+        assert_eq!(super::percent_decode("a%2Bb+c%zz%4"), "a+b c%zz%4");
+    }
+}

@@ -1,0 +1,216 @@
+//! Scan endpoints: start, cancel, list, show, download.
+
+use super::{ApiError, AppState};
+use crate::archive::{valid_file_name, NewScan, Record, ScanId};
+use axum::body::{Body, Bytes};
+use axum::extract::rejection::JsonRejection;
+use axum::extract::{Path, State};
+use axum::http::{header, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde::Deserialize;
+use tokio::io::AsyncReadExt;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StartScan {
+    subject: String,
+    side: String,
+    #[serde(default)]
+    notes: Option<String>,
+}
+
+/// A JSON body, with axum's rejections turned into this API's errors: 415 without
+/// `Content-Type: application/json`, 413 over the size limit, 400 for anything else.
+pub fn body<T>(b: Result<Json<T>, JsonRejection>) -> Result<T, ApiError> {
+    match b {
+        Ok(Json(t)) => Ok(t),
+        Err(JsonRejection::MissingJsonContentType(_)) => Err(ApiError(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "the body must be JSON with `Content-Type: application/json`".into(),
+        )),
+        Err(e) if e.status() == StatusCode::PAYLOAD_TOO_LARGE => Err(ApiError(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!("request body over the {} byte limit", super::BODY_LIMIT),
+        )),
+        Err(e) => Err(ApiError::bad_request(format!(
+            "invalid JSON body: {}",
+            e.body_text()
+        ))),
+    }
+}
+
+fn parse_id(id: &str) -> Result<ScanId, ApiError> {
+    ScanId::parse(id).map_err(|e| ApiError::bad_request(e.to_string()))
+}
+
+fn validate(s: StartScan) -> Result<NewScan, ApiError> {
+    let subject_ok = (1..=64).contains(&s.subject.len())
+        && s.subject
+            .bytes()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, b'.' | b'_' | b'-'));
+    if !subject_ok {
+        return Err(ApiError::bad_request(format!(
+            "subject {:?}: must be 1-64 characters of A-Z a-z 0-9 . _ -",
+            s.subject.chars().take(80).collect::<String>()
+        )));
+    }
+    if !matches!(s.side.as_str(), "left" | "right") {
+        return Err(ApiError::bad_request(format!(
+            "side {:?}: must be \"left\" or \"right\"",
+            s.side.chars().take(80).collect::<String>()
+        )));
+    }
+    let notes = s.notes.unwrap_or_default();
+    if notes.chars().count() > 2000 {
+        return Err(ApiError::bad_request(format!(
+            "notes: {} characters, at most 2000",
+            notes.chars().count()
+        )));
+    }
+    Ok(NewScan {
+        subject: s.subject,
+        side: s.side,
+        notes,
+    })
+}
+
+pub async fn start(
+    State(st): State<AppState>,
+    b: Result<Json<StartScan>, JsonRejection>,
+) -> Result<Response, ApiError> {
+    let meta = validate(body(b)?)?;
+    let d = st.daemon.clone();
+    let id = tokio::task::spawn_blocking(move || d.start_scan(meta))
+        .await
+        .map_err(ApiError::internal)??;
+    Ok((StatusCode::ACCEPTED, Json(serde_json::json!({ "id": id }))).into_response())
+}
+
+pub async fn cancel(
+    State(st): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let id = parse_id(&id)?;
+    let d = st.daemon.clone();
+    let rid = id.clone();
+    tokio::task::spawn_blocking(move || {
+        d.archive.get(&rid)?;
+        d.cancel_scan(rid.as_str())
+    })
+    .await
+    .map_err(ApiError::internal)??;
+    Ok((
+        StatusCode::ACCEPTED,
+        Json(serde_json::json!({ "id": id.as_str(), "state": "cancelling" })),
+    )
+        .into_response())
+}
+
+pub async fn list(State(st): State<AppState>) -> Result<Json<Vec<Record>>, ApiError> {
+    let d = st.daemon.clone();
+    let v = tokio::task::spawn_blocking(move || d.archive.list())
+        .await
+        .map_err(ApiError::internal)?
+        .map_err(ApiError::internal)?;
+    Ok(Json(v))
+}
+
+fn read_json(path: Option<std::path::PathBuf>) -> serde_json::Value {
+    path.and_then(|p| std::fs::read(p).ok())
+        .and_then(|b| serde_json::from_slice(&b).ok())
+        .unwrap_or(serde_json::Value::Null)
+}
+
+pub async fn show(
+    State(st): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    let id = parse_id(&id)?;
+    let d = st.daemon.clone();
+    tokio::task::spawn_blocking(move || {
+        let a = &d.archive;
+        let r = a.get(&id).map_err(crate::daemon::DaemonError::from)?;
+        let artifacts = a.artifacts(&r).unwrap_or_default();
+        let mut v = serde_json::to_value(&r).map_err(ApiError::internal)?;
+        v["artifacts"] = serde_json::to_value(&artifacts).map_err(ApiError::internal)?;
+        v["summary"] = read_json(a.artifact_path(&r, "scan.json"));
+        v["measurements"] = read_json(a.artifact_path(&r, "measurements.json"));
+        Ok(Json(v))
+    })
+    .await
+    .map_err(ApiError::internal)?
+}
+
+/// The artifact streamed in 64 KiB chunks (a client that goes away only stops the stream).
+pub async fn download(
+    State(st): State<AppState>,
+    Path((id, name)): Path<(String, String)>,
+) -> Result<Response, ApiError> {
+    let id = parse_id(&id)?;
+    if !valid_file_name(&name) {
+        return Err(ApiError::bad_request(format!(
+            "file name {:?}: must be 1-64 characters of A-Z a-z 0-9 . _ - not starting with a dot",
+            name.chars().take(80).collect::<String>()
+        )));
+    }
+    let d = st.daemon.clone();
+    let (path, rec) = tokio::task::spawn_blocking(move || {
+        let r = d
+            .archive
+            .get(&id)
+            .map_err(crate::daemon::DaemonError::from)?;
+        let p = d.archive.artifact_path(&r, &name).ok_or_else(|| {
+            let names: Vec<String> = d
+                .archive
+                .artifacts(&r)
+                .unwrap_or_default()
+                .into_iter()
+                .map(|a| a.name)
+                .collect();
+            ApiError::not_found(format!(
+                "scan {} has no file {name:?}; it has: {}",
+                r.id,
+                names.join(", ")
+            ))
+        })?;
+        Ok::<_, ApiError>((p, r))
+    })
+    .await
+    .map_err(ApiError::internal)??;
+    let file = tokio::fs::File::open(&path)
+        .await
+        .map_err(|e| ApiError::not_found(format!("{}: {e}", path.display())))?;
+    let len = file.metadata().await.map_err(ApiError::internal)?.len();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let stream = futures_util::stream::unfold(Some(file), |file| async move {
+        let mut file = file?;
+        let mut buf = vec![0u8; 64 * 1024];
+        match file.read(&mut buf).await {
+            Ok(0) => None,
+            Ok(n) => {
+                buf.truncate(n);
+                Some((Ok::<_, std::io::Error>(Bytes::from(buf)), Some(file)))
+            }
+            Err(e) => Some((Err(e), None)),
+        }
+    });
+    Ok((
+        [
+            (
+                header::CONTENT_TYPE,
+                crate::archive::content_type(&name).to_string(),
+            ),
+            (header::CONTENT_LENGTH, len.to_string()),
+            (
+                header::CONTENT_DISPOSITION,
+                format!("attachment; filename=\"{}-{name}\"", rec.id),
+            ),
+        ],
+        Body::from_stream(stream),
+    )
+        .into_response())
+}

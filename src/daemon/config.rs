@@ -1,0 +1,165 @@
+//! The daemon's config file (config/footscand.toml). Unknown keys are errors naming the file,
+//! line and column, like the scanner config; relative paths are relative to the file.
+
+use serde::Deserialize;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+
+/// The default address: loopback only, so no token is needed.
+pub const DEFAULT_BIND: &str = "127.0.0.1:8470";
+/// Environment variable that sets (and overrides) the bearer token.
+pub const TOKEN_ENV: &str = "FOOTSCAND_TOKEN";
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    daemon: DaemonSection,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DaemonSection {
+    bind: Option<String>,
+    token: Option<String>,
+    archive: PathBuf,
+    scanner_config: PathBuf,
+    calibration: Option<PathBuf>,
+}
+
+/// The resolved daemon configuration.
+#[derive(Clone, Debug)]
+pub struct DaemonConfig {
+    pub path: PathBuf,
+    pub bind: SocketAddr,
+    pub token: Option<String>,
+    pub archive: PathBuf,
+    pub scanner_config: PathBuf,
+    pub calibration: Option<PathBuf>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum DaemonConfigError {
+    #[error("cannot read daemon config {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("daemon config {path}: {message}")]
+    Invalid { path: PathBuf, message: String },
+    #[error(
+        "refusing to listen on {bind} without a token: a non-loopback address exposes the \
+         scanner to the network; set `token` in [daemon] of {path} or the environment variable \
+         {TOKEN_ENV}, or bind 127.0.0.1"
+    )]
+    NoToken { bind: SocketAddr, path: PathBuf },
+}
+
+impl DaemonConfig {
+    /// Load `path`; `bind` (from the command line) overrides the file's, and FOOTSCAND_TOKEN
+    /// the file's token.
+    pub fn load(path: &Path, bind: Option<&str>) -> Result<DaemonConfig, DaemonConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| DaemonConfigError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
+        let env_token = std::env::var(TOKEN_ENV).ok();
+        Self::parse(path, &text, bind, env_token)
+    }
+
+    pub fn parse(
+        path: &Path,
+        text: &str,
+        bind: Option<&str>,
+        env_token: Option<String>,
+    ) -> Result<DaemonConfig, DaemonConfigError> {
+        let invalid = |message: String| DaemonConfigError::Invalid {
+            path: path.to_owned(),
+            message,
+        };
+        let f: File = toml::from_str(text).map_err(|e| {
+            invalid(match e.span() {
+                Some(s) => format!("{}{}", e.message().trim_end(), line_col(text, s.start)),
+                None => e.message().trim_end().to_string(),
+            })
+        })?;
+        let d = f.daemon;
+        let bind_text = bind
+            .map(str::to_string)
+            .or(d.bind)
+            .unwrap_or_else(|| DEFAULT_BIND.into());
+        let bind: SocketAddr = bind_text.parse().map_err(|_| {
+            invalid(format!(
+                "bind = {bind_text:?}: expected IP:PORT, e.g. {DEFAULT_BIND} or 0.0.0.0:8470"
+            ))
+        })?;
+        let token = env_token.or(d.token);
+        if let Some(t) = &token {
+            if t.len() < 16 || !t.bytes().all(|c| c.is_ascii_graphic()) {
+                return Err(invalid(format!(
+                    "token: must be at least 16 printable ASCII characters without spaces (got {} characters)",
+                    t.len()
+                )));
+            }
+        }
+        if token.is_none() && !bind.ip().is_loopback() {
+            return Err(DaemonConfigError::NoToken {
+                bind,
+                path: path.to_owned(),
+            });
+        }
+        let base = path.parent().unwrap_or(Path::new("."));
+        let rel = |p: PathBuf| if p.is_absolute() { p } else { base.join(p) };
+        Ok(DaemonConfig {
+            path: path.to_owned(),
+            bind,
+            token,
+            archive: rel(d.archive),
+            scanner_config: rel(d.scanner_config),
+            calibration: d.calibration.map(rel),
+        })
+    }
+}
+
+fn line_col(text: &str, offset: usize) -> String {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+    format!(" (line {line}, column {col})")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OK: &str = "[daemon]\narchive = \"scans\"\nscanner_config = \"sim.toml\"\n";
+
+    #[test]
+    fn paths_are_relative_to_the_file_and_loopback_needs_no_token() {
+        let c = DaemonConfig::parse(Path::new("/etc/fs/d.toml"), OK, None, None).unwrap();
+        assert_eq!(c.archive, Path::new("/etc/fs/scans"));
+        assert_eq!(c.scanner_config, Path::new("/etc/fs/sim.toml"));
+        assert!(c.bind.ip().is_loopback());
+    }
+
+    #[test]
+    fn errors_name_the_key_and_position() {
+        let text = format!("{OK}colour = 1\n");
+        let e = DaemonConfig::parse(Path::new("d.toml"), &text, None, None)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("colour") && e.contains("line 4, column 1"),
+            "{e}"
+        );
+        let e = DaemonConfig::parse(Path::new("d.toml"), OK, Some("0.0.0.0:1"), None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("FOOTSCAND_TOKEN") && e.contains("token"), "{e}");
+        let t = Some("0123456789abcdef".to_string());
+        assert!(DaemonConfig::parse(Path::new("d.toml"), OK, Some("0.0.0.0:1"), t).is_ok());
+        let e = DaemonConfig::parse(Path::new("d.toml"), OK, None, Some("short".into()))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("at least 16"), "{e}");
+    }
+}

@@ -1,0 +1,314 @@
+//! The daemon's jobs: a scan (run_scan on a thread, written into the archive) and a
+//! calibration (the in-system or reference calibration, stored as the current calibration).
+
+use super::{CalibrationInfo, CalibrationJob, Daemon, DaemonError, Event, Job, Progress};
+use crate::archive::{ActiveScan, NewScan, Outcome, ScanId, Status};
+use crate::calib::{self, CalibrationPlan, Method};
+use crate::scan::{run_scan, CancelToken, ScanOptions, ScanProgress};
+use std::panic::AssertUnwindSafe;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// The calibration the daemon made last: `<archive>/calibrations/current.toml`.
+pub fn current_calibration_path(archive: &Path) -> PathBuf {
+    archive.join("calibrations").join("current.toml")
+}
+
+/// Minimum spacing of progress events.
+const PROGRESS_PERIOD: Duration = Duration::from_millis(100);
+
+impl Daemon {
+    fn busy(&self) -> Option<String> {
+        let st = self.state.lock().unwrap();
+        if st.shutting_down {
+            return Some("the daemon is shutting down".into());
+        }
+        match &st.job {
+            Some(Job::Scan { id, .. }) => Some(format!(
+                "scan {id} is running: wait for it to end or cancel it (POST /api/scans/{id}/cancel)"
+            )),
+            Some(Job::Calibration { .. }) => Some(format!(
+                "calibration {} is running: wait for it to end",
+                st.calibrating.as_ref().map_or("", |c| c.id.as_str())
+            )),
+            None => None,
+        }
+    }
+
+    /// Start a scan; returns its id. Busy while another job runs.
+    pub fn start_scan(self: &Arc<Self>, meta: NewScan) -> Result<String, DaemonError> {
+        if let Some(why) = self.busy() {
+            return Err(DaemonError::Busy(why));
+        }
+        let mut st = self.state.lock().unwrap();
+        if st.job.is_some() || st.shutting_down {
+            return Err(DaemonError::Busy("another job started just now".into()));
+        }
+        let active = self.archive.begin(meta)?;
+        let id = active.record.id.clone();
+        let cancel = CancelToken::default();
+        let expected = crate::scan::ScanPlan::from_config(&self.scanner.config).expected_frames();
+        st.scan = Some(Progress {
+            id: id.clone(),
+            state: "running".into(),
+            frames: 0,
+            expected_frames: expected,
+            points: 0,
+            dropped: 0,
+            elapsed_s: 0.0,
+            reason: None,
+        });
+        st.cancel_reason = None;
+        let calibration = st.calibration.as_ref().map(|c| c.path.clone());
+        let me = self.clone();
+        let token = cancel.clone();
+        let thread = std::thread::Builder::new()
+            .name(format!("scan-{id}"))
+            .spawn(move || me.run_scan_job(active, token, calibration))
+            .map_err(|e| DaemonError::Setup(format!("cannot start the scan thread: {e}")))?;
+        st.job = Some(Job::Scan {
+            id: id.clone(),
+            cancel,
+            thread,
+        });
+        drop(st);
+        tracing::info!("scan {id} started");
+        self.emit(Event::State {
+            id: id.clone(),
+            state: "running".into(),
+            reason: None,
+        });
+        Ok(id)
+    }
+
+    fn run_scan_job(
+        self: Arc<Self>,
+        active: ActiveScan,
+        cancel: CancelToken,
+        calibration: Option<PathBuf>,
+    ) {
+        let id = active.record.id.clone();
+        let started = Instant::now();
+        self.preview.reset_counts();
+        let mut opts = ScanOptions::new(&active.dir);
+        opts.calibration = calibration;
+        opts.cancel = cancel;
+        opts.tap = Some(self.preview.clone());
+        let mut last_event: Option<Instant> = None;
+        let on_progress = |p: &ScanProgress| {
+            let prog = self.update_progress(&id, p, started);
+            if last_event.is_none_or(|t| t.elapsed() >= PROGRESS_PERIOD) {
+                last_event = Some(Instant::now());
+                self.emit(Event::Progress(prog));
+            }
+        };
+        let result = std::panic::catch_unwind(AssertUnwindSafe(|| {
+            run_scan(&self.scanner, &opts, on_progress)
+        }));
+        let cancel_reason = self.state.lock().unwrap().cancel_reason.clone();
+        let mut outcome = match result {
+            Ok(Ok(s)) => Outcome {
+                status: Status::parse(&s.status).unwrap_or(Status::Failed),
+                reason: s.reason.clone(),
+                frames: s.frames,
+                points: s.points as u64,
+            },
+            Ok(Err(e)) => Outcome {
+                status: Status::Failed,
+                reason: Some(e.to_string()),
+                frames: 0,
+                points: 0,
+            },
+            Err(panic) => Outcome {
+                status: Status::Failed,
+                reason: Some(format!(
+                    "internal error: the scan thread panicked: {}",
+                    panic
+                        .downcast_ref::<String>()
+                        .map(String::as_str)
+                        .or_else(|| panic.downcast_ref::<&str>().copied())
+                        .unwrap_or("?")
+                )),
+                frames: 0,
+                points: 0,
+            },
+        };
+        if outcome.status == Status::Cancelled {
+            outcome.reason = cancel_reason.or(outcome.reason);
+        }
+        if outcome.status != Status::Complete && outcome.frames == 0 {
+            // scan.json has the counts of a failed scan; the progress has them otherwise.
+            if let Some(p) = self.scan_progress() {
+                outcome.frames = p.frames;
+            }
+        }
+        let (status, reason) = match self.archive.finish(active, outcome.clone()) {
+            Ok(r) => (r.status, r.reason),
+            Err(e) => {
+                // The files stay in .tmp-<id>; the next start recovers them as interrupted.
+                tracing::error!("scan {id}: archiving failed: {e}");
+                (
+                    Status::Failed,
+                    Some(format!(
+                        "{}; archiving failed: {e}",
+                        outcome.reason.as_deref().unwrap_or("scan ended")
+                    )),
+                )
+            }
+        };
+        let progress = {
+            let mut st = self.state.lock().unwrap();
+            let p = st.scan.get_or_insert_with(|| Progress {
+                id: id.clone(),
+                state: String::new(),
+                frames: 0,
+                expected_frames: 0,
+                points: 0,
+                dropped: 0,
+                elapsed_s: 0.0,
+                reason: None,
+            });
+            p.state = status.as_str().into();
+            p.reason = reason.clone();
+            p.frames = outcome.frames;
+            if status == Status::Complete {
+                p.points = outcome.points;
+            }
+            p.elapsed_s = started.elapsed().as_secs_f64();
+            let p = p.clone();
+            if matches!(&st.job, Some(super::Job::Scan { id: j, .. }) if *j == id) {
+                st.job = None;
+            }
+            p
+        };
+        tracing::info!(
+            "scan {id} {}{}",
+            status.as_str(),
+            reason
+                .as_deref()
+                .map_or(String::new(), |r| format!(": {r}"))
+        );
+        self.emit(Event::Progress(progress));
+        self.emit(Event::State {
+            id: id.clone(),
+            state: status.as_str().into(),
+            reason: reason.clone(),
+        });
+        if status == Status::Failed {
+            self.emit(Event::Error {
+                id,
+                reason: reason.unwrap_or_default(),
+            });
+        }
+    }
+
+    fn update_progress(&self, id: &str, p: &ScanProgress, started: Instant) -> Progress {
+        let mut st = self.state.lock().unwrap();
+        let prog = Progress {
+            id: id.to_string(),
+            state: "running".into(),
+            frames: p.frames,
+            expected_frames: p.expected_frames,
+            points: self.preview.points(),
+            dropped: p.dropped,
+            elapsed_s: (started.elapsed().as_secs_f64() * 1000.0).round() / 1000.0,
+            reason: None,
+        };
+        st.scan = Some(prog.clone());
+        prog
+    }
+
+    /// Start a calibration with `method`; returns its id. Busy while another job runs.
+    pub fn start_calibration(self: &Arc<Self>, method: Method) -> Result<String, DaemonError> {
+        if let Some(why) = self.busy() {
+            return Err(DaemonError::Busy(why));
+        }
+        let mut st = self.state.lock().unwrap();
+        if st.job.is_some() || st.shutting_down {
+            return Err(DaemonError::Busy("another job started just now".into()));
+        }
+        let id = ScanId::generate(7).to_string();
+        let job = CalibrationJob {
+            id: id.clone(),
+            method: method.name().into(),
+            state: "running".into(),
+            reason: None,
+        };
+        st.calibrating = Some(job.clone());
+        let me = self.clone();
+        let thread = std::thread::Builder::new()
+            .name(format!("calibrate-{id}"))
+            .spawn(move || me.run_calibration_job(job, method))
+            .map_err(|e| DaemonError::Setup(format!("cannot start the calibration thread: {e}")))?;
+        st.job = Some(Job::Calibration { _thread: thread });
+        drop(st);
+        self.emit(Event::Calibration(CalibrationJob {
+            id: id.clone(),
+            method: method.name().into(),
+            state: "running".into(),
+            reason: None,
+        }));
+        Ok(id)
+    }
+
+    fn run_calibration_job(self: Arc<Self>, mut job: CalibrationJob, method: Method) {
+        tracing::info!("calibration {} ({}) started", job.id, job.method);
+        let plan = CalibrationPlan::default();
+        let result = std::panic::catch_unwind(AssertUnwindSafe(|| {
+            calib::calibrate_sim(&self.scanner.config, method, &plan, &mut |_, _, _| {})
+        }));
+        let saved = match result {
+            Ok(Ok(outcome)) => self.store_calibration(&job.id, &outcome.calibration),
+            Ok(Err(e)) => Err(format!("{} calibration failed: {e}", method.name())),
+            Err(_) => Err("internal error: the calibration thread panicked".into()),
+        };
+        let mut st = self.state.lock().unwrap();
+        match saved {
+            Ok(info) => {
+                job.state = "complete".into();
+                st.calibration = Some(info);
+            }
+            Err(reason) => {
+                job.state = "failed".into();
+                job.reason = Some(reason);
+            }
+        }
+        tracing::info!(
+            "calibration {} {}{}",
+            job.id,
+            job.state,
+            job.reason
+                .as_deref()
+                .map_or(String::new(), |r| format!(": {r}"))
+        );
+        st.calibrating = Some(job.clone());
+        if matches!(st.job, Some(Job::Calibration { .. })) {
+            st.job = None;
+        }
+        drop(st);
+        self.emit(Event::Calibration(job));
+    }
+
+    /// Keep `calibrations/<id>.toml` and make it `current.toml` (atomically).
+    fn store_calibration(
+        &self,
+        id: &str,
+        c: &calib::Calibration,
+    ) -> Result<CalibrationInfo, String> {
+        let dir = self.config.archive.join("calibrations");
+        std::fs::create_dir_all(&dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+        let kept = dir.join(format!("{id}.toml"));
+        c.save(&kept)
+            .map_err(|e| format!("saving the calibration: {e}"))?;
+        let current = current_calibration_path(&self.config.archive);
+        let text = std::fs::read(&kept).map_err(|e| format!("reading {}: {e}", kept.display()))?;
+        crate::io::write_atomic(&current, &text)
+            .map_err(|e| format!("writing {}: {e}", current.display()))?;
+        Ok(CalibrationInfo {
+            method: c.method.clone(),
+            date: c.date.clone(),
+            path: current,
+        })
+    }
+}

@@ -1,0 +1,256 @@
+//! The footscand service: the scanner config, the archive, at most one running job (a scan or
+//! a calibration, each on its own thread: the scan pipeline is synchronous), a broadcast
+//! channel of events, and the live preview. The HTTP layer (`crate::api`) is a thin shell.
+
+pub mod config;
+mod jobs;
+pub mod preview;
+
+pub use config::{DaemonConfig, DaemonConfigError};
+pub use preview::Preview;
+
+use crate::archive::{Archive, ArchiveError};
+use crate::calib::Calibration;
+use crate::scan::{CancelToken, LoadedConfig};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+use tokio::sync::broadcast;
+
+/// Reason a scan gets when the daemon stops during it.
+pub const SHUTDOWN_REASON: &str = "daemon shutting down";
+/// Reason a scan gets when the operator cancels it.
+pub const CANCEL_REASON: &str = "cancelled by the operator";
+
+/// A scan's progress as the API shows it.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Progress {
+    pub id: String,
+    pub state: String,
+    pub frames: u64,
+    pub expected_frames: u64,
+    pub points: u64,
+    pub dropped: u64,
+    pub elapsed_s: f64,
+    pub reason: Option<String>,
+}
+
+/// A calibration job as the API shows it.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct CalibrationJob {
+    pub id: String,
+    pub method: String,
+    pub state: String,
+    pub reason: Option<String>,
+}
+
+/// The calibration later scans use.
+#[derive(Clone, Debug, Serialize)]
+pub struct CalibrationInfo {
+    pub method: String,
+    pub date: String,
+    pub path: PathBuf,
+}
+
+/// What the event stream carries; the variant is the SSE event name.
+#[derive(Clone, Debug)]
+pub enum Event {
+    Progress(Progress),
+    State {
+        id: String,
+        state: String,
+        reason: Option<String>,
+    },
+    Error {
+        id: String,
+        reason: String,
+    },
+    Calibration(CalibrationJob),
+}
+
+impl Event {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Event::Progress(_) => "progress",
+            Event::State { .. } => "state",
+            Event::Error { .. } => "error",
+            Event::Calibration(_) => "calibration",
+        }
+    }
+    pub fn json(&self) -> String {
+        let v = match self {
+            Event::Progress(p) => serde_json::to_value(p),
+            Event::State { id, state, reason } => {
+                Ok(serde_json::json!({"id": id, "state": state, "reason": reason}))
+            }
+            Event::Error { id, reason } => Ok(serde_json::json!({"id": id, "reason": reason})),
+            Event::Calibration(c) => serde_json::to_value(c),
+        };
+        v.expect("event serialises").to_string()
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum DaemonError {
+    #[error("{0}")]
+    Busy(String),
+    #[error("{0}")]
+    NotFound(String),
+    #[error("{0}")]
+    NotRunning(String),
+    #[error(transparent)]
+    Archive(#[from] ArchiveError),
+    #[error("{0}")]
+    Setup(String),
+}
+
+/// The running job.
+enum Job {
+    Scan {
+        id: String,
+        cancel: CancelToken,
+        thread: std::thread::JoinHandle<()>,
+    },
+    /// Never joined: calibration cannot be cancelled and writes nothing until it succeeded,
+    /// so shutdown leaves it.
+    Calibration {
+        _thread: std::thread::JoinHandle<()>,
+    },
+}
+
+#[derive(Default)]
+struct State {
+    job: Option<Job>,
+    /// The running scan, or the last one.
+    scan: Option<Progress>,
+    /// Set when the scan is cancelled: the reason recorded with it.
+    cancel_reason: Option<String>,
+    calibrating: Option<CalibrationJob>,
+    calibration: Option<CalibrationInfo>,
+    shutting_down: bool,
+}
+
+pub struct Daemon {
+    pub config: DaemonConfig,
+    pub scanner: LoadedConfig,
+    pub archive: Arc<Archive>,
+    pub preview: Arc<Preview>,
+    events: broadcast::Sender<Event>,
+    state: Mutex<State>,
+    started: Instant,
+}
+
+impl Daemon {
+    /// Load the scanner config and the calibration, open (and recover) the archive.
+    pub fn open(config: DaemonConfig) -> Result<Arc<Daemon>, DaemonError> {
+        let scanner = LoadedConfig::load(&config.scanner_config)
+            .map_err(|e| DaemonError::Setup(e.to_string()))?;
+        let archive = Arc::new(Archive::open(&config.archive)?);
+        // A calibration made by the daemon wins over the configured one (it is newer).
+        let current = jobs::current_calibration_path(&config.archive);
+        let cal_path = if current.is_file() {
+            Some(current)
+        } else {
+            config.calibration.clone()
+        };
+        let calibration = match cal_path {
+            Some(p) => {
+                let c = Calibration::load(&p)
+                    .map_err(|e| DaemonError::Setup(format!("calibration {}: {e}", p.display())))?;
+                Some(CalibrationInfo {
+                    method: c.method,
+                    date: c.date,
+                    path: p,
+                })
+            }
+            None => None,
+        };
+        let (events, _) = broadcast::channel(256);
+        Ok(Arc::new(Daemon {
+            config,
+            scanner,
+            archive,
+            preview: Arc::new(Preview::default()),
+            events,
+            state: Mutex::new(State {
+                calibration,
+                ..State::default()
+            }),
+            started: Instant::now(),
+        }))
+    }
+
+    pub fn subscribe(&self) -> broadcast::Receiver<Event> {
+        self.events.subscribe()
+    }
+
+    fn emit(&self, e: Event) {
+        let _ = self.events.send(e); // no subscriber is fine
+    }
+
+    pub fn uptime_s(&self) -> f64 {
+        self.started.elapsed().as_secs_f64()
+    }
+
+    /// The running or last scan.
+    pub fn scan_progress(&self) -> Option<Progress> {
+        self.state.lock().unwrap().scan.clone()
+    }
+
+    pub fn calibrating(&self) -> Option<CalibrationJob> {
+        self.state.lock().unwrap().calibrating.clone()
+    }
+
+    pub fn calibration(&self) -> Option<CalibrationInfo> {
+        self.state.lock().unwrap().calibration.clone()
+    }
+
+    pub fn is_scanning(&self) -> bool {
+        matches!(self.state.lock().unwrap().job, Some(Job::Scan { .. }))
+    }
+
+    /// Cancel the running scan `id`.
+    pub fn cancel_scan(&self, id: &str) -> Result<(), DaemonError> {
+        let mut st = self.state.lock().unwrap();
+        match &st.job {
+            Some(Job::Scan {
+                id: running,
+                cancel,
+                ..
+            }) if running == id => {
+                cancel.cancel();
+                st.cancel_reason.get_or_insert_with(|| CANCEL_REASON.into());
+                Ok(())
+            }
+            _ => Err(DaemonError::NotRunning(format!(
+                "scan {id} is not running: only the running scan can be cancelled"
+            ))),
+        }
+    }
+
+    /// Stop taking jobs, cancel the running scan (archived as cancelled with
+    /// [`SHUTDOWN_REASON`]) and wait for it to be archived. A running calibration is not
+    /// waited for: it writes nothing until it has succeeded.
+    pub fn shutdown(&self) {
+        let thread = {
+            let mut st = self.state.lock().unwrap();
+            st.shutting_down = true;
+            match st.job.take() {
+                Some(Job::Scan { cancel, thread, .. }) => {
+                    cancel.cancel();
+                    st.cancel_reason = Some(SHUTDOWN_REASON.into());
+                    Some(thread)
+                }
+                other => {
+                    st.job = other;
+                    None
+                }
+            }
+        };
+        if let Some(t) = thread {
+            tracing::info!("shutdown: waiting for the running scan to be archived");
+            let _ = t.join();
+        }
+    }
+}
