@@ -17,6 +17,9 @@ pub struct ScanConfig {
     pub camera: CameraSection,
     #[serde(default)]
     pub sim: SimSection,
+    /// The real camera and slider; required by `backend = "hardware"`.
+    #[serde(default)]
+    pub hardware: Option<HardwareSection>,
     pub pipeline: PipelineSpec,
 }
 
@@ -25,13 +28,99 @@ pub struct ScanConfig {
 pub enum Backend {
     /// Simulated camera and the GRBL emulator on a pseudo-terminal.
     Sim,
+    /// A V4L2 camera and a GRBL controller on a serial port (`[hardware.camera]`,
+    /// `[hardware.slider]`).
+    Hardware,
 }
 
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ScannerSection {
     pub backend: Backend,
+    /// Calibration file, relative to the config file's directory; `--calibration` overrides
+    /// it. Required by the hardware backend (the simulator defaults to its true model).
+    #[serde(default)]
+    pub calibration: Option<PathBuf>,
 }
+
+/// `[hardware]`: the devices of a real scanner.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct HardwareSection {
+    pub camera: HardwareCamera,
+    pub slider: HardwareSlider,
+}
+
+/// `[hardware.camera]`: the V4L2 capture node. Frame rate, exposure and gain are `[camera]`'s
+/// (shared with the simulator: the scan feed is `scan.step_mm` x `camera.fps`).
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct HardwareCamera {
+    /// e.g. `/dev/video0`, or a stable `/dev/v4l/by-id/...` path.
+    pub device: PathBuf,
+    pub width: u32,
+    pub height: u32,
+    /// `auto` (GREY, Y16, Y12, Y10, YUYV, MJPG: the first the device offers) or one of them.
+    #[serde(default = "default_pixel_format")]
+    pub pixel_format: String,
+    /// mmap buffers, 4 to 32.
+    #[serde(default = "default_buffers")]
+    pub buffers: u32,
+    /// Input to select first (VIDIOC_S_INPUT), e.g. on a capture card.
+    #[serde(default)]
+    pub input: Option<u32>,
+}
+
+fn default_pixel_format() -> String {
+    "auto".into()
+}
+fn default_buffers() -> u32 {
+    4
+}
+
+/// `[hardware.slider]`: the GRBL 1.1 controller on a serial port.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HardwareSlider {
+    /// e.g. `/dev/ttyUSB0`; better a stable `/dev/serial/by-id/...` path, which comes back
+    /// under the same name when the USB cable is replugged.
+    pub port: String,
+    pub baud: u32,
+    /// Status polling of the driver's own waits (idle, feed hold, jog cancel), Hz. The scan
+    /// move is polled at `scan.status_poll_hz`.
+    pub poll_hz: f64,
+    /// A command or `?` unanswered this long is a timeout (seconds).
+    pub response_timeout_s: f64,
+    /// Banner wait after a soft reset; boards that reset when the port opens (Arduino DTR)
+    /// need their boot loader's ~2 s on top (seconds).
+    pub reset_timeout_s: f64,
+    /// `$H` must finish within this (seconds); a homing cycle still running then is aborted
+    /// with a soft reset.
+    pub homing_timeout_s: f64,
+    /// Highest feed a scan may ask for, mm/min: `scan.approach_feed_mm_min` and the scan feed
+    /// (`scan.step_mm` x `camera.fps` x 60) must not exceed it, and neither may it exceed the
+    /// controller's `$110` (GRBL would silently clamp the feed and the frames would bunch).
+    pub max_feed_mm_min: f64,
+}
+
+impl Default for HardwareSlider {
+    fn default() -> Self {
+        HardwareSlider {
+            port: String::new(),
+            baud: 115_200,
+            poll_hz: 50.0,
+            response_timeout_s: 2.0,
+            reset_timeout_s: 5.0,
+            homing_timeout_s: 60.0,
+            max_feed_mm_min: 3000.0,
+        }
+    }
+}
+
+/// Serial rates a GRBL board is built for (`BAUD_RATE` in its config.h).
+pub const GRBL_BAUDS: [u32; 8] = [
+    9600, 19_200, 38_400, 57_600, 115_200, 230_400, 250_000, 500_000,
+];
 
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
@@ -210,7 +299,129 @@ impl LoadedConfig {
                 self.locate(&["camera", "fps"]).unwrap_or_default()
             ));
         }
+        match (&self.config.scanner.backend, &self.config.hardware) {
+            (Backend::Hardware, None) => {
+                return Err(format!(
+                    "scanner.backend = \"hardware\"{} needs [hardware.camera] and [hardware.slider] sections (see config/footscan.toml)",
+                    self.locate(&["scanner", "backend"]).unwrap_or_default()
+                ))
+            }
+            (_, Some(h)) => self.validate_hardware(h)?,
+            _ => {}
+        }
         Ok(())
+    }
+
+    fn validate_hardware(&self, h: &HardwareSection) -> Result<(), String> {
+        let cam = |key: &str| {
+            self.locate(&["hardware", "camera", key])
+                .unwrap_or_default()
+        };
+        let sl = |key: &str| {
+            self.locate(&["hardware", "slider", key])
+                .unwrap_or_default()
+        };
+        let c = &h.camera;
+        if c.device.as_os_str().is_empty() {
+            return Err(format!(
+                "hardware.camera.device{}: empty; name the capture node, e.g. \"/dev/video0\" (`v4l2-ctl --list-devices` lists them)",
+                cam("device")
+            ));
+        }
+        for (key, v) in [("width", c.width), ("height", c.height)] {
+            if !(16..=16_384).contains(&v) {
+                return Err(format!(
+                    "hardware.camera.{key} = {v}{}: valid range is 16 to 16384 pixels",
+                    cam(key)
+                ));
+            }
+        }
+        if !c.pixel_format.eq_ignore_ascii_case("auto")
+            && footscan_v4l2::SourceFormat::parse(&c.pixel_format).is_none()
+        {
+            return Err(format!(
+                "hardware.camera.pixel_format = {:?}{}: valid are \"auto\", \"GREY\", \"Y10\", \"Y12\", \"Y16\", \"YUYV\", \"MJPG\"",
+                c.pixel_format,
+                cam("pixel_format")
+            ));
+        }
+        if !(4..=32).contains(&c.buffers) {
+            return Err(format!(
+                "hardware.camera.buffers = {}{}: valid range is 4 to 32",
+                c.buffers,
+                cam("buffers")
+            ));
+        }
+        let s = &h.slider;
+        if s.port.trim().is_empty() {
+            return Err(format!(
+                "hardware.slider.port{}: missing or empty; name the serial port, e.g. \"/dev/ttyUSB0\" or a /dev/serial/by-id/ path",
+                sl("port")
+            ));
+        }
+        if !GRBL_BAUDS.contains(&s.baud) {
+            return Err(format!(
+                "hardware.slider.baud = {}{}: valid are {:?} (GRBL 1.1 defaults to 115200)",
+                s.baud,
+                sl("baud"),
+                GRBL_BAUDS
+            ));
+        }
+        if !(s.poll_hz > 0.0 && s.poll_hz <= 1000.0) {
+            return Err(format!(
+                "hardware.slider.poll_hz = {}{}: valid range is (0, 1000]",
+                s.poll_hz,
+                sl("poll_hz")
+            ));
+        }
+        for (key, v) in [
+            ("response_timeout_s", s.response_timeout_s),
+            ("reset_timeout_s", s.reset_timeout_s),
+            ("homing_timeout_s", s.homing_timeout_s),
+        ] {
+            if !(v > 0.0 && v <= 3600.0) {
+                return Err(format!(
+                    "hardware.slider.{key} = {v}{}: valid range is (0, 3600] seconds",
+                    sl(key)
+                ));
+            }
+        }
+        if !(s.max_feed_mm_min > 0.0 && s.max_feed_mm_min.is_finite()) {
+            return Err(format!(
+                "hardware.slider.max_feed_mm_min = {}{}: must be > 0",
+                s.max_feed_mm_min,
+                sl("max_feed_mm_min")
+            ));
+        }
+        let scan = &self.config.scan;
+        let feed = scan.step_mm * self.config.camera.fps * 60.0;
+        if feed > s.max_feed_mm_min {
+            return Err(format!(
+                "the scan feed scan.step_mm x camera.fps x 60 = {} x {} x 60 = {feed} mm/min exceeds hardware.slider.max_feed_mm_min = {}{}: lower the step or the frame rate, or raise the limit",
+                scan.step_mm, self.config.camera.fps, s.max_feed_mm_min, sl("max_feed_mm_min")
+            ));
+        }
+        if scan.approach_feed_mm_min > s.max_feed_mm_min {
+            return Err(format!(
+                "scan.approach_feed_mm_min = {}{} exceeds hardware.slider.max_feed_mm_min = {}",
+                scan.approach_feed_mm_min,
+                self.locate(&["scan", "approach_feed_mm_min"])
+                    .unwrap_or_default(),
+                s.max_feed_mm_min
+            ));
+        }
+        Ok(())
+    }
+
+    /// The calibration file named by `scanner.calibration`, resolved against the config
+    /// file's directory.
+    pub fn calibration_path(&self) -> Option<PathBuf> {
+        let p = self.config.scanner.calibration.as_ref()?;
+        Some(if p.is_absolute() {
+            p.clone()
+        } else {
+            self.path.parent().unwrap_or(Path::new(".")).join(p)
+        })
     }
 
     /// " (line L, column C)" of a key path such as ["scan", "step_mm"], if present.

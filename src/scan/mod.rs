@@ -2,6 +2,7 @@
 
 pub mod config;
 mod grid;
+pub mod hardware;
 pub mod item;
 mod registry;
 mod run;

@@ -1,11 +1,10 @@
 //! Runs one scan: backend, calibration, pipeline, summary; the scan directory keeps the
 //! reason of a failed scan.
 
-use super::config::{Backend, LoadedConfig};
+use super::config::LoadedConfig;
 use super::item::Item;
 use super::summary::{ScanSummary, StageReport};
-use super::{registry, sim, ScanContext, ScanCounters, ScanPlan};
-use crate::calib::Calibration;
+use super::{registry, ScanContext, ScanCounters, ScanPlan};
 use crate::pipeline::{BuildError, PipelineError, StageStats};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -14,7 +13,8 @@ use std::time::{Duration, Instant};
 
 pub struct ScanOptions {
     pub out_dir: PathBuf,
-    /// A calibration file; default for simulated scans: the simulator's true model.
+    /// A calibration file (overrides the config's `scanner.calibration`); default for
+    /// simulated scans: the simulator's true model; required for hardware.
     pub calibration: Option<PathBuf>,
     /// Set from anywhere to stop the scan: the slider is stopped, nothing is written as
     /// complete, and scan.json says "cancelled".
@@ -90,13 +90,8 @@ pub fn run_scan(
     let plan = ScanPlan::from_config(&cfg.config);
     let counters = Arc::new(ScanCounters::default());
     let result = (|| -> Result<ScanSummary, ScanError> {
-        let Backend::Sim = cfg.config.scanner.backend;
-        let (devices, backend) =
-            sim::open(&cfg.config).map_err(|e| ScanError::Setup(e.to_string()))?;
-        let calibration = match &opts.calibration {
-            Some(p) => Calibration::load(p).map_err(|e| ScanError::Setup(e.to_string()))?,
-            None => sim::true_calibration(&cfg.config),
-        };
+        let (devices, backend, calibration) =
+            super::hardware::open_backend(cfg, opts.calibration.as_deref())?;
         if let Some(foot) = &backend.foot {
             let path = opts.out_dir.join("truth.json");
             let json = serde_json::to_vec_pretty(&foot.truth()).expect("truth serialises");
@@ -112,7 +107,7 @@ pub fn run_scan(
             plan: plan.clone(),
             devices: Mutex::new(Some(devices)),
             calibration: Some(calibration),
-            truth: Some(sim::truth_source(&backend)),
+            truth: backend.truth_source(),
             counters: counters.clone(),
             tap: opts.tap.clone(),
         };

@@ -125,6 +125,19 @@ pub struct GrblSlider {
     awaited: Option<(u64, Option<(Outcome, String)>)>,
 }
 
+impl std::fmt::Debug for GrblSlider {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GrblSlider")
+            .field("port", &self.port_name)
+            .field("connected", &self.port.is_some())
+            .field("banner", &self.banner)
+            .field("alarm", &self.alarm)
+            .field("in_flight", &self.in_flight.len())
+            .field("stats", &self.stats)
+            .finish()
+    }
+}
+
 fn midpoint(a: Timestamp, b: Timestamp) -> Timestamp {
     Timestamp {
         nanos: a.nanos + (b.nanos.saturating_sub(a.nanos)) / 2,
