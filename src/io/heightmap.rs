@@ -91,6 +91,26 @@ pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
     let bx = margin * 2 + w as u32;
     let by = margin + title_h;
     let bh = (img_h - by - margin - 10).max(50);
+    colour_bar(&mut image, (bx, by, bh), max_mm, step, |img, x, y, s| {
+        draw_text(img, x, y, s)
+    });
+    draw_text(&mut image, bx, by + bh + 2, "mm");
+    HeightMapImage {
+        image,
+        max_mm,
+        filled_cells: filled,
+    }
+}
+
+/// A vertical colour scale `bh` px tall at (`bx`, `by`), 0 at the bottom and `max_mm` at the
+/// top, with a tick and a label (drawn by `label(image, x, y, text)`) every `step` mm.
+pub(crate) fn colour_bar(
+    image: &mut RgbImage,
+    (bx, by, bh): (u32, u32, u32),
+    max_mm: f64,
+    step: f64,
+    mut label: impl FnMut(&mut RgbImage, u32, u32, &str),
+) {
     for t in 0..bh {
         let c = colour(1.0 - t as f64 / (bh - 1) as f64);
         for u in 0..16 {
@@ -104,18 +124,7 @@ pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
         for u in 16..20 {
             image.put_pixel(bx + u, y, FG);
         }
-        draw_text(
-            &mut image,
-            bx + 23,
-            y.saturating_sub(3),
-            &format_tick(v, step),
-        );
-    }
-    draw_text(&mut image, bx, by + bh + 2, "mm");
-    HeightMapImage {
-        image,
-        max_mm,
-        filled_cells: filled,
+        label(image, bx + 23, y.saturating_sub(3), &format_tick(v, step));
     }
 }
 

@@ -3,7 +3,7 @@
 //! thirds, a colour bar and a table of the figures. Seen from below, as the scanner sees the
 //! sole: x (heel to toe) left to right, y top to bottom, like heightmap.png.
 
-use super::heightmap::{colour, format_tick, nice_step, BG, FG};
+use super::heightmap::{colour, colour_bar, nice_step, BG, FG};
 use crate::geom::HeightMap;
 use crate::measure::{line_crossings, Measurements, Side};
 use image::{Rgb, RgbImage};
@@ -273,28 +273,9 @@ pub fn render_plantar(map: &HeightMap, m: &Measurements) -> PlantarImage {
     let bx = draw_w + 24;
     let by = title_h + 4;
     let bh = (img_h - by - 30).min(260);
-    for t in 0..bh {
-        let c = colour(1.0 - t as f64 / (bh - 1) as f64);
-        for u in 0..16 {
-            img.put_pixel(bx + u, by + t, c);
-        }
-    }
-    let ticks = (max_mm / step).round() as u32;
-    for k in 0..=ticks {
-        let v = k as f64 * step;
-        let y = by + ((1.0 - v / max_mm) * (bh - 1) as f64).round() as u32;
-        for u in 16..20 {
-            img.put_pixel(bx + u, y, FG);
-        }
-        text(
-            &mut img,
-            (bx + 23) as i64,
-            y as i64 - 3,
-            &format_tick(v, step),
-            FG,
-            1,
-        );
-    }
+    colour_bar(&mut img, (bx, by, bh), max_mm, step, |img, x, y, s| {
+        text(img, x as i64, y as i64, s, FG, 1)
+    });
     text(
         &mut img,
         bx as i64,
