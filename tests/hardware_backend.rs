@@ -151,6 +151,20 @@ fn hardware_scans_need_a_matching_calibration() {
         e.contains("calibration") && e.contains("--calibration"),
         "{e}"
     );
+    // A calibration named by the config but absent: the file and where it was named.
+    let cfg2 = hw_config(
+        dir.path(),
+        &video,
+        "/dev/ttyFOOTSCAN-none",
+        Some(&dir.path().join("nope.toml")),
+    );
+    let e = run_scan(&cfg2, &ScanOptions::new(dir.path().join("c")), |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("nope.toml") && e.contains("scanner.calibration"),
+        "{e}"
+    );
     assert!(
         !e.contains(&video.display().to_string()),
         "checked first: {e}"
@@ -278,6 +292,22 @@ fn the_slider_half_opens_against_the_emulator_and_reports_status() {
         .to_string();
     assert!(e.contains("alarm") && e.contains("$X"), "{e}");
     assert_eq!(emu2.state(), MachineState::Alarm);
+    // Homing asked of a controller without a homing cycle.
+    let emu3 = GrblEmulator::spawn(EmulatorConfig {
+        homing_enabled: false,
+        ..Default::default()
+    })
+    .unwrap();
+    let cfg3 = HardwareSlider {
+        port: emu3.port_path().to_string_lossy().into_owned(),
+        ..Default::default()
+    };
+    let e = hardware::open_slider(&cfg3, &scan, 1500.0)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("$22=0") && e.contains("scan.home"), "{e}");
+    let mut s = hardware::open_slider(&cfg3, &no_home, 1500.0).unwrap();
+    assert_eq!(s.status().unwrap().state, SliderState::Idle, "never locked");
     // A port that is not there names itself and where to look.
     let gone = HardwareSlider {
         port: "/dev/ttyFOOTSCAN-none".into(),

@@ -189,6 +189,11 @@ pub fn open_slider(
             }
         }
     }
+    if scan.home && !settings.homing_enabled() {
+        return Err(check(
+            "scan.home = true but the controller's homing cycle is disabled ($22=0): enable it ($22=1, with limit switches) or set scan.home = false".into(),
+        ));
+    }
     if scan.home {
         slider.home_configured().map_err(fail)?;
     } else if let Some(code) = slider.alarm() {
@@ -244,8 +249,13 @@ pub fn open_backend(
     let path = calibration
         .map(Path::to_path_buf)
         .or_else(|| cfg.calibration_path());
+    let from = if calibration.is_some() {
+        "--calibration".to_string()
+    } else {
+        format!("scanner.calibration in {}", cfg.path.display())
+    };
     let loaded = match &path {
-        Some(p) => Some(Calibration::load(p).map_err(|e| setup(e.to_string()))?),
+        Some(p) => Some(Calibration::load(p).map_err(|e| setup(format!("{e} (from {from})")))?),
         None => None,
     };
     match cfg.config.scanner.backend {

@@ -12,7 +12,19 @@
 //! - `status`: `?` → `<State|MPos:...|FS:...>`, timestamped at the midpoint of query and answer
 //!   on the monotonic clock.
 //! - a silent controller gives `Timeout` (every wait has a deadline), a hung-up port
-//!   `Disconnected`, lines GRBL would never send `BadData`.
+//!   `Disconnected`; lines GRBL would never send are counted ([`GrblStats`]) and reported as
+//!   `BadData` when they are all a wait received.
+//! - `home`: a failed cycle is its `ALARM:N` (6 to 9); one still running at the timeout is
+//!   aborted with a soft reset, so the machine does not keep seeking.
+//! - `read_settings`: `$$` as [`GrblSettings`]; `build_info`: `$I` as [`BuildInfo`].
+//! - `poll_status`: `?` at `GrblConfig::poll_interval` on absolute slots, each report stamped.
+//! - lost answers: a timeout is followed by a `$G` sync (its `[GC:...]` marks every earlier
+//!   unanswered line as lost), so a dropped `ok` never shifts the counting of later lines.
+//! - a corrupted status report is asked again (3 times) before `BadData`.
+//! - `jog_to` / `jog_cancel` (0x85), `feed_hold` (`!`) / `resume` (`~`, after the hold
+//!   completes), `stop` (jog cancel, or hold then reset, so no position is lost).
+//! - `reconnect(wait)`: reopen a port that comes back (a `/dev/serial/by-id/` path), bring a
+//!   controller that kept moving to rest before the reset; never unlocks (`$X`) on its own.
 
 mod codes;
 mod message;
