@@ -603,7 +603,15 @@ impl GrblSlider {
     fn resync(&mut self) -> HalResult<()> {
         self.stats.resyncs += 1;
         let id = self.send_line_as("$G", true)?;
-        self.wait_answer_with(id, self.config.response_timeout, false, false)?;
+        let t = self.config.response_timeout;
+        self.wait_answer_with(id, t, false, false)
+            .map_err(|e| match e {
+                HalError::Timeout { .. } => self.timeout(
+                    "an answer to `$G` (resynchronising the answer counting after a lost or late answer)",
+                    t,
+                ),
+                e => e,
+            })?;
         self.unsynced = false;
         Ok(())
     }

@@ -119,6 +119,7 @@ fn homing_timeout_aborts_the_cycle() {
 fn a_long_program_streams_within_the_rx_buffer() {
     let cfg = EmulatorConfig {
         accel_mm_s2: 50_000.0,
+        max_rate_mm_min: 60_000.0,
         ..Default::default()
     };
     let (emu, mut s) = connected(cfg, GrblConfig::default());
@@ -126,13 +127,13 @@ fn a_long_program_streams_within_the_rx_buffer() {
     // 600 lines of 3 to 60 bytes: moves, modal-only lines and comments (GRBL counts them too).
     let lines: Vec<String> = (0..600)
         .map(|i| match i % 4 {
-            0 => format!("G1 X{:.3} F6000", 5.0 + (i % 50) as f64 * 0.1),
+            0 => format!("G1 X{:.3} F60000", 5.0 + (i % 50) as f64 * 0.1),
             1 => "G90".to_string(),
             2 => format!(
-                "G1X{:.2}F6000 (pass {i} of a long program, spaces count)",
+                "G1X{:.2}F60000 (pass {i} of a long program, spaces count)",
                 6.0
             ),
-            _ => format!("G21 G1 X{:.4} F6000", 5.5 + (i % 7) as f64 * 0.05),
+            _ => format!("G21 G1 X{:.4} F60000", 5.5 + (i % 7) as f64 * 0.05),
         })
         .collect();
     let total_bytes: usize = lines.iter().map(|l| l.len() + 1).sum();
