@@ -6,6 +6,8 @@ set -euo pipefail
 packages=(pkg-config libudev-dev gcc clang libclang-dev libopencv-dev)
 # The dashboard's screenshot test (tests/dashboard_chromium.rs) runs Debian's headless Chromium.
 packages+=(chromium fonts-dejavu-core)
+# tests/daemon_api.rs runs the curl examples of docs/API.md.
+packages+=(curl)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

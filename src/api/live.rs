@@ -31,19 +31,25 @@ pub async fn status(State(st): State<AppState>) -> Json<Value> {
         .and_then(|s| s.reason.clone())
         .unwrap_or_default()
         .to_lowercase();
-    let lost = |what: &str| {
-        last_failure.contains(what)
-            && [
-                "disconnect",
-                "unplug",
-                "no such device",
-                "timed out",
-                "timeout",
-                "alarm",
-            ]
-            .iter()
-            .any(|w| last_failure.contains(w))
-    };
+    let has = |words: &[&str]| words.iter().any(|w| last_failure.contains(w));
+    let broken = has(&[
+        "disconnect",
+        "unplug",
+        "no such device",
+        "timed out",
+        "timeout",
+    ]);
+    let camera_lost = has(&["camera"]) && broken;
+    let slider_named = has(&[
+        "slider",
+        "grbl",
+        "/dev/pts",
+        "/dev/tty",
+        "status report",
+        "alarm",
+    ]);
+    let slider_alarm = slider_named && has(&["alarm"]);
+    let slider_lost = slider_named && !slider_alarm && !camera_lost && broken;
     let line = d.preview.line();
     let (w, h) = line
         .as_ref()
@@ -52,7 +58,7 @@ pub async fn status(State(st): State<AppState>) -> Json<Value> {
         });
     let slider_state = if running {
         "run"
-    } else if lost("slider") && last_failure.contains("alarm") {
+    } else if slider_alarm {
         "alarm"
     } else {
         "idle"
@@ -66,13 +72,13 @@ pub async fn status(State(st): State<AppState>) -> Json<Value> {
                 "width": w,
                 "height": h,
                 "format": serde_json::to_value(cfg.sim.noise.format).unwrap_or(Value::Null),
-                "connected": !lost("camera"),
+                "connected": !camera_lost,
             },
             "slider": {
                 "name": if sim { "GRBL emulator (pseudo-terminal)" } else { "GRBL controller" },
                 "state": slider_state,
                 "x_mm": d.preview.x_mm(),
-                "connected": !lost("slider"),
+                "connected": !slider_lost,
             },
         },
         "calibration": d.calibration(),

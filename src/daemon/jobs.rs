@@ -190,17 +190,17 @@ impl Daemon {
                 .map_or(String::new(), |r| format!(": {r}"))
         );
         self.emit(Event::Progress(progress));
+        if status == Status::Failed {
+            self.emit(Event::Error {
+                id: id.clone(),
+                reason: reason.clone().unwrap_or_default(),
+            });
+        }
         self.emit(Event::State {
             id: id.clone(),
             state: status.as_str().into(),
             reason: reason.clone(),
         });
-        if status == Status::Failed {
-            self.emit(Event::Error {
-                id,
-                reason: reason.unwrap_or_default(),
-            });
-        }
     }
 
     fn update_progress(&self, id: &str, p: &ScanProgress, started: Instant) -> Progress {

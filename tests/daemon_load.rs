@@ -1,0 +1,195 @@
+//! (e) 20 clients polling status and the preview during a scan drop no frames; (f) SIGTERM
+//! during a scan exits 0 with the scan archived as cancelled.
+
+mod daemon_support;
+
+use daemon_support::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+const CLIENTS: usize = 20;
+
+#[test]
+fn twenty_clients_polling_drop_no_frames() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = Footscand::start(tmp.path(), Opts::default());
+    let id = d.start_scan("load");
+    // Start polling once the first frame is there (the preview is 404 before).
+    let t0 = Instant::now();
+    while d.get("/api/preview.png").status() != 200 {
+        assert!(
+            d.get_json("/api/status")["scan"]["state"] == "running",
+            "scan ended before its first frame"
+        );
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "no frame within 60 s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    // (request ms, frame age ms) per preview, request ms per status, non-200 responses.
+    let previews = Arc::new(Mutex::new(Vec::<(f64, f64, bool)>::new()));
+    let statuses = Arc::new(Mutex::new(Vec::<f64>::new()));
+    let failures = Arc::new(Mutex::new(Vec::<String>::new()));
+    let workers: Vec<_> = (0..CLIENTS)
+        .map(|i| {
+            let (base, stop) = (d.base.clone(), stop.clone());
+            let (previews, statuses, failures) =
+                (previews.clone(), statuses.clone(), failures.clone());
+            std::thread::spawn(move || {
+                let c = reqwest::blocking::Client::builder()
+                    .timeout(Duration::from_secs(30))
+                    .build()
+                    .unwrap();
+                let width = [160, 320, 640][i % 3];
+                while !stop.load(Ordering::Relaxed) {
+                    let t = Instant::now();
+                    let mut running = false;
+                    match c.get(format!("{base}/api/status")).send() {
+                        Ok(r) if r.status() == 200 => {
+                            let v: Value = serde_json::from_slice(&r.bytes().unwrap()).unwrap();
+                            running = v["scan"]["state"] == "running";
+                            statuses
+                                .lock()
+                                .unwrap()
+                                .push(t.elapsed().as_secs_f64() * 1e3);
+                        }
+                        Ok(r) => failures
+                            .lock()
+                            .unwrap()
+                            .push(format!("status {}", r.status())),
+                        Err(e) => failures.lock().unwrap().push(format!("status: {e}")),
+                    }
+                    let t = Instant::now();
+                    match c
+                        .get(format!("{base}/api/preview.png?width={width}"))
+                        .send()
+                    {
+                        Ok(r) if r.status() == 200 => {
+                            let age: f64 = r.headers()["x-frame-age-ms"]
+                                .to_str()
+                                .unwrap()
+                                .parse()
+                                .unwrap();
+                            let png = r.bytes().unwrap();
+                            assert!(png.starts_with(b"\x89PNG"));
+                            previews.lock().unwrap().push((
+                                t.elapsed().as_secs_f64() * 1e3,
+                                age,
+                                running,
+                            ));
+                        }
+                        Ok(r) => failures
+                            .lock()
+                            .unwrap()
+                            .push(format!("preview {}", r.status())),
+                        Err(e) => failures.lock().unwrap().push(format!("preview: {e}")),
+                    }
+                }
+            })
+        })
+        .collect();
+    let end = d.wait_scan_end(Duration::from_secs(180));
+    stop.store(true, Ordering::Relaxed);
+    for w in workers {
+        w.join().expect("client thread");
+    }
+    assert_eq!(end["state"], "complete", "{end}");
+    let failures = failures.lock().unwrap();
+    assert!(
+        failures.is_empty(),
+        "{} failed requests: {:?}",
+        failures.len(),
+        &failures[..failures.len().min(5)]
+    );
+    let rec = d.record(&id);
+    let summary = &rec["summary"];
+    assert_eq!(
+        summary["dropped_frames"], 0,
+        "frames dropped under load: {summary}"
+    );
+    assert_eq!(end["dropped"], 0);
+    let stages = summary["stages"].as_array().unwrap();
+    for s in stages {
+        assert_eq!(s["dropped"], 0, "stage {} dropped items", s["name"]);
+    }
+    let p = previews.lock().unwrap();
+    let mut req: Vec<f64> = p.iter().map(|x| x.0).collect();
+    let mut age: Vec<f64> = p.iter().map(|x| x.1).collect();
+    // While frames still arrive (after the last frame the age grows with post-processing).
+    let mut age_running: Vec<f64> = p.iter().filter(|x| x.2).map(|x| x.1).collect();
+    let mut st = statuses.lock().unwrap().clone();
+    assert!(p.len() >= CLIENTS, "{} previews", p.len());
+    println!(
+        "load: {CLIENTS} clients, {} previews and {} status requests, all 200; scan {:.2} s, frames {}, dropped {}",
+        p.len(),
+        st.len(),
+        summary["seconds"].as_f64().unwrap(),
+        summary["frames"],
+        summary["dropped_frames"]
+    );
+    println!(
+        "preview request ms p50 {:.1} p95 {:.1}; X-Frame-Age-Ms while scanning ({} previews) p50 {:.1} p95 {:.1}, \
+         all p50 {:.1} p95 {:.1}; status request ms p50 {:.1} p95 {:.1}",
+        percentile(&mut req, 50.0),
+        percentile(&mut req, 95.0),
+        age_running.len(),
+        percentile(&mut age_running, 50.0),
+        percentile(&mut age_running, 95.0),
+        percentile(&mut age, 50.0),
+        percentile(&mut age, 95.0),
+        percentile(&mut st, 50.0),
+        percentile(&mut st, 95.0)
+    );
+}
+
+#[test]
+fn sigterm_during_a_scan_archives_it_as_cancelled_and_exits_0() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut d = Footscand::start(tmp.path(), Opts::default());
+    let id = d.start_scan("sigterm");
+    let t0 = Instant::now();
+    loop {
+        let s = d.get_json("/api/status");
+        assert_eq!(s["scan"]["state"], "running", "{s}");
+        if s["scan"]["frames"].as_u64().unwrap() >= 10 {
+            break;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(60));
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // An event stream open across the shutdown must not keep the daemon alive.
+    let events = {
+        let base = d.base.clone();
+        std::thread::spawn(move || {
+            let r = reqwest::blocking::get(format!("{base}/api/events")).unwrap();
+            let _ = r.text();
+        })
+    };
+    std::thread::sleep(Duration::from_millis(200));
+    let t = Instant::now();
+    let status = d.terminate(Duration::from_secs(60));
+    println!(
+        "SIGTERM to exit: {:.2} s, {status:?}",
+        t.elapsed().as_secs_f64()
+    );
+    assert_eq!(status.code(), Some(0), "{}", d.stderr());
+    events.join().unwrap();
+    let dir = d.archive.join(&id);
+    let rec: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("record.json")).unwrap()).unwrap();
+    assert_eq!(rec["status"], "cancelled", "{rec}");
+    assert_eq!(rec["reason"], "daemon shutting down");
+    let summary: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("scan.json")).unwrap()).unwrap();
+    assert_eq!(summary["status"], "cancelled");
+    assert!(!d.archive.join(format!(".tmp-{id}")).exists());
+    // The index agrees, also after reopening.
+    let a = footscan::archive::Archive::open(&d.archive).unwrap();
+    let list = a.list().unwrap();
+    assert_eq!(list.len(), 1);
+    assert_eq!(list[0].status, footscan::archive::Status::Cancelled);
+    assert_eq!(list[0].reason.as_deref(), Some("daemon shutting down"));
+}

@@ -1,0 +1,303 @@
+//! Shared by the footscand tests: start the real binary on 127.0.0.1:0 with a short simulated
+//! scan, talk to it over HTTP, follow its event stream.
+#![allow(dead_code)]
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+pub use serde_json::Value;
+
+/// The default simulated scanner with a short travel (60..200 mm at 1 mm a frame: ~140
+/// frames over the heel and arch, a few seconds), plus `faults` as [sim.faults] keys.
+pub fn short_scanner_config(faults: &str) -> String {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/sim.toml");
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut out = String::new();
+    for line in text.lines() {
+        let key = line.split('=').next().unwrap_or("").trim();
+        let line = match key {
+            "start_mm" if line.contains("first frame") => "start_mm = 60.0".to_string(),
+            "end_mm" if line.contains("last") => "end_mm = 200.0".to_string(),
+            "step_mm" if line.contains("advance") => "step_mm = 1.0".to_string(),
+            _ => line.to_string(),
+        };
+        out.push_str(&line);
+        out.push('\n');
+    }
+    assert!(out.contains("start_mm = 60.0") && out.contains("end_mm = 200.0"));
+    if !faults.is_empty() {
+        out = out.replace(
+            "[sim.optics]",
+            &format!("[sim.faults]\n{faults}\n\n[sim.optics]"),
+        );
+    }
+    out
+}
+
+pub struct Opts<'a> {
+    pub faults: &'a str,
+    pub token: Option<&'a str>,
+    pub bind: &'a str,
+    /// Archive directory; default: `archive` in the test's directory.
+    pub archive: Option<PathBuf>,
+}
+
+impl Default for Opts<'_> {
+    fn default() -> Self {
+        Opts {
+            faults: "",
+            token: None,
+            bind: "127.0.0.1:0",
+            archive: None,
+        }
+    }
+}
+
+pub struct Footscand {
+    pub child: Child,
+    pub base: String,
+    pub archive: PathBuf,
+    pub client: reqwest::blocking::Client,
+    pub token: Option<String>,
+    stderr: std::sync::Arc<std::sync::Mutex<String>>,
+}
+
+/// Write the configs into `dir` and the command that starts the daemon on them.
+pub fn command(dir: &Path, o: &Opts) -> (Command, PathBuf) {
+    std::fs::write(dir.join("scanner.toml"), short_scanner_config(o.faults)).unwrap();
+    let archive = o.archive.clone().unwrap_or_else(|| dir.join("archive"));
+    let mut cfg = format!(
+        "[daemon]\narchive = {:?}\nscanner_config = \"scanner.toml\"\n",
+        archive.to_str().unwrap()
+    );
+    if let Some(t) = o.token {
+        cfg.push_str(&format!("token = {t:?}\n"));
+    }
+    let path = dir.join("footscand.toml");
+    std::fs::write(&path, cfg).unwrap();
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_footscand"));
+    cmd.arg("--config")
+        .arg(&path)
+        .arg("--bind")
+        .arg(o.bind)
+        .env_remove("FOOTSCAND_TOKEN")
+        .env("RUST_LOG", "info")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    (cmd, archive)
+}
+
+impl Footscand {
+    pub fn start(dir: &Path, o: Opts) -> Footscand {
+        let (cmd, archive) = command(dir, &o);
+        Footscand::spawn(cmd, archive, o.token)
+    }
+
+    /// Run `cmd` and wait for the address line.
+    pub fn spawn(mut cmd: Command, archive: PathBuf, token: Option<&str>) -> Footscand {
+        let mut child = cmd.spawn().expect("footscand starts");
+        let stderr = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+        let err_pipe = child.stderr.take().unwrap();
+        let sink = stderr.clone();
+        std::thread::spawn(move || {
+            for line in BufReader::new(err_pipe).lines().map_while(Result::ok) {
+                eprintln!("[footscand] {line}");
+                sink.lock().unwrap().push_str(&line);
+                sink.lock().unwrap().push('\n');
+            }
+        });
+        let mut out = BufReader::new(child.stdout.take().unwrap());
+        let mut line = String::new();
+        out.read_line(&mut line)
+            .expect("footscand prints its address");
+        let base = line
+            .trim()
+            .strip_prefix("footscand listening on ")
+            .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
+            .to_string();
+        std::thread::spawn(move || {
+            let mut rest = String::new();
+            let _ = out.read_to_string(&mut rest);
+        });
+        Footscand {
+            child,
+            base,
+            archive,
+            client: reqwest::blocking::Client::builder()
+                .timeout(Duration::from_secs(120))
+                .build()
+                .unwrap(),
+            token: token.map(str::to_string),
+            stderr,
+        }
+    }
+
+    pub fn url(&self, path: &str) -> String {
+        format!("{}{path}", self.base)
+    }
+
+    pub fn get(&self, path: &str) -> reqwest::blocking::Response {
+        let mut r = self.client.get(self.url(path));
+        if let Some(t) = &self.token {
+            r = r.bearer_auth(t);
+        }
+        r.send().unwrap_or_else(|e| panic!("GET {path}: {e}"))
+    }
+
+    pub fn get_json(&self, path: &str) -> Value {
+        let r = self.get(path);
+        let status = r.status();
+        let text = r.text().unwrap();
+        assert_eq!(status, 200, "GET {path}: {text}");
+        serde_json::from_str(&text).unwrap_or_else(|e| panic!("GET {path}: {e}: {text}"))
+    }
+
+    pub fn post(&self, path: &str, body: &str) -> (u16, Value) {
+        let mut r = self
+            .client
+            .post(self.url(path))
+            .header("content-type", "application/json")
+            .body(body.to_string());
+        if let Some(t) = &self.token {
+            r = r.bearer_auth(t);
+        }
+        let r = r.send().unwrap();
+        let status = r.status().as_u16();
+        let text = r.text().unwrap();
+        let v = serde_json::from_str(&text)
+            .unwrap_or_else(|e| panic!("POST {path}: not JSON ({e}): {text:?}"));
+        (status, v)
+    }
+
+    /// Start a scan; its id.
+    pub fn start_scan(&self, subject: &str) -> String {
+        let (s, v) = self.post(
+            "/api/scans",
+            &format!(r#"{{"subject": "{subject}", "side": "right", "notes": "test"}}"#),
+        );
+        assert_eq!(s, 202, "{v}");
+        v["id"].as_str().unwrap().to_string()
+    }
+
+    /// Follow /api/events until scan `id` ends; every (event, data) seen, in order.
+    pub fn follow(&self, id: &str) -> Vec<(String, Value)> {
+        let mut r = self.client.get(self.url("/api/events"));
+        if let Some(t) = &self.token {
+            r = r.bearer_auth(t);
+        }
+        let resp = r.send().unwrap();
+        assert_eq!(resp.status(), 200);
+        assert!(resp.headers()["content-type"]
+            .to_str()
+            .unwrap()
+            .starts_with("text/event-stream"));
+        let mut events = Vec::new();
+        let mut name = String::new();
+        for line in BufReader::new(resp).lines() {
+            let line = line.expect("event stream readable");
+            if let Some(n) = line.strip_prefix("event: ") {
+                name = n.to_string();
+            } else if let Some(d) = line.strip_prefix("data: ") {
+                let v: Value = serde_json::from_str(d).unwrap_or_else(|e| panic!("{e}: {d}"));
+                let end = v["id"] == id
+                    && (name == "state" || name == "progress")
+                    && v["state"] != "running";
+                events.push((name.clone(), v));
+                if end && name == "state" {
+                    break;
+                }
+            }
+        }
+        events
+    }
+
+    /// Poll /api/status until the scan is no longer running (or `limit`); the final scan.
+    pub fn wait_scan_end(&self, limit: Duration) -> Value {
+        let t0 = Instant::now();
+        loop {
+            let s = self.get_json("/api/status");
+            if s["scan"]["state"] != "running" {
+                return s["scan"].clone();
+            }
+            assert!(t0.elapsed() < limit, "scan still running after {limit:?}");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    /// The record of scan `id` (with artifacts, summary, measurements).
+    pub fn record(&self, id: &str) -> Value {
+        self.get_json(&format!("/api/scans/{id}"))
+    }
+
+    pub fn download(&self, id: &str, name: &str) -> Vec<u8> {
+        let r = self.get(&format!("/api/scans/{id}/files/{name}"));
+        assert_eq!(r.status(), 200, "{id}/{name}");
+        r.bytes().unwrap().to_vec()
+    }
+
+    pub fn stderr(&self) -> String {
+        self.stderr.lock().unwrap().clone()
+    }
+
+    /// SIGTERM and wait for the exit status (with a limit).
+    pub fn terminate(&mut self, limit: Duration) -> std::process::ExitStatus {
+        let pid = self.child.id() as libc::pid_t;
+        // SAFETY: kill(2) on our own child's pid.
+        unsafe { libc::kill(pid, libc::SIGTERM) };
+        let t0 = Instant::now();
+        loop {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                return s;
+            }
+            assert!(
+                t0.elapsed() < limit,
+                "footscand did not exit within {limit:?}"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+impl Drop for Footscand {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A raw HTTP/1.1 request on a fresh connection: (status, body).
+pub fn raw_get(base: &str, target: &str) -> (u16, String) {
+    use std::io::Write;
+    let addr = base.strip_prefix("http://").unwrap();
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    write!(
+        s,
+        "GET {target} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut resp = String::new();
+    s.read_to_string(&mut resp).unwrap();
+    let status = resp
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    let body = resp
+        .split_once("\r\n\r\n")
+        .map(|(_, b)| b.to_string())
+        .unwrap_or_default();
+    (status, body)
+}
+
+/// Percentile of `v` (sorted in place), p in 0..=100.
+pub fn percentile(v: &mut [f64], p: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[((v.len() - 1) as f64 * p / 100.0).round() as usize]
+}
