@@ -247,6 +247,12 @@ function onProgress(p) {
   $('progress-detail').textContent = detail;
   bar.className = 'st-' + current.state;
 
+  // The archive row of this scan counts along while it runs.
+  const row = document.querySelector(`#scans tr[data-scan-id="${CSS.escape(current.id)}"]`);
+  if (row && running) {
+    row.querySelector('td.frames').textContent = fmtInt(current.frames);
+    row.querySelector('td.points').textContent = fmtInt(current.points);
+  }
   setRunning(running);
   const ended = !running && (!prev || prev.id !== current.id || prev.state === 'running');
   if (ended && TERMINAL.has(current.state)) onScanEnded(current.id);
@@ -456,7 +462,8 @@ async function drawPreview() {
     g.drawImage(bmp, 0, 0);
     let detected = 0;
     if (line && Array.isArray(line.cols)) {
-      detected = drawLine(g, line, c.width, c.height);
+      detected = countRows(line);
+      if ($('overlay').checked) drawLine(g, line, c.width, c.height);
       drawProfile(line);
     }
     const rows = line && line.cols ? line.cols.length : 0;
@@ -469,21 +476,24 @@ async function drawPreview() {
   }
 }
 
-/** Overlay the detected column per row (full-resolution pixels) on the downscaled frame. */
+function countRows(line) {
+  return line.cols.filter((c) => c !== null && c !== undefined).length;
+}
+
+/** Overlay the detected column per row (full-resolution pixels) on the downscaled frame: thin
+ * and translucent, so the laser light under it stays visible where detection disagrees. */
 function drawLine(g, line, w, h) {
   const sx = w / line.width;
   const sy = h / line.height;
-  g.strokeStyle = '#ff2d55';
-  g.lineWidth = 2;
+  g.strokeStyle = 'rgba(255, 45, 85, 0.75)';
+  g.lineWidth = 1;
   g.beginPath();
   let pen = false;
-  let n = 0;
   line.cols.forEach((col, row) => {
     if (col === null || col === undefined) {
       pen = false;
       return;
     }
-    n++;
     const x = col * sx;
     const y = (row + 0.5) * sy;
     if (pen) g.lineTo(x, y);
@@ -491,7 +501,6 @@ function drawLine(g, line, w, h) {
     pen = true;
   });
   g.stroke();
-  return n;
 }
 
 function niceStep(raw) {
@@ -516,6 +525,7 @@ function drawProfile(line) {
   });
   g.font = '11px system-ui, sans-serif';
   g.fillStyle = '#333';
+  g.textAlign = 'left'; // the context keeps the last call's alignment
   if (pts.length === 0) {
     g.fillText('no line detected in this frame', m.l, H / 2);
     return;
@@ -721,8 +731,8 @@ async function refreshScans() {
       el('td', { text: r.side }),
       el('td', {}, stateBadge(r.status)),
       el('td', { class: 'reason', text: r.reason || '' }),
-      el('td', { class: 'num', text: fmtInt(r.frames) }),
-      el('td', { class: 'num', text: fmtInt(r.points) }),
+      el('td', { class: 'num frames', text: fmtInt(r.frames) }),
+      el('td', { class: 'num points', text: fmtInt(r.points) }),
       el('td', {}, el('button', {
         type: 'button', class: 'link-btn', title: 'Show this scan in Result',
         'aria-label': `Show scan ${r.id}`, onclick: () => loadResult(r.id),
@@ -745,6 +755,7 @@ async function refreshAll() {
 }
 
 $('refresh').addEventListener('click', refreshScans);
+$('overlay').addEventListener('change', drawPreviewOnce);
 setLink('idle', true);
 refreshAll();
 setInterval(refreshStatus, STATUS_PERIOD_MS);
