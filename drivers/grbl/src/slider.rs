@@ -563,6 +563,16 @@ impl GrblSlider {
                         SliderState::Run | SliderState::Jog | SliderState::Home
                     );
                     if busy {
+                        if resync && !synced && self.port.is_some() {
+                            // The answer may be lost while the machine runs (a scan move is
+                            // seconds long): queue a `$G` behind the line now. GRBL answers in
+                            // order, so a late answer still comes first; a lost one is marked
+                            // so by the `[GC:...]` and returned above without waiting for the
+                            // motion to end.
+                            synced = true;
+                            self.stats.resyncs += 1;
+                            self.send_line_as("$G", true)?;
+                        }
                         deadline = Instant::now() + timeout;
                         continue;
                     }
@@ -758,9 +768,17 @@ impl GrblSlider {
                 });
             }
             while self.in_flight_bytes() + l.len() + 1 > cap {
-                let (id, idx) = sent.pop_front().expect("in flight implies sent");
-                self.wait_answer(id, timeout, true)
-                    .map_err(|e| self.annotate(e, idx))?;
+                match sent.pop_front() {
+                    Some((id, idx)) => self
+                        .wait_answer(id, timeout, true)
+                        .map_err(|e| self.annotate(e, idx))?,
+                    // Only a resync `$G` is left in flight: wait for its answer.
+                    None => {
+                        if !self.pump(Instant::now() + timeout)? {
+                            return Err(self.timeout("room in the controller's RX buffer", timeout));
+                        }
+                    }
+                }
             }
             let id = self.send_line(l)?;
             sent.push_back((id, i));

@@ -372,6 +372,20 @@ fn a_dropped_ok_is_found_and_counting_stays_right() {
     assert_eq!(s.stats().lost_answers, 2);
     s.move_to(0.0, 3000.0).unwrap();
     assert_eq!(s.wait_idle(S10).unwrap().x_mm, 0.0);
+    // A lost answer to a long move is reported while the machine still runs it, not after.
+    emu.inject(Fault::DropOk(1));
+    let t = Instant::now();
+    match s.move_to(250.0, 3000.0) {
+        Err(HalError::Timeout { what, .. }) => assert!(what.contains("never arrived"), "{what}"),
+        r => panic!("{r:?}"),
+    }
+    println!(
+        "lost answer to a 5.5 s move reported after {:?}",
+        t.elapsed()
+    );
+    assert_eq!(emu.state(), MachineState::Run, "reported mid-move");
+    assert_eq!(s.wait_idle(S10).unwrap().x_mm, 250.0);
+    assert_eq!(s.stats().lost_answers, 3);
     println!("{:?}", s.stats());
 }
 
