@@ -58,7 +58,8 @@ async function responseError(method, path, r) {
   if (r.status === 401) {
     $('token-form').hidden = false;
   }
-  const msg = `${method} ${path}: HTTP ${r.status} ${r.statusText}` + (detail ? ` — ${detail}` : '');
+  let msg = `${method} ${path}: HTTP ${r.status} ${r.statusText}` + (detail ? ` — ${detail}` : '');
+  if (r.status === 401) msg += ' (enter the token in the header, or open the page as /#token=...)';
   return new ApiError(msg, r.status);
 }
 
