@@ -60,7 +60,12 @@ pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
     let margin = 12u32;
     let bar_w = 110u32;
     let title_h = 20u32;
-    let img_w = w as u32 + 2 * margin + bar_w;
+    let title = format!(
+        "sole height, x {:.0}-{:.0} mm, y {:.0}-{:.0} mm, cell {} mm",
+        x0, x1, y0, y1, cell_mm
+    );
+    // Wide enough for the title (8 px a character) on a narrow map.
+    let img_w = (w as u32 + 2 * margin + bar_w).max(title.len() as u32 * 8 + 2 * margin);
     let img_h = (h as u32).max(160) + 2 * margin + title_h;
     let mut image = RgbImage::from_pixel(img_w, img_h, BG);
     let mut filled = 0;
@@ -78,15 +83,7 @@ pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
             }
         }
     }
-    draw_text(
-        &mut image,
-        margin,
-        4,
-        &format!(
-            "sole height, x {:.0}-{:.0} mm, y {:.0}-{:.0} mm, cell {} mm",
-            x0, x1, y0, y1, cell_mm
-        ),
-    );
+    draw_text(&mut image, margin, 4, &title);
     // Colour bar with ticks.
     let bx = margin * 2 + w as u32;
     let by = margin + title_h;
