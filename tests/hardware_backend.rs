@@ -58,6 +58,37 @@ fn calibration_file(dir: &Path) -> PathBuf {
     p
 }
 
+/// The simulator is the same kind of backend: a scan through the real GRBL driver rides over
+/// line noise on the slider's status reports (asked again, not a failed scan).
+#[test]
+fn a_sim_scan_rides_over_corrupted_status_reports() {
+    let path = root().join("config/sim.toml");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("end_mm = 320.0", "end_mm = 60.0")
+        .replace(
+            "[sim.optics]",
+            "[sim.faults]\nslider_corrupt_status_after_s = 1.0\nslider_corrupt_status_count = 3\n\n[sim.optics]",
+        );
+    // A third of a foot: no foot measurements.
+    let m = text.find("stage = \"measure.foot\"").unwrap();
+    let (a, b) = (
+        text[..m].rfind("[[pipeline.stages]]").unwrap(),
+        m + text[m..].find("[[pipeline.stages]]").unwrap(),
+    );
+    let text = format!("{}{}", &text[..a], &text[b..]);
+    let cfg = LoadedConfig::parse(&path, text).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let summary = run_scan(&cfg, &ScanOptions::new(dir.path()), |_| {}).unwrap();
+    println!(
+        "{} frames, {} dropped, status {}",
+        summary.frames, summary.dropped_frames, summary.status
+    );
+    assert_eq!(summary.status, "complete");
+    assert!(summary.frames >= 100, "{} frames", summary.frames);
+    assert!(dir.path().join("points.ply").exists());
+}
+
 #[test]
 fn footscan_toml_parses_with_the_sim_pipeline() {
     let cfg = LoadedConfig::load(&root().join("config/footscan.toml")).unwrap();

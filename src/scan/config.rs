@@ -196,6 +196,10 @@ pub struct SimFaults {
     pub slider_silent_after_s: Option<f64>,
     /// The serial line drops.
     pub slider_disconnect_after_s: Option<f64>,
+    /// Line noise: the next `slider_corrupt_status_count` (default 5) status reports arrive
+    /// corrupted (the driver asks again; the scan goes on).
+    pub slider_corrupt_status_after_s: Option<f64>,
+    pub slider_corrupt_status_count: Option<u32>,
     /// The camera cable is pulled.
     pub camera_unplug_after_s: Option<f64>,
 }

@@ -38,6 +38,10 @@ fn schedule_faults(
         let e = emulator.clone();
         plan.push((t, Box::new(move || e.inject(Fault::Silence(true)))));
     }
+    if let Some(t) = f.slider_corrupt_status_after_s {
+        let (e, n) = (emulator.clone(), f.slider_corrupt_status_count.unwrap_or(5));
+        plan.push((t, Box::new(move || e.inject(Fault::CorruptStatus(n)))));
+    }
     if let Some(t) = f.slider_disconnect_after_s {
         let e = emulator.clone();
         plan.push((t, Box::new(move || e.inject(Fault::Disconnect))));
