@@ -481,3 +481,35 @@ fn reconnect_through_a_stable_path_after_unplug() {
     assert_eq!(emu2.machine_x(), 5.0);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn reconnect_mid_jog_cancels_the_jog_before_the_reset() {
+    let dir = std::env::temp_dir().join(format!("footscan-grbl-jog-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let link = dir.join("usb-grbl-if00");
+    let emu = GrblEmulator::spawn(EmulatorConfig::default()).unwrap();
+    GrblEmulator::link(emu.port_path(), &link).unwrap();
+    let mut s = GrblSlider::new(link.to_string_lossy(), GrblConfig::default());
+    s.connect().unwrap();
+    s.home(S10).unwrap();
+    s.jog_to(200.0, 3000.0).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let new_path = emu.replug().unwrap();
+    GrblEmulator::link(&new_path, &link).unwrap();
+    assert_eq!(
+        emu.state(),
+        MachineState::Jog,
+        "still jogging after the replug"
+    );
+    s.reconnect(Duration::from_secs(5)).unwrap();
+    assert_eq!(
+        s.alarm(),
+        None,
+        "jog cancelled (0x85), then reset: no ALARM:3"
+    );
+    let st = s.status().unwrap();
+    assert_eq!(st.state, SliderState::Idle);
+    assert!(st.x_mm > 0.0 && st.x_mm < 200.0, "{st:?}");
+    assert!((st.x_mm - emu.machine_x()).abs() < 5e-4, "position kept");
+    let _ = std::fs::remove_dir_all(&dir);
+}
