@@ -74,6 +74,8 @@ fn faulty_scan(dir: &Path, archive: &Path, faults: &str, earlier: &(String, Vec<
         "{faults}: reason {:?}; devices {}",
         rec["reason"], status["devices"]
     );
+    let mut rec = rec;
+    rec["devices"] = status["devices"].clone();
     rec
 }
 
@@ -98,6 +100,8 @@ fn device_faults_end_the_scan_with_a_named_reason() {
         rec["frames"].as_u64().unwrap() > 0,
         "the scan had started: {rec}"
     );
+    assert_eq!(rec["devices"]["camera"]["connected"], false);
+    assert_eq!(rec["devices"]["slider"]["connected"], true);
 
     let rec = faulty_scan(
         tmp.path(),

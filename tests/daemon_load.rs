@@ -10,8 +10,16 @@ use std::time::{Duration, Instant};
 
 const CLIENTS: usize = 20;
 
+/// One daemon at a time in this file: the load figures are measured on a quiet machine.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 #[test]
 fn twenty_clients_polling_drop_no_frames() {
+    let _serial = serial();
     let tmp = tempfile::tempdir().unwrap();
     let d = Footscand::start(tmp.path(), Opts::default());
     let id = d.start_scan("load");
@@ -30,7 +38,7 @@ fn twenty_clients_polling_drop_no_frames() {
     }
     let stop = Arc::new(AtomicBool::new(false));
     // (request ms, frame age ms) per preview, request ms per status, non-200 responses.
-    let previews = Arc::new(Mutex::new(Vec::<(f64, f64, bool)>::new()));
+    let previews = Arc::new(Mutex::new(Vec::<(f64, f64, u64)>::new()));
     let statuses = Arc::new(Mutex::new(Vec::<f64>::new()));
     let failures = Arc::new(Mutex::new(Vec::<String>::new()));
     let workers: Vec<_> = (0..CLIENTS)
@@ -46,11 +54,14 @@ fn twenty_clients_polling_drop_no_frames() {
                 let width = [160, 320, 640][i % 3];
                 while !stop.load(Ordering::Relaxed) {
                     let t = Instant::now();
-                    let mut running = false;
+                    // Frames acquired so far by the running scan (MAX once it has ended).
+                    let mut frames = u64::MAX;
                     match c.get(format!("{base}/api/status")).send() {
                         Ok(r) if r.status() == 200 => {
                             let v: Value = serde_json::from_slice(&r.bytes().unwrap()).unwrap();
-                            running = v["scan"]["state"] == "running";
+                            if v["scan"]["state"] == "running" {
+                                frames = v["scan"]["frames"].as_u64().unwrap();
+                            }
                             statuses
                                 .lock()
                                 .unwrap()
@@ -78,7 +89,7 @@ fn twenty_clients_polling_drop_no_frames() {
                             previews.lock().unwrap().push((
                                 t.elapsed().as_secs_f64() * 1e3,
                                 age,
-                                running,
+                                frames,
                             ));
                         }
                         Ok(r) => failures
@@ -119,7 +130,8 @@ fn twenty_clients_polling_drop_no_frames() {
     let mut req: Vec<f64> = p.iter().map(|x| x.0).collect();
     let mut age: Vec<f64> = p.iter().map(|x| x.1).collect();
     // While frames still arrive (after the last frame the age grows with post-processing).
-    let mut age_running: Vec<f64> = p.iter().filter(|x| x.2).map(|x| x.1).collect();
+    let last = summary["frames"].as_u64().unwrap();
+    let mut age_running: Vec<f64> = p.iter().filter(|x| x.2 < last).map(|x| x.1).collect();
     let mut st = statuses.lock().unwrap().clone();
     assert!(p.len() >= CLIENTS, "{} previews", p.len());
     println!(
@@ -131,7 +143,7 @@ fn twenty_clients_polling_drop_no_frames() {
         summary["dropped_frames"]
     );
     println!(
-        "preview request ms p50 {:.1} p95 {:.1}; X-Frame-Age-Ms while scanning ({} previews) p50 {:.1} p95 {:.1}, \
+        "preview request ms p50 {:.1} p95 {:.1}; X-Frame-Age-Ms while frames arrive ({} previews) p50 {:.1} p95 {:.1}, \
          all p50 {:.1} p95 {:.1}; status request ms p50 {:.1} p95 {:.1}",
         percentile(&mut req, 50.0),
         percentile(&mut req, 95.0),
@@ -147,6 +159,7 @@ fn twenty_clients_polling_drop_no_frames() {
 
 #[test]
 fn sigterm_during_a_scan_archives_it_as_cancelled_and_exits_0() {
+    let _serial = serial();
     let tmp = tempfile::tempdir().unwrap();
     let mut d = Footscand::start(tmp.path(), Opts::default());
     let id = d.start_scan("sigterm");
@@ -192,4 +205,54 @@ fn sigterm_during_a_scan_archives_it_as_cancelled_and_exits_0() {
     assert_eq!(list.len(), 1);
     assert_eq!(list[0].status, footscan::archive::Status::Cancelled);
     assert_eq!(list[0].reason.as_deref(), Some("daemon shutting down"));
+}
+
+#[test]
+fn killed_daemon_leaves_a_scan_that_restart_keeps_as_failed() {
+    let _serial = serial();
+    let tmp = tempfile::tempdir().unwrap();
+    let mut d = Footscand::start(tmp.path(), Opts::default());
+    let id = d.start_scan("killed");
+    let t0 = Instant::now();
+    while d.get_json("/api/status")["scan"]["frames"]
+        .as_u64()
+        .unwrap()
+        < 10
+    {
+        assert!(t0.elapsed() < Duration::from_secs(60));
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    d.child.kill().unwrap(); // SIGKILL: no chance to archive
+    d.child.wait().unwrap();
+    let archive = d.archive.clone();
+    assert!(archive.join(format!(".tmp-{id}")).is_dir());
+    drop(d);
+    let d = Footscand::start(
+        tmp.path(),
+        Opts {
+            archive: Some(archive.clone()),
+            ..Opts::default()
+        },
+    );
+    let list = d.get_json("/api/scans");
+    assert_eq!(list.as_array().unwrap().len(), 1, "{list}");
+    assert_eq!(list[0]["id"], id.as_str());
+    assert_eq!(list[0]["status"], "failed");
+    assert_eq!(
+        list[0]["reason"],
+        footscan::archive::INTERRUPTED,
+        "named as interrupted"
+    );
+    assert!(!archive.join(format!(".tmp-{id}")).exists());
+    let rec = d.record(&id);
+    let names: Vec<&str> = rec["artifacts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| a["name"].as_str().unwrap())
+        .collect();
+    assert!(
+        names.contains(&"truth.json") && names.contains(&"record.json"),
+        "{names:?}"
+    );
 }

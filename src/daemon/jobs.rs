@@ -175,7 +175,7 @@ impl Daemon {
             if status == Status::Complete {
                 p.points = outcome.points;
             }
-            p.elapsed_s = started.elapsed().as_secs_f64();
+            p.elapsed_s = (started.elapsed().as_secs_f64() * 1000.0).round() / 1000.0;
             let p = p.clone();
             if matches!(&st.job, Some(super::Job::Scan { id: j, .. }) if *j == id) {
                 st.job = None;
