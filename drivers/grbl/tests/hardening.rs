@@ -390,6 +390,30 @@ fn a_dropped_ok_is_found_and_counting_stays_right() {
 }
 
 #[test]
+fn a_mangled_ok_is_counted_lost_and_later_answers_stay_right() {
+    let drv = GrblConfig {
+        response_timeout: Duration::from_millis(500),
+        ..Default::default()
+    };
+    let (emu, mut s) = connected(EmulatorConfig::default(), drv);
+    s.home(S10).unwrap();
+    emu.inject(Fault::CorruptOk(1));
+    match s.move_to(10.0, 3000.0) {
+        Err(HalError::Timeout { what, .. }) => assert!(what.contains("never arrived"), "{what}"),
+        r => panic!("{r:?}"),
+    }
+    let st = s.stats();
+    assert_eq!((st.garbage_lines, st.lost_answers), (1, 1), "{st:?}");
+    assert_eq!(s.wait_idle(S10).unwrap().x_mm, 10.0, "the line ran");
+    let fb = s.command("$I").unwrap();
+    assert!(fb.iter().any(|l| l.starts_with("[VER:")), "{fb:?}");
+    match s.command("G2 X1 I1") {
+        Err(HalError::Rejected { code: 20, .. }) => {}
+        r => panic!("its own answer: {r:?}"),
+    }
+}
+
+#[test]
 fn corrupted_status_reports_are_asked_again() {
     let (emu, mut s) = homed();
     s.move_to(100.0, 3000.0).unwrap();

@@ -125,6 +125,8 @@ pub enum Fault {
     HomingFail(u8),
     /// The next N `ok` answers are not sent (a UART that dropped them).
     DropOk(u32),
+    /// The next N `ok` answers arrive as `0k` (a flipped bit).
+    CorruptOk(u32),
     /// The next N status reports arrive corrupted (a digit of `MPos` replaced by line noise).
     CorruptStatus(u32),
     /// The next line is answered `error:N` without being executed.
