@@ -51,11 +51,26 @@ pub async fn status(State(st): State<AppState>) -> Json<Value> {
     let slider_alarm = slider_named && has(&["alarm"]);
     let slider_lost = slider_named && !slider_alarm && !camera_lost && broken;
     let line = d.preview.line();
-    let (w, h) = line
-        .as_ref()
-        .map_or((cfg.sim.optics.width, cfg.sim.optics.height), |l| {
-            (l.width, l.height)
-        });
+    let hw = cfg.hardware.as_ref().filter(|_| !sim);
+    let (cam_name, mut w, mut h, format, slider_name) = match hw {
+        Some(hw) => (
+            format!("V4L2 camera {}", hw.camera.device.display()),
+            hw.camera.width,
+            hw.camera.height,
+            Value::from(hw.camera.pixel_format.to_lowercase()),
+            format!("GRBL controller on {}", hw.slider.port),
+        ),
+        None => (
+            "simulated camera".to_string(),
+            cfg.sim.optics.width,
+            cfg.sim.optics.height,
+            serde_json::to_value(cfg.sim.noise.format).unwrap_or(Value::Null),
+            "GRBL emulator (pseudo-terminal)".to_string(),
+        ),
+    };
+    if let Some(l) = &line {
+        (w, h) = (l.width, l.height);
+    }
     let slider_state = if running {
         "run"
     } else if slider_alarm {
@@ -68,14 +83,14 @@ pub async fn status(State(st): State<AppState>) -> Json<Value> {
         "backend": backend,
         "devices": {
             "camera": {
-                "name": if sim { "simulated camera" } else { "V4L2 camera" },
+                "name": cam_name,
                 "width": w,
                 "height": h,
-                "format": serde_json::to_value(cfg.sim.noise.format).unwrap_or(Value::Null),
+                "format": format,
                 "connected": !camera_lost,
             },
             "slider": {
-                "name": if sim { "GRBL emulator (pseudo-terminal)" } else { "GRBL controller" },
+                "name": slider_name,
                 "state": slider_state,
                 "x_mm": d.preview.x_mm(),
                 "connected": !slider_lost,

@@ -62,6 +62,7 @@ impl From<crate::daemon::DaemonError> for ApiError {
             }
             E::Archive(e) => ApiError(StatusCode::INSUFFICIENT_STORAGE, e.to_string()),
             E::Setup(m) => ApiError::internal(m),
+            E::Unsupported(m) => ApiError(StatusCode::NOT_IMPLEMENTED, m),
         }
     }
 }

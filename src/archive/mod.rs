@@ -208,10 +208,23 @@ impl Archive {
         record.frames = outcome.frames;
         record.points = outcome.points;
         record.finished = Some(crate::util::now_rfc3339());
-        let done = self.seal(&scan.dir, &record)?;
-        debug_assert!(done.ends_with(&record.id));
-        self.index_upsert(&record);
-        Ok(record)
+        match self.seal(&scan.dir, &record) {
+            Ok(_) => {
+                self.index_upsert(&record);
+                Ok(record)
+            }
+            Err(e) => {
+                // Not listed as running forever: failed, files left in .tmp-<id> (recovered at
+                // the next start), the reason saying why.
+                record.status = Status::Failed;
+                record.reason = Some(format!(
+                    "{}; archiving failed: {e}",
+                    record.reason.as_deref().unwrap_or("scan ended")
+                ));
+                self.index_upsert(&record);
+                Err(e)
+            }
+        }
     }
 
     /// The fsync-record-rename sequence shared by finish and recovery.
@@ -264,8 +277,11 @@ impl Archive {
                     points: 0,
                 },
             };
+            // A scan the daemon already closed but could not rename keeps its own reason.
+            if record.status == Status::Running || record.reason.is_none() {
+                record.reason = Some(INTERRUPTED.into());
+            }
             record.status = Status::Failed;
-            record.reason = Some(INTERRUPTED.into());
             record.finished = Some(crate::util::now_rfc3339());
             if let Some(s) = read_summary(&dir) {
                 record.frames = s.0;
@@ -350,9 +366,13 @@ impl Archive {
 
     /// The directory holding a scan's files (the temporary one while it runs).
     pub fn dir(&self, record: &Record) -> PathBuf {
+        let tmp = self.root.join(format!("{TMP_PREFIX}{}", record.id));
+        let done = self.root.join(&record.id);
         match record.status {
-            Status::Running => self.root.join(format!("{TMP_PREFIX}{}", record.id)),
-            _ => self.root.join(&record.id),
+            Status::Running => tmp,
+            // Closed but not renamed (archiving failed): its files are still in .tmp-<id>.
+            _ if !done.exists() && tmp.is_dir() => tmp,
+            _ => done,
         }
     }
 

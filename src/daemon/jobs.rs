@@ -221,6 +221,15 @@ impl Daemon {
 
     /// Start a calibration with `method`; returns its id. Busy while another job runs.
     pub fn start_calibration(self: &Arc<Self>, method: Method) -> Result<String, DaemonError> {
+        if self.scanner.config.scanner.backend != crate::scan::config::Backend::Sim {
+            return Err(DaemonError::Unsupported(format!(
+                "calibration through footscand runs on the simulator backend only so far; for \
+                 backend {:?} put a calibration file in `calibration` of [daemon] or \
+                 [scanner] of {}",
+                self.scanner.config.scanner.backend,
+                self.scanner.path.display()
+            )));
+        }
         if let Some(why) = self.busy() {
             return Err(DaemonError::Busy(why));
         }

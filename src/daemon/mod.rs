@@ -103,6 +103,8 @@ pub enum DaemonError {
     Archive(#[from] ArchiveError),
     #[error("{0}")]
     Setup(String),
+    #[error("{0}")]
+    Unsupported(String),
 }
 
 /// The running job.
