@@ -306,7 +306,8 @@ pub fn run(
                     let mut e = cal.clone();
                     e.model = em;
                     row.params_untilted = compare_params(&e, et);
-                    row.params_untilted.retain(|k, _| UNTILTED.contains(&k.as_str()));
+                    row.params_untilted
+                        .retain(|k, _| UNTILTED.contains(&k.as_str()));
                 }
                 let (se, sd) = height_errors(&cal, &stairs);
                 let (fe, fd) = height_errors(&cal, &feet);

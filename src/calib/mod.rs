@@ -15,9 +15,9 @@
 pub mod acquire;
 pub mod bezier_depth;
 pub mod closed_form;
-mod gauge;
 mod error;
 mod file;
+mod gauge;
 pub mod insystem;
 pub mod lm;
 mod model;
