@@ -204,6 +204,9 @@ fn requests_are_validated() {
         "/api/nothing",
         "/api/preview.png?width=5",
         "/api/preview.png?width=abc",
+        "/api/scans/%ff",
+        "/api/scans/%ff/files/x",
+        "/api/preview.png?width=1&width=2",
     ] {
         let (s, body) = raw_get(&d.base, target);
         assert_json_error(s, &body, 400..=404, target);
