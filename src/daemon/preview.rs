@@ -164,7 +164,12 @@ impl FrameTap for Preview {
         s.pixels.clear();
         match &frame.pixels {
             Pixels::Gray8(p) => s.pixels.extend_from_slice(p),
-            Pixels::Gray16(p) => s.pixels.extend(p.iter().map(|&v| (v >> 8) as u8)),
+            Pixels::Gray16(p) => {
+                // 10- and 12-bit data sit in the low bits: scale by the frame's top bit.
+                let max = p.iter().copied().max().unwrap_or(0);
+                let shift = (16 - max.leading_zeros()).saturating_sub(8);
+                s.pixels.extend(p.iter().map(|&v| (v >> shift) as u8));
+            }
         }
         s.cols.clear();
         s.cols.extend(
@@ -175,5 +180,62 @@ impl FrameTap for Preview {
         drop(s);
         self.copied.fetch_add(1, Ordering::Relaxed);
         self.last_copy_ns.store(now, Ordering::Relaxed);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(seq: u64, w: u32, h: u32, px: Vec<u8>) -> Frame {
+        Frame::new(seq, Timestamp::now(), w, h, Pixels::Gray8(px))
+    }
+
+    fn meta() -> FrameMeta {
+        FrameMeta {
+            index: 0,
+            seq: 0,
+            timestamp: Timestamp::now(),
+            x_mm: 12.5,
+        }
+    }
+
+    fn lines(h: usize) -> Vec<LinePeak> {
+        let mut l = vec![LinePeak::NONE; h];
+        l[1].col = 3.25;
+        l[1].reject = None;
+        l
+    }
+
+    #[test]
+    fn copies_at_most_ten_a_second_and_never_waits() {
+        let p = Preview::default();
+        assert!(p.image(320).is_none() && p.line().is_none());
+        // 4x2: left half 0, right half 200.
+        let px = vec![0, 0, 200, 200, 0, 0, 200, 200];
+        p.frame(&meta(), &frame(5, 4, 2, px.clone()), &lines(2));
+        p.frame(&meta(), &frame(6, 4, 2, px.clone()), &lines(2));
+        assert_eq!(p.tap_counts(), (2, 1), "the second frame came too soon");
+        assert_eq!(p.x_mm(), Some(12.5));
+        let img = p.image(2).unwrap();
+        assert_eq!((img.seq, img.width, img.height), (5, 2, 1));
+        assert_eq!(img.pixels, [0, 200], "box filter");
+        let line = p.line().unwrap();
+        assert_eq!(line.cols, [None, Some(3.25)]);
+        // A reader holding the slot makes the tap skip, not wait.
+        p.last_copy_ns.store(1, Ordering::Relaxed);
+        let guard = p.slot.lock().unwrap();
+        p.frame(&meta(), &frame(7, 4, 2, px), &lines(2));
+        drop(guard);
+        assert_eq!(p.tap_counts(), (3, 1));
+        assert_eq!(p.image(4).unwrap().seq, 5);
+    }
+
+    #[test]
+    fn twelve_bit_frames_are_scaled_by_their_top_bit() {
+        let p = Preview::default();
+        let f = Frame::new(1, Timestamp::now(), 2, 1, Pixels::Gray16(vec![4095, 2048]));
+        p.frame(&meta(), &f, &[LinePeak::NONE]);
+        assert_eq!(p.image(2).unwrap().pixels, [255, 128]);
     }
 }
