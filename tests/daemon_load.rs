@@ -236,6 +236,13 @@ fn killed_daemon_leaves_a_scan_that_restart_keeps_as_failed() {
     );
     let list = d.get_json("/api/scans");
     assert_eq!(list.as_array().unwrap().len(), 1, "{list}");
+    let last = &d.get_json("/api/status")["scan"];
+    assert_eq!(
+        last["id"],
+        id.as_str(),
+        "status shows the last scan after a restart"
+    );
+    assert_eq!(last["state"], "failed");
     assert_eq!(list[0]["id"], id.as_str());
     assert_eq!(list[0]["status"], "failed");
     assert_eq!(
@@ -255,4 +262,26 @@ fn killed_daemon_leaves_a_scan_that_restart_keeps_as_failed() {
         names.contains(&"truth.json") && names.contains(&"record.json"),
         "{names:?}"
     );
+}
+
+#[test]
+fn ctrl_c_when_idle_exits_0() {
+    let _serial = serial();
+    let tmp = tempfile::tempdir().unwrap();
+    let mut d = Footscand::start(tmp.path(), Opts::default());
+    assert_eq!(d.get_json("/api/health")["ok"], true);
+    // SAFETY: kill(2) on our own child's pid.
+    unsafe { libc::kill(d.child.id() as libc::pid_t, libc::SIGINT) };
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(s) = d.child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(30),
+            "no exit after SIGINT"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert_eq!(status.code(), Some(0), "{}", d.stderr());
 }

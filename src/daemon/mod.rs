@@ -168,6 +168,25 @@ impl Daemon {
             }
             None => None,
         };
+        // The last scan, as status shows it until the next one starts.
+        let last_scan = archive.list()?.into_iter().next().map(|r| {
+            let summary: Option<serde_json::Value> = archive
+                .artifact_path(&r, "scan.json")
+                .and_then(|p| std::fs::read(p).ok())
+                .and_then(|b| serde_json::from_slice(&b).ok());
+            let num = |k: &str| summary.as_ref().and_then(|s| s[k].as_f64());
+            Progress {
+                id: r.id.clone(),
+                state: r.status.as_str().into(),
+                frames: r.frames,
+                expected_frames: crate::scan::ScanPlan::from_config(&scanner.config)
+                    .expected_frames(),
+                points: r.points,
+                dropped: num("dropped_frames").unwrap_or(0.0) as u64,
+                elapsed_s: num("seconds").unwrap_or(0.0),
+                reason: r.reason,
+            }
+        });
         let (events, _) = broadcast::channel(256);
         Ok(Arc::new(Daemon {
             config,
@@ -177,6 +196,7 @@ impl Daemon {
             events,
             state: Mutex::new(State {
                 calibration,
+                scan: last_scan,
                 ..State::default()
             }),
             started: Instant::now(),
