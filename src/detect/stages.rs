@@ -38,7 +38,9 @@ pub fn register_stages(r: &mut Registry<Item, ScanContext>) {
         r.register(stage, describe(name), move |p, ctx: &ScanContext| {
             let p: DetectParams = params(p)?;
             let det = build(name, &p)?;
-            Ok(Node::stage(Detect::new(stage, det).with_tap(ctx.tap.clone())))
+            Ok(Node::stage(
+                Detect::new(stage, det).with_tap(ctx.tap.clone()),
+            ))
         });
     }
 }

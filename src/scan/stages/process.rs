@@ -1,11 +1,11 @@
 //! Per-frame processing: detection, triangulation, accumulation into the scan grid.
 
+use super::FrameTap;
 use crate::calib::Triangulator;
 use crate::detect::{Detector, LinePeak};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::{unexpected, FrameLines, FramePoints, Item};
 use crate::scan::ScanGrid;
-use super::FrameTap;
 use std::sync::Arc;
 
 pub struct Detect {
