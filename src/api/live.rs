@@ -108,6 +108,58 @@ pub struct PreviewQuery {
     access_token: Option<String>,
 }
 
+/// An encoded preview: one per tap copy and width, however many viewers ask.
+#[derive(Clone)]
+pub struct CachedPng {
+    generation: u64,
+    width: u32,
+    seq: u64,
+    timestamp: footscan_hal::Timestamp,
+    png: axum::body::Bytes,
+}
+
+/// The PNG of the latest frame at `width`: from the cache while the tap has copied nothing
+/// newer, else downscaled and encoded once (concurrent viewers wait on the cache's lock and
+/// then share the result, so 20 viewers cost one encode per copied frame, and the slot's
+/// lock, which makes the tap skip frames while held, is taken once per frame, not per view).
+fn cached_png(
+    preview: &crate::daemon::preview::Preview,
+    cache: &std::sync::Mutex<Option<CachedPng>>,
+    width: u32,
+) -> Option<Result<CachedPng, image::ImageError>> {
+    let mut cache = cache.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(c) = cache.as_ref() {
+        if c.generation == preview.generation() && c.width == width {
+            return Some(Ok(c.clone()));
+        }
+    }
+    let img = preview.image(width)?;
+    let mut png = Vec::with_capacity(img.pixels.len() / 2 + 1024);
+    let enc = image::codecs::png::PngEncoder::new_with_quality(
+        &mut png,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Sub,
+    );
+    use image::ImageEncoder;
+    if let Err(e) = enc.write_image(
+        &img.pixels,
+        img.width,
+        img.height,
+        image::ExtendedColorType::L8,
+    ) {
+        return Some(Err(e));
+    }
+    let c = CachedPng {
+        generation: img.generation,
+        width,
+        seq: img.seq,
+        timestamp: img.timestamp,
+        png: png.into(),
+    };
+    *cache = Some(c.clone());
+    Some(Ok(c))
+}
+
 pub async fn preview_png(
     State(st): State<AppState>,
     Query(q): Query<PreviewQuery>,
@@ -126,31 +178,17 @@ pub async fn preview_png(
             })?,
     };
     let preview = st.daemon.preview.clone();
-    let out = tokio::task::spawn_blocking(move || {
-        let img = preview.image(width)?;
-        let mut png = Vec::with_capacity(img.pixels.len() / 2 + 1024);
-        let enc = image::codecs::png::PngEncoder::new_with_quality(
-            &mut png,
-            image::codecs::png::CompressionType::Fast,
-            image::codecs::png::FilterType::Sub,
-        );
-        use image::ImageEncoder;
-        let r = enc.write_image(
-            &img.pixels,
-            img.width,
-            img.height,
-            image::ExtendedColorType::L8,
-        );
-        Some(r.map(|_| (png, img.seq, img.age_ms)))
-    })
-    .await
-    .map_err(ApiError::internal)?;
+    let cache = st.preview_png.clone();
+    let out = tokio::task::spawn_blocking(move || cached_png(&preview, &cache, width))
+        .await
+        .map_err(ApiError::internal)?;
     let Some(out) = out else {
         return Err(ApiError::not_found(
             "no frame yet: the preview shows the running or last scan's frames",
         ));
     };
-    let (png, seq, age_ms) = out.map_err(ApiError::internal)?;
+    let c = out.map_err(ApiError::internal)?;
+    let (png, seq, age_ms) = (c.png, c.seq, crate::daemon::preview::age_ms(c.timestamp));
     Ok((
         [
             (header::CONTENT_TYPE, "image/png".to_string()),

@@ -26,6 +26,8 @@ pub const BODY_LIMIT: usize = 16 * 1024;
 pub struct AppState {
     pub daemon: Arc<Daemon>,
     pub shutdown: watch::Receiver<bool>,
+    /// The last preview PNG, shared by every viewer of the same frame at the same width.
+    pub preview_png: Arc<std::sync::Mutex<Option<live::CachedPng>>>,
 }
 
 /// An error response: a status and a message naming the input and what is valid.
@@ -69,7 +71,11 @@ impl From<crate::daemon::DaemonError> for ApiError {
 
 /// The whole API and the dashboard.
 pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
-    let state = AppState { daemon, shutdown };
+    let state = AppState {
+        daemon,
+        shutdown,
+        preview_png: Default::default(),
+    };
     Router::new()
         .route("/", get(dashboard_index))
         .route("/app.js", get(dashboard_js))

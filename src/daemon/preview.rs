@@ -17,6 +17,8 @@ const PERIOD_NS: u64 = 100_000_000;
 struct Slot {
     /// 0 until the first frame.
     seq: u64,
+    /// Copies made since the daemon started (frame seqs restart with every scan).
+    generation: u64,
     timestamp: Timestamp,
     x_mm: f64,
     width: u32,
@@ -31,6 +33,8 @@ struct Slot {
 pub struct Preview {
     slot: Mutex<Slot>,
     last_copy_ns: AtomicU64,
+    /// The slot's generation, readable without the lock.
+    generation: AtomicU64,
     /// Rows with an accepted line in the current scan (the running point count).
     points: AtomicU64,
     /// Frames the tap saw in the current scan, and of those copied.
@@ -41,6 +45,10 @@ pub struct Preview {
 /// A downscaled copy of the latest frame.
 pub struct PreviewImage {
     pub seq: u64,
+    /// The slot copy it was made from (see [`Preview::generation`]).
+    pub generation: u64,
+    /// Capture time of the frame.
+    pub timestamp: Timestamp,
     pub age_ms: f64,
     pub width: u32,
     pub height: u32,
@@ -77,6 +85,12 @@ impl Preview {
         )
     }
 
+    /// Changes with every frame the tap copies: a reader can tell whether what it made from the
+    /// slot is still the latest without taking the lock.
+    pub fn generation(&self) -> u64 {
+        self.generation.load(Ordering::Acquire)
+    }
+
     /// The slider position of the latest frame.
     pub fn x_mm(&self) -> Option<f64> {
         let s = self.slot.lock().unwrap();
@@ -108,6 +122,8 @@ impl Preview {
         }
         Some(PreviewImage {
             seq: s.seq,
+            generation: s.generation,
+            timestamp: s.timestamp,
             age_ms: age_ms(s.timestamp),
             width: w,
             height: h,
@@ -134,7 +150,8 @@ impl Preview {
     }
 }
 
-fn age_ms(t: Timestamp) -> f64 {
+/// Milliseconds since `t` (CLOCK_MONOTONIC), 0 if `t` is in the future.
+pub fn age_ms(t: Timestamp) -> f64 {
     let now = Timestamp::now();
     if now.nanos >= t.nanos {
         (now.nanos - t.nanos) as f64 / 1e6
@@ -157,6 +174,7 @@ impl FrameTap for Preview {
             return; // a reader holds the slot: skip this frame, never wait
         };
         s.seq = frame.seq.max(1);
+        s.generation += 1;
         s.timestamp = frame.timestamp;
         s.x_mm = meta.x_mm;
         s.width = frame.width;
@@ -177,7 +195,9 @@ impl FrameTap for Preview {
                 .iter()
                 .map(|l| if l.is_valid() { l.col } else { f64::NAN }),
         );
+        let generation = s.generation;
         drop(s);
+        self.generation.store(generation, Ordering::Release);
         self.copied.fetch_add(1, Ordering::Relaxed);
         self.last_copy_ns.store(now, Ordering::Relaxed);
     }
