@@ -148,6 +148,14 @@ impl Err2 {
         self.max = self.max.max(e.abs());
         self.n += 1;
     }
+    /// Both sets of errors together.
+    fn merged(&self, o: &Err2) -> Err2 {
+        Err2 {
+            sum: self.sum + o.sum,
+            max: self.max.max(o.max),
+            n: self.n + o.n,
+        }
+    }
     fn rms(&self) -> f64 {
         if self.n == 0 {
             f64::NAN
@@ -178,30 +186,49 @@ fn height_errors(cal: &Calibration, frames: &[ValFrame]) -> (Err2, Err2) {
     (exact, detected)
 }
 
+/// The model's parameters, in the order the table prints them.
+const MODEL_PARAMS: [&str; 15] = [
+    "f_px",
+    "cx",
+    "cy",
+    "d_mm",
+    "l_mm",
+    "k1",
+    "k2",
+    "p1",
+    "p2",
+    "camera_tilt_deg[0]",
+    "camera_tilt_deg[1]",
+    "camera_tilt_deg[2]",
+    "laser_tilt_deg[0]",
+    "laser_tilt_deg[1]",
+    "slider_scale",
+];
+
 /// Every parameter of `cal` against `truth`.
 pub fn compare_params(cal: &Calibration, truth: &Calibration) -> BTreeMap<String, ParamError> {
     let named = |c: &Calibration| {
         let m = &c.model;
-        vec![
-            ("f_px", m.f_px),
-            ("cx", m.cx),
-            ("cy", m.cy),
-            ("d_mm", m.d_mm),
-            ("l_mm", m.l_mm),
-            ("k1", m.k1),
-            ("k2", m.k2),
-            ("p1", m.p1),
-            ("p2", m.p2),
-            ("camera_tilt_deg[0]", m.camera_tilt_deg[0]),
-            ("camera_tilt_deg[1]", m.camera_tilt_deg[1]),
-            ("camera_tilt_deg[2]", m.camera_tilt_deg[2]),
-            ("laser_tilt_deg[0]", m.laser_tilt_deg[0]),
-            ("laser_tilt_deg[1]", m.laser_tilt_deg[1]),
-            ("slider_scale", m.slider_scale),
-        ]
+        let values = [
+            m.f_px,
+            m.cx,
+            m.cy,
+            m.d_mm,
+            m.l_mm,
+            m.k1,
+            m.k2,
+            m.p1,
+            m.p2,
+            m.camera_tilt_deg[0],
+            m.camera_tilt_deg[1],
+            m.camera_tilt_deg[2],
+            m.laser_tilt_deg[0],
+            m.laser_tilt_deg[1],
+            m.slider_scale,
+        ];
+        MODEL_PARAMS.into_iter().zip(values)
     };
     named(cal)
-        .into_iter()
         .zip(named(truth))
         .map(|((k, v), (_, t))| {
             let abs_error = (v - t).abs();
@@ -315,19 +342,11 @@ pub fn run(
                 row.val_staircase_max_mm = se.max;
                 row.val_foot_rms_mm = fe.rms();
                 row.val_foot_max_mm = fe.max;
-                let all = Err2 {
-                    sum: se.sum + fe.sum,
-                    max: se.max.max(fe.max),
-                    n: se.n + fe.n,
-                };
+                let all = se.merged(&fe);
                 row.val_rms_mm = all.rms();
                 row.val_max_mm = all.max;
                 row.val_points = all.n;
-                let det = Err2 {
-                    sum: sd.sum + fd.sum,
-                    max: sd.max.max(fd.max),
-                    n: sd.n + fd.n,
-                };
+                let det = sd.merged(&fd);
                 row.val_detected_rms_mm = det.rms();
                 row.val_detected_max_mm = det.max;
                 row.val_detected_points = det.n;
@@ -401,24 +420,10 @@ fn param_rows(
         .find(|r| !params(r).is_empty())
         .map(|r| params(r).keys().cloned().collect())
         .unwrap_or_default();
-    let order = [
-        "f_px",
-        "cx",
-        "cy",
-        "d_mm",
-        "l_mm",
-        "k1",
-        "k2",
-        "p1",
-        "p2",
-        "camera_tilt_deg[0]",
-        "camera_tilt_deg[1]",
-        "camera_tilt_deg[2]",
-        "laser_tilt_deg[0]",
-        "laser_tilt_deg[1]",
-        "slider_scale",
-    ];
-    for name in order.iter().filter(|n| names.iter().any(|k| k == *n)) {
+    for name in MODEL_PARAMS
+        .iter()
+        .filter(|n| names.iter().any(|k| k == *n))
+    {
         let truth = rows
             .iter()
             .find_map(|r| params(r).get(*name))
