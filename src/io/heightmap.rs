@@ -13,11 +13,7 @@ pub struct HeightMapImage {
 
 impl HeightMapImage {
     pub fn save(&self, path: &Path) -> std::io::Result<()> {
-        let mut png = Vec::new();
-        self.image
-            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-            .map_err(std::io::Error::other)?;
-        super::write_atomic(path, &png)
+        super::write_png_atomic(path, &self.image)
     }
 }
 

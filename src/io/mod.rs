@@ -19,6 +19,15 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     write_atomic_with(path, |w| w.write_all(bytes))
 }
 
+/// `image` as a PNG file, written atomically.
+pub fn write_png_atomic(path: &Path, image: &image::RgbImage) -> std::io::Result<()> {
+    let mut png = Vec::new();
+    image
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .map_err(std::io::Error::other)?;
+    write_atomic(path, &png)
+}
+
 /// Like [`write_atomic`], with the content produced by `fill` into a buffered writer.
 pub fn write_atomic_with(
     path: &Path,

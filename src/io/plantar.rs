@@ -27,11 +27,7 @@ pub struct PlantarImage {
 
 impl PlantarImage {
     pub fn save(&self, path: &Path) -> std::io::Result<()> {
-        let mut png = Vec::new();
-        self.image
-            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-            .map_err(std::io::Error::other)?;
-        super::write_atomic(path, &png)
+        super::write_png_atomic(path, &self.image)
     }
 }
 
