@@ -26,9 +26,7 @@
 //!    3.5 rows = 0.44 mm at the glass (rows are (D + h) / F = 0.125 mm apart at h = 0).
 
 use super::bernstein::{root_near, Binomials, MAX_N};
-use super::coarse::{
-    block_max, coarse_row, prefetch_row, CoarseConfig, CoarseScratch, Peak, Px, PREFETCH_ROWS,
-};
+use super::coarse::{block_max, coarse_row, prefetch_ahead, CoarseConfig, CoarseScratch, Peak, Px};
 use super::estimators::{accepted, binomials};
 use super::{Detector, LinePeak, Reject};
 use footscan_hal::{Frame, Pixels};
@@ -237,9 +235,7 @@ impl BezierPlus {
         let mut width = f64::NAN;
         let blocks = scratch.for_width(w);
         for (r, row) in px.chunks_exact(w).enumerate() {
-            if let Some(ahead) = px.get((r + PREFETCH_ROWS) * w..(r + PREFETCH_ROWS + 1) * w) {
-                prefetch_row(ahead);
-            }
+            prefetch_ahead(px, r, w);
             block_max(row, blocks);
             out[r] = match coarse_row(row, blocks, &cfg) {
                 Err((why, v)) => {

@@ -201,6 +201,14 @@ pub fn prefetch_row<T>(row: &[T]) {
     let _ = row;
 }
 
+/// [`prefetch_row`] the row [`PREFETCH_ROWS`] after row `r` of a `w`-wide frame, if any.
+#[inline(always)]
+pub fn prefetch_ahead<T>(px: &[T], r: usize, w: usize) {
+    if let Some(ahead) = px.get((r + PREFETCH_ROWS) * w..(r + PREFETCH_ROWS + 1) * w) {
+        prefetch_row(ahead);
+    }
+}
+
 /// Maximum of each 64-pixel block of `row` into `blocks` (`row.len().div_ceil(64)` of them).
 #[inline]
 pub fn block_max<T: Px>(row: &[T], blocks: &mut [T]) {

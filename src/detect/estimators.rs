@@ -2,9 +2,7 @@
 //! written, and the baselines of SPEC section 4.
 
 use super::bernstein::{bisect_literal, Binomials, MAX_N};
-use super::coarse::{
-    block_max, coarse_row, prefetch_row, CoarseConfig, CoarseScratch, Peak, Px, PREFETCH_ROWS,
-};
+use super::coarse::{block_max, coarse_row, prefetch_ahead, CoarseConfig, CoarseScratch, Peak, Px};
 use super::{Detector, LinePeak, Reject};
 use footscan_hal::{Frame, Pixels};
 
@@ -45,9 +43,7 @@ fn run_rows<T: Px, E: Estimate>(
 ) {
     let blocks = scratch.for_width(w);
     for (r, (row, o)) in px.chunks_exact(w).zip(out.iter_mut()).enumerate() {
-        if let Some(ahead) = px.get((r + PREFETCH_ROWS) * w..(r + PREFETCH_ROWS + 1) * w) {
-            prefetch_row(ahead);
-        }
+        prefetch_ahead(px, r, w);
         block_max(row, blocks);
         *o = match coarse_row(row, blocks, cfg) {
             Err((r, v)) => LinePeak::rejected(r, v),
