@@ -78,6 +78,24 @@ pub struct Record {
     pub points: u64,
 }
 
+impl Record {
+    /// A scan that starts now.
+    fn running(id: String, meta: NewScan) -> Record {
+        Record {
+            id,
+            subject: meta.subject,
+            side: meta.side,
+            notes: meta.notes,
+            status: Status::Running,
+            reason: None,
+            started: crate::util::now_rfc3339(),
+            finished: None,
+            frames: 0,
+            points: 0,
+        }
+    }
+}
+
 /// What the operator says about a scan when starting it (validated by the caller).
 #[derive(Clone, Debug)]
 pub struct NewScan {
@@ -183,18 +201,7 @@ impl Archive {
             let _ = std::fs::remove_dir_all(&dir);
             return Err(io_at(&reserve)(e));
         }
-        let record = Record {
-            id: id.to_string(),
-            subject: meta.subject,
-            side: meta.side,
-            notes: meta.notes,
-            status: Status::Running,
-            reason: None,
-            started: crate::util::now_rfc3339(),
-            finished: None,
-            frames: 0,
-            points: 0,
-        };
+        let record = Record::running(id.to_string(), meta);
         self.index_upsert(&record);
         Ok(ActiveScan { record, dir })
     }
@@ -264,18 +271,14 @@ impl Archive {
             let dir = entry.path();
             let mut record = match self.index.lock().unwrap().get(id) {
                 Ok(Some(r)) => r,
-                _ => Record {
-                    id: id.to_string(),
-                    subject: "unknown".into(),
-                    side: "unknown".into(),
-                    notes: String::new(),
-                    status: Status::Running,
-                    reason: None,
-                    started: crate::util::now_rfc3339(),
-                    finished: None,
-                    frames: 0,
-                    points: 0,
-                },
+                _ => Record::running(
+                    id.to_string(),
+                    NewScan {
+                        subject: "unknown".into(),
+                        side: "unknown".into(),
+                        notes: String::new(),
+                    },
+                ),
             };
             // A scan the daemon already closed but could not rename keeps its own reason.
             if record.status == Status::Running || record.reason.is_none() {
