@@ -1,0 +1,1 @@
+//! TODO(geometry helper G1): plane
