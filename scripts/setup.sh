@@ -8,6 +8,8 @@ packages=(pkg-config libudev-dev gcc clang libclang-dev libopencv-dev)
 packages+=(chromium fonts-dejavu-core)
 # tests/daemon_api.rs runs the curl examples of docs/API.md.
 packages+=(curl)
+# The geometry export tests read IGES/STEP back with OpenCASCADE in a Python venv (below).
+packages+=(python3-venv)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
@@ -24,4 +26,18 @@ if ! command -v cargo >/dev/null 2>&1; then
     echo "cargo not found: install Rust with rustup (https://rustup.rs), then run this again" >&2
     exit 1
   }
+fi
+
+# crates/geom/tests/export_occt.rs reads every exported IGES and STEP file back with
+# OpenCASCADE 8 (scripts/occt_readback.py); it runs in a venv of its own under target/, made
+# only when it is absent or cannot import OCP. Test-time only: nothing in the product needs it.
+repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+venv="$repo/target/venv-occt"
+if ! "$venv/bin/python" -c 'import OCP, numpy' >/dev/null 2>&1; then
+  py=/usr/bin/python3
+  [ -x "$py" ] || py=python3
+  echo "creating $venv (cadquery-ocp-novtk, about 400 MB)"
+  "$py" -m venv "$venv"
+  "$venv/bin/python" -m pip install -q --disable-pip-version-check \
+    cadquery-ocp-novtk==8.0.1.1.0 numpy
 fi
