@@ -27,9 +27,14 @@
 //!   controller that kept moving to rest before the reset; never unlocks (`$X`) on its own.
 
 mod codes;
+// Wired into GrblSlider in the next commit.
+#[allow(dead_code)]
+mod link;
 mod message;
 mod settings;
 mod slider;
+#[allow(dead_code)]
+mod tracker;
 
 pub use codes::{alarm_message, error_message};
 pub use message::{banner_version, parse_line, parse_status, Message, StatusReport};
