@@ -1,0 +1,176 @@
+//! Units of a last or foot mesh: millimetres, metres, or unscaled model units.
+//!
+//! Mesh files carry no unit. A shoe last or a foot is 50 mm to 1 m long, so the longest side
+//! of the bounding box tells the unit: under 1 it is metres, between 1 and 50 the model was
+//! saved in arbitrary units and needs its real length, from 50 on it is millimetres.
+
+use super::{MeshError, MeshReport, TriMesh};
+use crate::V3;
+use std::path::Path;
+
+/// The smallest plausible length of a last or foot (mm).
+pub const MIN_PLAUSIBLE_MM: f64 = 50.0;
+
+/// The unit the caller says a mesh is in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Units {
+    Mm,
+    M,
+    /// Decide from the size (see the module documentation).
+    #[default]
+    Auto,
+}
+
+impl std::str::FromStr for Units {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Units, String> {
+        match s {
+            "mm" => Ok(Units::Mm),
+            "m" => Ok(Units::M),
+            "auto" => Ok(Units::Auto),
+            _ => Err(format!("unknown units {s:?}; valid: mm, m, auto")),
+        }
+    }
+}
+
+/// How a mesh was brought to millimetres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum UnitsDecision {
+    /// Already millimetres (scale 1).
+    Millimetres,
+    /// Metres, given (`Units::M`) or detected from the size (`detected`); scale 1000.
+    Metres { detected: bool },
+    /// Scaled so the longest side is the given length.
+    Length { length_mm: f64 },
+}
+
+/// What loading a last or foot did, for reporting.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadReport {
+    pub decision: UnitsDecision,
+    /// Factor applied to the file's coordinates.
+    pub scale: f64,
+    /// Bounding-box size in the file's own units.
+    pub file_size: V3,
+    /// Validation of the scaled mesh.
+    pub mesh: MeshReport,
+}
+
+impl LoadReport {
+    /// One line for logs: what the size said and what was done.
+    pub fn describe(&self) -> String {
+        let s = self.file_size;
+        let how = match self.decision {
+            UnitsDecision::Millimetres => "millimetres".to_string(),
+            UnitsDecision::Metres { detected: true } => {
+                "metres (detected from the size; --units mm to override), scaled by 1000".into()
+            }
+            UnitsDecision::Metres { detected: false } => "metres, scaled by 1000".into(),
+            UnitsDecision::Length { length_mm } => {
+                format!("scaled by {:.6} to a length of {length_mm} mm", self.scale)
+            }
+        };
+        format!(
+            "{:.4} x {:.4} x {:.4} in the file: {how}; {} triangles, volume {:.0} mm^3",
+            s.x, s.y, s.z, self.mesh.triangles, self.mesh.volume
+        )
+    }
+}
+
+impl Units {
+    /// The scale to millimetres for a mesh of bounding-box size `size` (file units) with an
+    /// optional target length (the longest side after scaling; it overrides the units).
+    pub fn resolve(
+        self,
+        size: V3,
+        length_mm: Option<f64>,
+        path: &Path,
+    ) -> Result<(f64, UnitsDecision), MeshError> {
+        let longest = size.max();
+        if let Some(l) = length_mm {
+            let valid = l.is_finite() && l > 0.0 && longest.is_finite() && longest > 0.0;
+            if !valid {
+                return Err(MeshError::BadLength {
+                    path: path.to_path_buf(),
+                    length_mm: l,
+                });
+            }
+            return Ok((l / longest, UnitsDecision::Length { length_mm: l }));
+        }
+        match self {
+            Units::M => Ok((1000.0, UnitsDecision::Metres { detected: false })),
+            Units::Mm if longest < 1.0 => Err(MeshError::MetresAsMm {
+                path: path.to_path_buf(),
+                size,
+            }),
+            Units::Auto if longest < 1.0 => Ok((1000.0, UnitsDecision::Metres { detected: true })),
+            Units::Mm | Units::Auto if longest < MIN_PLAUSIBLE_MM => Err(MeshError::Unscaled {
+                path: path.to_path_buf(),
+                size,
+            }),
+            Units::Mm | Units::Auto => Ok((1.0, UnitsDecision::Millimetres)),
+        }
+    }
+}
+
+impl TriMesh {
+    /// Loads a last or foot mesh: reads it, validates it as a closed solid (the error names
+    /// the file and the first bad edge), and scales it to millimetres by `units` and
+    /// `length_mm` (see [`Units::resolve`]).
+    pub fn load_solid(
+        path: impl AsRef<Path>,
+        units: Units,
+        length_mm: Option<f64>,
+    ) -> Result<(TriMesh, LoadReport), MeshError> {
+        let path = path.as_ref();
+        let mut m = TriMesh::read(path)?;
+        m.validate(path)?;
+        let file_size = m.bbox().extent();
+        let (scale, decision) = units.resolve(file_size, length_mm, path)?;
+        if scale != 1.0 {
+            m.scale(scale);
+        }
+        let mesh = m.validate(path)?;
+        Ok((
+            m,
+            LoadReport {
+                decision,
+                scale,
+                file_size,
+                mesh,
+            },
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unit_rules() {
+        let p = Path::new("last.stl");
+        let m = V3::new(0.262, 0.1, 0.09);
+        assert_eq!(Units::Auto.resolve(m, None, p).unwrap().0, 1000.0);
+        assert_eq!(Units::M.resolve(m, None, p).unwrap().0, 1000.0);
+        let e = Units::Mm.resolve(m, None, p).unwrap_err().to_string();
+        assert!(
+            e.contains("last.stl") && e.contains("0.2620 x") && e.contains("--units m"),
+            "{e}"
+        );
+        let u = V3::new(4.5, 1.5, 2.0);
+        let e = Units::Auto.resolve(u, None, p).unwrap_err().to_string();
+        assert!(e.contains("--length"), "{e}");
+        let (s, d) = Units::Auto.resolve(u, Some(270.0), p).unwrap();
+        assert_eq!((s, d), (60.0, UnitsDecision::Length { length_mm: 270.0 }));
+        assert_eq!(
+            Units::Auto
+                .resolve(V3::new(270.0, 100.0, 90.0), None, p)
+                .unwrap()
+                .0,
+            1.0
+        );
+        assert!(Units::Auto.resolve(u, Some(-1.0), p).is_err());
+        assert_eq!("m".parse::<Units>(), Ok(Units::M));
+    }
+}
