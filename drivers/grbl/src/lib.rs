@@ -25,18 +25,30 @@
 //!   completes), `stop` (jog cancel, or hold then reset, so no position is lost).
 //! - `reconnect(wait)`: reopen a port that comes back (a `/dev/serial/by-id/` path), bring a
 //!   controller that kept moving to rest before the reset; never unlocks (`$X`) on its own.
+//!
+//! Layers, each depending only on the ones before it:
+//! - `link`: the serial port, its receive buffer split into lines, arrival times on
+//!   CLOCK_MONOTONIC; port failures become `Disconnected`.
+//! - `tracker`: which sent line each `ok`/`error:N` answers (character counting), what an
+//!   alarm, a reset or a `$G` resync means for the lines in flight, and what the controller
+//!   reported about itself. A pure state machine without I/O, unit-tested on byte strings.
+//! - `exchange`: a line sent and its answer awaited under a named wait policy (how long,
+//!   patient while the machine moves or not, resync after a timeout or not); status queries;
+//!   streaming.
+//! - `slider`: [`GrblSlider`], the scanner's view: connect, home, move, jog, hold, stop.
+//!
+//! `message`, `codes` and `settings` parse what GRBL sends and name its codes.
 
 mod codes;
-// Wired into GrblSlider in the next commit.
-#[allow(dead_code)]
+mod exchange;
 mod link;
 mod message;
 mod settings;
 mod slider;
-#[allow(dead_code)]
 mod tracker;
 
 pub use codes::{alarm_message, error_message};
 pub use message::{banner_version, parse_line, parse_status, Message, StatusReport};
 pub use settings::{BuildInfo, GrblSettings};
-pub use slider::{GrblConfig, GrblSlider, GrblStats};
+pub use slider::{GrblConfig, GrblSlider};
+pub use tracker::GrblStats;
