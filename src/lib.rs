@@ -15,5 +15,6 @@ pub mod io;
 pub mod measure;
 pub mod pipeline;
 pub mod scan;
+pub mod scandata;
 pub mod surface;
 pub mod util;

@@ -1,7 +1,7 @@
 //! The SQLite index of the archive: one row per scan, a cache of the scan directories'
 //! record.json files (the directories are the truth; [`super::Archive::rebuild`] recreates it).
 
-use super::{ArchiveError, Record, Status};
+use super::record::{ArchiveError, Record, Status};
 use rusqlite::{params, Connection, OptionalExtension};
 use std::path::Path;
 

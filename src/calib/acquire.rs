@@ -7,6 +7,7 @@
 //! ([`SimOperator`]). [`RenderRig`] renders frames directly (no devices, no real-time clock) for
 //! tests and benchmarks whose point is the mathematics.
 
+pub use super::data::{InsystemData, PlateObservation, StairFrame};
 use super::plan::CalibrationPlan;
 use super::CalibError;
 use crate::detect::{Detector, LinePeak};
@@ -14,7 +15,7 @@ use footscan_hal::{Camera, Frame, Slider, Timestamp};
 use footscan_sim::camera::SceneHandle;
 use footscan_sim::optics::Optics;
 use footscan_sim::render::{NoiseConfig, Renderer, Scene};
-use footscan_sim::targets::{Staircase, StaircaseGeometry};
+use footscan_sim::targets::Staircase;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -238,36 +239,6 @@ impl CalibrationRig for RenderRig {
         }
         Ok(x_mm)
     }
-}
-
-/// The line on the plate at one height, averaged over repeated frames.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PlateObservation {
-    pub height_mm: f64,
-    pub frames: usize,
-    /// Mean column per image row; NaN where fewer than 3/4 of the frames found the line.
-    pub col: Vec<f64>,
-    /// Standard deviation of the column over the frames, per row (px).
-    pub std: Vec<f64>,
-}
-
-/// One frame of the staircase pass.
-#[derive(Clone, Debug, PartialEq)]
-pub struct StairFrame {
-    /// Slider position as the controller reports it.
-    pub x_mm: f64,
-    /// Column per row, NaN where no line.
-    pub col: Vec<f64>,
-}
-
-/// Everything the in-system calibration fits.
-#[derive(Clone, Debug, PartialEq)]
-pub struct InsystemData {
-    pub width: u32,
-    pub height: u32,
-    pub plates: Vec<PlateObservation>,
-    pub stair: Vec<StairFrame>,
-    pub staircase: StaircaseGeometry,
 }
 
 /// Progress callback: (what, done, total).

@@ -15,7 +15,7 @@
 //! one-dimensional Bernstein collocation matrix alone has condition 4.6e2 at degree 8, 9.8e5 at
 //! 16, 2.4e9 at 24 and is numerically singular from about 40 on.
 
-use super::acquire::PlateObservation;
+use super::data::PlateObservation;
 use super::CalibError;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};

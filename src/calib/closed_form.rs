@@ -7,7 +7,7 @@
 //! eq. 20-21. These per-row values are the starting point of the general fit; their spread
 //! over the rows shows how far the real scanner is from the ideal model (distortion, tilts).
 
-use super::acquire::PlateObservation;
+use super::data::PlateObservation;
 use nalgebra::{Matrix3, Vector3};
 
 /// Eq. 20 and 21 as printed: (c_x, D) from the columns `x` of one row at heights `h`.

@@ -29,8 +29,8 @@
 //! the lens's own c_x either. The paper's claim that f and the pixel size are found separately
 //! (eq. 22-24, by moving the lens) does not apply here: only F = f/eta is observable.
 
-use super::acquire::InsystemData;
 use super::closed_form;
+use super::data::InsystemData;
 use super::lm;
 use super::stair::{self, Edge};
 use super::{CalibError, CameraModel};
@@ -165,7 +165,7 @@ pub fn fit_insystem(
 ) -> Result<InsystemFit, CalibError> {
     let (w, h) = (data.width, data.height);
     // Heights actually seen.
-    let usable: Vec<&super::acquire::PlateObservation> = data
+    let usable: Vec<&super::data::PlateObservation> = data
         .plates
         .iter()
         .filter(|p| p.col.iter().filter(|c| c.is_finite()).count() >= 16)
@@ -195,7 +195,7 @@ pub fn fit_insystem(
             heights: format!("{distinct:?} mm"),
         });
     }
-    let plates: Vec<super::acquire::PlateObservation> = usable.into_iter().cloned().collect();
+    let plates: Vec<super::data::PlateObservation> = usable.into_iter().cloned().collect();
     // 1. Closed forms.
     let rows = closed_form::per_row(&plates);
     let cf = closed_form::summarize(&rows).ok_or_else(|| CalibError::NoUsableRows {
@@ -436,7 +436,7 @@ pub fn fit_insystem(
     })
 }
 
-fn noise_of(o: &RowObs, plates: &[super::acquire::PlateObservation], noise: f64) -> f64 {
+fn noise_of(o: &RowObs, plates: &[super::data::PlateObservation], noise: f64) -> f64 {
     match o.plate {
         Some(k) => (pooled_noise(std::slice::from_ref(&plates[k]))
             / (plates[k].frames as f64).sqrt())
@@ -446,7 +446,7 @@ fn noise_of(o: &RowObs, plates: &[super::acquire::PlateObservation], noise: f64)
 }
 
 /// Single-frame detection noise: RMS over rows of the per-row spread of repeated frames.
-pub fn pooled_noise(plates: &[super::acquire::PlateObservation]) -> f64 {
+pub fn pooled_noise(plates: &[super::data::PlateObservation]) -> f64 {
     let v: Vec<f64> = plates
         .iter()
         .flat_map(|p| p.std.iter().copied())
@@ -489,7 +489,7 @@ fn edge_row(m: &CameraModel, pose: [f64; 3], e: &EdgeObs) -> Option<f64> {
 
 /// Eq. 18 as a check: per row, k = (c - c_x) h / F against s = c_0 - c should be a straight
 /// line; RMS of the departure (mm) over all rows, from the plate data.
-fn parallel_x(plates: &[super::acquire::PlateObservation], m: &CameraModel) -> f64 {
+fn parallel_x(plates: &[super::data::PlateObservation], m: &CameraModel) -> f64 {
     let Some(base) = plates
         .iter()
         .min_by(|a, b| a.height_mm.total_cmp(&b.height_mm))

@@ -15,6 +15,7 @@
 pub mod acquire;
 pub mod bezier_depth;
 pub mod closed_form;
+mod data;
 mod error;
 mod file;
 mod gauge;

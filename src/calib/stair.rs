@@ -7,8 +7,8 @@
 //! whole-row quantisation of an end averages out over the pass, and a riser crosses the line
 //! inside a frame (which locates it along x to a small fraction of the slider step).
 
-use super::acquire::InsystemData;
 use super::closed_form::median;
+use super::data::InsystemData;
 use super::{CalibError, CameraModel};
 use nalgebra::{Matrix3, Vector3};
 

@@ -6,7 +6,7 @@
 //! In the paper's eq. 30 the row coordinate also carries an uncertainty (u_v); here every row
 //! is measured at its own integer row, so only the column is uncertain.
 
-use super::acquire::PlateObservation;
+use super::data::PlateObservation;
 use super::CameraModel;
 use nalgebra::{DMatrix, DVector};
 

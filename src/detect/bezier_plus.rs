@@ -61,32 +61,32 @@ impl Default for BezierPlusConfig {
 }
 
 impl BezierPlusConfig {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), super::DetectError> {
         self.coarse.validate()?;
         if !(0.5..=10.0).contains(&self.window_sigmas) {
-            return Err(format!(
+            return Err(super::DetectError::Param(format!(
                 "window_sigmas = {}: valid range is 0.5..10",
                 self.window_sigmas
-            ));
+            )));
         }
         if self.window != 0 && !(4..MAX_N - 2).contains(&self.window) {
-            return Err(format!(
+            return Err(super::DetectError::Param(format!(
                 "window = {}: 0 (auto) or 4..{}",
                 self.window,
                 MAX_N - 3
-            ));
+            )));
         }
         if !(0.0..=10.0).contains(&self.smooth_rows) {
-            return Err(format!(
+            return Err(super::DetectError::Param(format!(
                 "smooth_rows = {}: valid range is 0..10",
                 self.smooth_rows
-            ));
+            )));
         }
         if !(self.jump_px > 0.0 && self.jump_px <= 20.0) {
-            return Err(format!(
+            return Err(super::DetectError::Param(format!(
                 "jump_px = {}: valid range is (0, 20]",
                 self.jump_px
-            ));
+            )));
         }
         Ok(())
     }
@@ -200,7 +200,7 @@ pub struct BezierPlus {
 }
 
 impl BezierPlus {
-    pub fn new(cfg: BezierPlusConfig) -> Result<Self, String> {
+    pub fn new(cfg: BezierPlusConfig) -> Result<Self, super::DetectError> {
         cfg.validate()?;
         let bias = cfg
             .bias_correction

@@ -90,21 +90,23 @@ impl Default for CoarseConfig {
 }
 
 impl CoarseConfig {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), super::DetectError> {
         if !(self.threshold > 0.0 && self.threshold < 255.0) {
-            return Err(format!(
+            return Err(super::DetectError::Param(format!(
                 "threshold = {}: valid range is (0, 255) DN",
                 self.threshold
-            ));
+            )));
         }
         if self.ambiguity.is_nan() || self.ambiguity <= 0.0 {
-            return Err(format!(
+            return Err(super::DetectError::Param(format!(
                 "ambiguity = {}: must be > 0 (a fraction of the peak; > 1 disables the test)",
                 self.ambiguity
-            ));
+            )));
         }
         if self.max_saturated_px == 0 {
-            return Err("max_saturated_px must be at least 1".into());
+            return Err(super::DetectError::Param(
+                "max_saturated_px must be at least 1".into(),
+            ));
         }
         Ok(())
     }

@@ -260,9 +260,12 @@ pub struct BezierLiteral {
 }
 
 impl BezierLiteral {
-    pub fn new(n: usize) -> Result<Self, String> {
+    pub fn new(n: usize) -> Result<Self, super::DetectError> {
         if !(2..MAX_N).contains(&n) {
-            return Err(format!("window = {n}: valid range is 2..{}", MAX_N - 1));
+            return Err(super::DetectError::Param(format!(
+                "window = {n}: valid range is 2..{}",
+                MAX_N - 1
+            )));
         }
         Ok(BezierLiteral { n })
     }

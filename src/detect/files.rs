@@ -1,20 +1,27 @@
 //! Recorded frames for `footscan detect`: PNG files (Gray8 or Gray16; colour images are
 //! converted to gray) or directories of them, and the peaks CSV.
 
-use super::LinePeak;
+use super::{DetectError, LinePeak};
 use footscan_hal::{Frame, Pixels, Timestamp};
 use image::DynamicImage;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+fn input(path: &Path, reason: impl std::fmt::Display) -> DetectError {
+    DetectError::Input {
+        path: path.to_path_buf(),
+        reason: reason.to_string(),
+    }
+}
+
 /// The PNG files named by `inputs`, in order: a file as given, a directory as its `*.png`
 /// files (case-insensitive extension) in name order. Frame index = position in this list.
-pub fn collect_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
+pub fn collect_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, DetectError> {
     let mut files = Vec::new();
     for p in inputs {
         if p.is_dir() {
             let mut v: Vec<PathBuf> = std::fs::read_dir(p)
-                .map_err(|e| format!("{}: {e}", p.display()))?
+                .map_err(|e| input(p, e))?
                 .filter_map(|e| e.ok().map(|e| e.path()))
                 .filter(|f| {
                     f.is_file()
@@ -25,30 +32,30 @@ pub fn collect_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
                 .collect();
             v.sort();
             if v.is_empty() {
-                return Err(format!("{}: no .png files in this directory", p.display()));
+                return Err(input(p, "no .png files in this directory"));
             }
             files.extend(v);
         } else if p.is_file() {
             files.push(p.clone());
         } else {
-            return Err(format!("{}: no such file or directory", p.display()));
+            return Err(input(p, "no such file or directory"));
         }
     }
     if files.is_empty() {
-        return Err("no input frames".into());
+        return Err(DetectError::NoInput);
     }
     Ok(files)
 }
 
 /// Read one PNG as a frame (`seq` = its index). 8-bit gray stays Gray8, 16-bit gray Gray16;
 /// colour is converted to gray of its own depth.
-pub fn load_png(path: &Path, seq: u64) -> Result<Frame, String> {
+pub fn load_png(path: &Path, seq: u64) -> Result<Frame, DetectError> {
     let img = image::ImageReader::open(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?
+        .map_err(|e| input(path, e))?
         .with_guessed_format()
-        .map_err(|e| format!("{}: {e}", path.display()))?
+        .map_err(|e| input(path, e))?
         .decode()
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+        .map_err(|e| input(path, e))?;
     let (w, h) = (img.width(), img.height());
     let pixels = match img {
         DynamicImage::ImageLuma8(b) => Pixels::Gray8(b.into_raw()),
@@ -59,7 +66,7 @@ pub fn load_png(path: &Path, seq: u64) -> Result<Frame, String> {
         other => Pixels::Gray16(other.to_luma16().into_raw()),
     };
     if w == 0 || h == 0 {
-        return Err(format!("{}: empty image", path.display()));
+        return Err(input(path, "empty image"));
     }
     Ok(Frame::new(seq, Timestamp::default(), w, h, pixels))
 }

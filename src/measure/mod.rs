@@ -66,15 +66,15 @@ mod fit;
 mod foot;
 mod outline;
 mod raster;
-mod stage;
+mod scanned;
 mod truth;
 
 pub use foot::{measure_foot, Measurements, Side};
 pub use outline::{line_crossings, regions, signed_area, simplify, Region};
 pub use raster::{grid_truncation, rasterize_grid};
-pub use stage::{
-    measure_grid, measure_scan_dir, register_stages, scan_heightmap, write_measurements,
-    MeasureOutput, DEFAULT_CELL_MM,
+pub use scanned::{
+    measure_grid, measure_scan_dir, scan_heightmap, write_measurements, MeasureOutput,
+    DEFAULT_CELL_MM,
 };
 pub use truth::{compare_with_truth, ErrorKind, ErrorRow, TruthComparison};
 

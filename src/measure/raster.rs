@@ -16,7 +16,7 @@
 
 use super::MeasureError;
 use crate::geom::HeightMap;
-use crate::scan::ScanGrid;
+use crate::scandata::ScanGrid;
 
 /// Missing rows bridged inside a run (a detector may drop a row or two in the sole).
 const MAX_GAP_ROWS: usize = 2;
@@ -538,7 +538,7 @@ fn fill_piece(map: &mut HeightMap, i: usize, x: f64, w: f64, piece: &Piece) {
 mod tests {
     use super::*;
     use crate::detect::LinePeak;
-    use crate::scan::item::{FrameMeta, FramePoints};
+    use crate::scandata::{FrameMeta, FramePoints};
 
     /// Frames every 0.5 mm, rows every 0.125 mm (the default scanner's sampling) of a height
     /// field `h` (None outside), rows and frames offset from the shape by fractions.

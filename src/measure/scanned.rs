@@ -1,5 +1,5 @@
-//! Measurement of a scan: the `measure.foot` pipeline stage and [`measure_scan_dir`] for a
-//! saved scan directory. Both take the footprint from the scan grid ([`rasterize_grid`]) and
+//! Measurement of a scan: [`measure_grid`] (what the `measure.foot` pipeline stage calls) and
+//! [`measure_scan_dir`] for a saved scan directory. Both take the footprint from the scan grid ([`rasterize_grid`]) and
 //! the heights from the plantar model where it has them: the Bezier network only keeps
 //! segments whose 4 x 4 grid points all have a return, so its own footprint stops up to a
 //! segment (1.5 mm) short of the outline, which would shorten every length and width.
@@ -10,13 +10,9 @@ use super::{
 };
 use crate::geom::HeightMap;
 use crate::io::render_plantar;
-use crate::pipeline::{BoxError, Emitter, Node, Registry, Stage};
-use crate::scan::item::Item;
-use crate::scan::{params, ScanContext, ScanGrid};
+use crate::scandata::ScanGrid;
 use crate::surface::BezierNetwork;
-use serde::Deserialize;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 /// Default cell of the measured height map (mm): outline vertices are within half a cell of
 /// the footprint's edge, and extreme points on flat stretches of the outline need it fine.
@@ -135,117 +131,4 @@ pub fn measure_scan_dir(
         png,
         comparison,
     })
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct MeasureParams {
-    #[serde(default = "default_json")]
-    json: String,
-    #[serde(default = "default_png")]
-    png: String,
-    #[serde(default = "default_cell")]
-    cell_mm: f64,
-    /// Heights from the model when one comes down the pipeline.
-    #[serde(default = "yes")]
-    use_model: bool,
-    /// A foot that cannot be measured fails the scan; false: a warning in the log.
-    #[serde(default = "yes")]
-    required: bool,
-}
-
-fn default_json() -> String {
-    "measurements.json".into()
-}
-fn default_png() -> String {
-    "plantar.png".into()
-}
-fn default_cell() -> f64 {
-    DEFAULT_CELL_MM
-}
-fn yes() -> bool {
-    true
-}
-
-/// `measure.foot`: keeps the grid (and the model, which comes after it) and measures at the
-/// end of the stream; passes every item on.
-pub struct MeasureStage {
-    json: PathBuf,
-    png: PathBuf,
-    cell_mm: f64,
-    use_model: bool,
-    required: bool,
-    grid: Option<Arc<ScanGrid>>,
-    model: Option<Arc<BezierNetwork>>,
-}
-
-impl Stage<Item> for MeasureStage {
-    fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
-        match &item {
-            Item::Grid(g) => self.grid = Some(g.clone()),
-            Item::Model(n) if self.use_model => self.model = Some(n.clone()),
-            _ => {}
-        }
-        let _ = out.emit(item);
-        Ok(())
-    }
-
-    fn finish(&mut self, _out: &mut Emitter<Item>) -> Result<(), BoxError> {
-        let Some(grid) = self.grid.take() else {
-            return Err("measure.foot received no scan grid: put it after accumulate".into());
-        };
-        let result = measure_grid(&grid, self.model.as_deref(), self.cell_mm)
-            .and_then(|(map, m)| write_measurements(&m, &map, &self.json, &self.png).map(|_| m));
-        match result {
-            Ok(m) => {
-                tracing::info!(
-                    length_mm = m.foot_length_mm,
-                    ball_width_mm = m.ball_width_mm,
-                    arch_index = m.arch_index,
-                    "foot measured"
-                );
-                for w in &m.warnings {
-                    tracing::warn!("{w}");
-                }
-                Ok(())
-            }
-            Err(e) if !self.required => {
-                tracing::warn!("foot not measured: {e}");
-                Ok(())
-            }
-            Err(e) => Err(format!("measure.foot: {e}").into()),
-        }
-    }
-}
-
-fn file_in(ctx: &ScanContext, key: &str, f: &str) -> Result<PathBuf, BoxError> {
-    let p = Path::new(f);
-    if f.is_empty() || p.is_absolute() || p.components().count() != 1 || f.contains("..") {
-        return Err(
-            format!("{key} = {f:?}: must be a plain name inside the scan directory").into(),
-        );
-    }
-    Ok(ctx.out_dir.join(p))
-}
-
-pub fn register_stages(r: &mut Registry<Item, ScanContext>) {
-    r.register(
-        "measure.foot",
-        "foot measurements of SPEC 8 from the grid (and model): measurements.json, plantar.png (json, png, cell_mm, use_model, required)",
-        |p, ctx: &ScanContext| {
-            let p: MeasureParams = params(p)?;
-            if !(p.cell_mm >= 0.05 && p.cell_mm <= 1.0) {
-                return Err(format!("cell_mm = {}: valid range is [0.05, 1]", p.cell_mm).into());
-            }
-            Ok(Node::stage(MeasureStage {
-                json: file_in(ctx, "json", &p.json)?,
-                png: file_in(ctx, "png", &p.png)?,
-                cell_mm: p.cell_mm,
-                use_model: p.use_model,
-                required: p.required,
-                grid: None,
-                model: None,
-            }))
-        },
-    );
 }

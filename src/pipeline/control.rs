@@ -12,7 +12,7 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
 use crossbeam_channel::{Receiver, Sender};
 
-use super::BoxError;
+use super::error::BoxError;
 
 #[derive(Debug)]
 pub(crate) struct RunControl {

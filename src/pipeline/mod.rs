@@ -19,6 +19,7 @@
 
 mod control;
 mod emitter;
+mod error;
 mod node;
 mod registry;
 mod runner;
@@ -27,8 +28,9 @@ mod stats;
 
 pub use control::CancelHandle;
 pub use emitter::{Cancelled, Emitter};
-pub use node::{BoxError, FnSource, FnStage, Node, Source, Stage};
-pub use registry::{BuildError, Factory, Registry};
+pub use error::{BoxError, BuildError};
+pub use node::{FnSource, FnStage, Node, Source, Stage};
+pub use registry::{Factory, Registry};
 pub use runner::{Panicked, Pipeline, PipelineError, RunReport, Running};
 pub use spec::{PipelineSpec, StageSpec, DEFAULT_CAPACITY};
 pub use stats::{StageState, StageStats};

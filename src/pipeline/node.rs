@@ -6,10 +6,7 @@
 //! their own thread, so implementations keep their state in fields without locks.
 
 use super::emitter::Emitter;
-
-/// The error type nodes return: any error, boxed. Return `Err(Cancelled.into())` (or just use
-/// `out.emit(x)?`) to stop quietly when the run is cancelled; that is not reported as a failure.
-pub type BoxError = Box<dyn std::error::Error + Send + Sync + 'static>;
+use super::error::BoxError;
 
 /// The first node of a pipeline: produces items (frames from a camera, a recorded scan, ...).
 pub trait Source<T>: Send {

@@ -7,40 +7,14 @@
 
 use std::collections::BTreeMap;
 
-use super::node::{BoxError, Node};
+use super::error::{BoxError, BuildError};
+use super::node::Node;
 use super::runner::Pipeline;
 use super::spec::PipelineSpec;
 
 /// Builds a node from its parameters (every key of its `[[pipeline.stages]]` table except
 /// `stage`) and the shared context.
 pub type Factory<T, C> = dyn Fn(&toml::Table, &C) -> Result<Node<T>, BoxError> + Send + Sync;
-
-/// Why a pipeline could not be built. Indices are 0-based positions in `pipeline.stages`.
-#[derive(Debug, thiserror::Error)]
-pub enum BuildError {
-    #[error("pipeline capacity must be at least 1, got {0}")]
-    Capacity(usize),
-    #[error("the pipeline has no stages; the first [[pipeline.stages]] entry must be a source")]
-    Empty,
-    #[error("pipeline.stages[{index}]: unknown stage `{name}`; valid stages: {}", valid.join(", "))]
-    UnknownStage {
-        index: usize,
-        name: String,
-        valid: Vec<String>,
-    },
-    #[error("pipeline.stages[{index}] `{stage}`: {source}")]
-    Factory {
-        index: usize,
-        stage: String,
-        source: BoxError,
-    },
-    #[error("pipeline.stages[0] `{stage}` is not a source; a pipeline must start with a source")]
-    FirstNotSource { stage: String },
-    #[error(
-        "pipeline.stages[{index}] `{stage}` is a source; only the first stage may be a source"
-    )]
-    SourceNotFirst { index: usize, stage: String },
-}
 
 struct Entry<T, C> {
     description: String,

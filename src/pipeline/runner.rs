@@ -16,8 +16,8 @@ use tracing::{debug, info_span, warn, Span};
 
 use super::control::{CancelHandle, RunControl};
 use super::emitter::{Cancelled, Emitter, Msg, Output};
-use super::node::{BoxError, Node, Source, Stage};
-use super::registry::BuildError;
+use super::error::{BoxError, BuildError};
+use super::node::{Node, Source, Stage};
 use super::stats::{StageCounters, StageState, StageStats};
 
 /// A validated chain of named nodes: a source followed by zero or more stages.

@@ -1,8 +1,9 @@
-use crate::detect::LinePeak;
-use footscan_hal::{Frame, Timestamp};
+//! The item type of the scan pipeline: what flows between its stages.
+
+use footscan_hal::Frame;
 use std::sync::Arc;
 
-use super::ScanGrid;
+pub use crate::scandata::{FrameLines, FrameMeta, FramePoints, ScanGrid};
 
 /// What flows between scan stages.
 pub enum Item {
@@ -28,33 +29,9 @@ impl Item {
     }
 }
 
-/// Where and when a frame was taken.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct FrameMeta {
-    /// Position in the scan (0, 1, 2, ... over accepted frames).
-    pub index: u64,
-    /// Camera sequence number.
-    pub seq: u64,
-    pub timestamp: Timestamp,
-    /// Slider position reported by the controller, interpolated at the capture time (mm).
-    pub x_mm: f64,
-}
-
 pub struct AcquiredFrame {
     pub meta: FrameMeta,
     pub frame: Frame,
-}
-
-pub struct FrameLines {
-    pub meta: FrameMeta,
-    pub lines: Vec<LinePeak>,
-}
-
-pub struct FramePoints {
-    pub meta: FrameMeta,
-    pub lines: Vec<LinePeak>,
-    /// One per row; NaN where the row has no line.
-    pub points: Vec<[f64; 3]>,
 }
 
 /// A stage received an item it cannot handle: a pipeline declared in the wrong order.

@@ -1,19 +1,20 @@
 //! A scan from end to end: devices, the stage registry, the threaded pipeline, the files.
 
+mod backend;
 pub mod config;
-mod grid;
-pub mod hardware;
+mod error;
 pub mod item;
 mod registry;
 mod run;
-pub mod sim;
 pub mod stages;
 pub mod summary;
 
+pub use crate::scandata::ScanGrid;
+pub use backend::{hardware, open_backend, sim, OpenBackend};
 pub use config::{LoadedConfig, ScanConfig};
-pub use grid::ScanGrid;
+pub use error::ScanError;
 pub use registry::{params, registry, ScanContext};
-pub use run::{run_scan, CancelToken, ScanError, ScanOptions, ScanProgress};
+pub use run::{run_scan, CancelToken, ScanOptions, ScanProgress};
 pub use summary::{ScanSummary, TruthSource, TruthStats};
 
 use footscan_hal::{Camera, Slider};

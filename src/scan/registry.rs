@@ -1,10 +1,13 @@
-//! The scan stages by name, with their parameters.
+//! The one list of scan stages by name, with their parameters: what `[[pipeline.stages]]`
+//! may name and what `footscan stages` prints.
 
 use super::stages::{
-    Accumulate, Acquire, GridSink, HeightMapSink, PlySink, SummarySink, Triangulate,
+    out_file, Accumulate, Acquire, Detect, GridSink, HeightMapSink, MeasureParams, MeasureStage,
+    ModelParams, ModelStage, PlySink, SummarySink, Triangulate,
 };
 use super::{item::Item, Devices, ScanCounters, ScanPlan, TruthSource};
 use crate::calib::Calibration;
+use crate::detect::{build, DetectParams, DETECTORS};
 use crate::pipeline::{BoxError, Node, Registry};
 use serde::de::DeserializeOwned;
 use serde::Deserialize;
@@ -53,13 +56,13 @@ struct HeightMapParams {
     cell_mm: Option<f64>,
 }
 
+/// `file` of a sink's table, or its default, inside the scan directory.
 fn file_in(ctx: &ScanContext, file: Option<String>, default: &str) -> Result<PathBuf, BoxError> {
-    let f = file.unwrap_or_else(|| default.to_string());
-    let p = std::path::Path::new(&f);
-    if p.is_absolute() || f.contains("..") {
-        return Err(format!("file = {f:?}: must be a plain name inside the scan directory").into());
-    }
-    Ok(ctx.out_dir.join(p))
+    out_file(
+        &ctx.out_dir,
+        "file",
+        &file.unwrap_or_else(|| default.to_string()),
+    )
 }
 
 /// Every stage a scan pipeline may name.
@@ -83,7 +86,15 @@ pub fn registry() -> Registry<Item, ScanContext> {
             )))
         },
     );
-    crate::detect::register_stages(&mut r);
+    for d in &DETECTORS {
+        r.register(d.stage, d.description, move |p, ctx: &ScanContext| {
+            let p: DetectParams = params(p)?;
+            let det = build(d.name, &p)?;
+            Ok(Node::stage(
+                Detect::new(d.stage, det).with_tap(ctx.tap.clone()),
+            ))
+        });
+    }
     r.register(
         "triangulate",
         "3D point per row from the calibration (calibration = file, optional)",
@@ -106,8 +117,22 @@ pub fn registry() -> Registry<Item, ScanContext> {
             Ok(Node::stage(Accumulate::default()))
         },
     );
-    crate::surface::register_stages(&mut r);
-    crate::measure::register_stages(&mut r);
+    r.register(
+        "model.bezier",
+        "Bezier-network plantar model from the grid; writes its closed mesh (stl, ply, obj, cell_mm)",
+        |p, ctx: &ScanContext| {
+            let p: ModelParams = params(p)?;
+            Ok(Node::stage(ModelStage::new(p, &ctx.out_dir)?))
+        },
+    );
+    r.register(
+        "measure.foot",
+        "foot measurements of SPEC 8 from the grid (and model): measurements.json, plantar.png (json, png, cell_mm, use_model, required)",
+        |p, ctx: &ScanContext| {
+            let p: MeasureParams = params(p)?;
+            Ok(Node::stage(MeasureStage::new(p, &ctx.out_dir)?))
+        },
+    );
     r.register(
         "sink.ply",
         "writes the point cloud as binary PLY (file, default points.ply)",

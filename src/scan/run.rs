@@ -2,6 +2,7 @@
 //! reason of a failed scan.
 
 use super::config::LoadedConfig;
+use super::error::ScanError;
 use super::item::Item;
 use super::summary::{ScanSummary, StageReport};
 use super::{registry, ScanContext, ScanCounters, ScanPlan};
@@ -56,26 +57,6 @@ pub struct ScanProgress {
     pub stages: Vec<StageStats>,
 }
 
-#[derive(Debug, thiserror::Error)]
-pub enum ScanError {
-    #[error("{0}")]
-    Config(String),
-    #[error("cannot use scan directory {path}: {source}")]
-    OutDir {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("scanner setup failed: {0}")]
-    Setup(String),
-    #[error(transparent)]
-    Pipeline(#[from] PipelineError),
-    #[error("writing {path}: {source}")]
-    Write {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-}
-
 /// Scan with `cfg`, writing into `opts.out_dir`; `progress` is called a few times a second.
 pub fn run_scan(
     cfg: &LoadedConfig,
@@ -91,7 +72,7 @@ pub fn run_scan(
     let counters = Arc::new(ScanCounters::default());
     let result = (|| -> Result<ScanSummary, ScanError> {
         let (devices, backend, calibration) =
-            super::hardware::open_backend(cfg, opts.calibration.as_deref())?;
+            super::backend::open_backend(cfg, opts.calibration.as_deref())?;
         if let Some(foot) = &backend.foot {
             let path = opts.out_dir.join("truth.json");
             let json = serde_json::to_vec_pretty(&foot.truth()).expect("truth serialises");

@@ -1,7 +1,7 @@
 //! The scan summary written as scan.json, with the error against ground truth where a
 //! simulator supplied it.
 
-use super::ScanGrid;
+use crate::scandata::ScanGrid;
 use serde::Serialize;
 
 /// Ground truth per frame (camera sequence number), from a simulator.
@@ -149,7 +149,7 @@ impl ScanSummary {
 mod tests {
     use super::*;
     use crate::detect::LinePeak;
-    use crate::scan::item::{FrameMeta, FramePoints};
+    use crate::scandata::{FrameMeta, FramePoints};
     use footscan_hal::Timestamp;
 
     struct Flat;

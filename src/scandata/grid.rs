@@ -1,4 +1,4 @@
-use super::item::{FrameMeta, FramePoints};
+use super::{FrameMeta, FramePoints};
 use crate::detect::LinePeak;
 
 /// The scan grid of SPEC section 3: frame i (slider position X_i) by row j.

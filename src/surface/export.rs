@@ -2,7 +2,7 @@
 //! Shared by the `model.bezier` stage and `footscan model`.
 
 use super::{BezierNetwork, Continuity, Mesh, PointGrid, SurfaceError};
-use crate::scan::ScanGrid;
+use crate::scandata::ScanGrid;
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;

@@ -1,7 +1,7 @@
 //! A structured grid of 3D points, u (frames) by v (rows), NaN where there is no point: what
 //! every surface model here is built from.
 
-use crate::scan::ScanGrid;
+use crate::scandata::ScanGrid;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointGrid {

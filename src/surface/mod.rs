@@ -21,14 +21,12 @@ mod mesh;
 mod network;
 pub mod ops;
 pub mod poly;
-mod stage;
 
 pub use basis::{basis, basis_d1, basis_d2, interpolation_matrix};
 pub use export::{build_scan_model, model_scan, write_model, MeshFiles, ModelSummary};
 pub use grid::{PointGrid, Subsample};
 pub use mesh::Mesh;
 pub use network::{BezierNetwork, Continuity, Segment};
-pub use stage::register_stages;
 
 /// Errors building a surface model.
 #[derive(Debug, thiserror::Error)]

@@ -1,27 +1,27 @@
 //! The `model.bezier` pipeline stage: takes the scan grid, passes it on, writes the model's
 //! mesh files into the scan directory and emits the model after the grid.
 
-use super::export::{model_scan, MeshFiles};
-use crate::pipeline::{BoxError, Emitter, Node, Registry, Stage};
+use super::out_file;
+use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::Item;
-use crate::scan::{params, ScanContext};
+use crate::surface::{model_scan, MeshFiles};
 use serde::Deserialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-struct ModelParams {
+pub struct ModelParams {
     /// Mesh files, plain names inside the scan directory; "" to skip one.
     #[serde(default = "default_stl")]
-    stl: String,
+    pub stl: String,
     #[serde(default)]
-    ply: String,
+    pub ply: String,
     #[serde(default)]
-    obj: String,
+    pub obj: String,
     /// Cell of the (x, y) grid the mesh is sampled on (mm).
     #[serde(default = "default_cell")]
-    cell_mm: f64,
+    pub cell_mm: f64,
 }
 
 fn default_stl() -> String {
@@ -32,21 +32,33 @@ fn default_cell() -> f64 {
     0.5
 }
 
-fn file_in(ctx: &ScanContext, key: &str, f: &str) -> Result<Option<PathBuf>, BoxError> {
+/// An optional output file: "" skips it.
+fn optional(out_dir: &Path, key: &str, f: &str) -> Result<Option<PathBuf>, BoxError> {
     if f.is_empty() {
         return Ok(None);
     }
-    let p = std::path::Path::new(f);
-    if p.is_absolute() || f.contains("..") || p.components().count() != 1 {
-        return Err(
-            format!("{key} = {f:?}: must be a plain name inside the scan directory").into(),
-        );
-    }
-    Ok(Some(ctx.out_dir.join(p)))
+    out_file(out_dir, key, f).map(Some)
 }
 
 pub struct ModelStage {
     files: MeshFiles,
+}
+
+impl ModelStage {
+    /// The stage of `p`, writing into `out_dir`; checks the cell and the file names.
+    pub fn new(p: ModelParams, out_dir: &Path) -> Result<Self, BoxError> {
+        if !(p.cell_mm >= 0.05 && p.cell_mm <= 10.0) {
+            return Err(format!("cell_mm = {}: valid range is [0.05, 10]", p.cell_mm).into());
+        }
+        Ok(ModelStage {
+            files: MeshFiles {
+                stl: optional(out_dir, "stl", &p.stl)?,
+                ply: optional(out_dir, "ply", &p.ply)?,
+                obj: optional(out_dir, "obj", &p.obj)?,
+                cell_mm: p.cell_mm,
+            },
+        })
+    }
 }
 
 impl Stage<Item> for ModelStage {
@@ -67,25 +79,4 @@ impl Stage<Item> for ModelStage {
         let _ = out.emit(Item::Model(Arc::new(net)));
         Ok(())
     }
-}
-
-pub fn register_stages(r: &mut Registry<Item, ScanContext>) {
-    r.register(
-        "model.bezier",
-        "Bezier-network plantar model from the grid; writes its closed mesh (stl, ply, obj, cell_mm)",
-        |p, ctx: &ScanContext| {
-            let p: ModelParams = params(p)?;
-            if !(p.cell_mm >= 0.05 && p.cell_mm <= 10.0) {
-                return Err(format!("cell_mm = {}: valid range is [0.05, 10]", p.cell_mm).into());
-            }
-            Ok(Node::stage(ModelStage {
-                files: MeshFiles {
-                    stl: file_in(ctx, "stl", &p.stl)?,
-                    ply: file_in(ctx, "ply", &p.ply)?,
-                    obj: file_in(ctx, "obj", &p.obj)?,
-                    cell_mm: p.cell_mm,
-                },
-            }))
-        },
-    );
 }

@@ -1,9 +1,6 @@
-//! The hardware backend (a V4L2 camera and a GRBL 1.1 slider on a serial port) and the one
-//! place a scan opens its backend, whichever it is.
-//!
-//! The simulator is just another backend: both hand the pipeline a [`Devices`] behind the
-//! HAL's `Camera` and `Slider` traits. With hardware there is no ground truth and no default
-//! calibration: a calibration file is required (`--calibration` or `scanner.calibration`).
+//! The hardware backend: a V4L2 camera and a GRBL 1.1 slider on a serial port. With hardware
+//! there is no ground truth and no default calibration: a calibration file is required
+//! (`--calibration` or `scanner.calibration`).
 //!
 //! Opening order: the camera first (no motion), then the slider (reset, settings checked
 //! against the scan, homing), so a scanner that cannot see never moves.
@@ -12,17 +9,11 @@
 //! (homing enabled, or an earlier alarm) is homed when `scan.home` is true; otherwise opening
 //! fails and says so, because a position that was never homed cannot label frames.
 
-use super::config::{Backend, CameraSection, HardwareCamera, HardwareSlider, LoadedConfig};
-use super::config::{ScanConfig, ScanSection};
-use super::run::ScanError;
-use super::{sim, Devices, TruthSource};
-use crate::calib::Calibration;
+use crate::scan::config::{CameraSection, HardwareCamera, HardwareSlider, ScanConfig, ScanSection};
+use crate::scan::Devices;
 use footscan_grbl::{GrblConfig, GrblSlider};
 use footscan_hal::{HalError, Slider};
-use footscan_sim::foot::Foot;
 use footscan_v4l2::{SourceFormat, V4l2Camera, V4l2Config};
-use std::path::Path;
-use std::sync::Arc;
 use std::time::Duration;
 
 /// Why a hardware device could not be opened; each message names the device and what to try.
@@ -222,88 +213,4 @@ pub fn open(cfg: &ScanConfig) -> Result<Devices, HardwareError> {
         camera: Box::new(camera),
         slider: Box::new(slider),
     })
-}
-
-/// What a scan keeps open next to its devices: the simulator's emulator and ground truth, or
-/// nothing for hardware.
-pub struct OpenBackend {
-    /// The simulated foot (its truth.json is written next to the scan).
-    pub foot: Option<Foot>,
-    sim: Option<sim::SimBackend>,
-}
-
-impl OpenBackend {
-    /// Ground truth per frame, for simulated scans only.
-    pub fn truth_source(&self) -> Option<Arc<dyn TruthSource>> {
-        self.sim.as_ref().map(sim::truth_source)
-    }
-}
-
-/// Resolve the calibration (`--calibration`, then `scanner.calibration`, then the
-/// simulator's true model; required for hardware) and open the configured backend.
-pub fn open_backend(
-    cfg: &LoadedConfig,
-    calibration: Option<&Path>,
-) -> Result<(Devices, OpenBackend, Calibration), ScanError> {
-    let setup = |e: String| ScanError::Setup(e);
-    let path = calibration
-        .map(Path::to_path_buf)
-        .or_else(|| cfg.calibration_path());
-    let from = if calibration.is_some() {
-        "--calibration".to_string()
-    } else {
-        format!("scanner.calibration in {}", cfg.path.display())
-    };
-    let loaded = match &path {
-        Some(p) => Some(Calibration::load(p).map_err(|e| setup(format!("{e} (from {from})")))?),
-        None => None,
-    };
-    match cfg.config.scanner.backend {
-        Backend::Sim => {
-            let (devices, backend) = sim::open(&cfg.config).map_err(|e| setup(e.to_string()))?;
-            let calibration = loaded.unwrap_or_else(|| sim::true_calibration(&cfg.config));
-            let foot = backend.foot.clone();
-            Ok((
-                devices,
-                OpenBackend {
-                    foot,
-                    sim: Some(backend),
-                },
-                calibration,
-            ))
-        }
-        Backend::Hardware => {
-            let Some(calibration) = loaded else {
-                return Err(setup(format!(
-                    "the hardware backend needs a calibration file: pass --calibration FILE or set scanner.calibration in {} (`footscan calibrate` writes one)",
-                    cfg.path.display()
-                )));
-            };
-            let hw = cfg
-                .config
-                .hardware
-                .as_ref()
-                .expect("validated: backend = \"hardware\" has a [hardware] section");
-            let m = &calibration.model;
-            if (m.width, m.height) != (hw.camera.width, hw.camera.height) {
-                return Err(setup(format!(
-                    "calibration {} is for a {}x{} camera, hardware.camera is {}x{}",
-                    path.as_deref().unwrap_or(Path::new("?")).display(),
-                    m.width,
-                    m.height,
-                    hw.camera.width,
-                    hw.camera.height
-                )));
-            }
-            let devices = open(&cfg.config).map_err(|e| setup(e.to_string()))?;
-            Ok((
-                devices,
-                OpenBackend {
-                    foot: None,
-                    sim: None,
-                },
-                calibration,
-            ))
-        }
-    }
 }

@@ -1,9 +1,9 @@
 //! The simulator backend: the GRBL emulator on a pseudo-terminal reached through the real
 //! serial driver, and the simulated camera rendering the foot at the head's true position.
 
-use super::config::{ScanConfig, SceneKind, SimFaults};
-use super::{Devices, TruthSource};
 use crate::calib::{Calibration, CameraModel};
+use crate::scan::config::{ScanConfig, SceneKind, SimFaults};
+use crate::scan::{Devices, TruthSource};
 use footscan_grbl::{GrblConfig, GrblSlider};
 use footscan_hal::{Camera, Slider};
 use footscan_sim::camera::{CameraFaults, SimCamera, TruthLog};

@@ -1,0 +1,105 @@
+//! The archive's records: a scan's status and metadata (record.json and an index row), what
+//! starting and ending a scan say about it, and the archive's errors.
+
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    Running,
+    Complete,
+    Failed,
+    Cancelled,
+}
+
+impl Status {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Running => "running",
+            Status::Complete => "complete",
+            Status::Failed => "failed",
+            Status::Cancelled => "cancelled",
+        }
+    }
+    pub fn parse(s: &str) -> Option<Status> {
+        [
+            Status::Running,
+            Status::Complete,
+            Status::Failed,
+            Status::Cancelled,
+        ]
+        .into_iter()
+        .find(|x| x.as_str() == s)
+    }
+}
+
+/// The metadata of one scan, as record.json and as an index row.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Record {
+    pub id: String,
+    pub subject: String,
+    pub side: String,
+    pub notes: String,
+    pub status: Status,
+    pub reason: Option<String>,
+    /// RFC 3339 UTC.
+    pub started: String,
+    pub finished: Option<String>,
+    pub frames: u64,
+    pub points: u64,
+}
+
+impl Record {
+    /// A scan that starts now.
+    pub(super) fn running(id: String, meta: NewScan) -> Record {
+        Record {
+            id,
+            subject: meta.subject,
+            side: meta.side,
+            notes: meta.notes,
+            status: Status::Running,
+            reason: None,
+            started: crate::util::now_rfc3339(),
+            finished: None,
+            frames: 0,
+            points: 0,
+        }
+    }
+}
+
+/// What the operator says about a scan when starting it (validated by the caller).
+#[derive(Clone, Debug)]
+pub struct NewScan {
+    pub subject: String,
+    pub side: String,
+    pub notes: String,
+}
+
+/// How a scan ended.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    pub status: Status,
+    pub reason: Option<String>,
+    pub frames: u64,
+    pub points: u64,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ArchiveError {
+    #[error("archive {path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("archive index {path}: {source}")]
+    Index {
+        path: PathBuf,
+        source: rusqlite::Error,
+    },
+    #[error("archive {path}: record.json is not valid: {message}")]
+    BadRecord { path: PathBuf, message: String },
+    #[error("scan {0} is not in the archive")]
+    NotFound(String),
+}

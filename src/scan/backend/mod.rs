@@ -1,0 +1,98 @@
+//! The one place a scan opens its backend, whichever it is: the simulator ([`sim`]) or the
+//! hardware ([`hardware`]), one file each. Both hand the pipeline a [`Devices`] behind the
+//! HAL's `Camera` and `Slider` traits.
+
+pub mod hardware;
+pub mod sim;
+
+use crate::calib::Calibration;
+use crate::scan::config::{Backend, LoadedConfig};
+use crate::scan::error::ScanError;
+use crate::scan::{Devices, TruthSource};
+use footscan_sim::foot::Foot;
+use std::path::Path;
+use std::sync::Arc;
+
+/// What a scan keeps open next to its devices: the simulator's emulator and ground truth, or
+/// nothing for hardware.
+pub struct OpenBackend {
+    /// The simulated foot (its truth.json is written next to the scan).
+    pub foot: Option<Foot>,
+    sim: Option<sim::SimBackend>,
+}
+
+impl OpenBackend {
+    /// Ground truth per frame, for simulated scans only.
+    pub fn truth_source(&self) -> Option<Arc<dyn TruthSource>> {
+        self.sim.as_ref().map(sim::truth_source)
+    }
+}
+
+/// Resolve the calibration (`--calibration`, then `scanner.calibration`, then the
+/// simulator's true model; required for hardware) and open the configured backend.
+pub fn open_backend(
+    cfg: &LoadedConfig,
+    calibration: Option<&Path>,
+) -> Result<(Devices, OpenBackend, Calibration), ScanError> {
+    let setup = |e: String| ScanError::Setup(e);
+    let path = calibration
+        .map(Path::to_path_buf)
+        .or_else(|| cfg.calibration_path());
+    let from = if calibration.is_some() {
+        "--calibration".to_string()
+    } else {
+        format!("scanner.calibration in {}", cfg.path.display())
+    };
+    let loaded = match &path {
+        Some(p) => Some(Calibration::load(p).map_err(|e| setup(format!("{e} (from {from})")))?),
+        None => None,
+    };
+    match cfg.config.scanner.backend {
+        Backend::Sim => {
+            let (devices, backend) = sim::open(&cfg.config).map_err(|e| setup(e.to_string()))?;
+            let calibration = loaded.unwrap_or_else(|| sim::true_calibration(&cfg.config));
+            let foot = backend.foot.clone();
+            Ok((
+                devices,
+                OpenBackend {
+                    foot,
+                    sim: Some(backend),
+                },
+                calibration,
+            ))
+        }
+        Backend::Hardware => {
+            let Some(calibration) = loaded else {
+                return Err(setup(format!(
+                    "the hardware backend needs a calibration file: pass --calibration FILE or set scanner.calibration in {} (`footscan calibrate` writes one)",
+                    cfg.path.display()
+                )));
+            };
+            let hw = cfg
+                .config
+                .hardware
+                .as_ref()
+                .expect("validated: backend = \"hardware\" has a [hardware] section");
+            let m = &calibration.model;
+            if (m.width, m.height) != (hw.camera.width, hw.camera.height) {
+                return Err(setup(format!(
+                    "calibration {} is for a {}x{} camera, hardware.camera is {}x{}",
+                    path.as_deref().unwrap_or(Path::new("?")).display(),
+                    m.width,
+                    m.height,
+                    hw.camera.width,
+                    hw.camera.height
+                )));
+            }
+            let devices = hardware::open(&cfg.config).map_err(|e| setup(e.to_string()))?;
+            Ok((
+                devices,
+                OpenBackend {
+                    foot: None,
+                    sim: None,
+                },
+                calibration,
+            ))
+        }
+    }
+}
