@@ -63,7 +63,7 @@ impl LoadReport {
         let how = match self.decision {
             UnitsDecision::Millimetres => "millimetres".to_string(),
             UnitsDecision::Metres { detected: true } => {
-                "metres (detected from the size; --units mm to override), scaled by 1000".into()
+                "metres (detected from the size), scaled by 1000".into()
             }
             UnitsDecision::Metres { detected: false } => "metres, scaled by 1000".into(),
             UnitsDecision::Length { length_mm } => {
