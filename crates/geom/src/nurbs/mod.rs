@@ -31,6 +31,10 @@ mod hcurve;
 pub mod skin;
 mod surface;
 
+pub use curve::ClosestPoint;
+pub use fit::{FitOptions, FitReport, Param};
+pub use surface::{make_surfaces_compatible, SurfaceCurvature};
+
 use crate::P3;
 
 /// What is wrong with a curve or surface definition, or why a construction failed.
@@ -390,6 +394,16 @@ impl NurbsCurve {
         let p = self.degree;
         let u = self.normalize_param(u);
         let n = self.points.len() - 1;
+        // A clamped end is its end control point exactly (the basis recurrence could be off
+        // by a rounding there, and fits promise their fixed ends exactly).
+        if !self.periodic {
+            if u == self.knots[p] && self.knots[0] == self.knots[p] {
+                return self.points[0];
+            }
+            if u == self.knots[n + 1] && self.knots[n + 1] == self.knots[n + p + 1] {
+                return self.points[n];
+            }
+        }
         let span = basis::find_span(n, p, u, &self.knots);
         let mut b = [0.0f64; 32];
         let mut heap;
