@@ -1,0 +1,156 @@
+#!/usr/bin/env python3
+"""Read an IGES or STEP file back with OpenCASCADE (OCP) and print what it found as JSON.
+
+usage: occt_readback.py FILE.igs|FILE.step [--unit] [U,V ...] [U ...]
+
+Each U,V pair is evaluated on every face's surface, each single U on every free edge's
+curve (an edge that bounds no face). With --unit the parameters are fractions of each
+entity's own parameter domain (0 = start, 1 = end) instead of absolute values.
+
+The JSON has: the OCCT version, whether the file read, BRepCheck_Analyzer validity, counts
+of faces, edges, free edges and shells, and per face ("surfaces") and per free edge
+("curves"), in the order the reader returns them: the OCCT geometry type, degrees, pole
+counts, rational and periodic flags, the parameter domain of the B-spline itself, the
+face's or edge's own parameter range, and the evaluated points.
+
+Test-time only: crates/geom/tests/export_occt.rs runs it in the venv scripts/setup.sh makes.
+"""
+
+import json
+import os
+import sys
+from importlib import metadata
+
+from OCP.BRep import BRep_Tool
+from OCP.BRepAdaptor import BRepAdaptor_Curve
+from OCP.BRepCheck import BRepCheck_Analyzer
+from OCP.BRepTools import BRepTools
+from OCP.Geom import Geom_BSplineCurve, Geom_BSplineSurface, Geom_RectangularTrimmedSurface, Geom_TrimmedCurve
+from OCP.IFSelect import IFSelect_RetDone
+from OCP.IGESControl import IGESControl_Reader
+from OCP.STEPControl import STEPControl_Reader
+from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL
+from OCP.TopExp import TopExp
+from OCP.TopoDS import TopoDS
+
+try:  # OCCT 8 bindings name the map templates by their parameters
+    from OCP.collections import IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeAncestors
+    from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
+except ImportError:  # OCCT 7 bindings
+    from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape as ShapeAncestors
+    from OCP.TopTools import TopTools_IndexedMapOfShape as ShapeMap
+
+
+def explore(shape, kind):
+    """Distinct sub-shapes of one kind (a seam edge counts once), in the reader's order."""
+    m = ShapeMap()
+    TopExp.MapShapes_s(shape, kind, m)
+    return [m.FindKey(i) for i in range(1, m.Extent() + 1)]
+
+
+def xyz(p):
+    return [p.X(), p.Y(), p.Z()]
+
+
+def surface_info(face, pairs, unit):
+    surf = BRep_Tool.Surface_s(face)
+    if isinstance(surf, Geom_RectangularTrimmedSurface):
+        surf = surf.BasisSurface()
+    info = {"type": surf.DynamicType().Name()}
+    u0, u1, v0, v1 = surf.Bounds()
+    info["domain_u"], info["domain_v"] = [u0, u1], [v0, v1]
+    info["face_uv_bounds"] = list(BRepTools.UVBounds_s(face))
+    info["edges"] = len(explore(face, TopAbs_EDGE))
+    if isinstance(surf, Geom_BSplineSurface):
+        info.update(
+            degree_u=surf.UDegree(), degree_v=surf.VDegree(),
+            poles_u=surf.NbUPoles(), poles_v=surf.NbVPoles(),
+            rational=bool(surf.IsURational() or surf.IsVRational()),
+            periodic_u=bool(surf.IsUPeriodic()), periodic_v=bool(surf.IsVPeriodic()),
+            closed_u=bool(surf.IsUClosed()), closed_v=bool(surf.IsVClosed()),
+        )
+    pts = []
+    for u, v in pairs:
+        if unit:
+            u, v = u0 + u * (u1 - u0), v0 + v * (v1 - v0)
+        pts.append({"u": u, "v": v, "p": xyz(surf.Value(u, v))})
+    info["points"] = pts
+    return info
+
+
+def curve_info(edge, params, unit):
+    adaptor = BRepAdaptor_Curve(edge)
+    curve = BRep_Tool.Curve_s(edge, 0.0, 0.0)
+    info = {"edge_range": [adaptor.FirstParameter(), adaptor.LastParameter()]}
+    if curve is None:
+        info["type"] = "none"
+        return info
+    if isinstance(curve, Geom_TrimmedCurve):
+        curve = curve.BasisCurve()
+    info["type"] = curve.DynamicType().Name()
+    t0, t1 = curve.FirstParameter(), curve.LastParameter()
+    info["domain"] = [t0, t1]
+    if isinstance(curve, Geom_BSplineCurve):
+        info.update(
+            degree=curve.Degree(), poles=curve.NbPoles(), rational=bool(curve.IsRational()),
+            periodic=bool(curve.IsPeriodic()), closed=bool(curve.IsClosed()),
+        )
+    pts = []
+    for u in params:
+        if unit:
+            u = t0 + u * (t1 - t0)
+        pts.append({"u": u, "p": xyz(curve.Value(u))})
+    info["points"] = pts
+    return info
+
+
+def main(argv):
+    if len(argv) < 2:
+        print(__doc__, file=sys.stderr)
+        return 2
+    path, rest = argv[1], argv[2:]
+    unit = "--unit" in rest
+    pairs, params = [], []
+    for a in rest:
+        if a == "--unit":
+            continue
+        xs = [float(x) for x in a.split(",")]
+        (pairs if len(xs) == 2 else params).append(tuple(xs) if len(xs) == 2 else xs[0])
+    out = {"file": path, "occt": metadata.version("cadquery-ocp-novtk")}
+    # OCCT's messenger writes progress to stdout; keep stdout for the JSON alone.
+    json_out = os.fdopen(os.dup(1), "w")
+    os.dup2(2, 1)
+    try:
+        code = read(path, pairs, params, unit, out)
+    finally:
+        sys.stdout.flush()
+    json_out.write(json.dumps(out) + "\n")
+    json_out.flush()
+    return code
+
+
+def read(path, pairs, params, unit, out):
+    is_step = path.lower().endswith((".step", ".stp"))
+    reader = STEPControl_Reader() if is_step else IGESControl_Reader()
+    out["format"] = "STEP" if is_step else "IGES"
+    if reader.ReadFile(path) != IFSelect_RetDone:
+        out["read"] = False
+        return 1
+    out["read"] = True
+    out["roots"] = reader.NbRootsForTransfer()
+    out["transferred"] = reader.TransferRoots()
+    shape = reader.OneShape()
+    out["valid"] = bool(BRepCheck_Analyzer(shape).IsValid())
+    faces = explore(shape, TopAbs_FACE)
+    edges = explore(shape, TopAbs_EDGE)
+    owners = ShapeAncestors()
+    TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, owners)
+    free = [e for e in edges if owners.FindFromKey(e).Size() == 0]
+    out.update(faces=len(faces), edges=len(edges), free_edges=len(free), shells=len(explore(shape, TopAbs_SHELL)))
+    out["surfaces"] = [surface_info(TopoDS.Face(f), pairs, unit) for f in faces]
+    out["curves"] = [curve_info(TopoDS.Edge(e), params, unit) for e in free]
+    return 0 if out["valid"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
