@@ -299,6 +299,59 @@ mod tests {
         assert!(text.contains("20Ha part, with a comma"));
     }
 
+    /// The PROP1..PROP4 flags of the first 126 entity in `text`.
+    fn curve_flags(text: &str) -> String {
+        let pd = text.lines().find(|l| l.as_bytes()[72] == b'P').unwrap();
+        pd.split(',').skip(3).take(4).collect::<Vec<_>>().join(",")
+    }
+
+    #[test]
+    fn curve_flags_planar_closed_polynomial_periodic() {
+        let h = Header::new("flags");
+        let s = 0.5f64.sqrt();
+        let sq = [
+            (1., 0.),
+            (1., 1.),
+            (0., 1.),
+            (-1., 1.),
+            (-1., 0.),
+            (-1., -1.),
+            (0., -1.),
+            (1., -1.),
+            (1., 0.),
+        ];
+        let circle = NurbsCurve::new(
+            2,
+            vec![0., 0., 0., 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1., 1., 1.],
+            sq.iter().map(|(x, y)| P3::new(*x, *y, 3.0)).collect(),
+            Some(vec![1., s, 1., s, 1., s, 1., s, 1.]),
+        )
+        .unwrap();
+        // Planar, closed, rational, not periodic.
+        assert_eq!(
+            curve_flags(&to_string(&[circle], &[], &h).unwrap()),
+            "1,1,0,0"
+        );
+        // A periodic cubic through a non-planar loop: closed, polynomial, periodic.
+        let loop_pts = [(0., 0., 0.), (1., 0., 1.), (1., 1., 0.), (0., 1., 1.)];
+        let mut pts: Vec<P3> = loop_pts
+            .iter()
+            .map(|(x, y, z)| P3::new(*x, *y, *z))
+            .collect();
+        pts.extend_from_within(..3);
+        let knots = (0..11).map(f64::from).collect();
+        let periodic = NurbsCurve::new_periodic(3, knots, pts, None).unwrap();
+        assert_eq!(
+            curve_flags(&to_string(&[periodic], &[], &h).unwrap()),
+            "0,1,1,1"
+        );
+        // An open straight line: collinear points give no unique plane.
+        assert_eq!(
+            curve_flags(&to_string(&[line()], &[], &h).unwrap()),
+            "0,0,1,0"
+        );
+    }
+
     #[test]
     fn bad_knots_are_named() {
         let mut c = line();
