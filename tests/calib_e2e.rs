@@ -2,8 +2,8 @@
 //! pty behind the real serial driver, the simulated camera in real time, the simulated operator
 //! swapping the targets; then a scan that loads the calibration file.
 
-use footscan::calib::run::{self, Method};
 use footscan::calib::{Calibration, CalibrationPlan};
+use footscan::scan::calibrate::{self as run, Method};
 use footscan::scan::{run_scan, LoadedConfig, ScanOptions};
 use std::path::Path;
 

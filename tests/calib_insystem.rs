@@ -4,8 +4,8 @@
 use footscan::bench::calibrate::validation_staircase;
 use footscan::calib::acquire::{InsystemData, PlateObservation, RenderRig};
 use footscan::calib::insystem::{fit_insystem, InsystemOptions};
-use footscan::calib::run::{self, Method};
 use footscan::calib::{CalibError, Calibration, CalibrationPlan};
+use footscan::scan::calibrate::{self as run, Method};
 use footscan_sim::foot::{Foot, FootParams};
 use footscan_sim::optics::Optics;
 use footscan_sim::render::{NoiseConfig, Renderer, RowTruth, Scene};

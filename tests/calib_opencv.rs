@@ -1,8 +1,8 @@
 //! The OpenCV checkerboard reference against the simulator's ground truth (cargo feature
 //! `opencv`, on by default), and the clear error when the feature is off.
 
-use footscan::calib::run::{self, Method};
 use footscan::calib::{CalibError, CalibrationPlan};
+use footscan::scan::calibrate::{self as run, Method};
 use footscan::scan::LoadedConfig;
 use std::path::Path;
 
@@ -22,7 +22,7 @@ mod with_opencv {
         let cfg = sim_config();
         let mut plan = CalibrationPlan::default();
         plan.sim.board_poses.truncate(8);
-        let shots = opencv::render_shots(&cfg.config, &plan, &mut |_, _, _| {}).unwrap();
+        let shots = run::render_shots(&cfg.config, &plan, &mut |_, _, _| {}).unwrap();
         // Corners found by OpenCV sit on the exact projections.
         let o = &cfg.config.sim.optics;
         let img = match &shots.images[0].ambient {
@@ -113,7 +113,7 @@ mod with_opencv {
         for p in &mut plan.sim.board_poses {
             p.origin_mm[1] += 200.0; // nobody holds the board in front of the camera
         }
-        let shots = opencv::render_shots(&cfg.config, &plan, &mut |_, _, _| {}).unwrap();
+        let shots = run::render_shots(&cfg.config, &plan, &mut |_, _, _| {}).unwrap();
         let mut det = run::detector(run::DETECTOR).unwrap();
         let e = opencv::calibrate(&shots, &plan.board, det.as_mut()).unwrap_err();
         let msg = e.to_string();

@@ -7,9 +7,9 @@
 //! of every row (the calibration's own error, free of detection noise); `val_detected_*` runs
 //! the calibration detector on the rendered noisy frames (what a scan would see).
 
-use crate::calib::run::{self, Method};
 use crate::calib::{untilted_equivalent, CalibError, Calibration, CalibrationPlan};
 use crate::detect::LinePeak;
+use crate::scan::calibrate::{self as run, Method};
 use crate::scan::{sim, ScanConfig};
 use footscan_hal::{Frame, Timestamp};
 use footscan_sim::foot::Foot;

@@ -9,12 +9,10 @@
 //! intersected with the board plane of its pose. OpenCV fits fx = fy (one F, as the model has)
 //! and k1, k2, p1, p2 (k3 fixed at 0).
 
-use super::acquire::Progress;
-use super::{CalibError, Calibration, CalibrationPlan, CameraModel};
+use super::{CalibError, Calibration, CameraModel};
 use crate::detect::{Detector, LinePeak};
-use crate::scan::ScanConfig;
 use footscan_hal::{Frame, Pixels, Timestamp};
-use footscan_sim::targets::{BoardRenderer, Checkerboard, Lighting};
+use footscan_sim::targets::Checkerboard;
 use nalgebra::{Matrix3, Vector3};
 use opencv::calib3d;
 use opencv::core::{Mat, Point2f, Point3f, Size, TermCriteria, Vector, CV_64F};
@@ -46,57 +44,6 @@ pub struct BoardShots {
     pub width: u32,
     pub height: u32,
     pub images: Vec<BoardImage>,
-}
-
-/// Render the plan's board shots with the simulated camera.
-pub fn render_shots(
-    cfg: &ScanConfig,
-    plan: &CalibrationPlan,
-    progress: Progress,
-) -> Result<BoardShots, CalibError> {
-    let sim = &cfg.sim;
-    let r = BoardRenderer::new(sim.optics.clone(), sim.noise.clone(), sim.seed)
-        .map_err(|e| CalibError::Sim(e.to_string()))?;
-    let s = &plan.sim;
-    let scale = sim.slider.slider_scale;
-    let lamp = |laser| Lighting {
-        lamp_dn: s.lamp_dn,
-        laser,
-    };
-    let total = s.board_poses.len() + 2;
-    let mut images = Vec::new();
-    let mut index = 0u64;
-    let mut shot = |pose, x: f64, laser: bool| {
-        index += 1;
-        r.render(&plan.board, pose, scale * x, lamp(laser), index)
-            .pixels
-    };
-    for (k, pose) in s.board_poses.iter().enumerate() {
-        progress("board shots", k, total);
-        let ambient = shot(pose, s.board_x_mm, false);
-        let laser = Some(shot(pose, s.board_x_mm, true));
-        images.push(BoardImage {
-            role: Role::Pose,
-            x_mm: s.board_x_mm,
-            ambient,
-            laser,
-        });
-    }
-    for (k, &x) in s.board_flat_x_mm.iter().enumerate() {
-        progress("board shots", s.board_poses.len() + k, total);
-        let ambient = shot(&s.board_flat, x, false);
-        images.push(BoardImage {
-            role: Role::Flat(k),
-            x_mm: x,
-            ambient,
-            laser: None,
-        });
-    }
-    Ok(BoardShots {
-        width: sim.optics.width,
-        height: sim.optics.height,
-        images,
-    })
 }
 
 fn cv(e: opencv::Error) -> CalibError {

@@ -1,20 +1,12 @@
-//! A calibration from end to end: acquire through the scanner (the simulator backend here),
-//! fit with the chosen method, and produce the [`Calibration`] a scan loads.
+//! From in-system data to the [`Calibration`] a scan loads: the calibration detector, the
+//! acquisition through a rig, the fit of the chosen method and the checks before saving.
+//! Opening the devices is the orchestrator's job (`scan::calibrate`).
 
-use super::acquire::{self, CalibrationRig, DeviceRig, InsystemData, RenderRig, SimOperator};
+use super::acquire::{self, CalibrationRig, InsystemData};
 use super::bezier_depth::BezierDepth;
 use super::insystem::{fit_insystem, InsystemFit, InsystemOptions};
 use super::{CalibError, Calibration, CalibrationPlan};
 use crate::detect::Detector;
-use crate::scan::ScanConfig;
-use footscan_grbl::{GrblConfig, GrblSlider};
-use footscan_hal::{Camera, Slider};
-use footscan_sim::camera::SimCamera;
-use footscan_sim::grbl::GrblEmulator;
-use footscan_sim::render::{Renderer, Scene};
-use footscan_sim::targets::Staircase;
-use std::sync::Arc;
-use std::time::Duration;
 
 /// How the scanner is calibrated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -65,71 +57,6 @@ pub struct Outcome {
     pub calibration: Calibration,
     /// The in-system fit (methods insystem and bezier).
     pub insystem: Option<InsystemFit>,
-}
-
-/// The simulator as a calibration rig: the GRBL emulator behind the real serial driver, the
-/// simulated camera, and an operator who swaps the scene. Keeps the emulator alive.
-pub struct SimRig {
-    pub rig: DeviceRig,
-    _emulator: Arc<GrblEmulator>,
-}
-
-/// Open the simulated scanner of `cfg` as a calibration rig.
-pub fn open_sim_rig(cfg: &ScanConfig, plan: &CalibrationPlan) -> Result<SimRig, CalibError> {
-    let sim = &cfg.sim;
-    let sim_err = |e: &dyn std::fmt::Display| CalibError::Sim(e.to_string());
-    let emulator = Arc::new(
-        GrblEmulator::spawn(sim.slider.clone())
-            .map_err(|e| CalibError::Sim(format!("starting the GRBL emulator: {e}")))?,
-    );
-    let mut slider = GrblSlider::new(
-        emulator.port_path().to_string_lossy(),
-        GrblConfig::default(),
-    );
-    slider.connect()?;
-    if cfg.scan.home {
-        slider.home(Duration::from_secs(30))?;
-    }
-    let renderer = Renderer::new(
-        sim.optics.clone(),
-        sim.noise.clone(),
-        Scene::Empty,
-        sim.seed,
-    )
-    .map_err(|e| sim_err(&e))?;
-    let mut camera = SimCamera::new(
-        renderer,
-        cfg.camera.fps,
-        emulator.position_source(),
-        sim.seed,
-    )?;
-    camera.set_exposure_us(cfg.camera.exposure_us)?;
-    camera.set_gain(cfg.camera.gain)?;
-    let staircase =
-        Staircase::new(plan.staircase.clone(), plan.sim.staircase).map_err(|e| sim_err(&e))?;
-    let operator = SimOperator::new(camera.scene_handle(), staircase);
-    Ok(SimRig {
-        rig: DeviceRig::new(
-            Box::new(camera),
-            Box::new(slider),
-            Box::new(operator),
-            cfg.scan.approach_feed_mm_min,
-        ),
-        _emulator: emulator,
-    })
-}
-
-/// A rig that renders the simulated scanner's frames directly (no real-time devices).
-pub fn render_rig(cfg: &ScanConfig, plan: &CalibrationPlan) -> Result<RenderRig, CalibError> {
-    let staircase = Staircase::new(plan.staircase.clone(), plan.sim.staircase)
-        .map_err(|e| CalibError::Sim(e.to_string()))?;
-    RenderRig::new(
-        cfg.sim.optics.clone(),
-        cfg.sim.noise.clone(),
-        cfg.sim.seed,
-        staircase,
-        cfg.sim.slider.slider_scale,
-    )
 }
 
 /// Acquire the in-system data through `rig` with the calibration detector.
@@ -186,54 +113,6 @@ pub fn from_insystem(
         calibration,
         insystem: Some(fit),
     })
-}
-
-/// Calibrate the simulated scanner of `cfg` with `method`, acquiring through its devices
-/// (insystem, bezier) or from rendered board shots (opencv).
-pub fn calibrate_sim(
-    cfg: &ScanConfig,
-    method: Method,
-    plan: &CalibrationPlan,
-    progress: acquire::Progress,
-) -> Result<Outcome, CalibError> {
-    plan.validate()?;
-    match method {
-        Method::Insystem | Method::Bezier => {
-            plan.check_insystem()?;
-            let mut sim = open_sim_rig(cfg, plan)?;
-            let data = acquire_insystem(&mut sim.rig, plan, progress)?;
-            drop(sim);
-            progress("fitting", 1, 1);
-            from_insystem(&data, method, plan)
-        }
-        Method::Opencv => opencv_sim(cfg, plan, progress),
-    }
-}
-
-#[cfg(feature = "opencv")]
-fn opencv_sim(
-    cfg: &ScanConfig,
-    plan: &CalibrationPlan,
-    progress: acquire::Progress,
-) -> Result<Outcome, CalibError> {
-    let shots = super::opencv::render_shots(cfg, plan, progress)?;
-    let mut det = detector(DETECTOR)?;
-    progress("OpenCV calibration", 1, 1);
-    let calibration = super::opencv::calibrate(&shots, &plan.board, det.as_mut())?;
-    check_before_saving(&calibration)?;
-    Ok(Outcome {
-        calibration,
-        insystem: None,
-    })
-}
-
-#[cfg(not(feature = "opencv"))]
-fn opencv_sim(
-    _cfg: &ScanConfig,
-    _plan: &CalibrationPlan,
-    _progress: acquire::Progress,
-) -> Result<Outcome, CalibError> {
-    Err(CalibError::OpenCvDisabled)
 }
 
 /// The last line of defence before a file is written: a valid model and finite figures.

@@ -8,6 +8,9 @@ use super::{
 };
 use serde::Deserialize;
 
+/// Builds a detector from the coarse search settings and its own parameters.
+type Constructor = fn(CoarseConfig, &DetectParams) -> Result<Box<dyn Detector>, DetectError>;
+
 /// One detector of [`DETECTORS`].
 pub struct DetectorInfo {
     /// What `footscan detect --detector` and calibration call it.
@@ -18,7 +21,7 @@ pub struct DetectorInfo {
     pub description: &'static str,
     /// The [`DetectParams`] keys besides the coarse search's that it takes.
     pub params: &'static [&'static str],
-    construct: fn(CoarseConfig, &DetectParams) -> Result<Box<dyn Detector>, DetectError>,
+    construct: Constructor,
 }
 
 /// Every detector, in the order tables list them.

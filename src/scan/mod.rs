@@ -1,6 +1,7 @@
 //! A scan from end to end: devices, the stage registry, the threaded pipeline, the files.
 
 mod backend;
+pub mod calibrate;
 pub mod config;
 mod error;
 pub mod item;
@@ -11,6 +12,7 @@ pub mod summary;
 
 pub use crate::scandata::ScanGrid;
 pub use backend::{hardware, open_backend, sim, OpenBackend};
+pub use calibrate::calibrate_sim;
 pub use config::{LoadedConfig, ScanConfig};
 pub use error::ScanError;
 pub use registry::{params, registry, ScanContext};

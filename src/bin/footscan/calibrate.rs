@@ -2,7 +2,7 @@
 //! TOML (only if the calibration succeeded).
 
 use anyhow::{Context, Result};
-use footscan::calib::{self, CalibrationPlan, Method};
+use footscan::calib::{CalibrationPlan, Method};
 use footscan::scan::LoadedConfig;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
@@ -47,12 +47,13 @@ pub fn run(args: Args) -> Result<()> {
         .expect("progress template")
         .progress_chars("=> "),
     );
-    let outcome = calib::calibrate_sim(&cfg.config, method, &plan, &mut |what, done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-        bar.set_message(what.to_string());
-    })
-    .with_context(|| format!("{} calibration failed; nothing written", method.name()))?;
+    let outcome =
+        footscan::scan::calibrate_sim(&cfg.config, method, &plan, &mut |what, done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+            bar.set_message(what.to_string());
+        })
+        .with_context(|| format!("{} calibration failed; nothing written", method.name()))?;
     bar.finish_and_clear();
     let c = &outcome.calibration;
     c.save(&args.out)?;

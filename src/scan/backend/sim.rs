@@ -5,7 +5,7 @@ use crate::calib::{Calibration, CameraModel};
 use crate::scan::config::{ScanConfig, SceneKind, SimFaults};
 use crate::scan::{Devices, TruthSource};
 use footscan_grbl::{GrblConfig, GrblSlider};
-use footscan_hal::{Camera, Slider};
+use footscan_hal::{Camera, HalError, Slider};
 use footscan_sim::camera::{CameraFaults, SimCamera, TruthLog};
 use footscan_sim::foot::Foot;
 use footscan_sim::grbl::{Fault, GrblEmulator};
@@ -71,15 +71,33 @@ fn schedule_faults(
     Some(tx)
 }
 
-/// Start the emulator, connect the GRBL driver to its pty, home, and build the camera.
-pub fn open(
-    cfg: &ScanConfig,
-) -> Result<(Devices, SimBackend), Box<dyn std::error::Error + Send + Sync>> {
+/// Why the simulated scanner could not be opened.
+#[derive(Debug, thiserror::Error)]
+pub enum SimOpenError {
+    #[error("starting the GRBL emulator: {0}")]
+    Emulator(std::io::Error),
+    #[error(transparent)]
+    Device(#[from] HalError),
+    /// The scene or the renderer rejected the configuration.
+    #[error("{0}")]
+    Scene(String),
+}
+
+/// The simulated scanner's devices: the GRBL emulator (kept alive here) behind the real serial
+/// driver, and the simulated camera rendering `scene` at the head's true position.
+pub struct SimDevices {
+    pub emulator: Arc<GrblEmulator>,
+    pub slider: GrblSlider,
+    pub camera: SimCamera,
+}
+
+/// Start the emulator, connect the GRBL driver to its pty, home (if `scan.home`), and build
+/// the camera with the config's exposure and gain: the one way scans and calibration open
+/// the simulator.
+pub fn open_sim_devices(cfg: &ScanConfig, scene: Scene) -> Result<SimDevices, SimOpenError> {
     let sim = &cfg.sim;
-    let emulator = Arc::new(
-        GrblEmulator::spawn(sim.slider.clone())
-            .map_err(|e| format!("starting the GRBL emulator: {e}"))?,
-    );
+    let emulator =
+        Arc::new(GrblEmulator::spawn(sim.slider.clone()).map_err(SimOpenError::Emulator)?);
     let mut slider = GrblSlider::new(
         emulator.port_path().to_string_lossy(),
         GrblConfig::default(),
@@ -88,9 +106,30 @@ pub fn open(
     if cfg.scan.home {
         slider.home(Duration::from_secs(30))?;
     }
+    let renderer = Renderer::new(sim.optics.clone(), sim.noise.clone(), scene, sim.seed)
+        .map_err(|e| SimOpenError::Scene(e.to_string()))?;
+    let mut camera = SimCamera::new(
+        renderer,
+        cfg.camera.fps,
+        emulator.position_source(),
+        sim.seed,
+    )?;
+    camera.set_exposure_us(cfg.camera.exposure_us)?;
+    camera.set_gain(cfg.camera.gain)?;
+    Ok(SimDevices {
+        emulator,
+        slider,
+        camera,
+    })
+}
+
+/// Open the simulated scanner of a scan: its scene, devices and ground truth.
+pub fn open(cfg: &ScanConfig) -> Result<(Devices, SimBackend), SimOpenError> {
+    let sim = &cfg.sim;
     let (scene, foot) = match sim.scene {
         SceneKind::Foot => {
-            let foot = Foot::new(sim.foot.clone())?;
+            let foot =
+                Foot::new(sim.foot.clone()).map_err(|e| SimOpenError::Scene(e.to_string()))?;
             (Scene::Foot(foot.clone()), Some(foot))
         }
         SceneKind::Empty => (Scene::Empty, None),
@@ -101,15 +140,11 @@ pub fn open(
             None,
         ),
     };
-    let renderer = Renderer::new(sim.optics.clone(), sim.noise.clone(), scene, sim.seed)?;
-    let mut camera = SimCamera::new(
-        renderer,
-        cfg.camera.fps,
-        emulator.position_source(),
-        sim.seed,
-    )?;
-    camera.set_exposure_us(cfg.camera.exposure_us)?;
-    camera.set_gain(cfg.camera.gain)?;
+    let SimDevices {
+        emulator,
+        slider,
+        camera,
+    } = open_sim_devices(cfg, scene)?;
     let truth_log = camera.truth_log();
     let faults = schedule_faults(&sim.faults, &emulator, camera.faults());
     Ok((

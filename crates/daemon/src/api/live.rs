@@ -1,7 +1,6 @@
 //! Live endpoints: status, the preview frame and line, the event stream, calibration.
 
 use super::{scans::body, ApiError, AppState};
-use crate::calib::Method;
 use crate::daemon::Event;
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Query, State};
@@ -9,6 +8,7 @@ use axum::http::{header, StatusCode};
 use axum::response::sse::{Event as SseEvent, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
+use footscan::calib::Method;
 use futures_util::stream::Stream;
 use serde::Deserialize;
 use serde_json::{json, Value};

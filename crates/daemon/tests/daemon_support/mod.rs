@@ -12,7 +12,7 @@ pub use serde_json::Value;
 /// The default simulated scanner with a short travel (60..200 mm at 1 mm a frame: ~140
 /// frames over the heel and arch, a few seconds), plus `faults` as [sim.faults] keys.
 pub fn short_scanner_config(faults: &str) -> String {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/sim.toml");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/sim.toml");
     let text = std::fs::read_to_string(path).unwrap();
     let mut out = String::new();
     for line in text.lines() {

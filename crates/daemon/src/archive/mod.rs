@@ -116,7 +116,7 @@ impl Archive {
         record.reason = outcome.reason;
         record.frames = outcome.frames;
         record.points = outcome.points;
-        record.finished = Some(crate::util::now_rfc3339());
+        record.finished = Some(footscan::util::now_rfc3339());
         match self.seal(&scan.dir, &record) {
             Ok(_) => {
                 self.index_upsert(&record);
@@ -150,7 +150,7 @@ impl Archive {
         }
         let rec_path = dir.join(RECORD);
         let json = serde_json::to_vec_pretty(record).expect("record serialises");
-        crate::io::write_atomic(&rec_path, &json).map_err(io_at(&rec_path))?;
+        footscan::io::write_atomic(&rec_path, &json).map_err(io_at(&rec_path))?;
         sync_dir(dir)?;
         let done = self.root.join(&record.id);
         std::fs::rename(dir, &done).map_err(io_at(&done))?;
@@ -187,7 +187,7 @@ impl Archive {
                 record.reason = Some(INTERRUPTED.into());
             }
             record.status = Status::Failed;
-            record.finished = Some(crate::util::now_rfc3339());
+            record.finished = Some(footscan::util::now_rfc3339());
             if let Some(s) = read_summary(&dir) {
                 record.frames = s.0;
                 record.points = s.1;

@@ -375,7 +375,7 @@ mod tests {
     use std::sync::mpsc;
 
     use super::*;
-    use crate::pipeline::{FnSource, FnStage};
+    use crate::{FnSource, FnStage};
 
     /// Generous bound that only catches hangs, never slowness.
     const HANG: Duration = Duration::from_secs(60);

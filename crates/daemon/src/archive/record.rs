@@ -61,7 +61,7 @@ impl Record {
             notes: meta.notes,
             status: Status::Running,
             reason: None,
-            started: crate::util::now_rfc3339(),
+            started: footscan::util::now_rfc3339(),
             finished: None,
             frames: 0,
             points: 0,

@@ -3,8 +3,8 @@
 
 use super::{CalibrationInfo, CalibrationJob, Daemon, DaemonError, Event, Job, Progress};
 use crate::archive::{ActiveScan, NewScan, Outcome, ScanId, Status};
-use crate::calib::{self, CalibrationPlan, Method};
-use crate::scan::{run_scan, CancelToken, ScanOptions, ScanProgress};
+use footscan::calib::{self, CalibrationPlan, Method};
+use footscan::scan::{run_scan, CancelToken, ScanOptions, ScanProgress};
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -48,7 +48,8 @@ impl Daemon {
         let active = self.archive.begin(meta)?;
         let id = active.record.id.clone();
         let cancel = CancelToken::default();
-        let expected = crate::scan::ScanPlan::from_config(&self.scanner.config).expected_frames();
+        let expected =
+            footscan::scan::ScanPlan::from_config(&self.scanner.config).expected_frames();
         st.scan = Some(Progress {
             id: id.clone(),
             state: "running".into(),
@@ -221,7 +222,7 @@ impl Daemon {
 
     /// Start a calibration with `method`; returns its id. Busy while another job runs.
     pub fn start_calibration(self: &Arc<Self>, method: Method) -> Result<String, DaemonError> {
-        if self.scanner.config.scanner.backend != crate::scan::config::Backend::Sim {
+        if self.scanner.config.scanner.backend != footscan::scan::config::Backend::Sim {
             return Err(DaemonError::Unsupported(format!(
                 "calibration through footscand runs on the simulator backend only so far; for \
                  backend {:?} put a calibration file in `calibration` of [daemon] or \
@@ -265,7 +266,7 @@ impl Daemon {
         tracing::info!("calibration {} ({}) started", job.id, job.method);
         let plan = CalibrationPlan::default();
         let result = std::panic::catch_unwind(AssertUnwindSafe(|| {
-            calib::calibrate_sim(&self.scanner.config, method, &plan, &mut |_, _, _| {})
+            footscan::scan::calibrate_sim(&self.scanner.config, method, &plan, &mut |_, _, _| {})
         }));
         let saved = match result {
             Ok(Ok(outcome)) => self.store_calibration(&job.id, &outcome.calibration),
@@ -312,7 +313,7 @@ impl Daemon {
             .map_err(|e| format!("saving the calibration: {e}"))?;
         let current = current_calibration_path(&self.config.archive);
         let text = std::fs::read(&kept).map_err(|e| format!("reading {}: {e}", kept.display()))?;
-        crate::io::write_atomic(&current, &text)
+        footscan::io::write_atomic(&current, &text)
             .map_err(|e| format!("writing {}: {e}", current.display()))?;
         Ok(CalibrationInfo {
             method: c.method.clone(),

@@ -125,7 +125,7 @@ mod tests {
     use std::sync::Arc;
 
     use super::*;
-    use crate::pipeline::{Emitter, FnSource, FnStage, StageSpec};
+    use crate::{Emitter, FnSource, FnStage, StageSpec};
 
     /// Context: a value added by `add` stages.
     struct Ctx {

@@ -1,7 +1,7 @@
 //! The scan archive on its own: atomic close, failed and cancelled scans kept with their
 //! reason, interrupted scans recovered as failed, the index rebuilt from the directories.
 
-use footscan::archive::{Archive, NewScan, Outcome, ScanId, Status, INTERRUPTED};
+use footscan_daemon::archive::{Archive, NewScan, Outcome, ScanId, Status, INTERRUPTED};
 
 fn meta(subject: &str) -> NewScan {
     NewScan {

@@ -3,9 +3,9 @@
 //! so the pipeline never waits for a viewer and the steady state allocates nothing; a reader
 //! that holds the slot only makes the tap skip a frame.
 
-use crate::detect::LinePeak;
-use crate::scan::item::FrameMeta;
-use crate::scan::stages::FrameTap;
+use footscan::detect::LinePeak;
+use footscan::scan::item::FrameMeta;
+use footscan::scan::stages::FrameTap;
 use footscan_hal::{Frame, Pixels, Timestamp};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;

@@ -16,6 +16,9 @@
 //!   and `wait()` returns the first failure; errors other nodes hit because of it are ignored.
 //! * Items emitted by the last node are collected into [`RunReport::outputs`].
 //! * Counters ([`StageStats`]) are live: [`Running::stats`] can drive a progress bar.
+//!
+//! Dependencies: std threads, crossbeam channels, serde/toml for the spec, tracing. No async
+//! runtime, no image or hardware crate, nothing of footscan: every other crate may use this one.
 
 mod control;
 mod emitter;

@@ -29,7 +29,8 @@ impl Drop for Daemon {
 }
 
 fn manifest() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    // The repository root (config/, target/), two levels above this crate.
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
 fn require_chromium() {

@@ -4,7 +4,7 @@
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use footscan::daemon::{Daemon, DaemonConfig};
+use footscan_daemon::daemon::{Daemon, DaemonConfig};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -62,7 +62,7 @@ fn run(args: Args) -> Result<()> {
         // Tests and scripts read the address (with the port chosen for :0) from this line.
         println!("footscand listening on http://{addr}");
         std::io::stdout().flush()?;
-        footscan::api::serve(daemon, listener, shutdown_signal()).await?;
+        footscan_daemon::api::serve(daemon, listener, shutdown_signal()).await?;
         Ok(())
     })
 }

@@ -200,10 +200,10 @@ fn sigterm_during_a_scan_archives_it_as_cancelled_and_exits_0() {
     assert_eq!(summary["status"], "cancelled");
     assert!(!d.archive.join(format!(".tmp-{id}")).exists());
     // The index agrees, also after reopening.
-    let a = footscan::archive::Archive::open(&d.archive).unwrap();
+    let a = footscan_daemon::archive::Archive::open(&d.archive).unwrap();
     let list = a.list().unwrap();
     assert_eq!(list.len(), 1);
-    assert_eq!(list[0].status, footscan::archive::Status::Cancelled);
+    assert_eq!(list[0].status, footscan_daemon::archive::Status::Cancelled);
     assert_eq!(list[0].reason.as_deref(), Some("daemon shutting down"));
 }
 
@@ -247,7 +247,7 @@ fn killed_daemon_leaves_a_scan_that_restart_keeps_as_failed() {
     assert_eq!(list[0]["status"], "failed");
     assert_eq!(
         list[0]["reason"],
-        footscan::archive::INTERRUPTED,
+        footscan_daemon::archive::INTERRUPTED,
         "named as interrupted"
     );
     assert!(!archive.join(format!(".tmp-{id}")).exists());

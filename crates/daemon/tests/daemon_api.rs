@@ -392,7 +392,7 @@ fn bearer_token_guards_a_network_bind() {
 /// JSON line of its output parses.
 #[test]
 fn api_doc_curl_examples_run() {
-    let doc_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/API.md");
+    let doc_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/API.md");
     let doc = std::fs::read_to_string(&doc_path).unwrap();
     let mut blocks = Vec::new();
     let mut cur: Option<String> = None;

@@ -10,8 +10,8 @@ pub use config::{DaemonConfig, DaemonConfigError};
 pub use preview::Preview;
 
 use crate::archive::{Archive, ArchiveError};
-use crate::calib::Calibration;
-use crate::scan::{CancelToken, LoadedConfig};
+use footscan::calib::Calibration;
+use footscan::scan::{CancelToken, LoadedConfig};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -179,7 +179,7 @@ impl Daemon {
                 id: r.id.clone(),
                 state: r.status.as_str().into(),
                 frames: r.frames,
-                expected_frames: crate::scan::ScanPlan::from_config(&scanner.config)
+                expected_frames: footscan::scan::ScanPlan::from_config(&scanner.config)
                     .expected_frames(),
                 points: r.points,
                 dropped: num("dropped_frames").unwrap_or(0.0) as u64,
