@@ -378,3 +378,59 @@ pub fn interpolate_grid(
     s.validate()?;
     Ok(s)
 }
+
+/// Skin through sections that form a closed sequence (the last section is followed by the
+/// first again): S(u, v_k) = C_k(u) with v periodic of period 1; `v` in [v_0, v_0 + 1).
+/// Used for the guide-curve term of a Gordon surface over closed sections.
+pub fn skin_closed(sections: &[NurbsCurve], v: &[f64], degree_v: usize) -> Result<NurbsSurface> {
+    let k = sections.len();
+    if k < 3 {
+        return Err(NurbsError::Invalid {
+            what: "closed skinning",
+            reason: format!("{k} sections; need at least 3"),
+        });
+    }
+    if v.len() != k {
+        return Err(NurbsError::Invalid {
+            what: "closed skinning",
+            reason: format!("{} v parameters for {k} sections", v.len()),
+        });
+    }
+    check_increasing(v, "closed skinning")?;
+    if v[k - 1] - v[0] >= 1.0 {
+        return Err(NurbsError::Invalid {
+            what: "closed skinning",
+            reason: "v must span less than the period 1".into(),
+        });
+    }
+    let secs = make_compatible(sections)?;
+    let q = degree_v.min(k - 1).max(1);
+    let rhs: Vec<Vec<H>> = secs.iter().map(|c| c.to_h().pw).collect();
+    let (knots_v, ctrl) = interp_many_periodic(v, q, &rhs, "closed skinning")?;
+    let nu = secs[0].points.len();
+    let nv = ctrl.len();
+    let rational = secs.iter().any(|c| c.weights.is_some());
+    let mut points = Vec::with_capacity(nu * nv);
+    let mut weights = Vec::with_capacity(nu * nv);
+    for i in 0..nu {
+        for row in &ctrl {
+            let h = row[i];
+            points.push(P3::new(h.x / h.w, h.y / h.w, h.z / h.w));
+            weights.push(h.w);
+        }
+    }
+    let s = NurbsSurface {
+        degree_u: secs[0].degree,
+        degree_v: q,
+        knots_u: secs[0].knots.clone(),
+        knots_v,
+        nu,
+        nv,
+        points,
+        weights: rational.then_some(weights),
+        periodic_u: secs[0].periodic,
+        periodic_v: true,
+    };
+    s.validate()?;
+    Ok(s)
+}

@@ -317,6 +317,35 @@ impl NurbsSurface {
         self.apply_dir(&Op::Elevate(t), false)
     }
 
+    /// The same surface with u and v exchanged: S'(u, v) = S(v, u).
+    pub fn transposed(&self) -> NurbsSurface {
+        let mut points = Vec::with_capacity(self.points.len());
+        let mut weights = self
+            .weights
+            .as_ref()
+            .map(|_| Vec::with_capacity(self.points.len()));
+        for j in 0..self.nv {
+            for i in 0..self.nu {
+                points.push(self.points[i * self.nv + j]);
+                if let (Some(w), Some(ws)) = (weights.as_mut(), self.weights.as_ref()) {
+                    w.push(ws[i * self.nv + j]);
+                }
+            }
+        }
+        NurbsSurface {
+            degree_u: self.degree_v,
+            degree_v: self.degree_u,
+            knots_u: self.knots_v.clone(),
+            knots_v: self.knots_u.clone(),
+            nu: self.nv,
+            nv: self.nu,
+            points,
+            weights,
+            periodic_u: self.periodic_v,
+            periodic_v: self.periodic_u,
+        }
+    }
+
     /// The same surface with both domains mapped affinely to the given intervals.
     pub fn reparametrized(&self, (u0, u1): (f64, f64), (v0, v1): (f64, f64)) -> NurbsSurface {
         let mut s = self.clone();
