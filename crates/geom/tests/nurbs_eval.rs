@@ -228,7 +228,11 @@ fn circle_derivatives_curvature_length_closest() {
     let c = circle(r);
     for i in 0..=200 {
         let u = i as f64 / 200.0;
-        assert!((c.curvature(u) - 1.0 / r).abs() < 1e-12, "curvature {}", c.curvature(u));
+        assert!(
+            (c.curvature(u) - 1.0 / r).abs() < 1e-12,
+            "curvature {}",
+            c.curvature(u)
+        );
         let p = c.point(u);
         let kv = c.curvature_vector(u);
         // Points to the centre.
@@ -236,10 +240,15 @@ fn circle_derivatives_curvature_length_closest() {
         assert!(c.tangent(u).dot(&p.coords).abs() < 1e-9);
         // Derivative against central differences.
         let h = 1e-6;
-        let fd = (c.point((u + h).min(1.0)) - c.point((u - h).max(0.0))) / ((u + h).min(1.0) - (u - h).max(0.0));
+        let fd = (c.point((u + h).min(1.0)) - c.point((u - h).max(0.0)))
+            / ((u + h).min(1.0) - (u - h).max(0.0));
         assert!((c.derivative(u) - fd).norm() < 1e-4 * c.derivative(u).norm());
     }
-    assert!((c.length() - std::f64::consts::TAU * r).abs() < 1e-9, "length {}", c.length());
+    assert!(
+        (c.length() - std::f64::consts::TAU * r).abs() < 1e-9,
+        "length {}",
+        c.length()
+    );
     let q = P3::new(50.0, 50.0, 3.0);
     let cp = c.closest_point(&q);
     let want = P3::new(r / 2f64.sqrt(), r / 2f64.sqrt(), 0.0);
@@ -250,13 +259,25 @@ fn circle_derivatives_curvature_length_closest() {
 #[test]
 fn cubic_derivatives_match_power_form() {
     // A clamped cubic Bezier is the Bernstein form: C''(t) = 6 [(1-t)(P2 - 2P1 + P0) + t(P3 - 2P2 + P1)].
-    let p: Vec<P3> = vec![P3::new(0.0, 0.0, 0.0), P3::new(1.0, 3.0, 0.0), P3::new(4.0, 3.0, 1.0), P3::new(6.0, 0.0, 2.0)];
-    let c = NurbsCurve::new(3, vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0], p.clone(), None).unwrap();
+    let p: Vec<P3> = vec![
+        P3::new(0.0, 0.0, 0.0),
+        P3::new(1.0, 3.0, 0.0),
+        P3::new(4.0, 3.0, 1.0),
+        P3::new(6.0, 0.0, 2.0),
+    ];
+    let c = NurbsCurve::new(
+        3,
+        vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0],
+        p.clone(),
+        None,
+    )
+    .unwrap();
     let t = 0.3;
     let d = c.derivatives(t, 4);
-    let d2 = 6.0 * ((1.0 - t) * (p[2] - 2.0 * p[1] + p[0].coords) + t * (p[3] - 2.0 * p[2] + p[1].coords));
-    assert!((d[2] - d2.coords).norm() < 1e-12);
+    let d2 = 6.0
+        * ((1.0 - t) * (p[2] - 2.0 * p[1] + p[0].coords) + t * (p[3] - 2.0 * p[2] + p[1].coords));
+    assert!((d[2] - d2).norm() < 1e-12);
     let d3 = 6.0 * (p[3] - 3.0 * p[2] + 3.0 * p[1].coords - p[0].coords);
-    assert!((d[3] - d3.coords).norm() < 1e-12);
+    assert!((d[3] - d3).norm() < 1e-12);
     assert_eq!(d[4], footscan_geom::V3::zeros());
 }

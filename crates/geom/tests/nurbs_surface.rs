@@ -279,8 +279,8 @@ fn grid_interpolation_passes_its_points() {
     let vs: Vec<f64> = vec![0.0, 0.1, 0.35, 0.6, 1.0];
     let f = |u: f64, v: f64| {
         P3::new(
-            30.0 * (6.283 * u).cos(),
-            30.0 * (6.283 * u).sin(),
+            30.0 * (5.0 * u).cos(),
+            30.0 * (5.0 * u).sin(),
             50.0 * v * v,
         )
     };
