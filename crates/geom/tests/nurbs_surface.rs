@@ -277,13 +277,7 @@ fn gordon_sum_passes_the_network() {
 fn grid_interpolation_passes_its_points() {
     let us: Vec<f64> = (0..9).map(|k| k as f64 / 9.0).collect();
     let vs: Vec<f64> = vec![0.0, 0.1, 0.35, 0.6, 1.0];
-    let f = |u: f64, v: f64| {
-        P3::new(
-            30.0 * (5.0 * u).cos(),
-            30.0 * (5.0 * u).sin(),
-            50.0 * v * v,
-        )
-    };
+    let f = |u: f64, v: f64| P3::new(30.0 * (5.0 * u).cos(), 30.0 * (5.0 * u).sin(), 50.0 * v * v);
     let grid: Vec<P3> = us
         .iter()
         .flat_map(|&u| vs.iter().map(move |&v| f(u, v)))
