@@ -40,10 +40,9 @@ fn bench(c: &mut Criterion) {
     });
 
     let secs = sections(20, 100);
-    c.bench_function(
-        "skin 20 sections x 100 pts (common parameters)",
-        |b| b.iter(|| skin(black_box(&secs), None, 3).unwrap()),
-    );
+    c.bench_function("skin 20 sections x 100 pts (common parameters)", |b| {
+        b.iter(|| skin(black_box(&secs), None, 3).unwrap())
+    });
     // Sections interpolated at their own chord-length parameters: the union of 20 knot
     // vectors of 100 knots each makes ~2000 control points per section.
     let chord: Vec<NurbsCurve> = (0..20)
