@@ -139,16 +139,22 @@ fn written_last_reads_back_and_passes_the_independent_checker() {
         "{e}"
     );
 
-    // The independent numpy checker, when an interpreter with numpy is available
-    // (FOOTSCAN_PYTHON, default python3).
+    // The independent numpy checker, with the test venv's interpreter (scripts/setup.sh makes
+    // it; FOOTSCAN_PYTHON overrides).
     let checker =
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/tools/mesh_check.py");
-    let py = std::env::var("FOOTSCAN_PYTHON").unwrap_or_else(|_| "python3".into());
+    let venv = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/venv-occt/bin/python");
+    let py =
+        std::env::var("FOOTSCAN_PYTHON").unwrap_or_else(|_| venv.to_string_lossy().into_owned());
     let has_numpy = std::process::Command::new(&py)
         .args(["-c", "import numpy"])
         .status()
         .is_ok_and(|s| s.success());
-    if checker.is_file() && has_numpy {
+    assert!(
+        has_numpy,
+        "no python with numpy at {py}: run scripts/setup.sh (it makes target/venv-occt) or set FOOTSCAN_PYTHON"
+    );
+    if checker.is_file() {
         let run = |p: &PathBuf| {
             std::process::Command::new(&py)
                 .arg(&checker)
@@ -182,7 +188,8 @@ fn written_last_reads_back_and_passes_the_independent_checker() {
         );
     } else {
         eprintln!(
-            "NOTE: mesh_check.py cross-check not run: set FOOTSCAN_PYTHON to a python with numpy"
+            "NOTE: mesh_check.py cross-check not run: {} is missing",
+            checker.display()
         );
     }
     let _ = std::fs::remove_dir_all(&dir);
