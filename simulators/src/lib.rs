@@ -2,6 +2,9 @@
 //!
 //! Independent of the algorithms it checks: nothing here depends on the `footscan` crate.
 //! - [`foot`]: the parametric foot (SPEC section 13) with analytic measurement truth;
+//! - [`last`]: parametric shoe lasts (round, pointed, square toe; heel height; size) with the
+//!   analytic truth of their bottom;
+//! - [`mesh_scene`]: any closed triangle mesh placed on the glass as a scene;
 //! - [`optics`]: the general optical model of SPEC section 2;
 //! - [`render`]: frames and their per-row ground truth;
 //! - [`camera`]: a [`footscan_hal::Camera`] that renders at the slider's true position;
@@ -11,6 +14,8 @@
 pub mod camera;
 pub mod foot;
 pub mod grbl;
+pub mod last;
+pub mod mesh_scene;
 pub mod optics;
 pub mod render;
 pub mod targets;
