@@ -60,9 +60,11 @@
 //!   along each line located to 1e-9 mm): accuracy about 1e-4 in the index (checked against
 //!   half the step in the tests).
 
+pub mod mesh;
 mod model;
 mod truth;
 
+pub use mesh::{FootMesh, FootMeshTruth, MeshResolution};
 pub use model::{Foot, FootParams, Side, ToePad};
 pub use truth::FootTruth;
 
