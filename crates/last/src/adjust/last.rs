@@ -1,0 +1,391 @@
+//! A last mesh as an adjustment input ([`prepare_last`]: its bottom found, levelled and
+//! measured) and the whole last deformed to the adjusted bottom ([`deform_last`]).
+
+use super::outline::{self, Pt};
+use super::{AdjustError, Adjustment, HeightGrid, LastBottom};
+use footscan_geom::mesh::{LoadReport, TriMesh, Units};
+use footscan_geom::{P3, V3};
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// How a last mesh is read and its bottom found.
+#[derive(Clone, Copy, Debug)]
+pub struct LastOptions {
+    pub units: Units,
+    /// Scale the last so its longest side is this long (mm); for unscaled files.
+    pub length_mm: Option<f64>,
+    /// A triangle faces down when its unit normal's z is below minus this (0.5: 60 deg).
+    pub down_cos: f64,
+    /// Cell of the bottom's height grid (mm).
+    pub cell_mm: f64,
+}
+
+impl Default for LastOptions {
+    fn default() -> Self {
+        LastOptions {
+            units: Units::Auto,
+            length_mm: None,
+            down_cos: 0.5,
+            cell_mm: 0.5,
+        }
+    }
+}
+
+/// A last ready for adjustment, in its bottom frame: x heel to toe along the bottom's long
+/// axis, the bottom's best-fit plane horizontal and facing down, the lowest bottom point at
+/// z = 0, the heel point's x at 0.
+#[derive(Clone, Debug)]
+pub struct PreparedLast {
+    pub path: PathBuf,
+    pub mesh: TriMesh,
+    pub bottom: LastBottom,
+    /// z of the lowest surface of the last under each cell (continued beyond the last's
+    /// footprint), for heights above the bottom.
+    pub lowest: HeightGrid,
+    pub load: Option<LoadReport>,
+    pub bottom_triangles: usize,
+    /// Tilt of the file's frame to the bottom frame (deg).
+    pub levelled_by_deg: f64,
+}
+
+/// Reads, validates and scales a last file (errors name it: open or non-manifold, metres
+/// given as mm, unscaled without a length), then [`prepare_mesh`].
+pub fn prepare_last(path: &Path, opts: &LastOptions) -> Result<PreparedLast, AdjustError> {
+    let (mesh, load) = TriMesh::load_solid(path, opts.units, opts.length_mm).map_err(|source| {
+        AdjustError::Mesh {
+            path: path.to_path_buf(),
+            source,
+        }
+    })?;
+    let mut p = prepare_mesh(mesh, path, opts)?;
+    p.load = Some(load);
+    Ok(p)
+}
+
+fn down_region(mesh: &TriMesh, down_cos: f64) -> (Vec<usize>, f64) {
+    let nt = mesh.triangles.len();
+    let normals: Vec<V3> = (0..nt).map(|t| mesh.face_normal(t)).collect();
+    let down: Vec<bool> = normals.iter().map(|n| n.z < -down_cos).collect();
+    let mut edge: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        if !down[t] {
+            continue;
+        }
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            edge.entry((a.min(b), a.max(b))).or_default().push(t);
+        }
+    }
+    let mut parent: Vec<usize> = (0..nt).collect();
+    fn find(p: &mut [usize], mut i: usize) -> usize {
+        while p[i] != i {
+            p[i] = p[p[i]];
+            i = p[i];
+        }
+        i
+    }
+    for ts in edge.values() {
+        for w in ts.windows(2) {
+            let (a, b) = (find(&mut parent, w[0]), find(&mut parent, w[1]));
+            if a != b {
+                parent[b] = a;
+            }
+        }
+    }
+    let mut area: HashMap<usize, f64> = HashMap::new();
+    for t in 0..nt {
+        if down[t] {
+            let r = find(&mut parent, t);
+            *area.entry(r).or_default() += mesh.face_normal_raw(t).norm() / 2.0;
+        }
+    }
+    let Some((&root, &a)) = area.iter().max_by(|a, b| a.1.total_cmp(b.1)) else {
+        return (Vec::new(), 0.0);
+    };
+    let region = (0..nt)
+        .filter(|&t| down[t] && find(&mut parent, t) == root)
+        .collect();
+    (region, a)
+}
+
+/// Area-weighted centroid and covariance of the region's triangle centroids.
+fn region_stats(mesh: &TriMesh, region: &[usize]) -> (P3, Matrix3<f64>) {
+    let (mut c, mut w) = (Vector3::zeros(), 0.0);
+    for &t in region {
+        let [a, b, d] = mesh.corners(t);
+        let ar = mesh.face_normal_raw(t).norm();
+        c += ar * (a.coords + b.coords + d.coords) / 3.0;
+        w += ar;
+    }
+    c /= w;
+    let mut m = Matrix3::zeros();
+    for &t in region {
+        let [a, b, d] = mesh.corners(t);
+        let ar = mesh.face_normal_raw(t).norm();
+        let q = (a.coords + b.coords + d.coords) / 3.0 - c;
+        m += ar * q * q.transpose();
+    }
+    (P3::from(c), m / w)
+}
+
+/// Finds the bottom of a valid closed last mesh (already in mm) and measures it: the
+/// largest connected region of downward-facing triangles; the mesh levelled so the region's
+/// best-fit plane is horizontal (twice: the region is found again after levelling), turned
+/// so the region's long axis is x with the heel at -x (the heel is the end under the tall
+/// back of the last), then its outline (the region's boundary, seen from below) and heights
+/// (the lowest surface above each cell, by vertical rays).
+pub fn prepare_mesh(
+    mut mesh: TriMesh,
+    path: &Path,
+    opts: &LastOptions,
+) -> Result<PreparedLast, AdjustError> {
+    let input = path.display().to_string();
+    let err = |why: String| AdjustError::Last {
+        input: input.clone(),
+        why,
+    };
+    let mut tilt = 0.0;
+    for _ in 0..2 {
+        let region = down_region(&mesh, opts.down_cos).0;
+        if region.is_empty() {
+            return Err(err(format!(
+                "no downward-facing triangles (normal z below -{}): is the last upside down?",
+                opts.down_cos
+            )));
+        }
+        let (c, cov) = region_stats(&mesh, &region);
+        let e = cov.symmetric_eigen();
+        let k = e.eigenvalues.imin();
+        let mut n: Vector3<f64> = e.eigenvectors.column(k).into();
+        if n.z > 0.0 {
+            n = -n;
+        }
+        let rot =
+            Rotation3::rotation_between(&n, &-Vector3::z()).unwrap_or_else(Rotation3::identity);
+        tilt += rot.angle().to_degrees();
+        for p in &mut mesh.vertices {
+            *p = c + rot * (*p - c);
+        }
+    }
+    let region = down_region(&mesh, opts.down_cos).0;
+    let (c, cov) = region_stats(&mesh, &region);
+    let sub2 = cov.fixed_view::<2, 2>(0, 0).into_owned();
+    let e = sub2.symmetric_eigen();
+    let k = e.eigenvalues.imax();
+    let mut ang = e.eigenvectors[(1, k)].atan2(e.eigenvectors[(0, k)]);
+    // Heel at -x: the tall back of the last stands over the heel.
+    let bb = mesh.bbox();
+    let z_top = bb.min.z + 0.7 * (bb.max.z - bb.min.z);
+    let (mut sx, mut ns) = (0.0, 0.0);
+    let (ca, sa) = (ang.cos(), ang.sin());
+    for p in &mesh.vertices {
+        if p.z > z_top {
+            sx += (p.x - c.x) * ca + (p.y - c.y) * sa;
+            ns += 1.0;
+        }
+    }
+    if ns > 0.0 && sx > 0.0 {
+        ang += std::f64::consts::PI;
+    }
+    let rz = Rotation3::from_axis_angle(&Vector3::z_axis(), -ang);
+    for p in &mut mesh.vertices {
+        *p = c + rz * (*p - c);
+    }
+    // Heel point at x = 0, bottom centred on y = 0, lowest bottom point at z = 0.
+    let mut lo = V3::repeat(f64::INFINITY);
+    let mut hi = V3::repeat(f64::NEG_INFINITY);
+    for &t in &region {
+        for p in mesh.corners(t) {
+            lo = lo.inf(&p.coords);
+            hi = hi.sup(&p.coords);
+        }
+    }
+    let shift = V3::new(-lo.x, -(lo.y + hi.y) / 2.0, -lo.z);
+    mesh.translate(&shift);
+
+    // Outline: the boundary loops of the region; the one enclosing the largest area.
+    let in_region: std::collections::HashSet<usize> = region.iter().copied().collect();
+    let mut directed: HashMap<(u32, u32), ()> = HashMap::new();
+    for &t in &region {
+        let tri = mesh.triangles[t];
+        for k in 0..3 {
+            directed.insert((tri[k], tri[(k + 1) % 3]), ());
+        }
+    }
+    let mut next: HashMap<u32, u32> = HashMap::new();
+    for &(a, b) in directed.keys() {
+        if !directed.contains_key(&(b, a)) {
+            next.insert(a, b);
+        }
+    }
+    let _ = in_region;
+    let mut loops: Vec<Vec<Pt>> = Vec::new();
+    let mut seen: std::collections::HashSet<u32> = std::collections::HashSet::new();
+    let mut starts: Vec<u32> = next.keys().copied().collect();
+    starts.sort_unstable();
+    for s in starts {
+        if seen.contains(&s) {
+            continue;
+        }
+        let mut lp = Vec::new();
+        let mut v = s;
+        while seen.insert(v) {
+            let p = mesh.vertices[v as usize];
+            lp.push([p.x, p.y]);
+            match next.get(&v) {
+                Some(&w) => v = w,
+                None => break,
+            }
+        }
+        if lp.len() >= 8 {
+            loops.push(lp);
+        }
+    }
+    let mut outline_pts = loops
+        .into_iter()
+        .max_by(|a, b| {
+            outline::signed_area(a)
+                .abs()
+                .total_cmp(&outline::signed_area(b).abs())
+        })
+        .ok_or_else(|| err("the bottom region has no boundary loop".into()))?;
+    outline::make_ccw(&mut outline_pts);
+
+    // Lowest surface under each cell over the whole last, by vertical rays.
+    let bvh = footscan_geom::mesh::Bvh::new(&mesh);
+    let bb = mesh.bbox();
+    let cell = opts.cell_mm;
+    let margin = 3.0;
+    let (x0, y0) = (bb.min.x - margin, bb.min.y - margin);
+    let nx = ((bb.max.x - bb.min.x + 2.0 * margin) / cell).ceil() as usize + 1;
+    let ny = ((bb.max.y - bb.min.y + 2.0 * margin) / cell).ceil() as usize + 1;
+    let mut lowest = HeightGrid::new(x0, y0, cell, nx, ny);
+    let z0 = bb.min.z - 5.0;
+    let span = bb.max.z - z0 + 5.0;
+    for j in 0..ny {
+        for i in 0..nx {
+            let o = P3::new(lowest.x(i), lowest.y(j), z0);
+            if let Some(h) = bvh.ray_cast(&o, &V3::z(), span) {
+                lowest.set(i, j, h.point.z);
+            }
+        }
+    }
+    let inside = outline::inside_mask(&outline_pts, x0, y0, cell, nx, ny);
+    let mut heights = lowest.clone();
+    for (k, z) in heights.z.iter_mut().enumerate() {
+        if !inside[k] {
+            *z = f64::NAN;
+        }
+    }
+    if heights.valid_cells() == 0 {
+        return Err(err("the bottom outline covers no grid cell".into()));
+    }
+    lowest.fill();
+    Ok(PreparedLast {
+        path: path.to_path_buf(),
+        mesh,
+        bottom: LastBottom {
+            source: input.clone(),
+            outline: outline_pts,
+            heights,
+        },
+        lowest,
+        load: None,
+        bottom_triangles: region.len(),
+        levelled_by_deg: tilt,
+    })
+}
+
+/// What [`deform_last`] did.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct DeformReport {
+    /// Height over which the change fades to nothing (mm).
+    pub fade_mm: f64,
+    /// Largest vertex displacement by the non-rigid part (mm).
+    pub max_displacement_mm: f64,
+    /// Triangles whose normal turned by more than 90 degrees (0 for a sound deformation).
+    pub flipped_triangles: usize,
+    pub volume_before_mm3: f64,
+    pub volume_after_mm3: f64,
+}
+
+/// Smooth fade from 1 at the bottom to 0 at height 1 (quintic, zero slope and curvature at
+/// both ends).
+fn fade(s: f64) -> f64 {
+    let s = s.clamp(0.0, 1.0);
+    1.0 - s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+}
+
+/// The whole last carried into the foot frame and deformed so its bottom is the adjusted
+/// bottom: every vertex takes the rigid fit and eps scaling; the rest of the change (the
+/// thin-plate map and the new heights) is applied in full on the bottom and fades with the
+/// height above the original bottom over `fade_mm` (more when the bottom moves further, so
+/// the fade never folds the mesh: at least twice the largest change). The result is checked
+/// as a valid closed solid.
+pub fn deform_last(
+    prep: &PreparedLast,
+    adj: &Adjustment,
+    fade_mm: f64,
+) -> Result<(TriMesh, DeformReport), AdjustError> {
+    let mut mesh = prep.mesh.clone();
+    let moves: Vec<(P3, V3, f64)> = mesh
+        .vertices
+        .iter()
+        .map(|v| {
+            let p = [v.x, v.y];
+            let q = adj.to_foot.apply(p);
+            let t = adj.forward.apply(q);
+            let zb = prep.lowest.sample_clamped(v.x, v.y);
+            let nb = adj.heights.sample_clamped(t[0], t[1]);
+            let hb = v.z - zb;
+            (
+                P3::new(q[0], q[1], v.z),
+                V3::new(t[0] - q[0], t[1] - q[1], nb - zb),
+                hb,
+            )
+        })
+        .collect();
+    let near = moves
+        .iter()
+        .filter(|m| m.2 < fade_mm)
+        .map(|m| m.1.norm())
+        .fold(0.0, f64::max);
+    let fade_len = fade_mm.max(2.0 * near);
+    let mut max_d: f64 = 0.0;
+    for (v, (q, d, hb)) in mesh.vertices.iter_mut().zip(&moves) {
+        let w = fade(hb / fade_len);
+        *v = q + w * d;
+        max_d = max_d.max((w * d).norm());
+    }
+    if adj.to_foot.det() < 0.0 {
+        mesh.flip();
+    }
+    let input = prep.path.display().to_string();
+    let report = mesh.check().map_err(|defect| AdjustError::Last {
+        input: input.clone(),
+        why: format!("the deformed last is not a valid solid: {defect}"),
+    })?;
+    let a = adj.rigid.a;
+    let flipped = (0..mesh.triangles.len())
+        .filter(|&t| {
+            let n = prep.mesh.face_normal(t);
+            let n0 = V3::new(
+                a[0][0] * n.x + a[0][1] * n.y,
+                a[1][0] * n.x + a[1][1] * n.y,
+                n.z,
+            );
+            mesh.face_normal(t).dot(&n0) < 0.0
+        })
+        .count();
+    Ok((
+        mesh,
+        DeformReport {
+            fade_mm: fade_len,
+            max_displacement_mm: max_d,
+            flipped_triangles: flipped,
+            volume_before_mm3: prep.mesh.volume(),
+            volume_after_mm3: report.volume,
+        },
+    ))
+}

@@ -1,0 +1,727 @@
+//! Last bottom adjustment: a last's bottom made to fit a scanned foot sole.
+//!
+//! After the plantar scanner paper (end of its section 5), with the departures noted in
+//! docs/method.md. Inputs are plain data, so the scanner converts a scan in a few lines:
+//! a [`FootPlantar`] (the sole outline, toe pads, landmarks and height grid of a scan) and a
+//! [`LastBottom`] (outline and heights of a last's bottom, from a bottom scan or from a last
+//! mesh via [`last::prepare_last`]). [`adjust`] runs the steps; [`last::deform_last`] carries
+//! the result into the whole last; [`output::write_outputs`] writes everything or nothing.
+//!
+//! Steps of [`adjust`]:
+//! 1. Landmarks of the bottom by the rules of [`outline::outline_landmarks`]; a bottom of
+//!    the other foot is mirrored.
+//! 2. Rigid least-squares fit of the bottom's heel point, toe tip and ball points to the
+//!    foot's (heel point, toe tip, first and fifth metatarsal heads).
+//! 3. eps = (r_s + d)/r_s at the largest excursion d of the foot outline outside the bottom,
+//!    measured along rays from the landmarks' centroid (the paper measures across the foot,
+//!    y; along rays the rule is exact for any similar pair of outlines); the bottom is scaled
+//!    by eps about that centroid.
+//! 4. The landmarks are moved onto the foot's, and the outline pieces between them onto the
+//!    foot's outline at equal arc-length fractions; the target points are smoothed by
+//!    Taubin's lambda/mu scheme with the landmarks pinned (the paper's neighbour mean shrinks
+//!    a convex outline: tests/adjust_* measure both); a thin-plate spline through these
+//!    correspondences carries the bottom's interior along (smooth, exact at the points).
+//! 5. Heights: zeta = (z_s + d_z)/z_s at the largest excursion d_z = z_f - z_s over the
+//!    footprint; heights scaled by zeta; the arch point set to the foot's arch height, and
+//!    the remaining difference to the plantar surface added as a correction field (filled
+//!    in where the foot has no surface: between the toes, beyond the footprint); then the
+//!    4-neighbour mean, landmark cells pinned.
+//! 6. Deviation (bottom minus foot) before (rigid fit only) and after: heights over the
+//!    footprint, outline, landmarks.
+
+pub mod grid;
+pub mod last;
+pub mod outline;
+pub mod output;
+pub mod surface;
+pub mod synthetic;
+pub mod tps;
+
+pub use grid::HeightGrid;
+pub use outline::{outline_landmarks, OutlineLandmarks, Pt};
+
+use outline::{add, dist, dot, perp, scale, sub};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Side {
+    Left,
+    Right,
+}
+
+/// A scanned foot's landmarks (scan frame, mm), as the scanner's measurements give them.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FootLandmarks {
+    pub heel_point: Pt,
+    pub toe_tip: Pt,
+    pub hallux: Pt,
+    pub mt1_head: Pt,
+    pub mt5_head: Pt,
+    pub waist_inner: Pt,
+    pub waist_outer: Pt,
+    pub arch_point: Pt,
+    pub arch_height_mm: f64,
+}
+
+/// A foot sole as the adjustment needs it: scan frame (x heel to toe, y across, z up from
+/// the glass), millimetres. Mirrors the scanner's measurements (body outline, toe outlines,
+/// landmarks) and its height map (NaN outside the footprint).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FootPlantar {
+    /// What the foot came from (a scan directory), for error messages.
+    pub source: String,
+    pub side: Side,
+    /// Body outline (toes excluded), closed.
+    pub outline: Vec<Pt>,
+    /// Toe pad outlines, hallux first (may be empty).
+    pub toe_outlines: Vec<Vec<Pt>>,
+    pub landmarks: FootLandmarks,
+    pub heights: HeightGrid,
+}
+
+/// A last's bottom: its outline and heights in its own frame (x heel to toe, z up from the
+/// lowest bottom point), millimetres.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LastBottom {
+    /// What the bottom came from (a last file), for error messages.
+    pub source: String,
+    pub outline: Vec<Pt>,
+    pub heights: HeightGrid,
+}
+
+/// Knobs of [`adjust`]; the defaults are what the tests and benches use.
+#[derive(Clone, Copy, Debug)]
+pub struct AdjustOptions {
+    /// Cell of the adjusted height grid (mm).
+    pub cell_mm: f64,
+    /// Spacing of outline correspondences (mm).
+    pub contour_spacing_mm: f64,
+    /// Taubin smoothing of the target outline: iterations, lambda, mu.
+    pub taubin: (usize, f64, f64),
+    /// Passes of the 4-neighbour mean over the heights.
+    pub smooth_passes: usize,
+    /// A bottom shorter than this fraction of the foot is refused.
+    pub min_length_ratio: f64,
+    /// Node spacing of the tabulated thin-plate map (mm).
+    pub table_step_mm: f64,
+    /// Bottom heights below this are not used for zeta (the ratio is unstable near 0).
+    pub zeta_min_height_mm: f64,
+}
+
+impl Default for AdjustOptions {
+    fn default() -> Self {
+        AdjustOptions {
+            cell_mm: 0.5,
+            contour_spacing_mm: 3.0,
+            taubin: (4, 0.5, -0.53),
+            smooth_passes: 2,
+            min_length_ratio: 0.7,
+            table_step_mm: 2.0,
+            zeta_min_height_mm: 1.0,
+        }
+    }
+}
+
+/// Why an adjustment could not be made; every variant names its input.
+#[derive(Debug, thiserror::Error)]
+pub enum AdjustError {
+    #[error("foot {input}: {why}")]
+    Foot { input: String, why: String },
+    #[error("last {input}: {why}")]
+    Last { input: String, why: String },
+    #[error("last {}: {source}", path.display())]
+    Mesh {
+        path: PathBuf,
+        #[source]
+        source: footscan_geom::mesh::MeshError,
+    },
+    #[error(
+        "last {input}: its bottom is {last_mm:.1} mm long, more than 30 % shorter than the foot \
+         ({foot_mm:.1} mm); pass a last of the foot's size (or its real length with --length)"
+    )]
+    TooShort {
+        input: String,
+        last_mm: f64,
+        foot_mm: f64,
+    },
+    #[error("{}: {why}", path.display())]
+    Output { path: PathBuf, why: String },
+}
+
+/// An affine map of the plane, p -> A p + t (a similarity here, possibly mirrored).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Affine2 {
+    pub a: [[f64; 2]; 2],
+    pub t: Pt,
+}
+
+impl Affine2 {
+    pub fn identity() -> Affine2 {
+        Affine2 {
+            a: [[1.0, 0.0], [0.0, 1.0]],
+            t: [0.0, 0.0],
+        }
+    }
+    pub fn apply(&self, p: Pt) -> Pt {
+        [
+            self.a[0][0] * p[0] + self.a[0][1] * p[1] + self.t[0],
+            self.a[1][0] * p[0] + self.a[1][1] * p[1] + self.t[1],
+        ]
+    }
+    pub fn det(&self) -> f64 {
+        self.a[0][0] * self.a[1][1] - self.a[0][1] * self.a[1][0]
+    }
+    pub fn inverse(&self) -> Affine2 {
+        let d = self.det();
+        let a = [
+            [self.a[1][1] / d, -self.a[0][1] / d],
+            [-self.a[1][0] / d, self.a[0][0] / d],
+        ];
+        let t = [
+            -(a[0][0] * self.t[0] + a[0][1] * self.t[1]),
+            -(a[1][0] * self.t[0] + a[1][1] * self.t[1]),
+        ];
+        Affine2 { a, t }
+    }
+    /// `self` after `first`.
+    pub fn after(&self, first: &Affine2) -> Affine2 {
+        let m = |r: usize, c: usize| self.a[r][0] * first.a[0][c] + self.a[r][1] * first.a[1][c];
+        Affine2 {
+            a: [[m(0, 0), m(0, 1)], [m(1, 0), m(1, 1)]],
+            t: self.apply(first.t),
+        }
+    }
+}
+
+/// Deviation of a bottom from the foot (bottom minus foot, mm).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Deviation {
+    /// Heights over the footprint cells the bottom covers.
+    pub height_rms_mm: f64,
+    pub height_max_mm: f64,
+    /// Share of the footprint beyond 0.5 mm (uncovered cells count as beyond).
+    pub share_beyond_0_5: f64,
+    /// Share of the footprint the bottom does not cover.
+    pub uncovered_share: f64,
+    /// Bottom outline to foot outline distance.
+    pub outline_rms_mm: f64,
+    pub outline_max_mm: f64,
+    /// Largest landmark distance (bottom's to foot's).
+    pub landmark_max_mm: f64,
+}
+
+/// One landmark of the foot and where the bottom's matching landmark is before and after.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LandmarkPair {
+    pub name: String,
+    pub foot: Pt,
+    pub before: Pt,
+    pub after: Pt,
+}
+
+/// The adjusted bottom and what it took.
+#[derive(Clone, Debug)]
+pub struct Adjustment {
+    pub eps: f64,
+    pub zeta: f64,
+    /// Where the largest excursions were found (foot frame).
+    pub eps_at: Pt,
+    pub zeta_at: Pt,
+    /// Whether the bottom was mirrored (a last of the other side).
+    pub mirrored: bool,
+    pub bottom_side: Side,
+    /// Rigid fit: rotation (deg, counterclockwise) and translation of the bottom frame.
+    pub rotation_deg: f64,
+    pub shift: Pt,
+    /// Landmarks' centroid, the centre of the eps scaling.
+    pub centre: Pt,
+    /// Bottom frame -> foot frame: the rigid fit, and the rigid fit then eps.
+    pub rigid: Affine2,
+    pub to_foot: Affine2,
+    /// The thin-plate map from the scaled bottom to the adjusted one.
+    pub forward: tps::Tps,
+    /// Adjusted heights over the working rectangle (continued beyond the outline).
+    pub heights: HeightGrid,
+    /// Cells inside the adjusted outline.
+    pub inside: Vec<bool>,
+    pub outline: Vec<Pt>,
+    /// The foot's sole outline (body and toe pads).
+    pub foot_outline: Vec<Pt>,
+    pub bottom_outline_before: Vec<Pt>,
+    pub landmarks: Vec<LandmarkPair>,
+    pub before: Deviation,
+    pub after: Deviation,
+    /// Signed deviation maps (bottom minus foot) on the working grid, NaN off the footprint.
+    pub before_map: HeightGrid,
+    pub after_map: HeightGrid,
+    /// Correspondences used (after smoothing of the targets).
+    pub correspondences: usize,
+    pub notes: Vec<String>,
+}
+
+fn finite(p: Pt) -> bool {
+    p[0].is_finite() && p[1].is_finite()
+}
+
+fn check_foot(foot: &FootPlantar) -> Result<(), AdjustError> {
+    let bad = |why: String| AdjustError::Foot {
+        input: foot.source.clone(),
+        why,
+    };
+    if foot.outline.len() < 8 {
+        return Err(bad(format!(
+            "no measurements: the sole outline has {} points (a measured foot has hundreds); run the measurement first",
+            foot.outline.len()
+        )));
+    }
+    let l = &foot.landmarks;
+    for (name, p) in [
+        ("heel point", l.heel_point),
+        ("toe tip", l.toe_tip),
+        ("MT1 head", l.mt1_head),
+        ("MT5 head", l.mt5_head),
+        ("inner waist", l.waist_inner),
+        ("outer waist", l.waist_outer),
+        ("arch point", l.arch_point),
+    ] {
+        if !finite(p) {
+            return Err(bad(format!(
+                "no measurements: the {name} is missing (not finite)"
+            )));
+        }
+    }
+    if !l.arch_height_mm.is_finite() {
+        return Err(bad("no measurements: the arch height is missing".into()));
+    }
+    if dist(l.heel_point, l.toe_tip) < 50.0 {
+        return Err(bad(format!(
+            "heel point and toe tip are {:.1} mm apart; a foot is 50 mm long at least",
+            dist(l.heel_point, l.toe_tip)
+        )));
+    }
+    let g = &foot.heights;
+    if g.nx < 2 || g.ny < 2 || g.z.len() != g.nx * g.ny || !(g.cell_mm > 0.0) {
+        return Err(bad(format!(
+            "height grid {} x {} with {} values and cell {} mm is malformed",
+            g.nx,
+            g.ny,
+            g.z.len(),
+            g.cell_mm
+        )));
+    }
+    if g.valid_cells() == 0 {
+        return Err(bad(
+            "the height grid has no valid cell: no plantar surface".into()
+        ));
+    }
+    Ok(())
+}
+
+/// Rigid 2D least squares: the rotation and translation taking `p[k]` nearest `q[k]`.
+pub fn rigid_fit(p: &[Pt], q: &[Pt]) -> Affine2 {
+    let n = p.len() as f64;
+    let pc = scale(p.iter().fold([0.0, 0.0], |a, &b| add(a, b)), 1.0 / n);
+    let qc = scale(q.iter().fold([0.0, 0.0], |a, &b| add(a, b)), 1.0 / n);
+    let (mut sc, mut ss) = (0.0, 0.0);
+    for (a, b) in p.iter().zip(q) {
+        let (a, b) = (sub(*a, pc), sub(*b, qc));
+        sc += dot(a, b);
+        ss += a[0] * b[1] - a[1] * b[0];
+    }
+    let th = ss.atan2(sc);
+    let (c, s) = (th.cos(), th.sin());
+    let a = [[c, -s], [s, c]];
+    let r = Affine2 { a, t: [0.0, 0.0] };
+    Affine2 {
+        a,
+        t: sub(qc, r.apply(pc)),
+    }
+}
+
+/// Adjusts `bottom` to `foot` (see the module documentation for the steps).
+pub fn adjust(
+    foot: &FootPlantar,
+    bottom: &LastBottom,
+    opts: &AdjustOptions,
+) -> Result<Adjustment, AdjustError> {
+    check_foot(foot)?;
+    let last_err = |why: String| AdjustError::Last {
+        input: bottom.source.clone(),
+        why,
+    };
+    if bottom.outline.len() < 8 || bottom.heights.valid_cells() == 0 {
+        return Err(last_err(format!(
+            "the bottom has {} outline points and {} height cells; no bottom to adjust",
+            bottom.outline.len(),
+            bottom.heights.valid_cells()
+        )));
+    }
+    let fl = &foot.landmarks;
+    let mut notes = Vec::new();
+
+    // The foot's sole outline and its landmarks on it.
+    let forward_f = outline::scale(sub(fl.toe_tip, fl.heel_point), 1.0);
+    let axis_f = scale(forward_f, 1.0 / dist(fl.toe_tip, fl.heel_point));
+    let cut = if dot(fl.mt1_head, axis_f) < dot(fl.mt5_head, axis_f) {
+        fl.mt1_head
+    } else {
+        fl.mt5_head
+    };
+    let foot_outline = outline::sole_envelope(&foot.outline, &foot.toe_outlines, axis_f, cut);
+    let foot_raw = [
+        fl.heel_point,
+        fl.toe_tip,
+        fl.mt1_head,
+        fl.mt5_head,
+        fl.waist_inner,
+        fl.waist_outer,
+    ];
+    let foot_on: Vec<Pt> = foot_raw
+        .iter()
+        .map(|&q| outline::closest_on(&foot_outline, q).0)
+        .collect();
+    let off = foot_raw
+        .iter()
+        .zip(&foot_on)
+        .map(|(a, b)| dist(*a, *b))
+        .fold(0.0, f64::max);
+    if off > 0.05 {
+        notes.push(format!(
+            "foot landmarks moved up to {off:.2} mm onto the sole outline (toe pads included)"
+        ));
+    }
+    let foot_len = dot(sub(fl.toe_tip, fl.heel_point), axis_f);
+
+    // The bottom's landmarks; mirrored when it is a last of the other foot.
+    let mut b_out = bottom.outline.clone();
+    outline::make_ccw(&mut b_out);
+    let lm0 = outline_landmarks(&b_out, [1.0, 0.0], None)
+        .map_err(|e| last_err(format!("bottom landmarks: {e}")))?;
+    let mirrored = lm0.side != foot.side;
+    let mirror = if mirrored {
+        Affine2 {
+            a: [[1.0, 0.0], [0.0, -1.0]],
+            t: [0.0, 0.0],
+        }
+    } else {
+        Affine2::identity()
+    };
+    if mirrored {
+        b_out = b_out.iter().map(|&p| mirror.apply(p)).collect();
+        outline::make_ccw(&mut b_out);
+        notes.push(format!(
+            "the last is a {:?} last and the foot a {:?} foot: the last was mirrored",
+            lm0.side, foot.side
+        ));
+    }
+    let lb = outline_landmarks(&b_out, [1.0, 0.0], Some(foot.side))
+        .map_err(|e| last_err(format!("bottom landmarks: {e}")))?;
+    if lb.length < opts.min_length_ratio * foot_len {
+        return Err(AdjustError::TooShort {
+            input: bottom.source.clone(),
+            last_mm: lb.length,
+            foot_mm: foot_len,
+        });
+    }
+    let b_lm: Vec<Pt> = lb.named().iter().map(|x| x.1).collect();
+
+    // 2. Rigid fit on heel, toe and ball points.
+    let rigid_m = rigid_fit(&b_lm[..4], &foot_raw[..4]);
+    let rigid = rigid_m.after(&mirror);
+    let centre = scale(
+        foot_raw[..4].iter().fold([0.0, 0.0], |a, &b| add(a, b)),
+        0.25,
+    );
+    let aligned: Vec<Pt> = b_out.iter().map(|&p| rigid_m.apply(p)).collect();
+
+    // 3. eps from the largest excursion of the foot outline outside the bottom.
+    let f_rs = outline::resample_closed(&foot_outline, 1024);
+    let a_rs = outline::resample_closed(&aligned, 1024);
+    let (mut best_d, mut eps, mut eps_at) = (f64::NEG_INFINITY, 1.0, centre);
+    for &q in &f_rs {
+        let d = sub(q, centre);
+        let rf = d[0].hypot(d[1]);
+        if rf < 1e-9 {
+            continue;
+        }
+        if let Some(t) = outline::ray_exit(&a_rs, centre, scale(d, 1.0 / rf)) {
+            if rf - t > best_d {
+                (best_d, eps, eps_at) = (rf - t, rf / t, q);
+            }
+        }
+    }
+    let scale_m = Affine2 {
+        a: [[eps, 0.0], [0.0, eps]],
+        t: sub(centre, scale(centre, eps)),
+    };
+    let to_foot = scale_m.after(&rigid);
+    let scaled: Vec<Pt> = b_out
+        .iter()
+        .map(|&p| scale_m.after(&rigid_m).apply(p))
+        .collect();
+    let scaled_lm: Vec<Pt> = b_lm
+        .iter()
+        .map(|&p| scale_m.after(&rigid_m).apply(p))
+        .collect();
+
+    // 4. Landmarks and outline onto the foot's, targets smoothed with landmarks pinned.
+    let (src, mut tgt, idx) = outline::correspond(
+        &scaled,
+        &scaled_lm,
+        &foot_outline,
+        &foot_on,
+        opts.contour_spacing_mm,
+    )
+    .map_err(|e| last_err(format!("outline correspondence with the foot: {e}")))?;
+    let mut pinned = vec![false; tgt.len()];
+    for &i in &idx {
+        pinned[i] = true;
+    }
+    let (it, lam, mu) = opts.taubin;
+    outline::taubin(&mut tgt, &pinned, it, lam, mu);
+    let fwd = tps::Tps::fit(&src, &tgt)
+        .ok_or_else(|| last_err("the outline correspondences are degenerate".into()))?;
+    let inv = tps::Tps::fit(&tgt, &src)
+        .ok_or_else(|| last_err("the outline correspondences are degenerate".into()))?;
+
+    // Working grid over the foot outline.
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in &f_rs {
+        for d in 0..2 {
+            lo[d] = lo[d].min(p[d]);
+            hi[d] = hi[d].max(p[d]);
+        }
+    }
+    let margin = 4.0;
+    let c = opts.cell_mm;
+    let (x0, y0) = (lo[0] - margin, lo[1] - margin);
+    let nx = ((hi[0] - lo[0] + 2.0 * margin) / c).ceil() as usize + 1;
+    let ny = ((hi[1] - lo[1] + 2.0 * margin) / c).ceil() as usize + 1;
+    let n = nx * ny;
+    let inv_tab = tps::Tabulated::new(
+        &inv,
+        [x0, y0],
+        [x0 + nx as f64 * c, y0 + ny as f64 * c],
+        opts.table_step_mm,
+    );
+    let back = to_foot.inverse();
+    let rigid_back = rigid.inverse();
+    let adj_outline: Vec<Pt> = outline::resample_closed(&scaled, 1024)
+        .iter()
+        .map(|&p| fwd.apply(p))
+        .collect();
+    let inside = outline::inside_mask(&adj_outline, x0, y0, c, nx, ny);
+    let mut hf = HeightGrid::new(x0, y0, c, nx, ny);
+    let mut hs = HeightGrid::new(x0, y0, c, nx, ny);
+    let mut h_before = vec![f64::NAN; n];
+    let fg = &foot.heights;
+    for j in 0..ny {
+        for i in 0..nx {
+            let p = [x0 + i as f64 * c, y0 + j as f64 * c];
+            let k = j * nx + i;
+            if let Some((a, b)) = fg.cell_of(p[0], p[1]) {
+                if fg.get(a, b).is_finite() {
+                    hf.z[k] = fg.sample(p[0], p[1]);
+                    let pb = rigid_back.apply(p);
+                    h_before[k] = bottom.heights.sample(pb[0], pb[1]);
+                }
+            }
+            if inside[k] || hf.z[k].is_finite() {
+                let pb = back.apply(inv_tab.apply(p));
+                hs.z[k] = bottom.heights.sample(pb[0], pb[1]);
+            }
+        }
+    }
+
+    // 5. zeta at the largest excursion of the plantar surface beyond the bottom.
+    let (mut best_dz, mut zeta, mut zeta_at) = (f64::NEG_INFINITY, 1.0, centre);
+    for j in 1..ny - 1 {
+        for i in 1..nx - 1 {
+            let k = j * nx + i;
+            let (zf, zs) = (hf.z[k], hs.z[k]);
+            let full = [k - 1, k + 1, k - nx, k + nx]
+                .iter()
+                .all(|&m| hf.z[m].is_finite() && hs.z[m].is_finite());
+            if !full || zs < opts.zeta_min_height_mm || !zf.is_finite() {
+                continue;
+            }
+            if zf - zs > best_dz {
+                (best_dz, zeta, zeta_at) =
+                    (zf - zs, zf / zs, [x0 + i as f64 * c, y0 + j as f64 * c]);
+            }
+        }
+    }
+    if !(0.25..=4.0).contains(&zeta) {
+        notes.push(format!("zeta {zeta:.3} clamped to [0.25, 4]"));
+        zeta = zeta.clamp(0.25, 4.0);
+    }
+    // Heights scaled, then the correction to the plantar surface (exact at the arch point).
+    let mut corr = HeightGrid::new(x0, y0, c, nx, ny);
+    let mut pin = vec![false; n];
+    for k in 0..n {
+        if hf.z[k].is_finite() && hs.z[k].is_finite() {
+            corr.z[k] = hf.z[k] - zeta * hs.z[k];
+        }
+    }
+    let mut pin_cells = Vec::new();
+    for p in foot_raw.iter().chain(std::iter::once(&fl.arch_point)) {
+        if let Some((i, j)) = corr.cell_of(p[0], p[1]) {
+            pin_cells.push(j * nx + i);
+        }
+    }
+    if let Some((i, j)) = corr.cell_of(fl.arch_point[0], fl.arch_point[1]) {
+        let k = j * nx + i;
+        if hs.z[k].is_finite() {
+            corr.z[k] = fl.arch_height_mm - zeta * hs.z[k];
+        }
+    }
+    if corr.valid_cells() == 0 {
+        return Err(last_err(
+            "the bottom and the footprint do not overlap after alignment".into(),
+        ));
+    }
+    corr.fill();
+    let mut heights = HeightGrid::new(x0, y0, c, nx, ny);
+    for k in 0..n {
+        heights.z[k] = if hs.z[k].is_finite() {
+            zeta * hs.z[k] + corr.z[k]
+        } else {
+            hf.z[k]
+        };
+    }
+    if let Some((i, j)) = heights.cell_of(fl.arch_point[0], fl.arch_point[1]) {
+        heights.set(i, j, fl.arch_height_mm);
+    }
+    heights.fill();
+    for &k in &pin_cells {
+        pin[k] = true;
+    }
+    heights.smooth4(&inside, &pin, opts.smooth_passes);
+
+    // 6. Deviation before and after.
+    let mut before_map = HeightGrid::new(x0, y0, c, nx, ny);
+    let mut after_map = HeightGrid::new(x0, y0, c, nx, ny);
+    let (mut sb, mut sa) = (Stats::default(), Stats::default());
+    for k in 0..n {
+        if !hf.z[k].is_finite() {
+            continue;
+        }
+        let b = h_before[k] - hf.z[k];
+        before_map.z[k] = b;
+        sb.add(b);
+        let a = heights.z[k] - hf.z[k];
+        after_map.z[k] = a;
+        sa.add(a);
+    }
+    let foot_small = outline::resample_closed(&foot_outline, 512);
+    let outline_dev = |o: &[Pt]| {
+        let mut s = Stats::default();
+        for q in outline::resample_closed(o, 512) {
+            s.add(outline::distance_to(&foot_small, q));
+        }
+        (s.rms(), s.max)
+    };
+    let mut landmarks = Vec::new();
+    let names = [
+        "heel point",
+        "toe tip",
+        "MT1 head",
+        "MT5 head",
+        "inner waist",
+        "outer waist",
+    ];
+    for k in 0..6 {
+        landmarks.push(LandmarkPair {
+            name: names[k].into(),
+            foot: foot_raw[k],
+            before: rigid_m.apply(b_lm[k]),
+            after: fwd.apply(scaled_lm[k]),
+        });
+    }
+    let lmax = |f: &dyn Fn(&LandmarkPair) -> Pt| {
+        landmarks
+            .iter()
+            .map(|l| dist(l.foot, f(l)))
+            .fold(0.0, f64::max)
+    };
+    let (ob_rms, ob_max) = outline_dev(&aligned);
+    let (oa_rms, oa_max) = outline_dev(&adj_outline);
+    let before = sb.deviation(ob_rms, ob_max, lmax(&|l| l.before));
+    let after = sa.deviation(oa_rms, oa_max, lmax(&|l| l.after));
+    let rotation_deg = rigid_m.a[1][0].atan2(rigid_m.a[0][0]).to_degrees();
+    let _ = perp;
+    Ok(Adjustment {
+        eps,
+        zeta,
+        eps_at,
+        zeta_at,
+        mirrored,
+        bottom_side: lm0.side,
+        rotation_deg,
+        shift: rigid_m.t,
+        centre,
+        rigid,
+        to_foot,
+        forward: fwd,
+        heights,
+        inside,
+        outline: adj_outline,
+        foot_outline,
+        bottom_outline_before: aligned,
+        landmarks,
+        before,
+        after,
+        before_map,
+        after_map,
+        correspondences: src.len(),
+        notes,
+    })
+}
+
+/// Running statistics of signed deviations; NaN counts as an uncovered cell.
+#[derive(Default)]
+struct Stats {
+    n: usize,
+    uncovered: usize,
+    beyond: usize,
+    sum2: f64,
+    max: f64,
+}
+
+impl Stats {
+    fn add(&mut self, d: f64) {
+        self.n += 1;
+        if !d.is_finite() {
+            self.uncovered += 1;
+            self.beyond += 1;
+            return;
+        }
+        self.sum2 += d * d;
+        self.max = self.max.max(d.abs());
+        if d.abs() > 0.5 {
+            self.beyond += 1;
+        }
+    }
+    fn rms(&self) -> f64 {
+        let m = self.n - self.uncovered;
+        if m == 0 {
+            f64::NAN
+        } else {
+            (self.sum2 / m as f64).sqrt()
+        }
+    }
+    fn deviation(&self, outline_rms: f64, outline_max: f64, landmark_max: f64) -> Deviation {
+        let n = self.n.max(1) as f64;
+        Deviation {
+            height_rms_mm: self.rms(),
+            height_max_mm: self.max,
+            share_beyond_0_5: self.beyond as f64 / n,
+            uncovered_share: self.uncovered as f64 / n,
+            outline_rms_mm: outline_rms,
+            outline_max_mm: outline_max,
+            landmark_max_mm: landmark_max,
+        }
+    }
+}

@@ -1,0 +1,510 @@
+//! Outlines: the landmark rules shared by foot and last bottom, the foot's sole envelope,
+//! arc-length correspondence between two outlines, and contour smoothing.
+
+use super::Side;
+use footscan_geom::polygon::convex_hull;
+use footscan_geom::P2;
+
+pub type Pt = [f64; 2];
+
+pub(crate) fn sub(a: Pt, b: Pt) -> Pt {
+    [a[0] - b[0], a[1] - b[1]]
+}
+pub(crate) fn add(a: Pt, b: Pt) -> Pt {
+    [a[0] + b[0], a[1] + b[1]]
+}
+pub(crate) fn scale(a: Pt, s: f64) -> Pt {
+    [a[0] * s, a[1] * s]
+}
+pub(crate) fn dot(a: Pt, b: Pt) -> f64 {
+    a[0] * b[0] + a[1] * b[1]
+}
+pub(crate) fn dist(a: Pt, b: Pt) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+pub(crate) fn perp(u: Pt) -> Pt {
+    [-u[1], u[0]]
+}
+
+/// Signed area (counterclockwise positive).
+pub fn signed_area(p: &[Pt]) -> f64 {
+    let n = p.len();
+    let o = p.first().copied().unwrap_or([0.0, 0.0]);
+    (0..n)
+        .map(|i| {
+            let (a, b) = (sub(p[i], o), sub(p[(i + 1) % n], o));
+            a[0] * b[1] - a[1] * b[0]
+        })
+        .sum::<f64>()
+        / 2.0
+}
+
+/// Makes `p` counterclockwise.
+pub fn make_ccw(p: &mut [Pt]) {
+    if signed_area(p) < 0.0 {
+        p.reverse();
+    }
+}
+
+/// Perimeter of a closed outline.
+pub fn perimeter(p: &[Pt]) -> f64 {
+    let n = p.len();
+    (0..n).map(|i| dist(p[i], p[(i + 1) % n])).sum()
+}
+
+/// `n` points at equal arc-length steps around the closed outline, starting at vertex 0.
+/// A fixed count (not a fixed step) keeps the result exactly similar under scaling.
+pub fn resample_closed(p: &[Pt], n: usize) -> Vec<Pt> {
+    let m = p.len();
+    let total = perimeter(p);
+    let mut out = Vec::with_capacity(n);
+    let (mut k, mut acc) = (0usize, 0.0);
+    for q in 0..n {
+        let target = total * q as f64 / n as f64;
+        while k < m {
+            let l = dist(p[k], p[(k + 1) % m]);
+            if acc + l >= target || k == m - 1 {
+                let t = if l > 0.0 {
+                    ((target - acc) / l).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let (a, b) = (p[k], p[(k + 1) % m]);
+                out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+                break;
+            }
+            acc += l;
+            k += 1;
+        }
+    }
+    out
+}
+
+/// Area, area centroid and principal (long) axis of the region a closed outline bounds.
+pub fn moments(p: &[Pt]) -> (f64, Pt, Pt) {
+    let n = p.len();
+    let o = p[0];
+    let (mut a2, mut cx, mut cy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for i in 0..n {
+        let (a, b) = (sub(p[i], o), sub(p[(i + 1) % n], o));
+        let w = a[0] * b[1] - b[0] * a[1];
+        a2 += w;
+        cx += (a[0] + b[0]) * w;
+        cy += (a[1] + b[1]) * w;
+        sxx += (a[0] * a[0] + a[0] * b[0] + b[0] * b[0]) * w;
+        syy += (a[1] * a[1] + a[1] * b[1] + b[1] * b[1]) * w;
+        sxy += (a[0] * b[1] + 2.0 * a[0] * a[1] + 2.0 * b[0] * b[1] + b[0] * a[1]) * w;
+    }
+    let area = a2 / 2.0;
+    let (mx, my) = (cx / (3.0 * a2), cy / (3.0 * a2));
+    // Second moments about the centroid.
+    let ixx = sxx / 12.0 - area * mx * mx;
+    let iyy = syy / 12.0 - area * my * my;
+    let ixy = sxy / 24.0 - area * mx * my;
+    let angle = 0.5 * (2.0 * ixy).atan2(ixx - iyy);
+    (area, add(o, [mx, my]), [angle.cos(), angle.sin()])
+}
+
+/// Landmarks of an outline by the operational rules used for foot and last bottom alike.
+///
+/// Axis: the principal axis of the bounded region through its centroid, pointing the way
+/// `forward` points (heel to toe). Heel point / toe tip: rearmost / foremost outline points
+/// along the axis. Ball points: the widest points (farthest from the axis on each side) in
+/// the front 60 % of the length. Medial side: the side whose ball point lies further
+/// forward (the first metatarsal head is ahead of the fifth), unless `side` is given.
+/// Waist points: the outline points nearest the axis on each side between 20 % of the
+/// length and that side's ball point. Every rule is a vertex extreme, so the landmarks of
+/// a scaled, moved copy of an outline are the scaled, moved landmarks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OutlineLandmarks {
+    pub centre: Pt,
+    pub axis: Pt,
+    pub length: f64,
+    pub side: Side,
+    pub heel: Pt,
+    pub toe: Pt,
+    pub ball_medial: Pt,
+    pub ball_lateral: Pt,
+    pub waist_medial: Pt,
+    pub waist_lateral: Pt,
+}
+
+impl OutlineLandmarks {
+    /// The landmarks in the order used for correspondence and reports.
+    pub fn named(&self) -> [(&'static str, Pt); 6] {
+        [
+            ("heel point", self.heel),
+            ("toe tip", self.toe),
+            ("MT1 / medial ball", self.ball_medial),
+            ("MT5 / lateral ball", self.ball_lateral),
+            ("inner waist", self.waist_medial),
+            ("outer waist", self.waist_lateral),
+        ]
+    }
+}
+
+pub fn outline_landmarks(
+    p: &[Pt],
+    forward: Pt,
+    side: Option<Side>,
+) -> Result<OutlineLandmarks, String> {
+    if p.len() < 8 {
+        return Err(format!("{} outline points; need at least 8", p.len()));
+    }
+    let (area, c, mut u) = moments(p);
+    if !(area.abs() > 100.0) {
+        return Err(format!("outline area {:.1} mm^2 is too small", area.abs()));
+    }
+    if dot(u, forward) < 0.0 {
+        u = scale(u, -1.0);
+    }
+    let v = perp(u);
+    let s = |q: Pt| dot(sub(q, c), u);
+    let t = |q: Pt| dot(sub(q, c), v);
+    let arg = |keep: &dyn Fn(Pt) -> bool, key: &dyn Fn(Pt) -> f64| -> Option<Pt> {
+        p.iter()
+            .copied()
+            .filter(|&q| keep(q))
+            .max_by(|a, b| key(*a).total_cmp(&key(*b)))
+    };
+    let heel = arg(&|_| true, &|q| -s(q)).unwrap();
+    let toe = arg(&|_| true, &|q| s(q)).unwrap();
+    let (s0, length) = (s(heel), s(toe) - s(heel));
+    let fore = |q: Pt| s(q) - s0 >= 0.4 * length;
+    let left = arg(&fore, &|q| t(q)).ok_or("no forepart outline point")?;
+    let right = arg(&fore, &|q| -t(q)).ok_or("no forepart outline point")?;
+    let side = side.unwrap_or(if s(left) >= s(right) {
+        Side::Right
+    } else {
+        Side::Left
+    });
+    // A right foot has its medial side to the left of the heel-to-toe axis.
+    let (ball_medial, ball_lateral, sign) = match side {
+        Side::Right => (left, right, 1.0),
+        Side::Left => (right, left, -1.0),
+    };
+    let waist = |ball: Pt, sgn: f64| {
+        arg(
+            &|q| sgn * t(q) > 0.0 && s(q) - s0 >= 0.2 * length && s(q) <= s(ball),
+            &|q| -sgn * t(q),
+        )
+    };
+    let waist_medial = waist(ball_medial, sign).ok_or("no inner waist point")?;
+    let waist_lateral = waist(ball_lateral, -sign).ok_or("no outer waist point")?;
+    Ok(OutlineLandmarks {
+        centre: c,
+        axis: u,
+        length,
+        side,
+        heel,
+        toe,
+        ball_medial,
+        ball_lateral,
+        waist_medial,
+        waist_lateral,
+    })
+}
+
+/// The sole outline a last bottom must cover: the foot's body outline behind `cut` (an
+/// axis position, e.g. the rearmost ball point), and in front of it the convex hull of the
+/// body's forepart and the toe pads, which closes the gaps between the toes the way a last
+/// bottom does. Counterclockwise.
+pub fn sole_envelope(body: &[Pt], toes: &[Vec<Pt>], axis: Pt, cut_point: Pt) -> Vec<Pt> {
+    let mut body = body.to_vec();
+    make_ccw(&mut body);
+    if toes.iter().all(|t| t.is_empty()) {
+        return body;
+    }
+    let cut = dot(cut_point, axis);
+    let front: Vec<P2> = body
+        .iter()
+        .chain(toes.iter().flatten())
+        .filter(|q| dot(**q, axis) >= cut)
+        .map(|q| P2::new(q[0], q[1]))
+        .collect();
+    let hull: Vec<Pt> = convex_hull(&front)
+        .to_arrays()
+        .into_iter()
+        .collect::<Vec<_>>();
+    let n = body.len();
+    let behind = |q: Pt| dot(q, axis) < cut;
+    // The rear chain: from the first vertex after the forepart run to the last before it.
+    let Some(start) = (0..n).find(|&i| behind(body[i]) && !behind(body[(i + n - 1) % n])) else {
+        return body;
+    };
+    let mut out = Vec::with_capacity(n + hull.len());
+    let mut i = start;
+    while behind(body[i]) {
+        out.push(body[i]);
+        i = (i + 1) % n;
+        if i == start {
+            break;
+        }
+    }
+    let h = hull.len();
+    if let Some(hs) = (0..h).find(|&k| !behind(hull[k]) && behind(hull[(k + h - 1) % h])) {
+        let mut k = hs;
+        while !behind(hull[k]) {
+            out.push(hull[k]);
+            k = (k + 1) % h;
+            if k == hs {
+                break;
+            }
+        }
+    }
+    out
+}
+
+/// Nearest point of the closed outline to `q`: (point, edge index, position along the edge
+/// in [0, 1], distance).
+pub fn closest_on(p: &[Pt], q: Pt) -> (Pt, usize, f64, f64) {
+    let n = p.len();
+    let mut best = (p[0], 0, 0.0, f64::INFINITY);
+    for i in 0..n {
+        let (a, b) = (p[i], p[(i + 1) % n]);
+        let ab = sub(b, a);
+        let l2 = dot(ab, ab);
+        let t = if l2 > 0.0 {
+            (dot(sub(q, a), ab) / l2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let x = add(a, scale(ab, t));
+        let d = dist(x, q);
+        if d < best.3 {
+            best = (x, i, t, d);
+        }
+    }
+    best
+}
+
+/// Distance from `q` to the closed outline.
+pub fn distance_to(p: &[Pt], q: Pt) -> f64 {
+    closest_on(p, q).3
+}
+
+/// Cumulative arc length at each vertex (entry n = perimeter).
+fn cumulative(p: &[Pt]) -> Vec<f64> {
+    let n = p.len();
+    let mut c = Vec::with_capacity(n + 1);
+    c.push(0.0);
+    for i in 0..n {
+        c.push(c[i] + dist(p[i], p[(i + 1) % n]));
+    }
+    c
+}
+
+/// Arc-length position of the point nearest `q` on the outline.
+pub fn arc_position(p: &[Pt], cum: &[f64], q: Pt) -> f64 {
+    let (_, i, t, _) = closest_on(p, q);
+    cum[i] + t * (cum[i + 1] - cum[i])
+}
+
+/// The outline point at arc-length position `a` (taken modulo the perimeter).
+pub fn point_at(p: &[Pt], cum: &[f64], a: f64) -> Pt {
+    let n = p.len();
+    let total = cum[n];
+    let a = a.rem_euclid(total);
+    let i = match cum.binary_search_by(|x| x.total_cmp(&a)) {
+        Ok(i) => i.min(n - 1),
+        Err(i) => i.saturating_sub(1).min(n - 1),
+    };
+    let l = cum[i + 1] - cum[i];
+    let t = if l > 0.0 { (a - cum[i]) / l } else { 0.0 };
+    let (x, y) = (p[i], p[(i + 1) % n]);
+    add(x, scale(sub(y, x), t))
+}
+
+/// Corresponding points on two closed outlines: both are cut at matching landmarks (given
+/// in the same order on each), and every piece between two landmarks is sampled at the same
+/// arc-length fractions, about `spacing` mm apart on `b`. Returns (points on `a`, points on
+/// `b`, index of each landmark in the lists). Fails when the landmarks do not come in the
+/// same cyclic order on both outlines.
+pub fn correspond(
+    a: &[Pt],
+    la: &[Pt],
+    b: &[Pt],
+    lb: &[Pt],
+    spacing: f64,
+) -> Result<(Vec<Pt>, Vec<Pt>, Vec<usize>), String> {
+    let (ca, cb) = (cumulative(a), cumulative(b));
+    let pa: Vec<f64> = la.iter().map(|&q| arc_position(a, &ca, q)).collect();
+    let pb: Vec<f64> = lb.iter().map(|&q| arc_position(b, &cb, q)).collect();
+    let order = |pos: &[f64]| {
+        let mut o: Vec<usize> = (0..pos.len()).collect();
+        o.sort_by(|&x, &y| pos[x].total_cmp(&pos[y]));
+        o
+    };
+    let (oa, ob) = (order(&pa), order(&pb));
+    // Same cyclic order: ob is a rotation of oa.
+    let r = ob.iter().position(|&k| k == oa[0]).unwrap();
+    let rotated: Vec<usize> = (0..ob.len()).map(|k| ob[(k + r) % ob.len()]).collect();
+    if rotated != oa {
+        return Err(format!(
+            "the landmarks run around the two outlines in different orders ({oa:?} and {ob:?})"
+        ));
+    }
+    let (ta, tb) = (ca[a.len()], cb[b.len()]);
+    let (mut xa, mut xb, mut idx) = (Vec::new(), Vec::new(), vec![0; la.len()]);
+    let m = oa.len();
+    for k in 0..m {
+        let (l0, l1) = (oa[k], oa[(k + 1) % m]);
+        let (a0, mut a1) = (pa[l0], pa[l1]);
+        let (b0, mut b1) = (pb[l0], pb[l1]);
+        if a1 <= a0 {
+            a1 += ta;
+        }
+        if b1 <= b0 {
+            b1 += tb;
+        }
+        let pieces = (((b1 - b0) / spacing).round() as usize).max(1);
+        idx[l0] = xa.len();
+        for q in 0..pieces {
+            let f = q as f64 / pieces as f64;
+            xa.push(point_at(a, &ca, a0 + f * (a1 - a0)));
+            xb.push(point_at(b, &cb, b0 + f * (b1 - b0)));
+        }
+    }
+    Ok((xa, xb, idx))
+}
+
+/// Taubin's lambda/mu smoothing of a closed point loop: a shrinking Laplacian step (lambda)
+/// then an inflating one (mu < -lambda), which removes short wiggles without the steady
+/// shrinkage of plain Laplacian averaging. `pinned` points do not move.
+pub fn taubin(p: &mut [Pt], pinned: &[bool], iterations: usize, lambda: f64, mu: f64) {
+    let n = p.len();
+    let mut next = p.to_vec();
+    for _ in 0..iterations {
+        for f in [lambda, mu] {
+            for i in 0..n {
+                if pinned[i] {
+                    continue;
+                }
+                let (a, b) = (p[(i + n - 1) % n], p[(i + 1) % n]);
+                let lap = sub(scale(add(a, b), 0.5), p[i]);
+                next[i] = add(p[i], scale(lap, f));
+            }
+            p.copy_from_slice(&next);
+        }
+    }
+}
+
+/// The plantar scanner paper's contour smoothing, each point replaced by the mean of its two
+/// neighbours (y_i = (y_(i-1) + y_(i+1)) / 2), applied to both coordinates, `iterations`
+/// times (Jacobi). Kept to measure its shrinkage.
+pub fn neighbour_mean(p: &mut [Pt], iterations: usize) {
+    let n = p.len();
+    for _ in 0..iterations {
+        let prev = p.to_vec();
+        for i in 0..n {
+            p[i] = scale(add(prev[(i + n - 1) % n], prev[(i + 1) % n]), 0.5);
+        }
+    }
+}
+
+/// Largest positive parameter t at which the ray `c + t d` crosses the closed outline.
+pub fn ray_exit(p: &[Pt], c: Pt, d: Pt) -> Option<f64> {
+    let n = p.len();
+    let mut best: Option<f64> = None;
+    for i in 0..n {
+        let (a, b) = (p[i], p[(i + 1) % n]);
+        let e = sub(b, a);
+        let den = d[0] * e[1] - d[1] * e[0];
+        if den.abs() < 1e-15 {
+            continue;
+        }
+        let ac = sub(a, c);
+        let t = (ac[0] * e[1] - ac[1] * e[0]) / den;
+        let s = (ac[0] * d[1] - ac[1] * d[0]) / den;
+        if (0.0..=1.0).contains(&s) && t > 0.0 && best.is_none_or(|b| t > b) {
+            best = Some(t);
+        }
+    }
+    best
+}
+
+/// For each grid row, the cells whose centres are inside the closed outline (even-odd rule
+/// on the row's crossings): a mask over `nx * ny` cells.
+pub fn inside_mask(p: &[Pt], x0: f64, y0: f64, cell: f64, nx: usize, ny: usize) -> Vec<bool> {
+    let mut mask = vec![false; nx * ny];
+    let n = p.len();
+    let mut xs = Vec::new();
+    for j in 0..ny {
+        let y = y0 + j as f64 * cell;
+        xs.clear();
+        for i in 0..n {
+            let (a, b) = (p[i], p[(i + 1) % n]);
+            if (a[1] <= y) != (b[1] <= y) {
+                xs.push(a[0] + (y - a[1]) / (b[1] - a[1]) * (b[0] - a[0]));
+            }
+        }
+        xs.sort_by(f64::total_cmp);
+        for pair in xs.chunks_exact(2) {
+            let i0 = ((pair[0] - x0) / cell).ceil().max(0.0) as usize;
+            let i1 = ((pair[1] - x0) / cell).floor();
+            if i1 < 0.0 {
+                continue;
+            }
+            for i in i0..=(i1 as usize).min(nx.saturating_sub(1)) {
+                mask[j * nx + i] = true;
+            }
+        }
+    }
+    mask
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn circle(r: f64, n: usize) -> Vec<Pt> {
+        (0..n)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / n as f64;
+                [r * a.cos(), r * a.sin()]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn moments_of_a_rotated_rectangle() {
+        let a = 0.3f64;
+        let (u, v) = ([a.cos(), a.sin()], [-a.sin(), a.cos()]);
+        let p: Vec<Pt> = [[-50.0, -10.0], [50.0, -10.0], [50.0, 10.0], [-50.0, 10.0]]
+            .iter()
+            .map(|q| add([5.0, 7.0], add(scale(u, q[0]), scale(v, q[1]))))
+            .collect();
+        let (area, c, axis) = moments(&p);
+        assert!((area - 2000.0).abs() < 1e-9);
+        assert!(dist(c, [5.0, 7.0]) < 1e-9);
+        assert!((axis[0] * u[1] - axis[1] * u[0]).abs() < 1e-12);
+    }
+
+    #[test]
+    fn taubin_keeps_a_circle_where_the_neighbour_mean_shrinks_it() {
+        let r = 50.0;
+        let mut a = circle(r, 100);
+        let mut b = a.clone();
+        neighbour_mean(&mut a, 10);
+        taubin(&mut b, &[false; 100], 10, 0.5, -0.53);
+        let ra = a.iter().map(|q| q[0].hypot(q[1])).sum::<f64>() / 100.0;
+        let rb = b.iter().map(|q| q[0].hypot(q[1])).sum::<f64>() / 100.0;
+        // Each pass multiplies the radius by cos(2 pi / n).
+        let expect = r * (std::f64::consts::TAU / 100.0).cos().powi(10);
+        assert!((ra - expect).abs() < 1e-9, "{ra} {expect}");
+        assert!(r - ra > 0.19, "neighbour mean shrinks by {}", r - ra);
+        assert!(
+            (r - rb).abs() < 0.05,
+            "taubin changes the radius by {}",
+            r - rb
+        );
+    }
+
+    #[test]
+    fn inside_mask_counts_a_disc() {
+        let c = circle(10.0, 400);
+        let m = inside_mask(&c, -12.0, -12.0, 0.1, 241, 241);
+        let area = m.iter().filter(|&&b| b).count() as f64 * 0.01;
+        assert!((area - std::f64::consts::PI * 100.0).abs() < 0.5, "{area}");
+    }
+}
