@@ -173,13 +173,16 @@ impl Default for CameraSection {
 #[serde(deny_unknown_fields, default)]
 pub struct SimSection {
     pub seed: u64,
-    /// What stands on the glass: "foot", "empty" or "plate".
+    /// What stands on the glass: "foot", "empty", "plate", "last" (parametric, `[sim.last]`)
+    /// or "mesh" (a mesh file, `[sim.mesh]`).
     pub scene: SceneKind,
     /// Height of the plate for scene = "plate" (mm).
     pub plate_height_mm: f64,
     pub optics: footscan_sim::optics::Optics,
     pub noise: footscan_sim::render::NoiseConfig,
     pub foot: footscan_sim::foot::FootParams,
+    pub last: footscan_sim::last::LastParams,
+    pub mesh: footscan_sim::mesh_scene::MeshSceneConfig,
     pub slider: footscan_sim::grbl::EmulatorConfig,
     pub faults: SimFaults,
 }
@@ -213,6 +216,8 @@ impl Default for SimSection {
             optics: Default::default(),
             noise: Default::default(),
             foot: Default::default(),
+            last: Default::default(),
+            mesh: Default::default(),
             slider: Default::default(),
             faults: Default::default(),
         }
@@ -225,6 +230,8 @@ pub enum SceneKind {
     Foot,
     Empty,
     Plate,
+    Last,
+    Mesh,
 }
 
 #[derive(Debug, thiserror::Error)]

@@ -133,6 +133,19 @@ pub fn open(cfg: &ScanConfig) -> Result<(Devices, SimBackend), SimOpenError> {
             (Scene::Foot(foot.clone()), Some(foot))
         }
         SceneKind::Empty => (Scene::Empty, None),
+        SceneKind::Last => {
+            let surface = footscan_sim::last::Last::new(sim.last.clone())
+                .and_then(|l| l.surface())
+                .map_err(|e| SimOpenError::Scene(format!("[sim.last]: {e}")))?;
+            (Scene::Surface(Arc::new(surface)), None)
+        }
+        SceneKind::Mesh => {
+            let surface = sim
+                .mesh
+                .load()
+                .map_err(|e| SimOpenError::Scene(e.to_string()))?;
+            (Scene::Surface(Arc::new(surface)), None)
+        }
         SceneKind::Plate => (
             Scene::Plate {
                 height_mm: sim.plate_height_mm,
