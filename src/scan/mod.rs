@@ -14,7 +14,9 @@ pub use crate::scandata::ScanGrid;
 pub use backend::{hardware, open_backend, sim, OpenBackend};
 pub use calibrate::calibrate_sim;
 pub use config::{LoadedConfig, ScanConfig};
-pub use error::ScanError;
+pub use error::{
+    DeviceError, DeviceFault, DeviceRole, FaultKind, ScanError, ScanFault, SetupError,
+};
 pub use registry::{params, registry, ScanContext};
 pub use run::{run_scan, CancelToken, ScanOptions, ScanProgress};
 pub use summary::{ScanSummary, TruthSource, TruthStats};

@@ -82,7 +82,7 @@ pub fn run_scan(
         let cal_path = opts.out_dir.join("calibration.toml");
         calibration
             .save(&cal_path)
-            .map_err(|e| ScanError::Setup(e.to_string()))?;
+            .map_err(|e| ScanError::Setup(e.to_string().into()))?;
         let ctx = ScanContext {
             out_dir: opts.out_dir.clone(),
             plan: plan.clone(),

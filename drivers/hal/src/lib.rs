@@ -12,7 +12,7 @@ mod slider;
 mod time;
 
 pub use camera::{Camera, CameraInfo};
-pub use error::{HalError, HalResult};
+pub use error::{DeviceFault, FaultKind, HalError, HalResult};
 pub use frame::{Frame, FramePool, PixelFormat, Pixels};
 pub use slider::{Slider, SliderInfo, SliderSettings, SliderState, SliderStatus};
 pub use time::Timestamp;

@@ -7,7 +7,7 @@ pub mod sim;
 
 use crate::calib::Calibration;
 use crate::scan::config::{Backend, LoadedConfig};
-use crate::scan::error::ScanError;
+use crate::scan::error::{DeviceRole, ScanError, ScanFault, SetupError};
 use crate::scan::{Devices, TruthSource};
 use footscan_sim::foot::Foot;
 use std::path::Path;
@@ -28,13 +28,32 @@ impl OpenBackend {
     }
 }
 
+/// A hardware device that could not be opened: with its fault when the driver's error is one.
+fn setup_hardware(e: hardware::HardwareError) -> ScanError {
+    let fault = match &e {
+        hardware::HardwareError::Camera { source, .. } => source.fault().map(|fault| ScanFault {
+            role: DeviceRole::Camera,
+            fault,
+        }),
+        hardware::HardwareError::Slider { source, .. } => source.fault().map(|fault| ScanFault {
+            role: DeviceRole::Slider,
+            fault,
+        }),
+        hardware::HardwareError::SliderCheck(..) => None,
+    };
+    ScanError::Setup(SetupError {
+        message: e.to_string(),
+        fault,
+    })
+}
+
 /// Resolve the calibration (`--calibration`, then `scanner.calibration`, then the
 /// simulator's true model; required for hardware) and open the configured backend.
 pub fn open_backend(
     cfg: &LoadedConfig,
     calibration: Option<&Path>,
 ) -> Result<(Devices, OpenBackend, Calibration), ScanError> {
-    let setup = |e: String| ScanError::Setup(e);
+    let setup = |e: String| ScanError::Setup(e.into());
     let path = calibration
         .map(Path::to_path_buf)
         .or_else(|| cfg.calibration_path());
@@ -84,7 +103,7 @@ pub fn open_backend(
                     hw.camera.height
                 )));
             }
-            let devices = hardware::open(&cfg.config).map_err(|e| setup(e.to_string()))?;
+            let devices = hardware::open(&cfg.config).map_err(setup_hardware)?;
             Ok((
                 devices,
                 OpenBackend {

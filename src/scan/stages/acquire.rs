@@ -6,10 +6,13 @@
 //! frame is never labelled with a position it was not taken at.
 
 use crate::pipeline::{BoxError, Emitter, Source};
+use crate::scan::error::{DeviceError, DeviceRole};
 use crate::scan::item::{AcquiredFrame, FrameMeta, Item};
 use crate::scan::{Devices, ScanCounters, ScanPlan};
 use crossbeam_channel::{Receiver, RecvTimeoutError};
-use footscan_hal::{Camera, HalError, Slider, SliderState, SliderStatus, Timestamp};
+use footscan_hal::{
+    Camera, DeviceFault, FaultKind, HalError, Slider, SliderState, SliderStatus, Timestamp,
+};
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -132,11 +135,16 @@ impl Source<Item> for Acquire {
             mut slider,
         } = self.devices.take().ok_or("acquire stage run twice")?;
         let plan = self.plan.clone();
-        slider.move_to(plan.start_mm, plan.approach_feed_mm_min)?;
-        slider.wait_idle(plan.move_timeout)?;
-        camera.start()?;
-        let before = slider.status()?;
-        slider.move_to(plan.end_mm, plan.feed_mm_min)?;
+        let sl = |e| DeviceError::hal(DeviceRole::Slider, e);
+        slider
+            .move_to(plan.start_mm, plan.approach_feed_mm_min)
+            .map_err(sl)?;
+        slider.wait_idle(plan.move_timeout).map_err(sl)?;
+        camera
+            .start()
+            .map_err(|e| DeviceError::hal(DeviceRole::Camera, e))?;
+        let before = slider.status().map_err(sl)?;
+        slider.move_to(plan.end_mm, plan.feed_mm_min).map_err(sl)?;
 
         let abort = AtomicBool::new(false);
         let (tx, rx) = crossbeam_channel::unbounded();
@@ -176,7 +184,9 @@ impl Acquire {
         let mut index = 0u64;
         let min_advance = plan.step_mm * 0.05;
         while !out.is_cancelled() {
-            let frame = camera.next_frame(plan.frame_timeout)?;
+            let frame = camera
+                .next_frame(plan.frame_timeout)
+                .map_err(|e| DeviceError::hal(DeviceRole::Camera, e))?;
             if let Some(prev) = last_seq {
                 let gap = frame.seq.saturating_sub(prev + 1);
                 if gap > 0 {
@@ -190,9 +200,19 @@ impl Acquire {
                 match rx.recv_timeout(plan.move_timeout) {
                     Ok(Poll::Status(st)) => track.push(&st),
                     Ok(Poll::Done) => done = true,
-                    Ok(Poll::Failed(e)) => return Err(e.into()),
+                    Ok(Poll::Failed(e)) => {
+                        return Err(DeviceError::hal(DeviceRole::Slider, e).into())
+                    }
                     Err(RecvTimeoutError::Timeout) => {
-                        return Err("no slider status report within the move timeout".into())
+                        return Err(DeviceError {
+                            role: DeviceRole::Slider,
+                            fault: Some(DeviceFault {
+                                device: "slider".into(),
+                                kind: FaultKind::Timeout,
+                            }),
+                            source: "no slider status report within the move timeout".into(),
+                        }
+                        .into())
                     }
                     Err(RecvTimeoutError::Disconnected) => done = true,
                 }

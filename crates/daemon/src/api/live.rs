@@ -1,6 +1,7 @@
 //! Live endpoints: status, the preview frame and line, the event stream, calibration.
 
 use super::{scans::body, ApiError, AppState};
+use crate::archive::Status;
 use crate::daemon::Event;
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Query, State};
@@ -9,6 +10,8 @@ use axum::response::sse::{Event as SseEvent, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use footscan::calib::Method;
+use footscan::scan::config::Backend;
+use footscan::scan::{DeviceRole, FaultKind};
 use futures_util::stream::Stream;
 use serde::Deserialize;
 use serde_json::{json, Value};
@@ -20,36 +23,25 @@ pub async fn status(State(st): State<AppState>) -> Json<Value> {
     let d = &st.daemon;
     let cfg = &d.scanner.config;
     let backend = serde_json::to_value(cfg.scanner.backend).unwrap_or(Value::Null);
-    let sim = backend == "sim";
+    let sim = cfg.scanner.backend == Backend::Sim;
     let scan = d.scan_progress();
-    let running = scan.as_ref().is_some_and(|s| s.state == "running");
+    let running = scan.as_ref().is_some_and(|s| s.state == Status::Running);
     // What the last scan learnt about the devices: a scan that lost one says so until the
     // next scan starts.
-    let last_failure = scan
+    let fault = scan
         .as_ref()
-        .filter(|s| s.state == "failed")
-        .and_then(|s| s.reason.clone())
-        .unwrap_or_default()
-        .to_lowercase();
-    let has = |words: &[&str]| words.iter().any(|w| last_failure.contains(w));
-    let broken = has(&[
-        "disconnect",
-        "unplug",
-        "no such device",
-        "timed out",
-        "timeout",
-    ]);
-    let camera_lost = has(&["camera"]) && broken;
-    let slider_named = has(&[
-        "slider",
-        "grbl",
-        "/dev/pts",
-        "/dev/tty",
-        "status report",
-        "alarm",
-    ]);
-    let slider_alarm = slider_named && has(&["alarm"]);
-    let slider_lost = slider_named && !slider_alarm && !camera_lost && broken;
+        .filter(|s| s.state == Status::Failed)
+        .and_then(|s| s.fault.clone());
+    let lost = |role: DeviceRole| {
+        fault.as_ref().is_some_and(|f| {
+            f.role == role && matches!(f.fault.kind, FaultKind::Disconnected | FaultKind::Timeout)
+        })
+    };
+    let camera_lost = lost(DeviceRole::Camera);
+    let slider_alarm = fault.as_ref().is_some_and(|f| {
+        f.role == DeviceRole::Slider && matches!(f.fault.kind, FaultKind::Alarm(_))
+    });
+    let slider_lost = lost(DeviceRole::Slider);
     let line = d.preview.line();
     let hw = cfg.hardware.as_ref().filter(|_| !sim);
     let (cam_name, mut w, mut h, format, slider_name) = match hw {

@@ -52,13 +52,14 @@ impl Daemon {
             footscan::scan::ScanPlan::from_config(&self.scanner.config).expected_frames();
         st.scan = Some(Progress {
             id: id.clone(),
-            state: "running".into(),
+            state: Status::Running,
             frames: 0,
             expected_frames: expected,
             points: 0,
             dropped: 0,
             elapsed_s: 0.0,
             reason: None,
+            fault: None,
         });
         st.cancel_reason = None;
         let calibration = st.calibration.as_ref().map(|c| c.path.clone());
@@ -77,7 +78,7 @@ impl Daemon {
         tracing::info!("scan {id} started");
         self.emit(Event::State {
             id: id.clone(),
-            state: "running".into(),
+            state: Status::Running,
             reason: None,
         });
         Ok(id)
@@ -108,6 +109,10 @@ impl Daemon {
             run_scan(&self.scanner, &opts, on_progress)
         }));
         let cancel_reason = self.state.lock().unwrap().cancel_reason.clone();
+        let fault = match &result {
+            Ok(Err(e)) => e.fault(),
+            _ => None,
+        };
         let mut outcome = match result {
             Ok(Ok(s)) => Outcome {
                 status: Status::parse(&s.status).unwrap_or(Status::Failed),
@@ -162,16 +167,18 @@ impl Daemon {
             let mut st = self.state.lock().unwrap();
             let p = st.scan.get_or_insert_with(|| Progress {
                 id: id.clone(),
-                state: String::new(),
+                state: status,
                 frames: 0,
                 expected_frames: 0,
                 points: 0,
                 dropped: 0,
                 elapsed_s: 0.0,
                 reason: None,
+                fault: None,
             });
-            p.state = status.as_str().into();
+            p.state = status;
             p.reason = reason.clone();
+            p.fault = fault;
             p.frames = outcome.frames;
             if status == Status::Complete {
                 p.points = outcome.points;
@@ -199,7 +206,7 @@ impl Daemon {
         }
         self.emit(Event::State {
             id: id.clone(),
-            state: status.as_str().into(),
+            state: status,
             reason: reason.clone(),
         });
     }
@@ -208,13 +215,14 @@ impl Daemon {
         let mut st = self.state.lock().unwrap();
         let prog = Progress {
             id: id.to_string(),
-            state: "running".into(),
+            state: Status::Running,
             frames: p.frames,
             expected_frames: p.expected_frames,
             points: self.preview.points(),
             dropped: p.dropped,
             elapsed_s: (started.elapsed().as_secs_f64() * 1000.0).round() / 1000.0,
             reason: None,
+            fault: None,
         };
         st.scan = Some(prog.clone());
         prog
@@ -242,7 +250,7 @@ impl Daemon {
         let job = CalibrationJob {
             id: id.clone(),
             method: method.name().into(),
-            state: "running".into(),
+            state: Status::Running,
             reason: None,
         };
         st.calibrating = Some(job.clone());
@@ -256,7 +264,7 @@ impl Daemon {
         self.emit(Event::Calibration(CalibrationJob {
             id: id.clone(),
             method: method.name().into(),
-            state: "running".into(),
+            state: Status::Running,
             reason: None,
         }));
         Ok(id)
@@ -276,18 +284,18 @@ impl Daemon {
         let mut st = self.state.lock().unwrap();
         match saved {
             Ok(info) => {
-                job.state = "complete".into();
+                job.state = Status::Complete;
                 st.calibration = Some(info);
             }
             Err(reason) => {
-                job.state = "failed".into();
+                job.state = Status::Failed;
                 job.reason = Some(reason);
             }
         }
         tracing::info!(
             "calibration {} {}{}",
             job.id,
-            job.state,
+            job.state.as_str(),
             job.reason
                 .as_deref()
                 .map_or(String::new(), |r| format!(": {r}"))

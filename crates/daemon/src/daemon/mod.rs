@@ -9,9 +9,9 @@ pub mod preview;
 pub use config::{DaemonConfig, DaemonConfigError};
 pub use preview::Preview;
 
-use crate::archive::{Archive, ArchiveError};
+use crate::archive::{Archive, ArchiveError, Status};
 use footscan::calib::Calibration;
-use footscan::scan::{CancelToken, LoadedConfig};
+use footscan::scan::{CancelToken, LoadedConfig, ScanFault};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -27,13 +27,17 @@ pub const CANCEL_REASON: &str = "cancelled by the operator";
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Progress {
     pub id: String,
-    pub state: String,
+    pub state: Status,
     pub frames: u64,
     pub expected_frames: u64,
     pub points: u64,
     pub dropped: u64,
     pub elapsed_s: f64,
     pub reason: Option<String>,
+    /// The device fault that ended the scan, if one did (typed, for the device status; the
+    /// reason says it in words). Not known for scans of an earlier daemon run.
+    #[serde(skip)]
+    pub fault: Option<ScanFault>,
 }
 
 /// A calibration job as the API shows it.
@@ -41,7 +45,7 @@ pub struct Progress {
 pub struct CalibrationJob {
     pub id: String,
     pub method: String,
-    pub state: String,
+    pub state: Status,
     pub reason: Option<String>,
 }
 
@@ -59,7 +63,7 @@ pub enum Event {
     Progress(Progress),
     State {
         id: String,
-        state: String,
+        state: Status,
         reason: Option<String>,
     },
     Error {
@@ -177,7 +181,7 @@ impl Daemon {
             let num = |k: &str| summary.as_ref().and_then(|s| s[k].as_f64());
             Progress {
                 id: r.id.clone(),
-                state: r.status.as_str().into(),
+                state: r.status,
                 frames: r.frames,
                 expected_frames: footscan::scan::ScanPlan::from_config(&scanner.config)
                     .expected_frames(),
@@ -185,6 +189,7 @@ impl Daemon {
                 dropped: num("dropped_frames").unwrap_or(0.0) as u64,
                 elapsed_s: num("seconds").unwrap_or(0.0),
                 reason: r.reason,
+                fault: None,
             }
         });
         let (events, _) = broadcast::channel(256);
