@@ -17,10 +17,11 @@
 //!    y; along rays the rule is exact for any similar pair of outlines); the bottom is scaled
 //!    by eps about that centroid.
 //! 4. The landmarks are moved onto the foot's, and the outline pieces between them onto the
-//!    foot's outline at equal arc-length fractions; the target points are smoothed by
-//!    Taubin's lambda/mu scheme with the landmarks pinned (the paper's neighbour mean shrinks
-//!    a convex outline: tests/adjust_* measure both); a thin-plate spline through these
-//!    correspondences carries the bottom's interior along (smooth, exact at the points).
+//!    foot's outline at equal arc-length fractions; the displacements along the outline are
+//!    smoothed by Taubin's lambda/mu scheme with the landmarks pinned (the paper's neighbour
+//!    mean of the positions shrinks a convex outline: the tests measure both); a thin-plate
+//!    spline through these correspondences carries the bottom's interior along (smooth,
+//!    exact at the points).
 //! 5. Heights: zeta = (z_s + d_z)/z_s at the largest excursion d_z = z_f - z_s over the
 //!    footprint; heights scaled by zeta; the arch point set to the foot's arch height, and
 //!    the remaining difference to the plantar surface added as a correction field (filled
@@ -108,6 +109,8 @@ pub struct AdjustOptions {
     pub table_step_mm: f64,
     /// Bottom heights below this are not used for zeta (the ratio is unstable near 0).
     pub zeta_min_height_mm: f64,
+    /// zeta is measured this far inside the outline (mm).
+    pub zeta_edge_mm: f64,
 }
 
 impl Default for AdjustOptions {
@@ -120,6 +123,7 @@ impl Default for AdjustOptions {
             min_length_ratio: 0.7,
             table_step_mm: 2.0,
             zeta_min_height_mm: 1.0,
+            zeta_edge_mm: 3.0,
         }
     }
 }
@@ -479,8 +483,14 @@ pub fn adjust(
     for &i in &idx {
         pinned[i] = true;
     }
+    // Smooth the displacements (not the positions): a contour that already fits is left
+    // alone, and the smoothing cannot shrink the outline.
     let (it, lam, mu) = opts.taubin;
-    outline::taubin(&mut tgt, &pinned, it, lam, mu);
+    let mut disp: Vec<Pt> = tgt.iter().zip(&src).map(|(t, s)| sub(*t, *s)).collect();
+    outline::taubin(&mut disp, &pinned, it, lam, mu);
+    for k in 0..tgt.len() {
+        tgt[k] = add(src[k], disp[k]);
+    }
     let fwd = tps::Tps::fit(&src, &tgt)
         .ok_or_else(|| last_err("the outline correspondences are degenerate".into()))?;
     let inv = tps::Tps::fit(&tgt, &src)
@@ -516,6 +526,8 @@ pub fn adjust(
     let mut hf = HeightGrid::new(x0, y0, c, nx, ny);
     let mut hs = HeightGrid::new(x0, y0, c, nx, ny);
     let mut h_before = vec![f64::NAN; n];
+    // Cells where both heights come from four finite corners (no blending at an edge).
+    let mut full = vec![false; n];
     let fg = &foot.heights;
     for j in 0..ny {
         for i in 0..nx {
@@ -523,28 +535,42 @@ pub fn adjust(
             let k = j * nx + i;
             if let Some((a, b)) = fg.cell_of(p[0], p[1]) {
                 if fg.get(a, b).is_finite() {
-                    hf.z[k] = fg.sample(p[0], p[1]);
+                    match fg.sample_full(p[0], p[1]) {
+                        Some(z) => (hf.z[k], full[k]) = (z, true),
+                        None => hf.z[k] = fg.sample(p[0], p[1]),
+                    }
                     let pb = rigid_back.apply(p);
                     h_before[k] = bottom.heights.sample(pb[0], pb[1]);
                 }
             }
             if inside[k] || hf.z[k].is_finite() {
                 let pb = back.apply(inv_tab.apply(p));
-                hs.z[k] = bottom.heights.sample(pb[0], pb[1]);
+                match bottom.heights.sample_full(pb[0], pb[1]) {
+                    Some(z) => hs.z[k] = z,
+                    None => {
+                        hs.z[k] = bottom.heights.sample(pb[0], pb[1]);
+                        full[k] = false;
+                    }
+                }
             }
         }
     }
 
     // 5. zeta at the largest excursion of the plantar surface beyond the bottom.
+    // Only cells `zeta_edge_mm` inside the outline: the sole turns up steeply at its edge,
+    // where a hundredth of a millimetre in plan is a large change in height.
+    let e = (opts.zeta_edge_mm / c).ceil() as usize;
     let (mut best_dz, mut zeta, mut zeta_at) = (f64::NEG_INFINITY, 1.0, centre);
     for j in 1..ny - 1 {
         for i in 1..nx - 1 {
             let k = j * nx + i;
             let (zf, zs) = (hf.z[k], hs.z[k]);
-            let full = [k - 1, k + 1, k - nx, k + nx]
-                .iter()
-                .all(|&m| hf.z[m].is_finite() && hs.z[m].is_finite());
-            if !full || zs < opts.zeta_min_height_mm || !zf.is_finite() {
+            let interior = [k, k - 1, k + 1, k - nx, k + nx].iter().all(|&m| full[m])
+                && (i >= e && j >= e && i + e < nx && j + e < ny)
+                && [k - e, k + e, k - e * nx, k + e * nx]
+                    .iter()
+                    .all(|&m| inside[m]);
+            if !interior || zs < opts.zeta_min_height_mm || !zf.is_finite() {
                 continue;
             }
             if zf - zs > best_dz {
