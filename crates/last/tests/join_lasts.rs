@@ -207,3 +207,19 @@ fn bad_inputs_give_errors_that_name_the_plane_or_last() {
     let e = join::join(&b, &t, &params(0.5)).unwrap_err();
     assert!(e.to_string().contains("angle"), "{e}");
 }
+
+/// Writes the outputs of both pairs into FOOTSCAN_JOIN_OUT when set (for looking at them).
+#[test]
+fn write_outputs_when_asked() {
+    let Some(out) = std::env::var_os("FOOTSCAN_JOIN_OUT") else {
+        return;
+    };
+    for name in ["scan", "roundtip"] {
+        let (b, t) = pair(name);
+        for angle in [45.0, 10.0] {
+            let j = join::join(&b, &t, &params(angle)).unwrap();
+            let dir = PathBuf::from(&out).join(format!("{name}_{angle}"));
+            output::write(&j, &dir, &format!("{name} {angle} deg")).unwrap();
+        }
+    }
+}
