@@ -1,7 +1,7 @@
 //! A last mesh as an adjustment input ([`prepare_last`]: its bottom found, levelled and
 //! measured) and the whole last deformed to the adjusted bottom ([`deform_last`]).
 
-use super::outline::{self, Pt};
+use super::outline;
 use super::{AdjustError, Adjustment, HeightGrid, LastBottom};
 use footscan_geom::mesh::{LoadReport, TriMesh, Units};
 use footscan_geom::{P3, V3};
@@ -40,8 +40,8 @@ pub struct PreparedLast {
     pub path: PathBuf,
     pub mesh: TriMesh,
     pub bottom: LastBottom,
-    /// z of the lowest surface of the last under each cell (continued beyond the last's
-    /// footprint), for heights above the bottom.
+    /// z of the bottom surface, continued beyond its outline over the whole last, for
+    /// heights above the bottom.
     pub lowest: HeightGrid,
     pub load: Option<LoadReport>,
     pub bottom_triangles: usize,
@@ -55,7 +55,7 @@ pub fn prepare_last(path: &Path, opts: &LastOptions) -> Result<PreparedLast, Adj
     let (mesh, load) = TriMesh::load_solid(path, opts.units, opts.length_mm).map_err(|source| {
         AdjustError::Mesh {
             path: path.to_path_buf(),
-            source,
+            source: Box::new(source),
         }
     })?;
     let mut p = prepare_mesh(mesh, path, opts)?;
@@ -94,8 +94,8 @@ fn down_region(mesh: &TriMesh, down_cos: f64) -> (Vec<usize>, f64) {
         }
     }
     let mut area: HashMap<usize, f64> = HashMap::new();
-    for t in 0..nt {
-        if down[t] {
+    for (t, &d) in down.iter().enumerate() {
+        if d {
             let r = find(&mut parent, t);
             *area.entry(r).or_default() += mesh.face_normal_raw(t).norm() / 2.0;
         }
@@ -204,54 +204,6 @@ pub fn prepare_mesh(
     let shift = V3::new(-lo.x, -(lo.y + hi.y) / 2.0, -lo.z);
     mesh.translate(&shift);
 
-    // Outline: the boundary loops of the region; the one enclosing the largest area.
-    let in_region: std::collections::HashSet<usize> = region.iter().copied().collect();
-    let mut directed: HashMap<(u32, u32), ()> = HashMap::new();
-    for &t in &region {
-        let tri = mesh.triangles[t];
-        for k in 0..3 {
-            directed.insert((tri[k], tri[(k + 1) % 3]), ());
-        }
-    }
-    let mut next: HashMap<u32, u32> = HashMap::new();
-    for &(a, b) in directed.keys() {
-        if !directed.contains_key(&(b, a)) {
-            next.insert(a, b);
-        }
-    }
-    let _ = in_region;
-    let mut loops: Vec<Vec<Pt>> = Vec::new();
-    let mut seen: std::collections::HashSet<u32> = std::collections::HashSet::new();
-    let mut starts: Vec<u32> = next.keys().copied().collect();
-    starts.sort_unstable();
-    for s in starts {
-        if seen.contains(&s) {
-            continue;
-        }
-        let mut lp = Vec::new();
-        let mut v = s;
-        while seen.insert(v) {
-            let p = mesh.vertices[v as usize];
-            lp.push([p.x, p.y]);
-            match next.get(&v) {
-                Some(&w) => v = w,
-                None => break,
-            }
-        }
-        if lp.len() >= 8 {
-            loops.push(lp);
-        }
-    }
-    let mut outline_pts = loops
-        .into_iter()
-        .max_by(|a, b| {
-            outline::signed_area(a)
-                .abs()
-                .total_cmp(&outline::signed_area(b).abs())
-        })
-        .ok_or_else(|| err("the bottom region has no boundary loop".into()))?;
-    outline::make_ccw(&mut outline_pts);
-
     // Lowest surface under each cell over the whole last, by vertical rays.
     let bvh = footscan_geom::mesh::Bvh::new(&mesh);
     let bb = mesh.bbox();
@@ -263,14 +215,40 @@ pub fn prepare_mesh(
     let mut lowest = HeightGrid::new(x0, y0, cell, nx, ny);
     let z0 = bb.min.z - 5.0;
     let span = bb.max.z - z0 + 5.0;
+    let in_region: std::collections::HashSet<usize> = region.iter().copied().collect();
+    let mut mask = vec![false; nx * ny];
     for j in 0..ny {
         for i in 0..nx {
             let o = P3::new(lowest.x(i), lowest.y(j), z0);
             if let Some(h) = bvh.ray_cast(&o, &V3::z(), span) {
                 lowest.set(i, j, h.point.z);
+                mask[j * nx + i] = in_region.contains(&h.triangle);
             }
         }
     }
+    // Outline: the bottom seen from below (cells whose lowest surface is the region), its
+    // largest 4-connected piece; a last bottom is one interval across at every station
+    // along its length, so the outline is the piece's extreme cells per column, smoothed.
+    let piece = largest_piece(&mask, nx, ny);
+    let (mut lower, mut upper) = (Vec::new(), Vec::new());
+    for i in 0..nx {
+        let js: Vec<usize> = (0..ny).filter(|&j| piece[j * nx + i]).collect();
+        if let (Some(&a), Some(&b)) = (js.first(), js.last()) {
+            lower.push([lowest.x(i), lowest.y(a) - cell / 2.0]);
+            upper.push([lowest.x(i), lowest.y(b) + cell / 2.0]);
+        }
+    }
+    if lower.len() < 8 {
+        return Err(err(format!(
+            "the bottom seen from below covers {} grid columns; too small for a last",
+            lower.len()
+        )));
+    }
+    let mut outline_pts = lower;
+    outline_pts.extend(upper.into_iter().rev());
+    let pinned = vec![false; outline_pts.len()];
+    outline::taubin(&mut outline_pts, &pinned, 10, 0.5, -0.53);
+    outline::make_ccw(&mut outline_pts);
     let inside = outline::inside_mask(&outline_pts, x0, y0, cell, nx, ny);
     let mut heights = lowest.clone();
     for (k, z) in heights.z.iter_mut().enumerate() {
@@ -281,6 +259,9 @@ pub fn prepare_mesh(
     if heights.valid_cells() == 0 {
         return Err(err("the bottom outline covers no grid cell".into()));
     }
+    // Heights above the bottom are measured from the bottom surface continued outward
+    // (not from whatever surface is lowest: the back of the heel overhangs the bottom).
+    let mut lowest = heights.clone();
     lowest.fill();
     Ok(PreparedLast {
         path: path.to_path_buf(),
@@ -321,7 +302,7 @@ fn fade(s: f64) -> f64 {
 /// bottom: every vertex takes the rigid fit and eps scaling; the rest of the change (the
 /// thin-plate map and the new heights) is applied in full on the bottom and fades with the
 /// height above the original bottom over `fade_mm` (more when the bottom moves further, so
-/// the fade never folds the mesh: at least twice the largest change). The result is checked
+/// the fade does not fold the mesh: at least four times the largest change). The result is checked
 /// as a valid closed solid.
 pub fn deform_last(
     prep: &PreparedLast,
@@ -346,12 +327,18 @@ pub fn deform_last(
             )
         })
         .collect();
-    let near = moves
-        .iter()
-        .filter(|m| m.2 < fade_mm)
-        .map(|m| m.1.norm())
-        .fold(0.0, f64::max);
-    let fade_len = fade_mm.max(2.0 * near);
+    // Long enough that the shear the fade makes stays small: the fade's steepest slope is
+    // 15/8 per fade length, so with four times the largest change within reach no slope
+    // exceeds 0.47 (twice that folded a steep side wall of a real last).
+    let mut fade_len = fade_mm;
+    for _ in 0..5 {
+        let near = moves
+            .iter()
+            .filter(|m| m.2 < fade_len)
+            .map(|m| m.1.norm())
+            .fold(0.0, f64::max);
+        fade_len = fade_len.max(4.0 * near);
+    }
     let mut max_d: f64 = 0.0;
     for (v, (q, d, hb)) in mesh.vertices.iter_mut().zip(&moves) {
         let w = fade(hb / fade_len);
@@ -388,4 +375,46 @@ pub fn deform_last(
             volume_after_mm3: report.volume,
         },
     ))
+}
+
+/// The largest 4-connected set of true cells.
+fn largest_piece(mask: &[bool], nx: usize, ny: usize) -> Vec<bool> {
+    let mut label = vec![usize::MAX; mask.len()];
+    let (mut best, mut best_n, mut next) = (usize::MAX, 0usize, 0usize);
+    let mut stack = Vec::new();
+    for s in 0..mask.len() {
+        if !mask[s] || label[s] != usize::MAX {
+            continue;
+        }
+        let mut n = 0;
+        label[s] = next;
+        stack.push(s);
+        while let Some(k) = stack.pop() {
+            n += 1;
+            let (i, j) = (k % nx, k / nx);
+            let mut visit = |m: usize| {
+                if mask[m] && label[m] == usize::MAX {
+                    label[m] = next;
+                    stack.push(m);
+                }
+            };
+            if i > 0 {
+                visit(k - 1);
+            }
+            if i + 1 < nx {
+                visit(k + 1);
+            }
+            if j > 0 {
+                visit(k - nx);
+            }
+            if j + 1 < ny {
+                visit(k + nx);
+            }
+        }
+        if n > best_n {
+            (best, best_n) = (next, n);
+        }
+        next += 1;
+    }
+    label.iter().map(|&l| l == best).collect()
 }

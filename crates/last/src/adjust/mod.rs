@@ -139,7 +139,7 @@ pub enum AdjustError {
     Mesh {
         path: PathBuf,
         #[source]
-        source: footscan_geom::mesh::MeshError,
+        source: Box<footscan_geom::mesh::MeshError>,
     },
     #[error(
         "last {input}: its bottom is {last_mm:.1} mm long, more than 30 % shorter than the foot \
@@ -306,7 +306,7 @@ fn check_foot(foot: &FootPlantar) -> Result<(), AdjustError> {
         )));
     }
     let g = &foot.heights;
-    if g.nx < 2 || g.ny < 2 || g.z.len() != g.nx * g.ny || !(g.cell_mm > 0.0) {
+    if g.nx < 2 || g.ny < 2 || g.z.len() != g.nx * g.ny || g.cell_mm.is_nan() || g.cell_mm <= 0.0 {
         return Err(bad(format!(
             "height grid {} x {} with {} values and cell {} mm is malformed",
             g.nx,
@@ -345,6 +345,8 @@ pub fn rigid_fit(p: &[Pt], q: &[Pt]) -> Affine2 {
 }
 
 /// Adjusts `bottom` to `foot` (see the module documentation for the steps).
+// Several grids of the same shape are walked together by cell index.
+#[allow(clippy::needless_range_loop)]
 pub fn adjust(
     foot: &FootPlantar,
     bottom: &LastBottom,

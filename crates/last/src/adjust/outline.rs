@@ -152,7 +152,7 @@ pub fn outline_landmarks(
         return Err(format!("{} outline points; need at least 8", p.len()));
     }
     let (area, c, mut u) = moments(p);
-    if !(area.abs() > 100.0) {
+    if area.abs().is_nan() || area.abs() <= 100.0 {
         return Err(format!("outline area {:.1} mm^2 is too small", area.abs()));
     }
     if dot(u, forward) < 0.0 {
@@ -320,13 +320,16 @@ pub fn point_at(p: &[Pt], cum: &[f64], a: f64) -> Pt {
 /// arc-length fractions, about `spacing` mm apart on `b`. Returns (points on `a`, points on
 /// `b`, index of each landmark in the lists). Fails when the landmarks do not come in the
 /// same cyclic order on both outlines.
+/// Matched points on two outlines and the index of each landmark among them.
+pub type Correspondence = (Vec<Pt>, Vec<Pt>, Vec<usize>);
+
 pub fn correspond(
     a: &[Pt],
     la: &[Pt],
     b: &[Pt],
     lb: &[Pt],
     spacing: f64,
-) -> Result<(Vec<Pt>, Vec<Pt>, Vec<usize>), String> {
+) -> Result<Correspondence, String> {
     let (ca, cb) = (cumulative(a), cumulative(b));
     let pa: Vec<f64> = la.iter().map(|&q| arc_position(a, &ca, q)).collect();
     let pb: Vec<f64> = lb.iter().map(|&q| arc_position(b, &cb, q)).collect();

@@ -184,7 +184,7 @@ pub fn heatmap(adj: &Adjustment, title: &str) -> Canvas {
             &marks,
             (px, py, pw, ph),
         );
-        c.text(px as i64, 50, name, BLACK, 2);
+        c.text(px, 50, name, BLACK, 2);
         let line = format!(
             "height RMS {:.2} max {:.2} mm, >0.5 mm {:.1} %, uncovered {:.1} %",
             dev.height_rms_mm,
@@ -192,12 +192,12 @@ pub fn heatmap(adj: &Adjustment, title: &str) -> Canvas {
             100.0 * dev.share_beyond_0_5,
             100.0 * dev.uncovered_share
         );
-        c.text(px as i64, 700, &line, BLACK, 1);
+        c.text(px, 700, &line, BLACK, 1);
         let line2 = format!(
             "outline RMS {:.2} max {:.2} mm, landmarks max {:.2} mm",
             dev.outline_rms_mm, dev.outline_max_mm, dev.landmark_max_mm
         );
-        c.text(px as i64, 714, &line2, BLACK, 1);
+        c.text(px, 714, &line2, BLACK, 1);
         c.colour_bar(
             px + pw + 15,
             py + 40,
