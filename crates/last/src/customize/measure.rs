@@ -1,0 +1,438 @@
+//! The foot's frame and its characteristic information, cut from a closed mesh.
+//!
+//! The same [`measure`] cuts the foot and the finished last (both in the foot's frame), so a
+//! rule's target and its value on the last are measured by one definition.
+//!
+//! Frame: z up from the lowest point (the mesh is taken with z up, as scanners and mesh
+//! files of feet give it); x along the foot axis, from the heel centre toward the second
+//! metatarsal region; origin at the heel point (the rearmost point of the sole outline) on
+//! the glass; y to the left (so medial is +y for a right foot, -y for a left one).
+//!
+//! Definitions (L = foot length):
+//! - sole outline: the section 1.5 mm above the lowest point; heel point O and toe tip A are
+//!   its rearmost and foremost points, length = A.x - O.x;
+//! - plan half-widths: extremes of y over the whole mesh, per station x (cuts x = const);
+//! - MT1 (B) / MT5 (C): most medial / lateral plan points with x in [0.55 L, 0.85 L];
+//!   ball width = |B.y| + |C.y| (their distances from the axis);
+//! - waist inner D / outer E: the smallest medial / lateral half-width between the heel
+//!   centre station and B (resp. C); waist width = |D.y| + |E.y|;
+//! - heel width: the largest breadth over x in [0, L / 4]; the heel centre is its midpoint;
+//! - axis: through the heel centre and the point of segment BC 46 % of the way from B (where
+//!   the second metatarsal lies in the simulator and in typical feet), found by iteration;
+//! - hallux point P: the most medial sole-outline point in front of 0.85 L;
+//! - ball girth: the vertical plane through B and C; instep girth: the plane x = 0.55 L;
+//!   long-heel girth: the plane through the heel point on the glass and the instep point
+//!   (top of the foot at 0.55 L), containing y; ankle girth: the horizontal plane 0.16 L
+//!   above the glass (the height a last's top line reaches; a last ends below the
+//!   malleoli). A girth is the perimeter of the convex hull of the section, the path of a
+//!   tape pulled around the foot (it bridges the arch and the gaps between toes);
+//! - side profile: the section by the plane y = 0.
+
+use crate::customize::CustomizeError;
+use footscan_geom::mesh::TriMesh;
+use footscan_geom::plane::Plane;
+use footscan_geom::polygon::convex_hull;
+use footscan_geom::{P2, P3, V3};
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
+use serde::Serialize;
+
+/// Station step of the plan half-width profile (mm).
+pub const PLAN_STEP: f64 = 0.25;
+/// Height of the sole outline above the lowest point (mm).
+pub const OUTLINE_Z: f64 = 1.5;
+/// Instep station and ankle height as fractions of the foot length.
+pub const INSTEP_X: f64 = 0.55;
+pub const ANKLE_Z: f64 = 0.16;
+/// Fraction of the way from MT1 to MT5 where the axis crosses the ball line.
+pub const MT2_FRACTION: f64 = 0.46;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Side {
+    Left,
+    Right,
+}
+
+/// The foot's frame: world point = origin + x ex + y ey + z ez.
+#[derive(Clone, Debug, Serialize)]
+pub struct FootFrame {
+    pub origin: [f64; 3],
+    pub ex: [f64; 3],
+    pub ey: [f64; 3],
+    pub side: Side,
+}
+
+impl FootFrame {
+    /// The isometry taking world points into the frame.
+    pub fn world_to_frame(&self) -> Isometry3<f64> {
+        let ex = V3::from(self.ex);
+        let ey = V3::from(self.ey);
+        let ez = ex.cross(&ey);
+        let r = Rotation3::from_matrix_unchecked(Matrix3::from_rows(&[
+            ex.transpose(),
+            ey.transpose(),
+            ez.transpose(),
+        ]));
+        let o = V3::from(self.origin);
+        Isometry3::from_parts(
+            Translation3::from(-(r * o)),
+            UnitQuaternion::from_rotation_matrix(&r),
+        )
+    }
+    /// +1 when medial is +y (right foot), -1 otherwise.
+    pub fn medial_sign(&self) -> f64 {
+        match self.side {
+            Side::Right => 1.0,
+            Side::Left => -1.0,
+        }
+    }
+}
+
+/// A closed cut curve: the points in order (frame coordinates).
+pub type Loop3 = Vec<P3>;
+
+/// Characteristic information of a foot or last in the foot's frame.
+#[derive(Clone, Debug)]
+pub struct Measures {
+    pub length: f64,
+    pub ball_width: f64,
+    pub waist_width: f64,
+    pub heel_width: f64,
+    pub ball_girth: f64,
+    pub instep_girth: f64,
+    pub long_heel_girth: f64,
+    pub ankle_girth: f64,
+    /// Points O, A, P, B, C, D, E and the heel centre, instep point.
+    pub o: P3,
+    pub a: P3,
+    pub p: P3,
+    pub b: P3,
+    pub c: P3,
+    pub d: P3,
+    pub e: P3,
+    pub heel_centre: P3,
+    pub instep_top: P3,
+    /// The heel breadth points (medial, lateral).
+    pub heel_m: P3,
+    pub heel_l: P3,
+    pub outline: Vec<Loop3>,
+    pub ball: Loop3,
+    pub instep: Loop3,
+    pub long_heel: Loop3,
+    pub ankle: Loop3,
+    pub profile: Loop3,
+}
+
+/// Per-station plan extremes: for station k (x = x0 + k step) the lowest and highest y and
+/// the points where they are reached.
+pub struct PlanProfile {
+    pub x0: f64,
+    pub step: f64,
+    pub lo: Vec<Option<P3>>,
+    pub hi: Vec<Option<P3>>,
+}
+
+impl PlanProfile {
+    /// Cut every triangle by the planes x = x0 + k step (the mesh sliced once, in O(triangles
+    /// + crossings)).
+    pub fn new(m: &TriMesh, step: f64) -> PlanProfile {
+        let bb = m.bbox();
+        let x0 = (bb.min.x / step).floor() * step;
+        let n = ((bb.max.x - x0) / step).ceil() as usize + 1;
+        let mut lo: Vec<Option<P3>> = vec![None; n];
+        let mut hi: Vec<Option<P3>> = vec![None; n];
+        for t in &m.triangles {
+            let v = t.map(|i| m.vertices[i as usize]);
+            let xmin = v.iter().map(|p| p.x).fold(f64::MAX, f64::min);
+            let xmax = v.iter().map(|p| p.x).fold(f64::MIN, f64::max);
+            let k0 = ((xmin - x0) / step).ceil().max(0.0) as usize;
+            let k1 = (((xmax - x0) / step).floor() as usize).min(n - 1);
+            for k in k0..=k1 {
+                let x = x0 + k as f64 * step;
+                for e in 0..3 {
+                    let (p, q) = (v[e], v[(e + 1) % 3]);
+                    if (p.x - x) * (q.x - x) > 0.0 || p.x == q.x {
+                        continue;
+                    }
+                    let s = (x - p.x) / (q.x - p.x);
+                    let r = p + (q - p) * s;
+                    if lo[k].is_none_or(|o| r.y < o.y) {
+                        lo[k] = Some(r);
+                    }
+                    if hi[k].is_none_or(|o| r.y > o.y) {
+                        hi[k] = Some(r);
+                    }
+                }
+            }
+        }
+        PlanProfile { x0, step, lo, hi }
+    }
+    fn range(&self, xa: f64, xb: f64) -> std::ops::RangeInclusive<usize> {
+        let n = self.lo.len();
+        let a = ((xa - self.x0) / self.step).ceil().max(0.0) as usize;
+        let b = (((xb - self.x0) / self.step).floor().max(0.0) as usize).min(n - 1);
+        a..=b
+    }
+    /// The most medial (`medial` = +1 for +y) point over x in [xa, xb].
+    fn extreme(&self, xa: f64, xb: f64, dir: f64) -> Option<P3> {
+        self.range(xa, xb)
+            .filter_map(|k| if dir > 0.0 { self.hi[k] } else { self.lo[k] })
+            .max_by(|a, b| (dir * a.y).total_cmp(&(dir * b.y)))
+    }
+    /// The least extreme point (the waist) over x in [xa, xb] on side `dir`.
+    fn narrowest(&self, xa: f64, xb: f64, dir: f64) -> Option<P3> {
+        self.range(xa, xb)
+            .filter_map(|k| if dir > 0.0 { self.hi[k] } else { self.lo[k] })
+            .min_by(|a, b| (dir * a.y).total_cmp(&(dir * b.y)))
+    }
+    /// Station of the largest breadth over [xa, xb]: (lateral-side low, high).
+    fn widest(&self, xa: f64, xb: f64) -> Option<(P3, P3)> {
+        self.range(xa, xb)
+            .filter_map(|k| Some((self.lo[k]?, self.hi[k]?)))
+            .max_by(|a, b| (a.1.y - a.0.y).total_cmp(&(b.1.y - b.0.y)))
+    }
+}
+
+/// Section loops by a plane (frame coordinates).
+fn cut(m: &TriMesh, plane: &Plane) -> Vec<Loop3> {
+    m.section(plane)
+        .into_iter()
+        .filter(|p| p.len() >= 3)
+        .map(|p| p.points)
+        .collect()
+}
+
+/// Convex hull of all loop points in the plane, as a closed 3D loop (counterclockwise about
+/// the plane normal), and its perimeter.
+pub fn hull_loop(loops: &[Loop3], plane: &Plane) -> (Loop3, f64) {
+    let pts: Vec<P2> = loops.iter().flatten().map(|p| plane.to_local(p)).collect();
+    if pts.len() < 3 {
+        return (Vec::new(), 0.0);
+    }
+    let h = convex_hull(&pts);
+    let per = h.perimeter();
+    (h.points.iter().map(|q| plane.to_world(q)).collect(), per)
+}
+
+fn outline_loops(m: &TriMesh, zmin: f64) -> Vec<Loop3> {
+    cut(m, &Plane::axis_aligned(2, zmin + OUTLINE_Z))
+}
+
+/// Estimate the foot frame of a world mesh (z up): see the module documentation.
+pub fn find_frame(world: &TriMesh, name: &str) -> Result<FootFrame, CustomizeError> {
+    let bb = world.bbox();
+    let zmin = bb.min.z;
+    // Principal direction of the lower part in plan.
+    let low: Vec<P3> = world
+        .vertices
+        .iter()
+        .filter(|p| p.z < zmin + 30.0)
+        .copied()
+        .collect();
+    if low.len() < 10 {
+        return Err(CustomizeError::NotAFoot {
+            name: name.into(),
+            why: "fewer than 10 vertices within 30 mm of the lowest point".into(),
+        });
+    }
+    let c = low.iter().fold(V3::zeros(), |s, p| s + p.coords) / low.len() as f64;
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in &low {
+        let d = p.coords - c;
+        sxx += d.x * d.x;
+        sxy += d.x * d.y;
+        syy += d.y * d.y;
+    }
+    let ang = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let mut ex = V3::new(ang.cos(), ang.sin(), 0.0);
+    // Front = the wider end (the ball is wider than the heel).
+    let proj: Vec<(f64, f64)> = low
+        .iter()
+        .map(|p| {
+            let d = p.coords - c;
+            (d.dot(&ex), d.x * -ex.y + d.y * ex.x)
+        })
+        .collect();
+    let (smin, smax) = proj
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), q| (a.min(q.0), b.max(q.0)));
+    let breadth = |a: f64, b: f64| {
+        let (lo, hi) = proj
+            .iter()
+            .filter(|q| q.0 >= a && q.0 <= b)
+            .fold((f64::MAX, f64::MIN), |(l, h), q| (l.min(q.1), h.max(q.1)));
+        hi - lo
+    };
+    let span = smax - smin;
+    if breadth(smin, smin + 0.35 * span) > breadth(smax - 0.35 * span, smax) {
+        ex = -ex;
+    }
+    let mut frame = FootFrame {
+        origin: [c.x, c.y, zmin],
+        ex: ex.into(),
+        ey: V3::z().cross(&ex).into(),
+        side: Side::Right,
+    };
+    // Side from the toe tip, then refine the axis through the heel centre and the MT2 point.
+    for it in 0..6 {
+        let mut m = world.clone();
+        m.transform(&frame.world_to_frame());
+        let ol = outline_loops(&m, 0.0);
+        let pts: Vec<&P3> = ol.iter().flatten().collect();
+        let (Some(o), Some(a)) = (
+            pts.iter().min_by(|p, q| p.x.total_cmp(&q.x)),
+            pts.iter().max_by(|p, q| p.x.total_cmp(&q.x)),
+        ) else {
+            return Err(CustomizeError::NotAFoot {
+                name: name.into(),
+                why: "no sole outline 1.5 mm above the lowest point".into(),
+            });
+        };
+        let (o, a) = (**o, **a);
+        if it == 0 {
+            frame.side = if a.y >= 0.0 { Side::Right } else { Side::Left };
+        }
+        let l = a.x - o.x;
+        let plan = PlanProfile::new(&m, PLAN_STEP);
+        let s = frame.medial_sign();
+        let (Some(b), Some(cc), Some((hl, hm))) = (
+            plan.extreme(o.x + 0.55 * l, o.x + 0.85 * l, s),
+            plan.extreme(o.x + 0.55 * l, o.x + 0.85 * l, -s),
+            plan.widest(o.x, o.x + 0.25 * l),
+        ) else {
+            return Err(CustomizeError::NotAFoot {
+                name: name.into(),
+                why: "no plan outline at the ball or heel".into(),
+            });
+        };
+        let hc = P3::new(0.5 * (hl.x + hm.x), 0.5 * (hl.y + hm.y), 0.0);
+        let t = b + (cc - b) * MT2_FRACTION;
+        let dir = V3::new(t.x - hc.x, t.y - hc.y, 0.0).normalize();
+        // Back to world.
+        let inv = frame.world_to_frame().inverse();
+        let dir_w = inv * dir;
+        let hc_w = inv * hc;
+        let ex = V3::new(dir_w.x, dir_w.y, 0.0).normalize();
+        let ey = V3::z().cross(&ex);
+        // Origin: the heel point on the axis line, on the glass.
+        let o_w = inv * o;
+        let along = (o_w - hc_w).dot(&ex);
+        let org = hc_w + ex * along;
+        frame.origin = [org.x, org.y, zmin];
+        frame.ex = ex.into();
+        frame.ey = ey.into();
+    }
+    // Final origin: rearmost outline point in the final frame.
+    let mut m = world.clone();
+    m.transform(&frame.world_to_frame());
+    let ol = outline_loops(&m, 0.0);
+    let ox = ol.iter().flatten().map(|p| p.x).fold(f64::MAX, f64::min);
+    let o = V3::from(frame.origin) + V3::from(frame.ex) * ox;
+    frame.origin = o.into();
+    Ok(frame)
+}
+
+/// Measures of a mesh already in the foot frame. `l_ref`: the foot length that places the
+/// stations (the foot's own for the foot, the foot's for the last).
+pub fn measure(m: &TriMesh, l_ref: Option<f64>, medial: f64) -> Result<Measures, String> {
+    let ol = outline_loops(m, 0.0);
+    let pts: Vec<P3> = ol.iter().flatten().copied().collect();
+    if pts.is_empty() {
+        return Err("no sole outline 1.5 mm above the lowest point".into());
+    }
+    let o = *pts.iter().min_by(|p, q| p.x.total_cmp(&q.x)).unwrap();
+    let a = *pts.iter().max_by(|p, q| p.x.total_cmp(&q.x)).unwrap();
+    let length = a.x - o.x;
+    let l = l_ref.unwrap_or(length);
+    let plan = PlanProfile::new(m, PLAN_STEP);
+    let s = medial;
+    let b = plan
+        .extreme(0.55 * l, 0.85 * l, s)
+        .ok_or("no ball region")?;
+    let c = plan
+        .extreme(0.55 * l, 0.85 * l, -s)
+        .ok_or("no ball region")?;
+    let (hlo, hhi) = plan.widest(0.0, 0.25 * l).ok_or("no heel region")?;
+    let heel_centre = P3::new(0.5 * (hlo.x + hhi.x), 0.5 * (hlo.y + hhi.y), 0.0);
+    let d = plan
+        .narrowest(heel_centre.x, b.x, s)
+        .ok_or("no waist region")?;
+    let e = plan
+        .narrowest(heel_centre.x, c.x, -s)
+        .ok_or("no waist region")?;
+    let p = pts
+        .iter()
+        .filter(|q| q.x >= 0.85 * l)
+        .max_by(|u, v| (s * u.y).total_cmp(&(s * v.y)))
+        .copied()
+        .unwrap_or(a);
+    let (heel_m, heel_l) = if s > 0.0 { (hhi, hlo) } else { (hlo, hhi) };
+    // Girths.
+    let ball_plane = Plane::with_axis(
+        P3::new(b.x, b.y, 0.0),
+        V3::new(c.y - b.y, -(c.x - b.x), 0.0),
+        V3::new(c.x - b.x, c.y - b.y, 0.0),
+    )
+    .ok_or("MT1 and MT5 coincide")?;
+    let (ball, ball_girth) = hull_loop(&cut(m, &ball_plane), &ball_plane);
+    let xi = INSTEP_X * l;
+    let instep_plane = Plane::with_axis(P3::new(xi, 0.0, 0.0), V3::x(), V3::y()).unwrap();
+    let instep_loops = cut(m, &instep_plane);
+    let (instep, instep_girth) = hull_loop(&instep_loops, &instep_plane);
+    let instep_top = instep_loops
+        .iter()
+        .flatten()
+        .max_by(|u, v| u.z.total_cmp(&v.z))
+        .copied()
+        .ok_or("no section at the instep station")?;
+    let heel_g = P3::new(0.0, 0.0, 0.0);
+    let dir = V3::new(instep_top.x, 0.0, instep_top.z);
+    let lh_plane = Plane::with_axis(heel_g, dir.cross(&V3::y()), V3::y())
+        .ok_or("degenerate long-heel plane")?;
+    let (long_heel, long_heel_girth) = hull_loop(&cut(m, &lh_plane), &lh_plane);
+    let ankle_plane = Plane::axis_aligned(2, ANKLE_Z * l);
+    let (ankle, ankle_girth) = hull_loop(&cut(m, &ankle_plane), &ankle_plane);
+    let prof_plane = Plane::with_axis(P3::origin(), V3::y(), V3::x()).unwrap();
+    let profile = cut(m, &prof_plane)
+        .into_iter()
+        .max_by_key(|l| l.len())
+        .unwrap_or_default();
+    Ok(Measures {
+        length,
+        ball_width: (b.y - c.y).abs(),
+        waist_width: (d.y - e.y).abs(),
+        heel_width: hhi.y - hlo.y,
+        ball_girth,
+        instep_girth,
+        long_heel_girth,
+        ankle_girth,
+        o,
+        a,
+        p,
+        b,
+        c,
+        d,
+        e,
+        heel_centre,
+        instep_top,
+        heel_m,
+        heel_l,
+        outline: ol,
+        ball,
+        instep,
+        long_heel,
+        ankle,
+        profile,
+    })
+}
+
+/// The perimeter of the actual section loops by the plane x = `x` (not the hull): what the
+/// simulator's analytic girth is.
+pub fn perpendicular_section_length(m: &TriMesh, x: f64) -> f64 {
+    let plane = Plane::with_axis(P3::new(x, 0.0, 0.0), V3::x(), V3::y()).unwrap();
+    m.section(&plane)
+        .iter()
+        .filter(|p| p.closed)
+        .map(|p| p.length())
+        .sum()
+}

@@ -1,0 +1,123 @@
+//! The customization picture: side and top views of foot and last with the characteristic
+//! curves and the rule table.
+
+use super::Customized;
+use crate::draw::{Canvas, View, BLACK, BLUE, GREEN, GREY, RED, WHITE};
+use footscan_geom::plane::Plane;
+use footscan_geom::{P3, V3};
+use std::path::Path;
+
+fn outline(
+    m: &footscan_geom::mesh::TriMesh,
+    plane: &Plane,
+    proj: impl Fn(&P3) -> (f64, f64),
+) -> Vec<Vec<(f64, f64)>> {
+    m.section(plane)
+        .iter()
+        .map(|l| l.points.iter().map(&proj).collect())
+        .collect()
+}
+
+pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
+    let (w, h) = (1400u32, 1000u32);
+    let mut cv = Canvas::new(w, h, WHITE);
+    let bb = c.last.bbox();
+    let fb = c.foot.bbox();
+    let xmin = bb.min.x.min(fb.min.x) - 5.0;
+    let xmax = bb.max.x.max(fb.max.x) + 5.0;
+    // Side view (x, z): the sagittal sections of foot and last, and the deformed profile.
+    let side = View::fit(
+        [xmin, xmax, -5.0, bb.max.z.max(90.0) + 5.0],
+        20.0,
+        420.0,
+        900.0,
+        380.0,
+    );
+    let sag = Plane::with_axis(P3::origin(), V3::y(), V3::x()).unwrap();
+    for l in outline(&c.foot, &sag, |p| (p.x, p.z)) {
+        cv.polyline(&side, &l, true, GREY, 1);
+    }
+    for l in outline(&c.last, &sag, |p| (p.x, p.z)) {
+        cv.polyline(&side, &l, true, BLACK, 2);
+    }
+    // Top view (x, y): sole outlines of foot and last at 1.5 mm, and the plan curves.
+    let top = View::fit(
+        [
+            xmin,
+            xmax,
+            bb.min.y.min(fb.min.y) - 5.0,
+            bb.max.y.max(fb.max.y) + 5.0,
+        ],
+        20.0,
+        960.0,
+        900.0,
+        500.0,
+    );
+    let pz = Plane::axis_aligned(2, super::measure::OUTLINE_Z);
+    for l in outline(&c.foot, &pz, |p| (p.x, p.y)) {
+        cv.polyline(&top, &l, true, GREY, 1);
+    }
+    for l in outline(&c.last, &pz, |p| (p.x, p.y)) {
+        cv.polyline(&top, &l, true, BLACK, 2);
+    }
+    for (i, (_, k)) in c.curves.last.iter().enumerate() {
+        let pts: Vec<P3> = (0..=400).map(|j| k.point(j as f64 / 400.0)).collect();
+        let col = [RED, BLUE, BLUE, BLUE, GREEN, RED][i];
+        let s: Vec<(f64, f64)> = pts.iter().map(|p| (p.x, p.z)).collect();
+        if i > 0 {
+            cv.polyline(&side, &s, false, col, 1);
+        }
+        if i == 0 {
+            let t: Vec<(f64, f64)> = pts.iter().map(|p| (p.x, p.y)).collect();
+            cv.polyline(&top, &t, false, col, 1);
+        }
+    }
+    let m = &c.foot_measures;
+    for (n, p) in [
+        ("O", m.o),
+        ("A", m.a),
+        ("P", m.p),
+        ("B", m.b),
+        ("C", m.c),
+        ("D", m.d),
+        ("E", m.e),
+    ] {
+        cv.dot(&top, (p.x, p.y), 4, RED);
+        let (px, py) = top.px(p.x, p.y);
+        cv.text(px as i64 + 6, py as i64 - 4, n, RED, 2);
+    }
+    cv.text(
+        20,
+        14,
+        "side: foot grey, last black, last frame curves coloured",
+        BLACK,
+        2,
+    );
+    cv.text(
+        20,
+        450,
+        "top: sole outlines at 1.5 mm, points O A P B C D E",
+        BLACK,
+        2,
+    );
+    let mut y = 40;
+    cv.text(940, y, "rule      foot   target   last", BLACK, 2);
+    for r in &c.rules {
+        y += 24;
+        let s = format!(
+            "{:<5} {:7.1} {:7.1} {:7.1}",
+            r.rule, r.foot_mm, r.target_mm, r.last_mm
+        );
+        cv.text(940, y, &s, if r.met { GREEN } else { RED }, 2);
+    }
+    y += 34;
+    let cl = &c.clearance;
+    for s in [
+        format!("clearance toe {:+.1}", cl.toe_box_mm),
+        format!("ball {:+.1} heel {:+.1}", cl.ball_mm, cl.heel_seat_mm),
+    ] {
+        cv.text(940, y, &s, BLACK, 2);
+        y += 24;
+    }
+    cv.save_png(path)
+}

@@ -1,0 +1,389 @@
+//! The last surface: the foot's tape-measure sections deformed by a smooth field.
+//!
+//! Why this construction: a last must be one smooth closed solid whatever the scan holds
+//! (separate toes, a leg cut anywhere, an arch), and every rule must be met when the output
+//! mesh is cut, not only on the curves. So the foot is cut by planes across its axis; each
+//! section is replaced by its convex hull (the path of a tape: it bridges the arch and the
+//! gaps between toes) clipped at the last's top height; the sections are deformed by a few
+//! smooth fields (widths scaled about the axis, heights scaled, the upper part widened, the
+//! toe part stretched forward, the bottom lifted behind the heel allowance) and joined into a
+//! closed tube. The eight field values are solved by Newton's method so that the eight rule
+//! targets, measured by cutting the resulting mesh, are met. Each section stays star-shaped
+//! about its centroid and the stations are parallel planes in order, so the tube cannot
+//! intersect itself.
+
+use super::measure::{measure, Measures, ANKLE_Z, INSTEP_X, OUTLINE_Z};
+use super::CustomizeError;
+use footscan_geom::mesh::TriMesh;
+use footscan_geom::polygon::convex_hull;
+use footscan_geom::{P2, P3};
+
+/// Number of stations along the axis and points around each section.
+pub const STATIONS: usize = 150;
+pub const AROUND: usize = 96;
+/// Top of the last above the glass, as a fraction of the foot length.
+pub const TOP_Z: f64 = 0.30;
+
+/// The foot's hull sections at the stations, before deformation.
+pub struct Sections {
+    pub xs: Vec<f64>,
+    /// Points around each section (y, z), arc-length spaced from the bottom.
+    pub rings: Vec<Vec<P2>>,
+}
+
+/// All crossing points of the mesh with the planes x = xs[k].
+fn station_points(m: &TriMesh, xs: &[f64]) -> Vec<Vec<P2>> {
+    let mut out = vec![Vec::new(); xs.len()];
+    for t in &m.triangles {
+        let v = t.map(|i| m.vertices[i as usize]);
+        let xmin = v.iter().map(|p| p.x).fold(f64::MAX, f64::min);
+        let xmax = v.iter().map(|p| p.x).fold(f64::MIN, f64::max);
+        let k0 = xs.partition_point(|&x| x < xmin);
+        let k1 = xs.partition_point(|&x| x <= xmax);
+        for k in k0..k1 {
+            let x = xs[k];
+            for e in 0..3 {
+                let (p, q) = (v[e], v[(e + 1) % 3]);
+                if (p.x - x) * (q.x - x) > 0.0 || p.x == q.x {
+                    continue;
+                }
+                let s = (x - p.x) / (q.x - p.x);
+                let r = p + (q - p) * s;
+                out[k].push(P2::new(r.y, r.z));
+            }
+        }
+    }
+    out
+}
+
+/// Resample a convex polygon to `n` points by arc length, starting where a ray straight down
+/// from its centroid leaves it (so corresponding points of neighbouring sections line up).
+fn resample_hull(h: &[P2], n: usize) -> Vec<P2> {
+    let m = h.len();
+    let c = h.iter().fold(P2::origin(), |s, p| s + p.coords / m as f64);
+    // Start: the edge crossed by the vertical line through the centroid, below it.
+    let mut start = (0usize, 0.0f64);
+    let mut best = f64::MAX;
+    for i in 0..m {
+        let (a, b) = (h[i], h[(i + 1) % m]);
+        if (a.x - c.x) * (b.x - c.x) <= 0.0 && a.x != b.x {
+            let t = (c.x - a.x) / (b.x - a.x);
+            let z = a.y + t * (b.y - a.y);
+            if z < best {
+                best = z;
+                start = (i, t);
+            }
+        }
+    }
+    let seg: Vec<f64> = (0..m).map(|i| (h[(i + 1) % m] - h[i]).norm()).collect();
+    let total: f64 = seg.iter().sum();
+    let mut out = Vec::with_capacity(n);
+    let (mut i, mut pos) = (start.0, start.1 * seg[start.0]);
+    let mut walked = -pos;
+    for k in 0..n {
+        let s = total * k as f64 / n as f64;
+        while walked + seg[i] < s {
+            walked += seg[i];
+            i = (i + 1) % m;
+        }
+        pos = s - walked;
+        let t = if seg[i] > 0.0 { pos / seg[i] } else { 0.0 };
+        out.push(h[i] + (h[(i + 1) % m] - h[i]) * t);
+    }
+    out
+}
+
+impl Sections {
+    /// Cut the framed foot at cosine-spaced stations from heel to toe.
+    pub fn of_foot(foot: &TriMesh, length: f64) -> Sections {
+        let bb = foot.bbox();
+        let (x0, x1) = (bb.min.x, bb.max.x);
+        let xs: Vec<f64> = (0..STATIONS)
+            .map(|k| {
+                let t = (k as f64 + 0.5) / STATIONS as f64;
+                x0 + (x1 - x0) * 0.5 * (1.0 - (std::f64::consts::PI * t).cos())
+            })
+            .collect();
+        let top = TOP_Z * length;
+        let pts = station_points(foot, &xs);
+        let mut keep_x = Vec::new();
+        let mut rings = Vec::new();
+        for (x, p) in xs.iter().zip(pts) {
+            let mut q: Vec<P2> = p.into_iter().filter(|q| q.y <= top).collect();
+            if q.len() < 3 {
+                continue;
+            }
+            // Close the clipped hull at the top with the hull's own extent there.
+            let (ylo, yhi) = q
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.x), b.max(r.x)));
+            if q.iter().any(|r| r.y > top - 1e-9)
+                || q.iter().fold(f64::MIN, |a, r| a.max(r.y)) >= top - 0.5
+            {
+                q.push(P2::new(
+                    ylo,
+                    top.min(q.iter().fold(f64::MIN, |a, r| a.max(r.y))),
+                ));
+                q.push(P2::new(
+                    yhi,
+                    top.min(q.iter().fold(f64::MIN, |a, r| a.max(r.y))),
+                ));
+            }
+            let h = convex_hull(&q);
+            if h.points.len() < 3 || h.area() < 0.5 {
+                continue;
+            }
+            keep_x.push(*x);
+            rings.push(resample_hull(&h.points, AROUND));
+        }
+        Sections { xs: keep_x, rings }
+    }
+}
+
+/// Nodes of the deformation fields (x stations from the foot's landmarks).
+#[derive(Clone, Copy, Debug)]
+pub struct Nodes {
+    pub heel: f64,
+    pub waist: f64,
+    pub instep: f64,
+    pub ball: f64,
+    /// Start of the toe stretch and the foot's toe tip.
+    pub stretch_from: f64,
+    pub tip: f64,
+    pub length: f64,
+    pub heel_allowance: f64,
+}
+
+impl Nodes {
+    pub fn of(m: &Measures) -> Nodes {
+        let l = m.length;
+        let ball = 0.5 * (m.b.x + m.c.x);
+        Nodes {
+            heel: m.heel_centre.x,
+            waist: (0.5 * (m.d.x + m.e.x)).clamp(m.heel_centre.x + 1.0, INSTEP_X * l - 1.0),
+            instep: INSTEP_X * l,
+            ball: ball.max(INSTEP_X * l + 1.0),
+            stretch_from: m.b.x.max(m.c.x) + 0.04 * l,
+            tip: m.a.x,
+            length: l,
+            heel_allowance: 0.0,
+        }
+    }
+}
+
+/// Zero-slope cubic Hermite through (x, v) nodes (flat outside): smooth, no overshoot.
+fn blend(nodes: &[(f64, f64)], x: f64) -> f64 {
+    if x <= nodes[0].0 {
+        return nodes[0].1;
+    }
+    for w in nodes.windows(2) {
+        let ((xa, va), (xb, vb)) = (w[0], w[1]);
+        if x <= xb {
+            let t = ((x - xa) / (xb - xa)).clamp(0.0, 1.0);
+            let s = t * t * (3.0 - 2.0 * t);
+            return va + (vb - va) * s;
+        }
+    }
+    nodes[nodes.len() - 1].1
+}
+
+/// The eight field values: toe extension (mm), width scales at heel, waist, ball, height
+/// scales at heel, instep, ball, and the widening of the upper part.
+pub type Params = [f64; 8];
+
+/// The deformed closed mesh of the last.
+pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
+    let [ext, syh, syw, syb, szh, szi, szb, kup] = *p;
+    let sy = [(nd.heel, syh), (nd.waist, syw), (nd.ball, syb)];
+    let sz = [(nd.heel, szh), (nd.instep, szi), (nd.ball, szb)];
+    let (z0, z1) = (0.5 * ANKLE_Z * nd.length, ANKLE_Z * nd.length);
+    let stretch = 1.0 + ext / (nd.tip - nd.stretch_from).max(1.0);
+    let mut rings: Vec<Vec<P3>> = Vec::with_capacity(sec.rings.len());
+    for (x, ring) in sec.xs.iter().zip(&sec.rings) {
+        let (fy, fz) = (blend(&sy, *x), blend(&sz, *x));
+        let xn = if *x > nd.stretch_from {
+            nd.stretch_from + (x - nd.stretch_from) * stretch
+        } else {
+            *x
+        };
+        let mut pts: Vec<P3> = ring
+            .iter()
+            .map(|q| {
+                let t = ((q.y - z0) / (z1 - z0)).clamp(0.0, 1.0);
+                let up = 1.0 + kup * t * t * (3.0 - 2.0 * t);
+                P3::new(xn, q.x * fy * up, q.y * fz)
+            })
+            .collect();
+        // Heel allowance: lift the bottom behind x = heel_allowance along a 45 degree
+        // chamfer, squashing the section from below.
+        let zc = OUTLINE_Z + (nd.heel_allowance - xn);
+        if zc > 0.0 {
+            let zb = pts.iter().map(|q| q.z).fold(f64::MAX, f64::min);
+            let zt = pts.iter().map(|q| q.z).fold(f64::MIN, f64::max);
+            if zc >= zt - 1.0 {
+                continue;
+            }
+            if zb < zc {
+                for q in &mut pts {
+                    q.z = zt - (zt - q.z) * (zt - zc) / (zt - zb);
+                }
+            }
+        }
+        rings.push(pts);
+    }
+    tube(&rings)
+}
+
+/// Join rings (same point count, in station order) into a closed mesh with end fans.
+pub fn tube(rings: &[Vec<P3>]) -> TriMesh {
+    let n = rings[0].len();
+    let mut vertices: Vec<P3> = rings.iter().flatten().copied().collect();
+    let idx = |r: usize, i: usize| (r * n + i % n) as u32;
+    let mut tris = Vec::with_capacity(2 * n * rings.len());
+    for r in 0..rings.len() - 1 {
+        for i in 0..n {
+            tris.push([idx(r, i), idx(r, i + 1), idx(r + 1, i + 1)]);
+            tris.push([idx(r, i), idx(r + 1, i + 1), idx(r + 1, i)]);
+        }
+    }
+    for (r, back) in [(0, true), (rings.len() - 1, false)] {
+        let c = rings[r]
+            .iter()
+            .fold(P3::origin(), |s, p| s + p.coords / n as f64);
+        let ci = vertices.len() as u32;
+        vertices.push(c);
+        for i in 0..n {
+            let (a, b) = (idx(r, i), idx(r, i + 1));
+            tris.push(if back { [ci, b, a] } else { [ci, a, b] });
+        }
+    }
+    let mut m = TriMesh::new(vertices, tris);
+    if m.volume() < 0.0 {
+        m.flip();
+    }
+    m
+}
+
+/// The measured values in rule order: bottom length, ball, waist, heel widths, ball, instep,
+/// long-heel, ankle girths.
+pub fn values(m: &Measures) -> [f64; 8] {
+    [
+        m.length,
+        m.ball_width,
+        m.waist_width,
+        m.heel_width,
+        m.ball_girth,
+        m.instep_girth,
+        m.long_heel_girth,
+        m.ankle_girth,
+    ]
+}
+
+/// Tolerances the solver works to (tighter than the acceptance bounds: 0.2 mm for lengths
+/// and widths, 0.5 mm for girths).
+const TOL: [f64; 8] = [0.05, 0.05, 0.05, 0.05, 0.15, 0.15, 0.15, 0.15];
+
+/// Solve the field so the last's measured values meet `target`. Returns the mesh, its
+/// measures, the field and the number of mesh evaluations.
+pub fn solve(
+    sec: &Sections,
+    nd: &Nodes,
+    foot: &Measures,
+    target: &[f64; 8],
+    medial: f64,
+) -> Result<(TriMesh, Measures, Params, usize), CustomizeError> {
+    let mut evals = 0usize;
+    let mut eval = |p: &Params| -> Result<(TriMesh, Measures, [f64; 8]), CustomizeError> {
+        evals += 1;
+        let m = build(sec, nd, p);
+        let me =
+            measure(&m, Some(nd.length), medial).map_err(|why| CustomizeError::Infeasible {
+                why: format!("the deformed last cannot be measured: {why}"),
+            })?;
+        let v = values(&me);
+        let r: [f64; 8] = std::array::from_fn(|i| v[i] - target[i]);
+        Ok((m, me, r))
+    };
+    let f = values(foot);
+    let mut p: Params = [
+        target[0] - f[0] + nd.heel_allowance,
+        1.0 + (target[3] - f[3]) / f[3],
+        1.0 + (target[2] - f[2]) / f[2],
+        1.0 + (target[1] - f[1]) / f[1],
+        1.0,
+        1.0,
+        1.0,
+        0.0,
+    ];
+    let steps: Params = [0.2, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3];
+    let (mut mesh, mut me, mut r) = eval(&p)?;
+    let norm = |r: &[f64; 8]| -> f64 {
+        r.iter()
+            .zip(TOL)
+            .map(|(a, t)| (a / t).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    for _it in 0..15 {
+        if r.iter().zip(TOL).all(|(a, t)| a.abs() <= t) {
+            return Ok((mesh, me, p, evals));
+        }
+        let mut jac = nalgebra::SMatrix::<f64, 8, 8>::zeros();
+        for j in 0..8 {
+            let mut q = p;
+            q[j] += steps[j];
+            let (_, _, rq) = eval(&q)?;
+            for i in 0..8 {
+                jac[(i, j)] = (rq[i] - r[i]) / steps[j];
+            }
+        }
+        let rv = nalgebra::SVector::<f64, 8>::from(r);
+        let Some(dx) = jac.lu().solve(&(-rv)) else {
+            return Err(CustomizeError::Infeasible {
+                why: "the rule targets cannot be moved independently (singular Jacobian)".into(),
+            });
+        };
+        let mut lambda = 1.0;
+        let n0 = norm(&r);
+        loop {
+            let q: Params = std::array::from_fn(|i| p[i] + lambda * dx[i]);
+            let (mq, meq, rq) = eval(&q)?;
+            if norm(&rq) < n0 || lambda < 0.1 {
+                p = q;
+                mesh = mq;
+                me = meq;
+                r = rq;
+                break;
+            }
+            lambda *= 0.5;
+        }
+        let bad = p[1..7].iter().any(|s| !(0.6..=1.5).contains(s)) || p[7].abs() > 0.6;
+        if bad {
+            break;
+        }
+    }
+    if r.iter().zip(TOL).all(|(a, t)| a.abs() <= t) {
+        return Ok((mesh, me, p, evals));
+    }
+    let names = [
+        "bottom length",
+        "ball width",
+        "waist width",
+        "heel width",
+        "ball girth",
+        "instep girth",
+        "long-heel girth",
+        "ankle girth",
+    ];
+    let miss: Vec<String> = (0..8)
+        .filter(|&i| r[i].abs() > TOL[i])
+        .map(|i| format!("{} off by {:+.2} mm", names[i], r[i]))
+        .collect();
+    Err(CustomizeError::Infeasible {
+        why: format!(
+            "the rules cannot be met together on this foot ({}); field {:?}",
+            miss.join(", "),
+            p
+        ),
+    })
+}
