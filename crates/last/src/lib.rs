@@ -11,5 +11,6 @@
 //!   surface through a curve network, with seam figures, IGES/STEP/STL and pictures.
 
 pub mod adjust;
+pub mod customize;
 pub mod draw;
 pub mod join;
