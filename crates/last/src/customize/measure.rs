@@ -22,9 +22,10 @@
 //! - hallux point P: the most medial sole-outline point in front of 0.85 L;
 //! - ball girth: the vertical plane through B and C; instep girth: the plane x = 0.55 L;
 //!   long-heel girth: the plane through the heel point on the glass and the instep point
-//!   (top of the foot at 0.55 L), containing y; ankle girth: the horizontal plane 0.16 L
-//!   above the glass (the height a last's top line reaches; a last ends below the
-//!   malleoli). A girth is the perimeter of the convex hull of the section, the path of a
+//!   (top of the foot at 0.55 L), containing y; ankle girth: the plane x = 0.30 L across
+//!   the ankle's front fold, below the last's top at 0.30 L (a horizontal ankle girth would
+//!   cut the gently sloping dorsum at a grazing angle and swing by centimetres with a
+//!   millimetre of height, and a last ends below the malleoli anyway). A girth is the perimeter of the convex hull of the section, the path of a
 //!   tape pulled around the foot (it bridges the arch and the gaps between toes);
 //! - side profile: the section by the plane y = 0.
 
@@ -43,6 +44,8 @@ pub const OUTLINE_Z: f64 = 1.5;
 /// Instep station and ankle height as fractions of the foot length.
 pub const INSTEP_X: f64 = 0.55;
 pub const ANKLE_Z: f64 = 0.16;
+/// Station of the ankle girth (across the axis, through the ankle's front fold).
+pub const ANKLE_X: f64 = 0.30;
 /// Fraction of the way from MT1 to MT5 where the axis crosses the ball line.
 pub const MT2_FRACTION: f64 = 0.46;
 
@@ -390,7 +393,7 @@ pub fn measure(m: &TriMesh, l_ref: Option<f64>, medial: f64) -> Result<Measures,
     let lh_plane = Plane::with_axis(heel_g, dir.cross(&V3::y()), V3::y())
         .ok_or("degenerate long-heel plane")?;
     let (long_heel, long_heel_girth) = hull_loop(&cut(m, &lh_plane), &lh_plane);
-    let ankle_plane = Plane::axis_aligned(2, ANKLE_Z * l);
+    let ankle_plane = Plane::with_axis(P3::new(ANKLE_X * l, 0.0, 0.0), V3::x(), V3::y()).unwrap();
     let (ankle, ankle_girth) = hull_loop(&cut(m, &ankle_plane), &ankle_plane);
     let prof_plane = Plane::with_axis(P3::origin(), V3::y(), V3::x()).unwrap();
     let profile = cut(m, &prof_plane)

@@ -357,7 +357,10 @@ pub fn solve(
             }
             lambda *= 0.5;
         }
-        let bad = p[1..7].iter().any(|s| !(0.6..=1.5).contains(s)) || p[7].abs() > 0.6;
+        if std::env::var_os("FOOTSCAN_DEBUG").is_some() {
+            eprintln!("newton: r {r:.3?} p {p:.4?}");
+        }
+        let bad = p[1..7].iter().any(|s| !(0.5..=2.0).contains(s)) || p[7].abs() > 1.0;
         if bad {
             break;
         }
