@@ -292,3 +292,40 @@ fn grid_interpolation_passes_its_points() {
     }
     let _ = parameters;
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(60))]
+
+    /// Periodic grid interpolation reaches every grid point, also with unevenly spaced
+    /// sites in u (a gap as wide as a third of the period), any start u0, and degrees 1-4.
+    #[test]
+    fn periodic_grid_interpolation_passes_its_data(
+        gaps in proptest::collection::vec(0.2f64..5.0, 5..30),
+        u0 in -0.7f64..0.7,
+        p in 1usize..5,
+        q in 1usize..4,
+        nl in 2usize..6,
+    ) {
+        let total: f64 = gaps.iter().sum();
+        let mut us = Vec::with_capacity(gaps.len());
+        let mut acc = u0;
+        for g in &gaps {
+            us.push(acc);
+            acc += g / total;
+        }
+        let vs: Vec<f64> = (0..nl).map(|l| (l as f64 / (nl - 1) as f64).powf(1.3)).collect();
+        let f = |u: f64, v: f64| {
+            let t = std::f64::consts::TAU * u;
+            P3::new(40.0 * t.cos() * (1.0 + 0.3 * v), 25.0 * t.sin() + 4.0 * (3.0 * t).cos(), 80.0 * v + 5.0 * t.sin() * v)
+        };
+        let grid: Vec<P3> = us.iter().flat_map(|&u| vs.iter().map(move |&v| f(u, v))).collect();
+        let s = interpolate_grid(&grid, &us, &vs, p, q, true).unwrap();
+        prop_assert!(s.periodic_u);
+        for (k, &u) in us.iter().enumerate() {
+            for (l, &v) in vs.iter().enumerate() {
+                let d = (s.point(u, v) - grid[k * nl + l]).norm();
+                prop_assert!(d < 1e-9, "site {k} u={u} v={v}: {d} mm");
+            }
+        }
+    }
+}

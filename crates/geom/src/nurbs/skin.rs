@@ -2,7 +2,7 @@
 //! curves at given parameters, and interpolation of a grid of points into a surface.
 
 use super::basis::{basis_funs, find_span};
-use super::fit::{averaged_knots, periodic_full_knots, solve};
+use super::fit::{averaged_knots, periodic_full_knots, SparseRows};
 use super::hcurve::H;
 use super::{NurbsCurve, NurbsError, NurbsSurface, Result};
 use crate::P3;
@@ -144,20 +144,20 @@ fn interp_many(
 ) -> Result<Vec<Vec<H>>> {
     let n = params.len();
     let ncol = rhs[0].len();
-    let mut a = vec![0.0; n * n];
+    let mut a = SparseRows::new(n);
     let mut nb = vec![0.0; p + 1];
     for (k, &u) in params.iter().enumerate() {
         let span = find_span(n - 1, p, u, knots);
         basis_funs(span, u, p, knots, &mut nb);
         for j in 0..=p {
-            a[k * n + span - p + j] = nb[j];
+            a.add(k, span - p + j, nb[j]);
         }
     }
     let b: Vec<f64> = rhs
         .iter()
         .flat_map(|row| row.iter().flat_map(|h| [h.x, h.y, h.z, h.w]))
         .collect();
-    let x = solve(n, a, b, 4 * ncol, what)?;
+    let x = a.solve(b, 4 * ncol, what)?;
     Ok(x.chunks(4 * ncol)
         .map(|r| {
             r.chunks(4)
@@ -190,7 +190,7 @@ fn interp_many_periodic(
             .collect()
     };
     let knots = periodic_full_knots(&period, p, 1.0);
-    let mut a = vec![0.0; m * m];
+    let mut a = SparseRows::new(m);
     let mut nb = vec![0.0; p + 1];
     let (lo, hi) = (knots[p], knots[m + p]);
     for (k, &u) in params.iter().enumerate() {
@@ -198,14 +198,14 @@ fn interp_many_periodic(
         let span = find_span(m + p - 1, p, u, &knots);
         basis_funs(span, u, p, &knots, &mut nb);
         for j in 0..=p {
-            a[k * m + (span - p + j) % m] += nb[j];
+            a.add(k, (span - p + j) % m, nb[j]);
         }
     }
     let b: Vec<f64> = rhs
         .iter()
         .flat_map(|row| row.iter().flat_map(|h| [h.x, h.y, h.z, h.w]))
         .collect();
-    let x = solve(m, a, b, 4 * ncol, what)?;
+    let x = a.solve(b, 4 * ncol, what)?;
     let mut rows: Vec<Vec<H>> = x
         .chunks(4 * ncol)
         .map(|r| {
