@@ -97,9 +97,8 @@ pub fn least_change(
         if cs.order > p {
             continue;
         }
-        for j in 0..=p {
-            let i = (span - p + j) % nu;
-            r[(k, i)] += ders[cs.order][j];
+        for (j, v) in ders[cs.order].iter().enumerate() {
+            r[(k, (span - p + j) % nu)] += v;
         }
     }
     // Rank check: incremental, to name the offending constraint.
