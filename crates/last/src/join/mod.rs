@@ -22,6 +22,7 @@ pub mod guides;
 pub mod output;
 pub mod seam;
 pub mod sections;
+pub mod study;
 pub mod zebra;
 
 use footscan_geom::mesh::TriMesh;
