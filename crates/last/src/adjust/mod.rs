@@ -121,7 +121,7 @@ impl Default for AdjustOptions {
             taubin: (4, 0.5, -0.53),
             smooth_passes: 2,
             min_length_ratio: 0.7,
-            table_step_mm: 2.0,
+            table_step_mm: 4.0,
             zeta_min_height_mm: 1.0,
             zeta_edge_mm: 3.0,
         }
@@ -443,8 +443,8 @@ pub fn adjust(
     let aligned: Vec<Pt> = b_out.iter().map(|&p| rigid_m.apply(p)).collect();
 
     // 3. eps from the largest excursion of the foot outline outside the bottom.
-    let f_rs = outline::resample_closed(&foot_outline, 1024);
-    let a_rs = outline::resample_closed(&aligned, 1024);
+    let f_rs = outline::resample_closed(&foot_outline, 512);
+    let a_rs = outline::resample_closed(&aligned, 512);
     let (mut best_d, mut eps, mut eps_at) = (f64::NEG_INFINITY, 1.0, centre);
     for &q in &f_rs {
         let d = sub(q, centre);
