@@ -6,11 +6,14 @@
 //!
 //! - [`adjust`]: a last bottom adjusted to a scanned foot sole (outline, landmarks, heights),
 //!   the whole last deformed to it, deviation before and after.
+//! - [`blend`]: the same gap filled by slices that blend a linear morph with a discrete
+//!   G1/G2 extension of both parts (or a blend chosen by fairing), measured the same way.
 //! - [`draw`]: the pictures every stage writes (heat maps, zebra stripes, views with labels).
 //! - [`join`]: the toe part of one last joined to the back part of another by a Gordon
 //!   surface through a curve network, with seam figures, IGES/STEP/STL and pictures.
 
 pub mod adjust;
+pub mod blend;
 pub mod customize;
 pub mod draw;
 pub mod join;

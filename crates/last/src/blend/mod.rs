@@ -1,0 +1,538 @@
+//! Filling the gap between the back part of one last and the toe part of another with
+//! planar slices that blend a linear morph with a discrete G1/G2 extension of both parts,
+//! after "Gap Filling Using a Blend of Morphing and Extension with Application in Footwear
+//! Design" (Li, Joneja). The second joining method beside the Gordon join of [`crate::join`]:
+//! it takes the same lasts, placement and cutting planes, cuts and aligns its slices with
+//! the join's section code, and is measured by the join's seam figures.
+//!
+//! Steps (docs/method.md section 12 says why each one is there):
+//! 1. Both lasts placed in one frame and cut by planes parallel to the cut: slices every
+//!    step d next to the gap (the last three feed the extension), coarser further in, all
+//!    resampled to the same number of aligned points ([`crate::join::sections`]).
+//! 2. From both ends in turn: one morphed slice (between the two current boundary slices)
+//!    and one extended slice ([`extend`]) at half a step and at a whole step into the gap,
+//!    mixed by the blending function b ([`weight`]); the new slices become the parts'
+//!    boundary, until the two fronts meet in the middle.
+//! 3. Or the blend chosen by fairing: b as a table searched greedily for the least
+//!    curvature variation of the fill (or least curvature, for reference) ([`fair`]).
+//! 4. Back part, fill and toe part each skinned through their own slices ([`surface`]);
+//!    seam figures, IGES, STEP, a closed STL and pictures ([`output`]).
+
+pub mod extend;
+pub mod fair;
+pub mod output;
+pub mod surface;
+pub mod weight;
+
+use crate::join::sections::{self, Section};
+use crate::join::{place, JoinError, Placement};
+use fair::Functional;
+use footscan_geom::mesh::TriMesh;
+use footscan_geom::nurbs::{NurbsError, NurbsSurface};
+use footscan_geom::plane::Plane;
+use footscan_geom::{P3, V3};
+use std::time::Instant;
+use weight::Weight;
+
+/// Why a fill failed; every variant names the plane, last or parameter at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum BlendError {
+    #[error(transparent)]
+    Join(#[from] JoinError),
+    #[error(
+        "the back plane (normal {back}) and the toe plane (normal {toe}) are not parallel; \
+         the gap is filled with slices parallel to one cut, so give planes with one normal"
+    )]
+    NotParallel { back: String, toe: String },
+    #[error("invalid parameter {name} = {value}: {valid}")]
+    Param {
+        name: &'static str,
+        value: String,
+        valid: &'static str,
+    },
+    #[error("surface construction failed: {0}")]
+    Nurbs(#[from] NurbsError),
+}
+
+/// How the blending function is chosen.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Blend {
+    /// A given function b(t).
+    Fixed(Weight),
+    /// A table of b searched for the least curvature variation (`Variation`, the fairing
+    /// of the method) or the least curvature (`Energy`, the reference).
+    Fair(Functional),
+}
+
+impl Blend {
+    pub fn name(&self) -> String {
+        match self {
+            Blend::Fixed(w) => w.name(),
+            Blend::Fair(Functional::Variation) => "fair".into(),
+            Blend::Fair(Functional::Energy) => "fair-energy".into(),
+        }
+    }
+}
+
+/// Parameters of a fill; `Default` takes the Gordon join's placement and planes.
+#[derive(Debug, Clone)]
+pub struct BlendParams {
+    /// Back plane (normal towards the toe); default as the Gordon join: across the back
+    /// last at 62 % of its length from the heel.
+    pub back_plane: Option<Plane>,
+    /// Toe plane, parallel to the back plane; default at 70 % of the toe last's length.
+    pub toe_plane: Option<Plane>,
+    /// Target slice step next to and in the gap, mm; the step used divides the gap into an
+    /// even number of steps.
+    pub step_mm: f64,
+    /// Slice step further into the kept parts, mm.
+    pub part_step_mm: f64,
+    /// Points per slice.
+    pub points: usize,
+    /// Angle of the plane bundle that aligns the slices (crossings at common parameters).
+    pub angle_deg: f64,
+    pub sole_fraction: f64,
+    /// Distance of the last slice from each part's end, mm.
+    pub end_margin_mm: f64,
+    pub placement_back: Placement,
+    pub placement_toe: Placement,
+    pub blend: Blend,
+    /// Points per slice while the fairing searches (every k-th point).
+    pub fair_points: usize,
+}
+
+impl Default for BlendParams {
+    fn default() -> Self {
+        BlendParams {
+            back_plane: None,
+            toe_plane: None,
+            step_mm: 2.0,
+            part_step_mm: 5.0,
+            points: 240,
+            angle_deg: 45.0,
+            sole_fraction: 0.05,
+            end_margin_mm: 1.0,
+            placement_back: Placement::Ball,
+            placement_toe: Placement::Ball,
+            blend: Blend::Fixed(Weight::Poly),
+            fair_points: 60,
+        }
+    }
+}
+
+/// Which piece a slice belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Piece {
+    Back,
+    Fill,
+    Toe,
+}
+
+/// One planar slice: its position along the cut normal (mm from the back plane) and points.
+#[derive(Debug, Clone)]
+pub struct Slice {
+    pub z: f64,
+    pub piece: Piece,
+    pub points: Vec<P3>,
+}
+
+/// What the fairing found.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FairReport {
+    pub functional: String,
+    /// The chosen b as (t, b) knots.
+    pub table: Vec<(f64, f64)>,
+    /// The functional on the slice grid for the chosen blend and for the morph alone (the
+    /// search's start).
+    pub cost: f64,
+    pub cost_morph: f64,
+    pub evaluations: usize,
+}
+
+/// Time spent in each step, ms.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct Timings {
+    pub slices: f64,
+    pub blend: f64,
+    pub surfaces: f64,
+    pub total: f64,
+}
+
+/// The filled last.
+#[derive(Debug, Clone)]
+pub struct Filled {
+    /// Back part, fill, toe part: v from heel to toe on [0, 1] each, u periodic from the
+    /// bottom centre line.
+    pub back: NurbsSurface,
+    pub fill: NurbsSurface,
+    pub toe: NurbsSurface,
+    /// Every slice from heel to toe; the fill's boundary slices belong to the parts.
+    pub slices: Vec<Slice>,
+    /// The common parameters of the slice points.
+    pub u: Vec<f64>,
+    /// The blend's name and its b at each fill slice (t across the gap, b).
+    pub blend: String,
+    pub weights: Vec<(f64, f64)>,
+    pub fair: Option<FairReport>,
+    /// Gap between the planes, the slice step used, and the index shift the morph's
+    /// correspondence put on the toe slices.
+    pub gap_mm: f64,
+    pub step_mm: f64,
+    pub morph_shift: usize,
+    /// Points the extension found by curve extension instead of the closed forms.
+    pub by_curve: usize,
+    pub back_plane: Plane,
+    pub toe_plane: Plane,
+    pub heel_end: P3,
+    pub toe_end: P3,
+    pub back_mesh: TriMesh,
+    pub toe_mesh: TriMesh,
+    pub timings: Timings,
+}
+
+fn param_err(name: &'static str, value: impl ToString, valid: &'static str) -> BlendError {
+    BlendError::Param {
+        name,
+        value: value.to_string(),
+        valid,
+    }
+}
+
+fn check(p: &BlendParams) -> Result<(), BlendError> {
+    if !(p.step_mm >= 0.25 && p.step_mm <= 10.0) {
+        return Err(param_err("step", p.step_mm, "0.25 to 10 mm"));
+    }
+    if !(p.part_step_mm >= p.step_mm && p.part_step_mm <= 20.0) {
+        return Err(param_err("part_step", p.part_step_mm, "the step to 20 mm"));
+    }
+    if !(24..=20000).contains(&p.points) {
+        return Err(param_err(
+            "points",
+            p.points,
+            "24 to 20000 points per slice",
+        ));
+    }
+    if !(p.angle_deg >= 2.0 && p.angle_deg <= 90.0) {
+        return Err(param_err("angle", p.angle_deg, "2 to 90 degrees"));
+    }
+    if p.fair_points < 12 {
+        return Err(param_err("fair_points", p.fair_points, "12 or more"));
+    }
+    Ok(())
+}
+
+/// Offsets of one part's slices from its plane, going into the part: four slices a step
+/// apart at the cut (the extension reads the last three), then `part_step` to the end,
+/// finer just before it.
+fn part_offsets(extent: f64, d: f64, p: &BlendParams) -> Vec<f64> {
+    let end = extent - p.end_margin_mm;
+    let mut o: Vec<f64> = (0..4).map(|k| k as f64 * d).collect();
+    let mut x = 3.0 * d + p.part_step_mm;
+    while x < end - 0.5 * p.part_step_mm {
+        o.push(x);
+        x += p.part_step_mm;
+    }
+    for f in [1.0, 0.5, 0.0] {
+        let x = end - f * p.part_step_mm.min(4.0) * 0.5;
+        if x > o.last().unwrap() + 0.25 {
+            o.push(x);
+        }
+    }
+    o
+}
+
+fn shifted(p: &Plane, d: f64) -> Plane {
+    Plane {
+        origin: p.origin + p.normal * d,
+        ..*p
+    }
+}
+
+fn describe_normal(n: &V3) -> String {
+    format!("({:.4}, {:.4}, {:.4})", n.x, n.y, n.z)
+}
+
+/// The blended fill between the back part's slices (`back`: ..., O, P, Q towards the gap,
+/// Q at z = 0, a step `d` apart) and the toe part's (`toe`: ..., O, P, Q towards the gap, Q at
+/// z = `gap`), gap = 2 k d. Returns the fill slices from z = 0 to z = gap (both boundary
+/// slices included) and how many points came from curve extension.
+pub fn blend_slices(
+    back: [&[P3]; 3],
+    toe: [&[P3]; 3],
+    gap: f64,
+    k: usize,
+    b: &dyn Fn(f64) -> f64,
+) -> (Vec<(f64, Vec<P3>)>, usize) {
+    let d = gap / (2 * k) as f64;
+    let (mut bo, mut bp, mut bq) = (back[0].to_vec(), back[1].to_vec(), back[2].to_vec());
+    let (mut to, mut tp, mut tq) = (toe[0].to_vec(), toe[1].to_vec(), toe[2].to_vec());
+    let (mut zb, mut zt) = (0.0, gap);
+    let mut left = vec![(zb, bq.clone())];
+    let mut right = vec![(zt, tq.clone())];
+    let mut by_curve = 0;
+    for it in 0..k {
+        let eb = extend::extend(&bo, &bp, &bq, true);
+        let et = extend::extend(&to, &tp, &tq, true);
+        by_curve += eb.by_curve + et.by_curve;
+        let slice = |z: f64, e: &[P3]| {
+            let m = extend::morph(&bq, zb, &tq, zt, z);
+            extend::mix(&m, e, b(z / gap))
+        };
+        let (rb, sb) = (slice(zb + 0.5 * d, &eb.r), slice(zb + d, &eb.s));
+        let (rt, st) = (slice(zt - 0.5 * d, &et.r), slice(zt - d, &et.s));
+        left.push((zb + 0.5 * d, rb));
+        right.push((zt - 0.5 * d, rt));
+        if it + 1 == k {
+            // The fronts meet: the middle slice from both sides.
+            left.push((zb + d, extend::mix(&sb, &st, 0.5)));
+        } else {
+            left.push((zb + d, sb.clone()));
+            right.push((zt - d, st.clone()));
+            (bo, bp, bq) = (bp, bq, sb);
+            (to, tp, tq) = (tp, tq, st);
+            zb += d;
+            zt -= d;
+        }
+    }
+    right.reverse();
+    left.extend(right);
+    (left, by_curve)
+}
+
+/// Knots of the fairing's blend table (t across the gap).
+const FAIR_KNOTS: [f64; 7] = [0.0, 1.0 / 6.0, 1.0 / 3.0, 0.5, 2.0 / 3.0, 5.0 / 6.0, 1.0];
+
+/// Fill the gap between the back part of `back` and the toe part of `toe`.
+pub fn fill(back: &TriMesh, toe: &TriMesh, p: &BlendParams) -> Result<Filled, BlendError> {
+    check(p)?;
+    let t0 = Instant::now();
+    let bm = place(back, &p.placement_back);
+    let tm = place(toe, &p.placement_toe);
+    let (bb, tb) = (bm.bbox(), tm.bbox());
+    if bb.max.x <= tb.min.x || tb.max.x <= bb.min.x {
+        return Err(JoinError::NoOverlap {
+            back_lo: bb.min.x,
+            back_hi: bb.max.x,
+            toe_lo: tb.min.x,
+            toe_hi: tb.max.x,
+        }
+        .into());
+    }
+    let default_plane = |b: &footscan_geom::bbox::Aabb, f: f64| {
+        let x = b.min.x + f * b.extent().x;
+        Plane::with_axis(P3::new(x, 0.5 * (b.min.y + b.max.y), 0.0), V3::x(), V3::y()).unwrap()
+    };
+    let back_plane = p.back_plane.unwrap_or_else(|| default_plane(&bb, 0.62));
+    let toe_plane = p.toe_plane.unwrap_or_else(|| default_plane(&tb, 0.70));
+    let n = back_plane.normal;
+    if n.dot(&toe_plane.normal) < 1.0 - 1e-9 {
+        return Err(BlendError::NotParallel {
+            back: describe_normal(&n),
+            toe: describe_normal(&toe_plane.normal),
+        });
+    }
+    let gap = back_plane.signed_distance(&toe_plane.origin);
+    if gap <= 0.0 {
+        return Err(JoinError::PlanesOverlap {
+            back: sections::describe_plane(&back_plane),
+            toe: sections::describe_plane(&toe_plane),
+            gap,
+        }
+        .into());
+    }
+    let k = ((gap / (2.0 * p.step_mm)).round() as usize).max(1);
+    let d = gap / (2 * k) as f64;
+    // Extents of the parts beyond their planes, and their end points.
+    let far = |m: &TriMesh, pl: &Plane, sign: f64| {
+        m.vertices
+            .iter()
+            .map(|v| (sign * pl.signed_distance(v), *v))
+            .fold((f64::NEG_INFINITY, P3::origin()), |a, b| {
+                if b.0 > a.0 {
+                    b
+                } else {
+                    a
+                }
+            })
+    };
+    let (back_extent, heel_end) = far(&bm, &back_plane, -1.0);
+    let (toe_extent, toe_end) = far(&tm, &toe_plane, 1.0);
+    if back_extent <= 0.0 {
+        return Err(JoinError::PlaneMisses {
+            last: "back".into(),
+            plane: sections::describe_plane(&back_plane),
+        }
+        .into());
+    }
+    if toe_extent <= 0.0 {
+        return Err(JoinError::PlaneMisses {
+            last: "toe".into(),
+            plane: sections::describe_plane(&toe_plane),
+        }
+        .into());
+    }
+    let mut b_off = part_offsets(back_extent, d, p);
+    b_off.reverse();
+    let t_off = part_offsets(toe_extent, d, p);
+    let nb = b_off.len();
+    let mut secs: Vec<Section> = Vec::with_capacity(nb + t_off.len());
+    for &o in &b_off {
+        secs.push(sections::cut(&bm, &shifted(&back_plane, -o), -o, "back")?);
+    }
+    for &o in &t_off {
+        secs.push(sections::cut(&tm, &shifted(&toe_plane, o), o, "toe")?);
+    }
+    let zs: Vec<f64> = b_off
+        .iter()
+        .map(|o| -o)
+        .chain(t_off.iter().map(|o| gap + o))
+        .collect();
+    let refs: Vec<&Section> = secs.iter().collect();
+    let what = |s: usize| {
+        if s < nb {
+            format!(
+                "of the back last at {:+.1} mm from the back plane",
+                -b_off[s]
+            )
+        } else {
+            format!(
+                "of the toe last at {:+.1} mm from the toe plane",
+                t_off[s - nb]
+            )
+        }
+    };
+    let cr = sections::crossings(&refs, p.angle_deg, p.sole_fraction, &what)?;
+    let (u, _, mut pts) = sections::resample(&refs, &cr, p.points);
+    // The morph's correspondence: the top of the back boundary slice and its nearest
+    // neighbour on the toe boundary slice; the toe slices are renumbered by the shift.
+    let up = secs[nb - 1].plane.v;
+    let shift = extend::morph_shift(&pts[nb - 1], &pts[nb], &up);
+    if shift != 0 {
+        for s in pts.iter_mut().skip(nb) {
+            s.rotate_left(shift);
+        }
+    }
+    let t_slices = t0.elapsed();
+
+    // The blend.
+    let back3 = [&pts[nb - 3][..], &pts[nb - 2][..], &pts[nb - 1][..]];
+    let toe3 = [&pts[nb + 2][..], &pts[nb + 1][..], &pts[nb][..]];
+    let (table, fair_report): (Weight, Option<FairReport>) = match &p.blend {
+        Blend::Fixed(w) => (w.clone(), None),
+        Blend::Fair(f) => {
+            let r = search(&pts, nb, gap, k, *f, p.fair_points);
+            (Weight::Table(r.table.clone()), Some(r))
+        }
+    };
+    let (fill_slices, by_curve) = blend_slices(back3, toe3, gap, k, &|t| table.at(t));
+    let weights: Vec<(f64, f64)> = fill_slices
+        .iter()
+        .map(|(z, _)| (z / gap, table.at(z / gap)))
+        .collect();
+    let t_blend = t0.elapsed();
+
+    // Surfaces, each through its own slices.
+    let mut slices: Vec<Slice> = Vec::new();
+    for (s, pt) in pts.iter().enumerate().take(nb) {
+        slices.push(Slice {
+            z: zs[s],
+            piece: Piece::Back,
+            points: pt.clone(),
+        });
+    }
+    let nf = fill_slices.len();
+    for (z, pt) in &fill_slices[1..nf - 1] {
+        slices.push(Slice {
+            z: *z,
+            piece: Piece::Fill,
+            points: pt.clone(),
+        });
+    }
+    for (s, pt) in pts.iter().enumerate().skip(nb) {
+        slices.push(Slice {
+            z: zs[s],
+            piece: Piece::Toe,
+            points: pt.clone(),
+        });
+    }
+    let skin = |a: &[Vec<P3>], z: &[f64]| surface::skin_slices(a, &u, z);
+    let back_s = skin(&pts[..nb], &zs[..nb])?;
+    let fz: Vec<f64> = fill_slices.iter().map(|f| f.0).collect();
+    let fp: Vec<Vec<P3>> = fill_slices.into_iter().map(|f| f.1).collect();
+    let fill_s = skin(&fp, &fz)?;
+    let toe_s = skin(&pts[nb..], &zs[nb..])?;
+    let t_surf = t0.elapsed();
+    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    Ok(Filled {
+        back: back_s,
+        fill: fill_s,
+        toe: toe_s,
+        slices,
+        u,
+        blend: p.blend.name(),
+        weights,
+        fair: fair_report,
+        gap_mm: gap,
+        step_mm: d,
+        morph_shift: shift,
+        by_curve,
+        back_plane,
+        toe_plane,
+        heel_end,
+        toe_end,
+        back_mesh: bm,
+        toe_mesh: tm,
+        timings: Timings {
+            slices: ms(t_slices),
+            blend: ms(t_blend - t_slices),
+            surfaces: ms(t_surf - t_blend),
+            total: ms(t_surf),
+        },
+    })
+}
+
+/// The fairing: b as a table at [`FAIR_KNOTS`], searched greedily from the morph alone (b =
+/// 1, as the fairing paper starts from the morphed mesh) for the least functional over the
+/// fill and the kept parts' three slices either side, on every k-th point of the slices.
+fn search(
+    pts: &[Vec<P3>],
+    nb: usize,
+    gap: f64,
+    k: usize,
+    f: Functional,
+    fair_points: usize,
+) -> FairReport {
+    let n = pts[0].len();
+    let step = (n / fair_points).max(1);
+    let sub = |s: &Vec<P3>| -> Vec<P3> { s.iter().step_by(step).copied().collect() };
+    let b: Vec<Vec<P3>> = pts[nb - 4..nb].iter().map(sub).collect();
+    let t: Vec<Vec<P3>> = pts[nb..nb + 4].iter().map(sub).collect();
+    let cost = |x: &[f64]| {
+        let rows: Vec<(f64, f64)> = FAIR_KNOTS.iter().copied().zip(x.iter().copied()).collect();
+        let (fs, _) = blend_slices(
+            [&b[1], &b[2], &b[3]],
+            [&t[2], &t[1], &t[0]],
+            gap,
+            k,
+            &|tt| weight::table_at(&rows, tt),
+        );
+        let mut grid: Vec<Vec<P3>> = b[..3].to_vec();
+        grid.extend(fs.into_iter().map(|s| s.1));
+        grid.extend(t[1..].iter().cloned());
+        let nl = grid.len();
+        fair::grid_functional(&grid, 2, nl - 3, f)
+    };
+    let start = vec![1.0; FAIR_KNOTS.len()];
+    let cost_morph = cost(&start);
+    let (x, c, evals) = fair::greedy(start, 0.5, 1.0 / 64.0, &cost);
+    FairReport {
+        functional: match f {
+            Functional::Variation => "curvature variation".into(),
+            Functional::Energy => "curvature energy".into(),
+        },
+        table: FAIR_KNOTS.iter().copied().zip(x).collect(),
+        cost: c,
+        cost_morph,
+        evaluations: evals,
+    }
+}
