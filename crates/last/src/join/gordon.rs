@@ -288,3 +288,39 @@ pub fn split_v(s: &NurbsSurface, v0: f64) -> Result<(NurbsSurface, NurbsSurface)
     };
     Ok((mk(kl, nl, pl)?, mk(kr, nr, pr)?))
 }
+
+/// The network of consecutive sections `range` alone: those sections, and guides
+/// re-interpolated (cubic, as in the join) through their crossings on them at the section
+/// parameters rescaled to [0, 1]. This is the main and auxiliary sections' network of the
+/// paper when `range` covers them; a reference implementation can build it too.
+pub fn sub_network(net: &Network, range: std::ops::Range<usize>) -> Result<Network, NurbsError> {
+    if range.len() < 2 || range.end > net.sections.len() {
+        return Err(NurbsError::Invalid {
+            what: "sub-network",
+            reason: format!(
+                "sections {range:?} of {}; need at least 2 inside",
+                net.sections.len()
+            ),
+        });
+    }
+    let sections: Vec<NurbsCurve> = net.sections[range.clone()].to_vec();
+    let (v0, v1) = (net.v_cross[range.start], net.v_cross[range.end - 1]);
+    let v_cross: Vec<f64> = net.v_cross[range]
+        .iter()
+        .map(|v| (v - v0) / (v1 - v0))
+        .collect();
+    let guides = net
+        .u_cross
+        .iter()
+        .map(|&u| {
+            let pts: Vec<P3> = sections.iter().map(|c| c.point(u)).collect();
+            interpolate_with(&pts, &v_cross, 3, None)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Network {
+        sections,
+        u_cross: net.u_cross.clone(),
+        guides,
+        v_cross,
+    })
+}

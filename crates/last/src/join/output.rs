@@ -1,6 +1,7 @@
 //! What a join hands over: the surfaces as IGES and STEP, a closed STL of the whole last,
 //! the curve network and the seam figures as JSON, and the pictures.
 
+use super::gordon::Network;
 use super::seam::{self, Deviation, SeamMetrics};
 use super::{zebra, Joined, Timings};
 use footscan_geom::export::{iges, step, Header};
@@ -175,6 +176,11 @@ fn surface_json(s: &NurbsSurface) -> SurfaceJson {
 /// The curve network and our Gordon surface, for an independent rebuild (scripts/
 /// occt_gordon_compare.py).
 pub fn network_json(j: &Joined) -> String {
+    network_json_of(&j.network, &j.gordon.surface, j.timings.gordon)
+}
+
+/// A curve network, the Gordon surface we built on it and our build time (ms) as JSON.
+pub fn network_json_of(n: &Network, surface: &NurbsSurface, build_ms: f64) -> String {
     #[derive(Serialize)]
     struct Net {
         sections: Vec<CurveJson>,
@@ -184,14 +190,13 @@ pub fn network_json(j: &Joined) -> String {
         gordon: SurfaceJson,
         build_ms: f64,
     }
-    let n = &j.network;
     serde_json::to_string(&Net {
         sections: n.sections.iter().map(curve_json).collect(),
         guides: n.guides.iter().map(curve_json).collect(),
         u_cross: n.u_cross.clone(),
         v_cross: n.v_cross.clone(),
-        gordon: surface_json(&j.gordon.surface),
-        build_ms: j.timings.gordon,
+        gordon: surface_json(surface),
+        build_ms,
     })
     .expect("network serialises")
 }
