@@ -21,12 +21,14 @@ pub(crate) fn inner_knots(knots: &[f64], p: usize, n: usize, periodic: bool) -> 
 }
 
 /// Union of several inner knot lists, each value with its largest multiplicity (values
-/// within the tolerance merged).
+/// within the tolerance merged; the value kept is the one of the earliest list). Sorting the
+/// runs of all lists keeps this O(N log N) in the total number of knots.
 pub(crate) fn merged_knots<'a>(
     it: impl Iterator<Item = (&'a [f64], usize, usize, bool)>,
 ) -> Vec<f64> {
-    let mut out: Vec<f64> = Vec::new();
-    for (knots, p, n, periodic) in it {
+    // (value, multiplicity, list index) of every run of equal knots.
+    let mut runs: Vec<(f64, usize, usize)> = Vec::new();
+    for (list, (knots, p, n, periodic)) in it.enumerate() {
         let inner = inner_knots(knots, p, n, periodic);
         let mut i = 0;
         while i < inner.len() {
@@ -35,18 +37,32 @@ pub(crate) fn merged_knots<'a>(
             while j < inner.len() && (inner[j] - v).abs() <= KNOT_TOL {
                 j += 1;
             }
-            let have = out.iter().filter(|&&x| (x - v).abs() <= KNOT_TOL).count();
-            for _ in have..(j - i) {
-                out.push(v);
-            }
+            runs.push((v, j - i, list));
             i = j;
         }
     }
-    out.sort_by(|a, b| a.total_cmp(b));
+    runs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.2.cmp(&b.2)));
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < runs.len() {
+        let first = runs[i].0;
+        let mut j = i;
+        let (mut mult, mut rep) = (0, runs[i]);
+        while j < runs.len() && runs[j].0 - first <= KNOT_TOL {
+            mult = mult.max(runs[j].1);
+            if runs[j].2 < rep.2 {
+                rep = runs[j];
+            }
+            j += 1;
+        }
+        out.extend(std::iter::repeat_n(rep.0, mult));
+        i = j;
+    }
     out
 }
 
 /// Knots of `merged` missing from `own` (by value within the tolerance, with multiplicity).
+/// Both are sorted, so each value's count in `own` is found by bisection.
 pub(crate) fn missing_knots(own: &[f64], merged: &[f64]) -> Vec<f64> {
     let mut out = Vec::new();
     let mut i = 0;
@@ -56,7 +72,9 @@ pub(crate) fn missing_knots(own: &[f64], merged: &[f64]) -> Vec<f64> {
         while j < merged.len() && merged[j] == v {
             j += 1;
         }
-        let have = own.iter().filter(|&&x| (x - v).abs() <= KNOT_TOL).count();
+        let lo = own.partition_point(|&x| x < v - KNOT_TOL);
+        let hi = own.partition_point(|&x| x <= v + KNOT_TOL);
+        let have = hi - lo;
         for _ in have..(j - i) {
             out.push(v);
         }
