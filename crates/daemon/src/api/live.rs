@@ -91,6 +91,7 @@ pub async fn status(State(st): State<AppState>) -> Json<Value> {
         "calibration": d.calibration(),
         "scan": scan,
         "calibrating": d.calibrating(),
+        "archive": { "notices": d.archive.notices() },
     }))
 }
 

@@ -48,7 +48,7 @@ impl ScanId {
                 c.is_ascii_digit().then(|| acc * 10 + (c - b'0') as u32)
             })
         };
-        let (Some(mo), Some(d), Some(h), Some(mi), Some(se), Some(_y)) = (
+        let (Some(mo), Some(d), Some(h), Some(mi), Some(se), Some(y)) = (
             digits(4..6),
             digits(6..8),
             digits(9..11),
@@ -58,7 +58,12 @@ impl ScanId {
         ) else {
             return Err(err());
         };
-        if !(1..=12).contains(&mo) || !(1..=31).contains(&d) || h > 23 || mi > 59 || se > 60 {
+        if !(1..=12).contains(&mo)
+            || !(1..=days_in_month(y, mo)).contains(&d)
+            || h > 23
+            || mi > 59
+            || se > 60
+        {
             return Err(err());
         }
         if !b[17..]
@@ -79,6 +84,24 @@ impl fmt::Display for ScanId {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(&self.0)
     }
+}
+
+/// Days of month `m` (1-12) of year `y` in the proleptic Gregorian calendar.
+fn days_in_month(y: u32, m: u32) -> u32 {
+    match m {
+        2 if y.is_multiple_of(4) && (!y.is_multiple_of(100) || y.is_multiple_of(400)) => 29,
+        2 => 28,
+        4 | 6 | 9 | 11 => 30,
+        _ => 31,
+    }
+}
+
+/// `YYYYMMDDTHHMMSSZ` of now.
+pub(crate) fn compact_utc_now() -> String {
+    let now = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .unwrap_or_default();
+    compact_utc(now.as_secs())
 }
 
 /// `YYYYMMDDTHHMMSSZ` of Unix seconds (civil-from-days, proleptic Gregorian).
@@ -137,6 +160,10 @@ mod tests {
             "20261121T221503Z/3f2a",
             "20261321T221503Z-3f2a",
             "20261121T251503Z-3f2a",
+            "20260231T221503Z-3f2a",
+            "20260229T221503Z-3f2a",
+            "21000229T221503Z-3f2a",
+            "20260431T221503Z-3f2a",
             "2026112lT221503Z-3f2a",
             "20261121T221503Z-../a",
             ".tmp-20261121T221503",
@@ -144,6 +171,8 @@ mod tests {
             assert!(ScanId::parse(bad).is_err(), "{bad:?} accepted");
         }
         assert!(ScanId::parse("20261121T221503Z-3f2a").is_ok());
+        assert!(ScanId::parse("20280229T221503Z-3f2a").is_ok(), "a leap day");
+        assert!(ScanId::parse("20000229T221503Z-3f2a").is_ok(), "a leap day");
     }
 
     #[test]

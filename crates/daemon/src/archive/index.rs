@@ -24,19 +24,76 @@ const SCHEMA: &str = "CREATE TABLE IF NOT EXISTS scans (
 
 const COLUMNS: &str = "id, subject, side, notes, status, reason, started, finished, frames, points";
 
+/// Why the index could not be opened: damaged (move it aside and rebuild), or anything else
+/// (a permission, a full disk: not repaired by rebuilding).
+pub enum OpenError {
+    Corrupt(String),
+    Other(ArchiveError),
+}
+
+impl OpenError {
+    pub fn into_archive(self) -> ArchiveError {
+        match self {
+            OpenError::Other(e) => e,
+            OpenError::Corrupt(why) => ArchiveError::Io {
+                path: "index".into(),
+                source: std::io::Error::other(why),
+            },
+        }
+    }
+}
+
+/// Whether SQLite says the file is damaged or is not a database at all.
+pub fn is_corrupt(e: &rusqlite::Error) -> bool {
+    matches!(
+        e.sqlite_error_code(),
+        Some(rusqlite::ErrorCode::DatabaseCorrupt | rusqlite::ErrorCode::NotADatabase)
+    )
+}
+
 impl Index {
-    pub fn open(path: &Path) -> Result<Index, ArchiveError> {
-        let db = |e: rusqlite::Error| ArchiveError::Index {
-            path: path.to_owned(),
-            source: e,
+    /// Open the index, checking its integrity (a quick check: cheap for a few thousand rows).
+    pub fn open(path: &Path) -> Result<Index, OpenError> {
+        let classify = |e: rusqlite::Error| {
+            if is_corrupt(&e) {
+                OpenError::Corrupt(e.to_string())
+            } else {
+                OpenError::Other(ArchiveError::Index {
+                    path: path.to_owned(),
+                    source: e,
+                })
+            }
         };
-        let conn = Connection::open(path).map_err(db)?;
+        let conn = Connection::open(path).map_err(classify)?;
         // Rollback journal (no WAL): the index lives beside the scans, and a full disk must
         // not leave a growing side file; FULL sync because the index is updated rarely.
         conn.execute_batch("PRAGMA journal_mode=DELETE; PRAGMA synchronous=FULL;")
-            .map_err(db)?;
-        conn.execute(SCHEMA, []).map_err(db)?;
+            .map_err(classify)?;
+        let check: String = conn
+            .query_row("PRAGMA quick_check", [], |r| r.get(0))
+            .map_err(classify)?;
+        if check != "ok" {
+            return Err(OpenError::Corrupt(format!("integrity check: {check}")));
+        }
+        conn.execute(SCHEMA, []).map_err(classify)?;
+        // A table of another shape (not ours) is as good as damaged.
+        conn.prepare(&format!("SELECT {COLUMNS} FROM scans LIMIT 0"))
+            .map_err(|e| OpenError::Corrupt(format!("not the scan index: {e}")))?;
         Ok(Index { conn })
+    }
+
+    /// The running scan's counts so far (recovery keeps them if the scan never ends).
+    pub fn note_progress(&self, id: &str, frames: u64, points: u64) -> rusqlite::Result<()> {
+        self.conn.execute(
+            "UPDATE scans SET frames = ?1, points = ?2 WHERE id = ?3 AND status = 'running'",
+            params![frames as i64, points as i64, id],
+        )?;
+        Ok(())
+    }
+
+    pub fn delete(&self, id: &str) -> rusqlite::Result<()> {
+        self.conn.execute("DELETE FROM scans WHERE id = ?1", [id])?;
+        Ok(())
     }
 
     pub fn upsert(&self, r: &Record) -> rusqlite::Result<()> {

@@ -19,10 +19,12 @@ pub use record::{ArchiveError, NewScan, Outcome, Record, Status};
 
 use index::Index;
 use serde::Serialize;
+use std::collections::HashMap;
 use std::fs::File;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 /// Bytes kept free inside a running scan's directory for its record and the index update.
 const RESERVE_BYTES: usize = 256 * 1024;
@@ -30,8 +32,18 @@ const RESERVE: &str = ".reserve";
 const TMP_PREFIX: &str = ".tmp-";
 pub const RECORD: &str = "record.json";
 pub const INDEX: &str = "index.sqlite";
-/// Reason given to scans found unfinished at startup.
+/// The lock file: held (flock, exclusive) by the one process writing into the archive, and
+/// naming it (`pid <n> <program>`) for whoever finds it taken.
+pub const LOCK: &str = ".lock";
+/// Reason given to scans found unfinished at startup with nothing saying how they ended:
+/// neither the daemon's record nor the pipeline's summary was written.
 pub const INTERRUPTED: &str = "interrupted: the daemon stopped during the scan";
+/// Reason given to scans found unfinished at startup whose pipeline had ended (scan.json
+/// written) but whose record was not: the archive failed, or the daemon stopped while
+/// archiving. Followed by what scan.json says.
+pub const NOT_ARCHIVED: &str = "the scan ended but was not archived";
+/// Spacing of the running scan's frame count in the index (kept for recovery).
+const PROGRESS_PERIOD: Duration = Duration::from_secs(1);
 
 fn io_at(path: &Path) -> impl FnOnce(std::io::Error) -> ArchiveError + '_ {
     move |source| ArchiveError::Io {
@@ -57,18 +69,101 @@ pub struct Artifact {
 
 pub struct Archive {
     root: PathBuf,
+    /// `root` with symlinks resolved: every scan directory must resolve directly inside it.
+    real_root: PathBuf,
     index: Mutex<Index>,
+    /// Final records the index refused (the scan directory holds them as record.json when it
+    /// could be written): listed instead of the index row until a later write succeeds, so a
+    /// scan whose archiving failed is not shown as running.
+    unindexed: Mutex<HashMap<String, Record>>,
+    /// What the archive repaired (a damaged index moved aside), for the status.
+    notices: Mutex<Vec<String>>,
+    last_progress: Mutex<Option<Instant>>,
+    /// The archive lock, released when the archive is dropped (or the process dies).
+    _lock: ArchiveLock,
+}
+
+/// An exclusive hold on an archive: two writers would recover (and move) each other's
+/// running scans. The kernel drops it when the process exits, however it exits.
+#[derive(Debug)]
+pub struct ArchiveLock {
+    _file: File,
+}
+
+impl ArchiveLock {
+    /// Take the lock of the archive at `root` for `program`, without waiting: a held lock is
+    /// an error naming the holder's pid and program.
+    pub fn acquire(root: &Path, program: &str) -> Result<ArchiveLock, ArchiveError> {
+        use std::io::{Read, Seek};
+        let path = root.join(LOCK);
+        let mut file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&path)
+            .map_err(io_at(&path))?;
+        match file.try_lock() {
+            Ok(()) => {
+                let me = format!("pid {} {program}\n", std::process::id());
+                file.set_len(0)
+                    .and_then(|_| file.rewind())
+                    .and_then(|_| file.write_all(me.as_bytes()))
+                    .map_err(io_at(&path))?;
+                Ok(ArchiveLock { _file: file })
+            }
+            Err(std::fs::TryLockError::WouldBlock) => {
+                let mut text = String::new();
+                let _ = file.read_to_string(&mut text);
+                let holder = text.trim();
+                Err(ArchiveError::Locked {
+                    root: root.to_owned(),
+                    holder: if holder.is_empty() {
+                        "another process (it has not written its pid yet)".into()
+                    } else {
+                        holder.chars().take(200).collect()
+                    },
+                })
+            }
+            Err(std::fs::TryLockError::Error(e)) => Err(io_at(&path)(e)),
+        }
+    }
 }
 
 impl Archive {
     /// Open (creating) the archive at `root`: unfinished `.tmp-` scans are closed as failed
-    /// with [`INTERRUPTED`], and the index is brought in line with the directories.
+    /// (with the reason they recorded, else [`NOT_ARCHIVED`] or [`INTERRUPTED`]), and the
+    /// index is brought in line with the directories; a damaged index is moved aside
+    /// (`index.sqlite.corrupt-<time>`) and rebuilt, since it is only a cache.
+    ///
+    /// The archive lock is taken first, before anything is read or moved: a second process
+    /// on the same archive gets [`ArchiveError::Locked`] naming the first.
     pub fn open(root: &Path) -> Result<Archive, ArchiveError> {
         std::fs::create_dir_all(root).map_err(io_at(root))?;
+        let program = std::env::current_exe()
+            .ok()
+            .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .unwrap_or_else(|| "footscand".into());
+        let lock = ArchiveLock::acquire(root, &program)?;
+        let real_root = root.canonicalize().map_err(io_at(root))?;
         let db = root.join(INDEX);
+        let mut notices = Vec::new();
+        let index = match Index::open(&db) {
+            Ok(i) => i,
+            Err(index::OpenError::Corrupt(why)) => {
+                notices.push(move_aside(root, &why)?);
+                Index::open(&db).map_err(index::OpenError::into_archive)?
+            }
+            Err(e) => return Err(e.into_archive()),
+        };
         let archive = Archive {
             root: root.to_owned(),
-            index: Mutex::new(Index::open(&db)?),
+            real_root,
+            index: Mutex::new(index),
+            unindexed: Mutex::default(),
+            notices: Mutex::new(notices),
+            last_progress: Mutex::default(),
+            _lock: lock,
         };
         archive.recover()?;
         archive.rebuild()?;
@@ -79,6 +174,44 @@ impl Archive {
         &self.root
     }
 
+    /// What the archive had to repair since it was opened (shown in /api/status).
+    pub fn notices(&self) -> Vec<String> {
+        self.notices.lock().unwrap().clone()
+    }
+
+    fn db_err(&self) -> impl Fn(rusqlite::Error) -> ArchiveError + '_ {
+        |source| ArchiveError::Index {
+            path: self.root.join(INDEX),
+            source,
+        }
+    }
+
+    /// Run `f` on the index; an index found damaged is moved aside, rebuilt from the scan
+    /// directories, and `f` run again.
+    fn with_index<T>(
+        &self,
+        f: impl Fn(&mut Index) -> rusqlite::Result<T>,
+    ) -> Result<T, ArchiveError> {
+        let mut index = self.index.lock().unwrap();
+        match f(&mut index) {
+            Err(e) if index::is_corrupt(&e) => {
+                self.repair(&mut index, &e.to_string())?;
+                f(&mut index).map_err(self.db_err())
+            }
+            r => r.map_err(self.db_err()),
+        }
+    }
+
+    /// Replace a damaged index by a new one filled from the scan directories.
+    fn repair(&self, index: &mut Index, why: &str) -> Result<(), ArchiveError> {
+        let note = move_aside(&self.root, why)?;
+        *index = Index::open(&self.root.join(INDEX)).map_err(index::OpenError::into_archive)?;
+        let records = self.scan_records()?;
+        index.replace_all(&records).map_err(self.db_err())?;
+        self.notices.lock().unwrap().push(note);
+        Ok(())
+    }
+
     /// Create the temporary directory of a new scan and list it as running.
     pub fn begin(&self, meta: NewScan) -> Result<ActiveScan, ArchiveError> {
         let (id, dir) = (0..16)
@@ -87,7 +220,10 @@ impl Archive {
                 let dir = self.root.join(format!("{TMP_PREFIX}{id}"));
                 (id, dir)
             })
-            .find(|(id, dir)| !dir.exists() && !self.root.join(id.as_str()).exists())
+            .find(|(id, dir)| {
+                dir.symlink_metadata().is_err()
+                    && self.root.join(id.as_str()).symlink_metadata().is_err()
+            })
             .ok_or_else(|| ArchiveError::Io {
                 path: self.root.clone(),
                 source: std::io::Error::other("no free scan id"),
@@ -105,11 +241,38 @@ impl Archive {
         }
         let record = Record::running(id.to_string(), meta);
         self.index_upsert(&record);
+        *self.last_progress.lock().unwrap() = Some(Instant::now());
         Ok(ActiveScan { record, dir })
+    }
+
+    /// Note a running scan's frame and point counts in the index (at most once a second,
+    /// off the caller's thread), so a scan killed before its summary keeps them.
+    pub fn note_progress(self: &Arc<Self>, id: &str, frames: u64, points: u64) {
+        {
+            let mut last = self.last_progress.lock().unwrap();
+            if last.is_some_and(|t| t.elapsed() < PROGRESS_PERIOD) {
+                return;
+            }
+            *last = Some(Instant::now());
+        }
+        let (me, id) = (self.clone(), id.to_string());
+        std::thread::spawn(move || {
+            // Skipped while the index is busy: a note is not worth queueing behind a write.
+            let Ok(index) = me.index.try_lock() else {
+                return;
+            };
+            if let Err(e) = index.note_progress(&id, frames, points) {
+                tracing::debug!("archive index: progress of scan {id} not noted: {e}");
+            }
+        });
     }
 
     /// Close a scan: fsync its files, write record.json, rename the directory to its id,
     /// then update the index. Returns the final record.
+    ///
+    /// When archiving fails, the scan is closed as failed with the reason, written into its
+    /// directory (record.json, read by recovery at the next start) as far as it can be, and
+    /// listed so until then even if the index cannot be written.
     pub fn finish(&self, scan: ActiveScan, outcome: Outcome) -> Result<Record, ArchiveError> {
         let mut record = scan.record;
         record.status = outcome.status;
@@ -123,13 +286,22 @@ impl Archive {
                 Ok(record)
             }
             Err(e) => {
-                // Not listed as running forever: failed, files left in .tmp-<id> (recovered at
-                // the next start), the reason saying why.
                 record.status = Status::Failed;
                 record.reason = Some(format!(
                     "{}; archiving failed: {e}",
                     record.reason.as_deref().unwrap_or("scan ended")
                 ));
+                if scan.dir.is_dir() {
+                    let rec_path = scan.dir.join(RECORD);
+                    let json = serde_json::to_vec_pretty(&record).expect("record serialises");
+                    if let Err(we) = footscan::io::write_atomic(&rec_path, &json) {
+                        tracing::error!(
+                            "archive: scan {}: the failure could not be recorded in {}: {we}",
+                            record.id,
+                            rec_path.display()
+                        );
+                    }
+                }
                 self.index_upsert(&record);
                 Err(e)
             }
@@ -158,7 +330,10 @@ impl Archive {
         Ok(done)
     }
 
-    /// Close every `.tmp-` scan left by a daemon that stopped mid-scan, as failed.
+    /// Close every `.tmp-` scan left unfinished, as failed, with the most honest reason at
+    /// hand: the daemon's own record in the directory (a scan whose archiving failed), else
+    /// the pipeline's summary (the scan ended but was never archived), else [`INTERRUPTED`]
+    /// with the frame count the index last noted.
     fn recover(&self) -> Result<(), ArchiveError> {
         for entry in std::fs::read_dir(&self.root).map_err(io_at(&self.root))? {
             let entry = entry.map_err(io_at(&self.root))?;
@@ -166,40 +341,63 @@ impl Archive {
             let Some(id) = name.strip_prefix(TMP_PREFIX) else {
                 continue;
             };
-            if ScanId::parse(id).is_err() || !entry.path().is_dir() {
-                tracing::warn!("archive: ignoring {name}: not a scan directory");
+            let is_dir = entry.file_type().is_ok_and(|t| t.is_dir());
+            if ScanId::parse(id).is_err() || !is_dir {
+                tracing::warn!(
+                    "archive: ignoring {name}: not a scan directory (symlinks are refused)"
+                );
                 continue;
             }
             let dir = entry.path();
-            let mut record = match self.index.lock().unwrap().get(id) {
-                Ok(Some(r)) => r,
-                _ => Record::running(
-                    id.to_string(),
-                    NewScan {
-                        subject: "unknown".into(),
-                        side: "unknown".into(),
-                        notes: String::new(),
-                    },
-                ),
+            let own = std::fs::read(dir.join(RECORD))
+                .ok()
+                .and_then(|b| serde_json::from_slice::<Record>(&b).ok())
+                .filter(|r| r.id == id && r.status != Status::Running);
+            let record = match own {
+                Some(r) => r,
+                None => {
+                    let indexed = self.with_index(|i| i.get(id)).ok().flatten();
+                    let mut r = indexed.unwrap_or_else(|| {
+                        Record::running(
+                            id.to_string(),
+                            NewScan {
+                                subject: "unknown".into(),
+                                side: "unknown".into(),
+                                notes: String::new(),
+                            },
+                        )
+                    });
+                    match read_summary(&dir) {
+                        Some(s) => {
+                            r.frames = s.frames;
+                            r.points = s.points;
+                            r.reason = Some(format!(
+                                "{NOT_ARCHIVED} (its summary says {}{}): the archive could \
+                                 not be written or the daemon stopped while archiving",
+                                s.status,
+                                s.reason.map_or(String::new(), |x| format!(": {x}"))
+                            ));
+                        }
+                        None => r.reason = Some(INTERRUPTED.into()),
+                    }
+                    r.status = Status::Failed;
+                    r.finished = Some(footscan::util::now_rfc3339());
+                    r
+                }
             };
-            // A scan the daemon already closed but could not rename keeps its own reason.
-            if record.status == Status::Running || record.reason.is_none() {
-                record.reason = Some(INTERRUPTED.into());
-            }
-            record.status = Status::Failed;
-            record.finished = Some(footscan::util::now_rfc3339());
-            if let Some(s) = read_summary(&dir) {
-                record.frames = s.0;
-                record.points = s.1;
-            }
-            tracing::warn!("archive: scan {id} was interrupted; kept as failed");
+            tracing::warn!(
+                "archive: scan {id} was left unfinished; kept as {}: {}",
+                record.status.as_str(),
+                record.reason.as_deref().unwrap_or("")
+            );
             self.seal(&dir, &record)?;
         }
         Ok(())
     }
 
-    /// Recreate the index from the scan directories' record.json files.
-    pub fn rebuild(&self) -> Result<usize, ArchiveError> {
+    /// The records of the finished scan directories (real directories named by a valid id,
+    /// each with its own record.json); anything else is skipped with a warning.
+    fn scan_records(&self) -> Result<Vec<Record>, ArchiveError> {
         let mut records = Vec::new();
         for entry in std::fs::read_dir(&self.root).map_err(io_at(&self.root))? {
             let entry = entry.map_err(io_at(&self.root))?;
@@ -207,6 +405,13 @@ impl Archive {
             let Ok(id) = ScanId::parse(&name) else {
                 continue;
             };
+            if !entry.file_type().is_ok_and(|t| t.is_dir()) {
+                tracing::warn!(
+                    "archive: {} skipped: not a directory (symlinked scan directories are refused)",
+                    entry.path().display()
+                );
+                continue;
+            }
             let path = entry.path().join(RECORD);
             let text = match std::fs::read(&path) {
                 Ok(t) => t,
@@ -225,15 +430,15 @@ impl Archive {
                 Err(e) => tracing::warn!("archive: {} skipped: {e}", path.display()),
             }
         }
+        Ok(records)
+    }
+
+    /// Recreate the index from the scan directories' record.json files.
+    pub fn rebuild(&self) -> Result<usize, ArchiveError> {
+        let mut records = self.scan_records()?;
         // Scans running right now live only in the index: keep them.
-        let mut index = self.index.lock().unwrap();
-        let db = |e| ArchiveError::Index {
-            path: self.root.join(INDEX),
-            source: e,
-        };
-        let running: Vec<Record> = index
-            .list()
-            .map_err(db)?
+        let running: Vec<Record> = self
+            .with_index(|i| i.list())?
             .into_iter()
             .filter(|r| {
                 r.status == Status::Running
@@ -241,32 +446,58 @@ impl Archive {
             })
             .collect();
         records.extend(running);
-        index.replace_all(&records).map_err(db)?;
+        self.with_index(|i| i.replace_all(&records))?;
         Ok(records.len())
     }
 
-    /// Every scan, newest first.
+    /// Every scan, newest first. A finished scan whose directory is gone (deleted behind
+    /// the daemon's back) or is not a real directory inside the archive is dropped from the
+    /// index, not listed.
     pub fn list(&self) -> Result<Vec<Record>, ArchiveError> {
-        self.index
-            .lock()
-            .unwrap()
-            .list()
-            .map_err(|e| ArchiveError::Index {
-                path: self.root.join(INDEX),
-                source: e,
-            })
+        let mut out = self.with_index(|i| i.list())?;
+        self.overlay(&mut out);
+        out.retain(|r| self.present(r));
+        Ok(out)
     }
 
     pub fn get(&self, id: &ScanId) -> Result<Record, ArchiveError> {
-        self.index
-            .lock()
-            .unwrap()
-            .get(id.as_str())
-            .map_err(|e| ArchiveError::Index {
-                path: self.root.join(INDEX),
-                source: e,
-            })?
+        let r = self.with_index(|i| i.get(id.as_str()))?;
+        let mut v: Vec<Record> = r.into_iter().collect();
+        self.overlay(&mut v);
+        v.into_iter()
+            .find(|r| self.present(r))
             .ok_or_else(|| ArchiveError::NotFound(id.to_string()))
+    }
+
+    /// Records the index refused replace their rows.
+    fn overlay(&self, v: &mut [Record]) {
+        let unindexed = self.unindexed.lock().unwrap();
+        if unindexed.is_empty() {
+            return;
+        }
+        for r in v.iter_mut() {
+            if let Some(x) = unindexed.get(&r.id) {
+                *r = x.clone();
+            }
+        }
+    }
+
+    /// Whether a listed scan still has its directory (a running one always counts); a gone
+    /// one leaves the index.
+    fn present(&self, r: &Record) -> bool {
+        if r.status == Status::Running || self.checked_dir(r).is_some() {
+            return true;
+        }
+        tracing::warn!(
+            "archive: scan {} dropped from the index: {} is missing or not a directory inside the archive",
+            r.id,
+            self.dir(r).display()
+        );
+        let id = r.id.clone();
+        if let Err(e) = self.with_index(|i| i.delete(&id)) {
+            tracing::error!("archive index: could not drop scan {id}: {e}");
+        }
+        false
     }
 
     /// The directory holding a scan's files (the temporary one while it runs).
@@ -276,20 +507,37 @@ impl Archive {
         match record.status {
             Status::Running => tmp,
             // Closed but not renamed (archiving failed): its files are still in .tmp-<id>.
-            _ if !done.exists() && tmp.is_dir() => tmp,
+            _ if done.symlink_metadata().is_err() && tmp.is_dir() => tmp,
             _ => done,
         }
     }
 
+    /// The scan's directory if it is a real directory directly inside the archive: not a
+    /// symlink, and not resolving anywhere else (a symlink to /etc must serve nothing).
+    pub fn checked_dir(&self, record: &Record) -> Option<PathBuf> {
+        let dir = self.dir(record);
+        let meta = dir.symlink_metadata().ok()?;
+        if !meta.is_dir() {
+            return None;
+        }
+        let real = dir.canonicalize().ok()?;
+        (real.parent() == Some(self.real_root.as_path())).then_some(dir)
+    }
+
     /// The downloadable files of a scan, by name.
     pub fn artifacts(&self, record: &Record) -> Result<Vec<Artifact>, ArchiveError> {
-        let dir = self.dir(record);
+        let dir = self.checked_dir(record).ok_or_else(|| ArchiveError::Io {
+            path: self.dir(record),
+            source: std::io::Error::other(
+                "missing, or not a directory inside the archive (symlinks are refused)",
+            ),
+        })?;
         let mut out = Vec::new();
         for entry in std::fs::read_dir(&dir).map_err(io_at(&dir))? {
             let entry = entry.map_err(io_at(&dir))?;
             let name = entry.file_name().to_string_lossy().into_owned();
             let meta = entry.metadata().map_err(io_at(&dir))?;
-            if meta.is_file() && valid_file_name(&name) {
+            if entry.file_type().is_ok_and(|t| t.is_file()) && valid_file_name(&name) {
                 out.push(Artifact {
                     content_type: content_type(&name),
                     name,
@@ -301,32 +549,88 @@ impl Archive {
         Ok(out)
     }
 
-    /// The path of artifact `name` of a scan, if it exists (name validated here too).
+    /// The path of artifact `name` of a scan, if it exists as a regular file (not a
+    /// symlink) in the scan's checked directory (name validated here too).
     pub fn artifact_path(&self, record: &Record, name: &str) -> Option<PathBuf> {
         if !valid_file_name(name) {
             return None;
         }
-        let p = self.dir(record).join(name);
+        let p = self.checked_dir(record)?.join(name);
         p.symlink_metadata().ok().filter(|m| m.is_file()).map(|_| p)
     }
 
+    /// Write `r` into the index; a refused write keeps `r` in memory (listed instead of the
+    /// row) and is retried with the next write. The directory is the truth: rebuild repairs
+    /// the index at the next start.
     fn index_upsert(&self, r: &Record) {
-        // The directory is the truth: a failed index write is repaired by the next rebuild.
-        if let Err(e) = self.index.lock().unwrap().upsert(r) {
-            tracing::error!(
-                "archive index: could not record scan {} as {}: {e}",
-                r.id,
-                r.status.as_str()
-            );
+        let pending: Vec<Record> = {
+            let mut u = self.unindexed.lock().unwrap();
+            u.remove(&r.id);
+            u.values().cloned().collect()
+        };
+        for rec in pending.iter().chain(std::iter::once(r)) {
+            match self.with_index(|i| i.upsert(rec)) {
+                Ok(()) => {
+                    self.unindexed.lock().unwrap().remove(&rec.id);
+                }
+                Err(e) => {
+                    tracing::error!(
+                        "archive index: could not record scan {} as {}: {e}",
+                        rec.id,
+                        rec.status.as_str()
+                    );
+                    if rec.status != Status::Running {
+                        self.unindexed
+                            .lock()
+                            .unwrap()
+                            .insert(rec.id.clone(), rec.clone());
+                    }
+                }
+            }
         }
     }
 }
 
-/// (frames, points) from a scan directory's scan.json, if it has one.
-fn read_summary(dir: &Path) -> Option<(u64, u64)> {
+/// Move a damaged index (and its journal) aside as `index.sqlite.corrupt-<time>`; the
+/// notice saying so.
+fn move_aside(root: &Path, why: &str) -> Result<String, ArchiveError> {
+    let stamp = id::compact_utc_now();
+    let db = root.join(INDEX);
+    let aside = root.join(format!("{INDEX}.corrupt-{stamp}"));
+    std::fs::rename(&db, &aside).map_err(io_at(&db))?;
+    let journal = root.join(format!("{INDEX}-journal"));
+    if journal.symlink_metadata().is_ok() {
+        let _ = std::fs::rename(
+            &journal,
+            root.join(format!("{INDEX}-journal.corrupt-{stamp}")),
+        );
+    }
+    let note = format!(
+        "the index {} was damaged ({why}); moved to {} and rebuilt from the scan directories",
+        db.display(),
+        aside.display()
+    );
+    tracing::error!("archive: {note}");
+    Ok(note)
+}
+
+/// What a scan directory's scan.json (the pipeline's summary) says.
+struct Summary {
+    status: String,
+    reason: Option<String>,
+    frames: u64,
+    points: u64,
+}
+
+fn read_summary(dir: &Path) -> Option<Summary> {
     let v: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("scan.json")).ok()?).ok()?;
-    Some((v["frames"].as_u64()?, v["points"].as_u64()?))
+    Some(Summary {
+        status: v["status"].as_str().unwrap_or("?").to_string(),
+        reason: v["reason"].as_str().map(str::to_string),
+        frames: v["frames"].as_u64()?,
+        points: v["points"].as_u64()?,
+    })
 }
 
 fn sync_dir(dir: &Path) -> Result<(), ArchiveError> {

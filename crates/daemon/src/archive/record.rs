@@ -100,6 +100,12 @@ pub enum ArchiveError {
     },
     #[error("archive {path}: record.json is not valid: {message}")]
     BadRecord { path: PathBuf, message: String },
+    #[error(
+        "archive {root} is in use by {holder}: only one process may write into an archive \
+         (a second one would recover the first one's running scan); stop it, or point \
+         `archive` in [daemon] of the config elsewhere"
+    )]
+    Locked { root: PathBuf, holder: String },
     #[error("scan {0} is not in the archive")]
     NotFound(String),
 }

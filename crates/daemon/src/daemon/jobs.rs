@@ -100,6 +100,7 @@ impl Daemon {
         let mut last_event: Option<Instant> = None;
         let on_progress = |p: &ScanProgress| {
             let prog = self.update_progress(&id, p, started);
+            self.archive.note_progress(&id, prog.frames, prog.points);
             if last_event.is_none_or(|t| t.elapsed() >= PROGRESS_PERIOD) {
                 last_event = Some(Instant::now());
                 self.emit(Event::Progress(prog));
