@@ -3,7 +3,7 @@
 //! specular spikes and Gray16 frames.
 
 use footscan::bench::detect::{accuracy, noise_config, sweep_frames, Accuracy};
-use footscan::detect::{build, DetectParams};
+use footscan::detect::{build, DetectParams, Threshold, ThresholdParam};
 use footscan_hal::PixelFormat;
 use footscan_sim::render::NoiseConfig;
 
@@ -69,7 +69,7 @@ fn glass_reflection_and_specular_spikes_do_not_make_outliers() {
         ..noise_config("default", 1.6)
     };
     let p = DetectParams {
-        threshold: Some(75.0),
+        threshold: Some(ThresholdParam(Threshold::Dn(75.0))),
         ..Default::default()
     };
     for name in ["bezier-plus", "cog"] {

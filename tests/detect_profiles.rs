@@ -2,7 +2,7 @@
 //! across a pixel, saturated flat tops, a second (weaker or equal) line, specular spikes, lines
 //! at the border, Gray16.
 
-use footscan::detect::{build, DetectParams, LinePeak, Reject, NAMES};
+use footscan::detect::{build, DetectParams, LinePeak, Reject, Threshold, ThresholdParam, NAMES};
 use footscan_hal::{Frame, Pixels, Timestamp};
 
 /// Ambient + sum of pixel-integrated Gaussians (centre, sigma, peak) of one row, unrounded.
@@ -301,9 +301,13 @@ fn gray16_gives_the_gray8_answer() {
     }
     // The threshold is in 8-bit DN for both formats: a 20 DN line is below 30 in both.
     let dim = vec![row_f(256, &[(100.0, 1.6, 12.0)])];
+    let fixed = DetectParams {
+        threshold: Some(ThresholdParam(Threshold::Dn(30.0))),
+        ..Default::default()
+    };
     for name in NAMES {
         assert_eq!(
-            detect(name, &DetectParams::default(), &frame16(&dim))[0].reject,
+            detect(name, &fixed, &frame16(&dim))[0].reject,
             Some(Reject::BelowThreshold)
         );
     }
@@ -321,7 +325,7 @@ fn unknown_detector_and_parameters_are_refused() {
     assert!(build(
         "cog",
         &DetectParams {
-            threshold: Some(300.0),
+            threshold: Some(ThresholdParam(Threshold::Dn(300.0))),
             ..Default::default()
         }
     )

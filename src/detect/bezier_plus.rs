@@ -233,11 +233,13 @@ impl BezierPlus {
         // 1-3 in one pass, each row while it is in the L1 cache. The line width is a running
         // mean over the preceding valid rows (weight 1/8 per row), started by the first one.
         let mut width = f64::NAN;
-        let blocks = scratch.for_width(w);
+        scratch.for_width(w);
         for (r, row) in px.chunks_exact(w).enumerate() {
             prefetch_ahead(px, r, w);
+            let thr = scratch.threshold(&cfg, r, row);
+            let blocks = scratch.for_width(w);
             block_max(row, blocks);
-            out[r] = match coarse_row(row, blocks, &cfg) {
+            out[r] = match coarse_row(row, blocks, &cfg, thr) {
                 Err((why, v)) => {
                     self.raw[r] = f64::NAN;
                     LinePeak::rejected(why, v)
@@ -259,7 +261,7 @@ impl BezierPlus {
                     match estimate_row(row, &pk, sigma, &self.cfg, self.bias.as_ref(), binom) {
                         Some(c) => {
                             self.raw[r] = c;
-                            accepted(c, &pk, &cfg, T::SCALE, T::FULL as f32)
+                            accepted(c, &pk, T::FULL as f32)
                         }
                         None => {
                             self.raw[r] = f64::NAN;

@@ -64,11 +64,31 @@ impl Px for u16 {
     }
 }
 
+/// The level a row's peak must exceed to hold a line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Threshold {
+    /// Relative to the row's own background: its robust level (median of a sample of the row)
+    /// plus [`AUTO_SIGMAS`] times its robust spread (MAD), at least [`AUTO_MIN_DN`] above the
+    /// level. Ambient light and the camera's noise set it, not the operator.
+    Auto,
+    /// A fixed level, 8-bit DN (x257 for Gray16).
+    Dn(f32),
+}
+
+/// `Threshold::Auto`: robust standard deviations of the row's background above its level.
+pub const AUTO_SIGMAS: f32 = 6.0;
+/// `Threshold::Auto`: least contrast over the row's level, 8-bit DN (noise-free frames).
+pub const AUTO_MIN_DN: f32 = 10.0;
+/// `Threshold::Auto`: the background statistics are refreshed every this many rows.
+pub const AUTO_BAND_ROWS: usize = 8;
+/// `Threshold::Auto`: pixels sampled (evenly spaced) for a row's statistics.
+const AUTO_SAMPLES: usize = 64;
+
 /// Settings of the coarse search, in 8-bit DN (scaled by 257 for Gray16).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CoarseConfig {
-    /// A row's peak must exceed this (DN) to hold a line.
-    pub threshold: f32,
+    /// A row's peak must exceed this to hold a line.
+    pub threshold: Threshold,
     /// A second peak outside the line of at least this fraction of the line's peak (above the
     /// background) makes the row ambiguous. > 1 disables the test.
     pub ambiguity: f32,
@@ -81,7 +101,7 @@ pub struct CoarseConfig {
 impl Default for CoarseConfig {
     fn default() -> Self {
         CoarseConfig {
-            threshold: 30.0,
+            threshold: Threshold::Auto,
             ambiguity: 0.8,
             max_saturated_px: 12,
             skip_spikes: true,
@@ -91,11 +111,12 @@ impl Default for CoarseConfig {
 
 impl CoarseConfig {
     pub fn validate(&self) -> Result<(), super::DetectError> {
-        if !(self.threshold > 0.0 && self.threshold < 255.0) {
-            return Err(super::DetectError::Param(format!(
-                "threshold = {}: valid range is (0, 255) DN",
-                self.threshold
-            )));
+        if let Threshold::Dn(t) = self.threshold {
+            if !(t > 0.0 && t < 255.0) {
+                return Err(super::DetectError::Param(format!(
+                    "threshold = {t}: valid range is (0, 255) DN, or \"auto\""
+                )));
+            }
         }
         if self.ambiguity.is_nan() || self.ambiguity <= 0.0 {
             return Err(super::DetectError::Param(format!(
@@ -127,6 +148,8 @@ pub struct Peak {
     pub hi: usize,
     /// Local background (frame units).
     pub bg: f32,
+    /// The threshold this row was cut at (frame units).
+    pub thr: f32,
     /// Width above half the peak (over the background), px, interpolated.
     pub width: f32,
     /// Saturated pixels at the peak (0 if none).
@@ -162,13 +185,58 @@ impl Peak {
 /// Pixels per block of the block-maximum pass.
 pub const BLOCK: usize = 64;
 
-/// Scratch for the coarse search: the block maxima of one row.
+/// Scratch for the coarse search: the block maxima of one row, and the automatic threshold of
+/// the current band of rows.
 #[derive(Default, Debug, Clone)]
 pub struct CoarseScratch<T> {
     blocks: Vec<T>,
+    auto_thr: f32,
+}
+
+/// Robust level and spread of a row: median and 1.4826 x MAD of [`AUTO_SAMPLES`] evenly spaced
+/// pixels (frame units). On the stack: no allocation.
+pub fn row_background<T: Px>(row: &[T]) -> (f32, f32) {
+    let n = row.len().min(AUTO_SAMPLES);
+    if n == 0 {
+        return (0.0, 0.0);
+    }
+    let step = row.len() / n;
+    let mut s = [0u32; AUTO_SAMPLES];
+    for (k, v) in s[..n].iter_mut().enumerate() {
+        *v = row[k * step + step / 2].f() as u32;
+    }
+    let mid = n / 2;
+    let med = *s[..n].select_nth_unstable(mid).1;
+    for v in s[..n].iter_mut() {
+        *v = v.abs_diff(med);
+    }
+    let mad = *s[..n].select_nth_unstable(mid).1;
+    (med as f32, 1.4826 * mad as f32)
+}
+
+/// The automatic threshold of a row with background `(level, spread)` (frame units).
+#[inline]
+pub fn auto_threshold<T: Px>(level: f32, spread: f32) -> f32 {
+    level + (AUTO_SIGMAS * spread).max(AUTO_MIN_DN * T::SCALE)
 }
 
 impl<T: Px> CoarseScratch<T> {
+    /// The threshold of row `r` (frame units): fixed, or automatic from the row's background,
+    /// refreshed every [`AUTO_BAND_ROWS`] rows (the first row of each band stands for it).
+    #[inline]
+    pub fn threshold(&mut self, cfg: &CoarseConfig, r: usize, row: &[T]) -> f32 {
+        match cfg.threshold {
+            Threshold::Dn(t) => t * T::SCALE,
+            Threshold::Auto => {
+                if r.is_multiple_of(AUTO_BAND_ROWS) || self.auto_thr <= 0.0 {
+                    let (level, spread) = row_background(row);
+                    self.auto_thr = auto_threshold::<T>(level, spread);
+                }
+                self.auto_thr
+            }
+        }
+    }
+
     /// The block buffer for rows of `w` pixels (allocates only when `w` changes).
     pub fn for_width(&mut self, w: usize) -> &mut [T] {
         let nb = w.div_ceil(BLOCK);
@@ -394,18 +462,19 @@ fn spike_at<T: Px>(row: &[T], pos: usize, cfg: &CoarseConfig) -> Option<(usize, 
     (b - a < 6 && left < dark && right < dark).then(|| (a.saturating_sub(1), (b + 1).min(w - 1)))
 }
 
-/// The coarse search of one row whose block maxima ([`block_max`]) are `blocks`.
-/// `Err((reason, intensity))` when no line is accepted.
+/// The coarse search of one row whose block maxima ([`block_max`]) are `blocks`, cut at `thr`
+/// (frame units, [`CoarseScratch::threshold`]). `Err((reason, intensity))` when no line is
+/// accepted.
 pub fn coarse_row<T: Px>(
     row: &[T],
     blocks: &[T],
     cfg: &CoarseConfig,
+    thr: f32,
 ) -> Result<Peak, (Reject, f32)> {
     let w = row.len();
     if w < 3 {
         return Err((Reject::Border, 0.0));
     }
-    let thr = cfg.threshold * T::SCALE;
     let full = T::FULL as f32;
     let mut ex = Ranges::default();
     let (mut m0, mut m1, mut top);
@@ -532,6 +601,7 @@ pub fn coarse_row<T: Px>(
         lo,
         hi,
         bg,
+        thr,
         width,
         saturated: saturated as u16,
         second,
@@ -544,9 +614,10 @@ mod tests {
 
     fn run(row: &[u8], cfg: &CoarseConfig) -> Result<Peak, (Reject, f32)> {
         let mut s = CoarseScratch::default();
+        let thr = s.threshold(cfg, 0, row);
         let blocks = s.for_width(row.len());
         block_max(row, blocks);
-        coarse_row(row, blocks, cfg)
+        coarse_row(row, blocks, cfg, thr)
     }
 
     fn line(w: usize, c: f64, sigma: f64, a: f64) -> Vec<u8> {

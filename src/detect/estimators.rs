@@ -41,26 +41,28 @@ fn run_rows<T: Px, E: Estimate>(
     scratch: &mut CoarseScratch<T>,
     out: &mut [LinePeak],
 ) {
-    let blocks = scratch.for_width(w);
+    scratch.for_width(w);
     for (r, (row, o)) in px.chunks_exact(w).zip(out.iter_mut()).enumerate() {
         prefetch_ahead(px, r, w);
+        let thr = scratch.threshold(cfg, r, row);
+        let blocks = scratch.for_width(w);
         block_max(row, blocks);
-        *o = match coarse_row(row, blocks, cfg) {
+        *o = match coarse_row(row, blocks, cfg, thr) {
             Err((r, v)) => LinePeak::rejected(r, v),
             Ok(pk) => match est.estimate(row, &pk, cfg) {
-                Ok(col) => accepted(col, &pk, cfg, T::SCALE, T::FULL as f32),
+                Ok(col) => accepted(col, &pk, T::FULL as f32),
                 Err(r) => LinePeak::rejected(r, pk.peak),
             },
         };
     }
 }
 
-pub(crate) fn accepted(col: f64, pk: &Peak, cfg: &CoarseConfig, scale: f32, full: f32) -> LinePeak {
+pub(crate) fn accepted(col: f64, pk: &Peak, full: f32) -> LinePeak {
     LinePeak {
         col,
         intensity: pk.peak,
         width: pk.width,
-        quality: pk.quality(cfg.threshold * scale, full),
+        quality: pk.quality(pk.thr, full),
         reject: None,
     }
 }
@@ -94,8 +96,8 @@ impl Estimate for Cog {
     fn name(&self) -> &'static str {
         "cog"
     }
-    fn estimate<T: Px>(&self, row: &[T], pk: &Peak, cfg: &CoarseConfig) -> Result<f64, Reject> {
-        let t = cfg.threshold * T::SCALE;
+    fn estimate<T: Px>(&self, row: &[T], pk: &Peak, _: &CoarseConfig) -> Result<f64, Reject> {
+        let t = pk.thr;
         let (mut s, mut sx) = (0.0f64, 0.0f64);
         for (i, v) in row.iter().enumerate().take(pk.hi + 1).skip(pk.lo) {
             let wgt = (v.f() - t) as f64;

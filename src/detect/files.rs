@@ -1,7 +1,8 @@
-//! Recorded frames for `footscan detect`: PNG files (Gray8 or Gray16; colour images are
-//! converted to gray) or directories of them, and the peaks CSV.
+//! Recorded frames for `footscan detect`: PNG (or JPEG) files, grey or colour, or directories of
+//! them, and the peaks CSV. Colour stays colour: which channel the detector sees is a setting
+//! ([`super::Channel`]), never a silent conversion.
 
-use super::{DetectError, LinePeak};
+use super::{ColorImage, ColorPixels, DetectError, Image, LinePeak};
 use footscan_hal::{Frame, Pixels, Timestamp};
 use image::DynamicImage;
 use std::io::Write;
@@ -14,7 +15,7 @@ fn input(path: &Path, reason: impl std::fmt::Display) -> DetectError {
     }
 }
 
-/// The PNG files named by `inputs`, in order: a file as given, a directory as its `*.png`
+/// The image files (PNG, JPEG) named by `inputs`, in order: a file as given, a directory as its `*.png`
 /// files (case-insensitive extension) in name order. Frame index = position in this list.
 pub fn collect_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, DetectError> {
     let mut files = Vec::new();
@@ -25,14 +26,16 @@ pub fn collect_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, DetectError> {
                 .filter_map(|e| e.ok().map(|e| e.path()))
                 .filter(|f| {
                     f.is_file()
-                        && f.extension()
-                            .and_then(|x| x.to_str())
-                            .is_some_and(|x| x.eq_ignore_ascii_case("png"))
+                        && f.extension().and_then(|x| x.to_str()).is_some_and(|x| {
+                            ["png", "jpg", "jpeg"]
+                                .iter()
+                                .any(|e| x.eq_ignore_ascii_case(e))
+                        })
                 })
                 .collect();
             v.sort();
             if v.is_empty() {
-                return Err(input(p, "no .png files in this directory"));
+                return Err(input(p, "no .png or .jpg files in this directory"));
             }
             files.extend(v);
         } else if p.is_file() {
@@ -47,8 +50,35 @@ pub fn collect_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, DetectError> {
     Ok(files)
 }
 
-/// Read one PNG as a frame (`seq` = its index). 8-bit gray stays Gray8, 16-bit gray Gray16;
-/// colour is converted to gray of its own depth.
+/// Read one image file (PNG or JPEG) as it is: 8-bit grey as Gray8, 16-bit grey as Gray16,
+/// colour as RGB8 or RGB16 (alpha dropped). `seq` is its frame index.
+pub fn load_image(path: &Path, seq: u64) -> Result<Image, DetectError> {
+    let img = image::ImageReader::open(path)
+        .map_err(|e| input(path, e))?
+        .with_guessed_format()
+        .map_err(|e| input(path, e))?
+        .decode()
+        .map_err(|e| input(path, e))?;
+    let (w, h) = (img.width(), img.height());
+    if w == 0 || h == 0 {
+        return Err(input(path, "empty image"));
+    }
+    let gray = |p| Ok(Image::Gray(Frame::new(seq, Timestamp::default(), w, h, p)));
+    let color = |p| Ok(Image::Color(ColorImage::new(w, h, p)));
+    match img {
+        DynamicImage::ImageLuma8(b) => gray(Pixels::Gray8(b.into_raw())),
+        DynamicImage::ImageLuma16(b) => gray(Pixels::Gray16(b.into_raw())),
+        DynamicImage::ImageLumaA8(_) => gray(Pixels::Gray8(img.to_luma8().into_raw())),
+        DynamicImage::ImageLumaA16(_) => gray(Pixels::Gray16(img.to_luma16().into_raw())),
+        DynamicImage::ImageRgb8(b) => color(ColorPixels::Rgb8(b.into_raw())),
+        DynamicImage::ImageRgba8(_) => color(ColorPixels::Rgb8(img.to_rgb8().into_raw())),
+        other => color(ColorPixels::Rgb16(other.to_rgb16().into_raw())),
+    }
+}
+
+/// Read one PNG as a grey frame (`seq` = its index). 8-bit gray stays Gray8, 16-bit gray
+/// Gray16; colour is converted to luma of its own depth (for callers that want grey whatever
+/// the file holds; detection goes through [`load_image`] and a channel).
 pub fn load_png(path: &Path, seq: u64) -> Result<Frame, DetectError> {
     let img = image::ImageReader::open(path)
         .map_err(|e| input(path, e))?

@@ -3,10 +3,45 @@
 //! the tests all read it.
 
 use super::{
-    BezierLiteral, BezierPlus, BezierPlusConfig, BlaisRioux, CoarseConfig, Cog, DetectError,
-    Detector, Gaussian, Parabolic, RowDetector, Steger,
+    BezierLiteral, BezierPlus, BezierPlusConfig, BlaisRioux, Channel, CoarseConfig, Cog,
+    DetectError, Detector, Gaussian, Parabolic, Prep, RowDetector, Steger, Threshold,
 };
 use serde::Deserialize;
+
+/// `threshold` as written in a stage table or on the command line: `"auto"` or a number (DN).
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(try_from = "ThresholdRepr")]
+pub struct ThresholdParam(pub Threshold);
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum ThresholdRepr {
+    Dn(f32),
+    Word(String),
+}
+
+impl TryFrom<ThresholdRepr> for ThresholdParam {
+    type Error = String;
+    fn try_from(r: ThresholdRepr) -> Result<Self, String> {
+        match r {
+            ThresholdRepr::Dn(v) => Ok(ThresholdParam(Threshold::Dn(v))),
+            ThresholdRepr::Word(w) => w.parse(),
+        }
+    }
+}
+
+impl std::str::FromStr for ThresholdParam {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s.trim() == "auto" {
+            return Ok(ThresholdParam(Threshold::Auto));
+        }
+        s.trim()
+            .parse::<f32>()
+            .map(|v| ThresholdParam(Threshold::Dn(v)))
+            .map_err(|_| format!("threshold = {s:?}: \"auto\" or a number of DN (0..255)"))
+    }
+}
 
 /// Builds a detector from the coarse search settings and its own parameters.
 type Constructor = fn(CoarseConfig, &DetectParams) -> Result<Box<dyn Detector>, DetectError>;
@@ -133,8 +168,12 @@ pub fn info(name: &str) -> Result<&'static DetectorInfo, DetectError> {
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DetectParams {
-    /// Minimum peak, DN of an 8-bit frame (x257 for Gray16). Default 30.
-    pub threshold: Option<f32>,
+    /// Minimum peak: `"auto"` (default; relative to each row's background level and noise) or
+    /// DN of an 8-bit frame (x257 for Gray16).
+    pub threshold: Option<ThresholdParam>,
+    /// The grey channel of colour frames (luma, red, green, blue, red-minus-others,
+    /// green-minus-others). Unset: grey frames only.
+    pub channel: Option<Channel>,
     /// Second peak / line peak (both over the background) that makes a row ambiguous. Default 0.8.
     pub ambiguity: Option<f32>,
     /// Longest saturated run accepted, px. Default 12.
@@ -155,10 +194,30 @@ pub struct DetectParams {
     pub sigma: Option<f64>,
 }
 
-/// Build the detector `name` with `p`.
+/// Build the detector `name` with `p`, for grey frames (a colour `channel` is refused: the
+/// camera stages see Gray8/Gray16 frames; [`build_with_prep`] takes colour input).
 pub fn build(name: &str, p: &DetectParams) -> Result<Box<dyn Detector>, DetectError> {
+    if let Some(c) = p.channel.filter(|&c| c != Channel::Luma) {
+        return Err(DetectError::Param(format!(
+            "channel = {}: this detector sees grey frames (Gray8/Gray16); only luma applies",
+            c.as_str()
+        )));
+    }
+    build_detector(name, p)
+}
+
+/// The detector `name` and the [`Prep`] (channel conversion, background) its input goes
+/// through: for colour frames and laser-off subtraction.
+pub fn build_with_prep(
+    name: &str,
+    p: &DetectParams,
+) -> Result<(Box<dyn Detector>, Prep), DetectError> {
+    Ok((build_detector(name, p)?, Prep::new(p.channel)))
+}
+
+fn build_detector(name: &str, p: &DetectParams) -> Result<Box<dyn Detector>, DetectError> {
     let coarse = CoarseConfig {
-        threshold: p.threshold.unwrap_or(30.0),
+        threshold: p.threshold.map_or(Threshold::Auto, |t| t.0),
         ambiguity: p.ambiguity.unwrap_or(0.8),
         max_saturated_px: p.max_saturated_px.unwrap_or(12),
         skip_spikes: p.skip_spikes.unwrap_or(true),

@@ -18,6 +18,7 @@
 
 mod bernstein;
 mod bezier_plus;
+pub mod channel;
 pub mod coarse;
 mod error;
 mod estimators;
@@ -27,10 +28,13 @@ mod list;
 
 pub use bernstein::{bisect_literal, root_near, Binomials, MAX_N};
 pub use bezier_plus::{BezierPlus, BezierPlusConfig};
-pub use coarse::{sum_bytes, CoarseConfig, Peak};
+pub use channel::{Channel, ColorImage, ColorPixels, Image, Prep};
+pub use coarse::{sum_bytes, CoarseConfig, Peak, Threshold};
 pub use error::DetectError;
 pub use estimators::{
     BezierLiteral, BlaisRioux, Cog, Estimate, Gaussian, Parabolic, RowDetector, Steger,
 };
 pub use line::{Detector, LinePeak, Reject};
-pub use list::{build, DetectParams, DetectorInfo, DETECTORS, NAMES};
+pub use list::{
+    build, build_with_prep, DetectParams, DetectorInfo, ThresholdParam, DETECTORS, NAMES,
+};

@@ -51,6 +51,19 @@ enum What {
         #[arg(long)]
         json: bool,
     },
+    /// Laser-line detectors on real frames of other scanners (MANIFEST.csv in DATA): rows
+    /// found where the line is visible, straightness on flat boards, spread on static regions,
+    /// false lines on laser-off frames.
+    Real {
+        /// The frames directory (default: $FOOTSCAN_DATA/frames or ../shared/data/frames).
+        #[arg(long)]
+        data: Option<PathBuf>,
+        /// Only these detectors (repeatable; default all).
+        #[arg(long = "detector")]
+        detectors: Vec<String>,
+        #[arg(long)]
+        json: bool,
+    },
     /// Laser-line detectors: accuracy against simulator truth over line sigma and noise, and
     /// frames/s per core beside the memory-bandwidth floor (a pass summing every byte).
     Detect {
@@ -133,6 +146,32 @@ pub fn run(args: Args) -> Result<()> {
                 println!("{}", serde_json::to_string_pretty(&rows)?);
             } else {
                 println!("{}", footscan::bench::render::table(&rows));
+            }
+            Ok(())
+        }
+        What::Real {
+            data,
+            detectors,
+            json,
+        } => {
+            use footscan::bench::real;
+            let dir = data.unwrap_or_else(real::default_data_dir);
+            let detectors = if detectors.is_empty() {
+                real::all_detectors()
+            } else {
+                detectors
+            };
+            let (rows, spreads) = real::run(&dir, &detectors).map_err(anyhow::Error::msg)?;
+            if json {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&serde_json::json!({
+                        "regions": rows,
+                        "static": spreads
+                    }))?
+                );
+            } else {
+                print!("{}", real::table(&rows, &spreads));
             }
             Ok(())
         }
