@@ -403,7 +403,7 @@ mod tests {
         assert_eq!(f.pixels, Pixels::Gray8(vec![0, 205, 0]));
         let mut p = Prep::new(Some(Channel::Luma));
         let f = p.prepare(&img, "t").unwrap();
-        assert_eq!(f.pixels, Pixels::Gray8(vec![250, 119, 10]));
+        assert_eq!(f.pixels, Pixels::Gray8(vec![250, 116, 10]));
     }
 
     #[test]
