@@ -78,7 +78,7 @@ pub enum Threshold {
 /// `Threshold::Auto`: robust standard deviations of the row's background above its level.
 pub const AUTO_SIGMAS: f32 = 6.0;
 /// `Threshold::Auto`: least contrast over the row's level, 8-bit DN (noise-free frames).
-pub const AUTO_MIN_DN: f32 = 10.0;
+pub const AUTO_MIN_DN: f32 = 20.0;
 /// `Threshold::Auto`: the background statistics are refreshed every this many rows.
 pub const AUTO_BAND_ROWS: usize = 8;
 /// `Threshold::Auto`: pixels sampled (evenly spaced) for a row's statistics.
