@@ -73,6 +73,11 @@ pub struct Row {
     pub guides: usize,
     /// Fastest of the repeats, ms (the join alone, without measuring or writing).
     pub time_ms: f64,
+    /// Its steps, ms: cutting and resampling the sections; section and guide curves; the
+    /// Gordon surface.
+    pub sections_ms: f64,
+    pub curves_ms: f64,
+    pub gordon_ms: f64,
     /// Worst of the two seams.
     pub gap_mm: f64,
     pub normal_deg: f64,
@@ -95,14 +100,17 @@ pub fn run(pairs: &[Pair], cases: &[Case], repeats: usize) -> Result<Vec<Row>, J
                 ..JoinParams::default()
             };
             let mut best = f64::INFINITY;
-            let mut last = None;
+            let mut fastest = None;
             for _ in 0..repeats.max(1) {
                 let t = Instant::now();
                 let j = join(&pair.back, &pair.toe, &p)?;
-                best = best.min(t.elapsed().as_secs_f64() * 1e3);
-                last = Some(j);
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                if ms < best {
+                    best = ms;
+                    fastest = Some(j);
+                }
             }
-            let j = last.unwrap();
+            let j = fastest.unwrap();
             let q = output::quality(&j, 200);
             let (s, d) = (
                 [q.back_seam, q.toe_seam],
@@ -116,6 +124,9 @@ pub fn run(pairs: &[Pair], cases: &[Case], repeats: usize) -> Result<Vec<Row>, J
                 sections: j.network.sections.len(),
                 guides: j.network.guides.len(),
                 time_ms: best,
+                sections_ms: j.timings.sections,
+                curves_ms: j.timings.curves,
+                gordon_ms: j.timings.gordon,
                 gap_mm: s[0].gap_max_mm.max(s[1].gap_max_mm),
                 normal_deg: s[0].normal_max_deg.max(s[1].normal_max_deg),
                 curvature_rel: s[0].curvature_rel_max.max(s[1].curvature_rel_max),
@@ -130,7 +141,7 @@ pub fn run(pairs: &[Pair], cases: &[Case], repeats: usize) -> Result<Vec<Row>, J
 /// The rows as a plain-text table.
 pub fn table(rows: &[Row]) -> String {
     let mut s = format!(
-        "{:<24} {:>3} {:>6} {:>5} {:>4} {:>6} {:>9} {:>8} {:>9} {:>8} {:>8} {:>8}\n",
+        "{:<24} {:>3} {:>6} {:>5} {:>4} {:>6} {:>8} {:>17} {:>8} {:>10} {:>8} {:>8} {:>8}\n",
         "pair",
         "aux",
         "points",
@@ -138,6 +149,7 @@ pub fn table(rows: &[Row]) -> String {
         "secs",
         "guides",
         "time ms",
+        "sec/curv/Gor ms",
         "gap mm",
         "normal deg",
         "curv rel",
@@ -146,7 +158,7 @@ pub fn table(rows: &[Row]) -> String {
     );
     for r in rows {
         s.push_str(&format!(
-            "{:<24} {:>3} {:>6} {:>5.0} {:>4} {:>6} {:>9.1} {:>8.1e} {:>9.1e} {:>8.1e} {:>8.3} {:>8.3}\n",
+            "{:<24} {:>3} {:>6} {:>5.0} {:>4} {:>6} {:>8.1} {:>17} {:>8.1e} {:>10.1e} {:>8.1e} {:>8.3} {:>8.3}\n",
             r.pair,
             r.aux,
             r.points,
@@ -154,6 +166,7 @@ pub fn table(rows: &[Row]) -> String {
             r.sections,
             r.guides,
             r.time_ms,
+            format!("{:.1}/{:.1}/{:.1}", r.sections_ms, r.curves_ms, r.gordon_ms),
             r.gap_mm,
             r.normal_deg,
             r.curvature_rel,
