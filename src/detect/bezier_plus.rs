@@ -409,12 +409,8 @@ fn column_noise(raw: &[f64], jump: f64, scratch: &mut Vec<f64>) -> f64 {
     scratch.clear();
     for w in raw.windows(3) {
         let (a, b, c) = (w[0], w[1], w[2]);
-        if a.is_finite()
-            && b.is_finite()
-            && c.is_finite()
-            && (a - b).abs() <= jump
-            && (c - b).abs() <= jump
-        {
+        // Continuous: the step between rows changes by at most `jump` (any slope).
+        if a.is_finite() && b.is_finite() && c.is_finite() && ((c - b) - (b - a)).abs() <= jump {
             scratch.push((a - 2.0 * b + c).abs());
         }
     }
@@ -424,6 +420,37 @@ fn column_noise(raw: &[f64], jump: f64, scratch: &mut Vec<f64>) -> f64 {
     let mid = scratch.len() / 2;
     let (_, med, _) = scratch.select_nth_unstable_by(mid, |x, y| x.total_cmp(y));
     1.4826 * *med / 6f64.sqrt()
+}
+
+/// Slope of the line at row `r` (px per row): the median of the steps to the rows up to 3
+/// away whose columns are present, among steps that agree with each other within `jump`; 0 if
+/// no neighbour is present. The estimate uses the unsmoothed columns: its noise only moves the
+/// continuity test, not the fit.
+fn local_slope(raw: &[f64], r: usize, jump: f64) -> f64 {
+    let mut st = [0.0f64; 6];
+    let mut n = 0;
+    for d in 1..=3usize {
+        for (a, b) in [(r.checked_sub(d), Some(r)), (Some(r), r.checked_add(d))] {
+            if let (Some(a), Some(b)) = (a, b) {
+                if b < raw.len() && raw[a].is_finite() && raw[b].is_finite() {
+                    st[n] = (raw[b] - raw[a]) / d as f64;
+                    n += 1;
+                }
+            }
+        }
+    }
+    if n == 0 {
+        return 0.0;
+    }
+    let s = &mut st[..n];
+    s.sort_unstable_by(|x, y| x.total_cmp(y));
+    let m = s[n / 2];
+    // Steps of another line (a wall, a jump) do not set the slope.
+    if s.iter().filter(|&&v| (v - m).abs() <= jump).count() * 2 > n {
+        m
+    } else {
+        0.0
+    }
 }
 
 /// Solve the symmetric 3x3 system `m x = t` (None if singular).
@@ -508,12 +535,16 @@ fn smooth_along(raw: &[f64], sigma_r: f64, jump: f64, noise: f64, out: &mut [Lin
             continue;
         }
         let c = raw[r];
+        // The line's local slope (px per row) from the neighbouring rows: continuity is judged
+        // on the step between rows minus this slope, so a line crossing rows at 2.5 px per row
+        // is followed as one line, as a vertical one is.
+        let slope = local_slope(raw, r, jump);
         // Fast path: all 2 radius + 1 rows present and continuous.
         if let Some((inv, se, sw)) = &full {
             if r >= radius && r + radius < h {
                 let win = &raw[r - radius..=r + radius];
                 let cont = win.iter().all(|v| v.is_finite())
-                    && win.windows(2).all(|p| (p[1] - p[0]).abs() <= jump);
+                    && win.windows(2).all(|p| (p[1] - p[0] - slope).abs() <= jump);
                 if cont {
                     let mut st = [0.0f64; 3];
                     for (k, &v) in win.iter().enumerate() {
@@ -540,9 +571,9 @@ fn smooth_along(raw: &[f64], sigma_r: f64, jump: f64, noise: f64, out: &mut [Lin
             && r + 1 < h
             && valid(r - 1)
             && valid(r + 1)
-            && (raw[r - 1] - raw[r + 1]).abs() <= 2.0 * jump
-            && (c - raw[r - 1]).abs() > jump
-            && (c - raw[r + 1]).abs() > jump;
+            && (raw[r + 1] - raw[r - 1] - 2.0 * slope).abs() <= 2.0 * jump
+            && (c - raw[r - 1] - slope).abs() > jump
+            && (raw[r + 1] - c - slope).abs() > jump;
         // Sums of w j^k (k = 0..4), w^2 j^k, w j^k c (k = 0..2); columns relative to c.
         let mut sw = [0.0f64; 5];
         let mut sww = [0.0f64; 5];
@@ -571,7 +602,9 @@ fn smooth_along(raw: &[f64], sigma_r: f64, jump: f64, noise: f64, out: &mut [Lin
                     break;
                 }
                 let v = raw[i as usize];
-                if !v.is_finite() || (last.is_finite() && (v - last).abs() > jump) {
+                if !v.is_finite()
+                    || (last.is_finite() && (v - last - dir as f64 * slope).abs() > jump)
+                {
                     break;
                 }
                 last = v;
