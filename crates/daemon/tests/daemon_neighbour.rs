@@ -341,3 +341,220 @@ fn killed_scan_keeps_its_frame_count() {
     );
     println!("killed at >= {frames} frames; the record keeps {kept}");
 }
+
+/// A raw request on a fresh connection: (status, lower-cased head, body); status 0 when the
+/// daemon closed or did not answer within `limit`.
+fn raw(base: &str, request: &str, limit: Duration) -> (u16, String, String) {
+    use std::io::Write;
+    let addr = base.strip_prefix("http://").unwrap();
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(limit)).unwrap();
+    s.write_all(request.as_bytes()).unwrap();
+    let mut buf = Vec::new();
+    let _ = s.read_to_end(&mut buf);
+    let text = String::from_utf8_lossy(&buf).into_owned();
+    let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
+    let status = head
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    (status, head.to_ascii_lowercase(), body.to_string())
+}
+
+/// Start footscand with `extra` lines in [daemon] and, if given, a file-descriptor limit.
+fn start_with(dir: &std::path::Path, extra: &str, nofile: Option<u64>) -> Footscand {
+    use std::os::unix::process::CommandExt;
+    let (mut cmd, archive) = command(dir, &Opts::default());
+    let cfg = dir.join("footscand.toml");
+    let mut text = std::fs::read_to_string(&cfg).unwrap();
+    text.push_str(extra);
+    std::fs::write(&cfg, text).unwrap();
+    if let Some(n) = nofile {
+        // SAFETY: setrlimit only, between fork and exec.
+        unsafe {
+            cmd.pre_exec(move || {
+                let rl = libc::rlimit {
+                    rlim_cur: n,
+                    rlim_max: n,
+                };
+                if libc::setrlimit(libc::RLIMIT_NOFILE, &rl) != 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+    }
+    Footscand::spawn(cmd, archive, None)
+}
+
+/// Item 2: with a descriptor limit of 128, a thousand idle and half-sent connections neither
+/// stop /api/health nor fail the running scan; idle connections are closed after the header
+/// timeout; a body that never arrives gets 408; SIGTERM does not wait for idle connections.
+#[test]
+fn idle_and_half_sent_connections_cannot_starve_the_daemon() {
+    use std::io::Write;
+    let tmp = tempfile::tempdir().unwrap();
+    let mut d = start_with(
+        tmp.path(),
+        "header_timeout_s = 2.0\nbody_timeout_s = 2.0\n",
+        Some(128),
+    );
+    let addr = d.base.strip_prefix("http://").unwrap().to_string();
+    let id = d.start_scan("flood");
+    let mut held = Vec::new();
+    for i in 0..1000 {
+        let Ok(mut s) = std::net::TcpStream::connect(&addr) else {
+            break;
+        };
+        if i % 2 == 1 {
+            let _ = s.write_all(b"GET /api/status HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: ");
+        }
+        held.push(s);
+    }
+    println!("{} connections held", held.len());
+    assert!(held.len() >= 500, "only {} connections opened", held.len());
+    // Health answers while they are held.
+    let quick = reqwest::blocking::Client::builder()
+        .timeout(Duration::from_secs(10))
+        .build()
+        .unwrap();
+    let mut worst = 0f64;
+    for _ in 0..10 {
+        let t = Instant::now();
+        let r = quick
+            .get(d.url("/api/health"))
+            .send()
+            .unwrap_or_else(|e| panic!("health with {} connections held: {e}", held.len()));
+        assert_eq!(r.status(), 200);
+        worst = worst.max(t.elapsed().as_secs_f64());
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let end = d.wait_scan_end(Duration::from_secs(180));
+    assert_eq!(end["state"], "complete", "the scan under the flood: {end}");
+    let rec = d.record(&id);
+    let names = rec["artifacts"].to_string();
+    for want in ["points.ply", "model.stl", "grid.bin", "heightmap.png"] {
+        assert!(names.contains(want), "{want} missing: {names}");
+    }
+    drop(held);
+    // An idle connection is closed by the daemon after the header timeout (2 s).
+    let mut idle = std::net::TcpStream::connect(&addr).unwrap();
+    idle.set_read_timeout(Some(Duration::from_secs(15)))
+        .unwrap();
+    let t = Instant::now();
+    let mut b = [0u8; 64];
+    let n = idle.read(&mut b).unwrap_or(usize::MAX);
+    let closed_after = t.elapsed().as_secs_f64();
+    assert!(
+        n == 0 && closed_after < 8.0,
+        "idle connection: read {n} after {closed_after:.1} s"
+    );
+    // A body that never arrives.
+    let (status, _, body) = raw(
+        &d.base,
+        "POST /api/scans HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: 100\r\n\r\n{\"subj",
+        Duration::from_secs(15),
+    );
+    assert_eq!(status, 408, "{body}");
+    assert!(body.contains("\"error\""), "{body}");
+    // SIGTERM with idle connections open.
+    let idle: Vec<_> = (0..20)
+        .map(|_| std::net::TcpStream::connect(&addr).unwrap())
+        .collect();
+    std::thread::sleep(Duration::from_millis(200));
+    let t = Instant::now();
+    let status = d.terminate(Duration::from_secs(30));
+    let stop_s = t.elapsed().as_secs_f64();
+    assert_eq!(status.code(), Some(0));
+    assert!(
+        stop_s < 5.0,
+        "SIGTERM took {stop_s:.1} s with idle connections open"
+    );
+    drop(idle);
+    println!(
+        "flood: health worst {worst:.2} s; idle connection closed after {closed_after:.1} s; SIGTERM {stop_s:.2} s"
+    );
+}
+
+/// Item 3: a foreign Host (DNS rebinding) is refused before anything runs; a cross-site
+/// form POST cannot cancel a scan (wrong Origin, and not JSON); the dashboard cannot be
+/// framed.
+#[test]
+fn foreign_host_and_cross_site_posts_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = Footscand::start(tmp.path(), Opts::default());
+    let port = d.base.rsplit(':').next().unwrap().to_string();
+    let start = format!(
+        "POST /api/scans HTTP/1.1\r\nHost: attacker.example:{port}\r\nContent-Type: application/json\r\nContent-Length: 32\r\nConnection: close\r\n\r\n{{\"subject\":\"x\",\"side\":\"left\"}}  "
+    );
+    let (status, _, body) = raw(&d.base, &start, Duration::from_secs(10));
+    assert_eq!(status, 403, "{body}");
+    assert!(body.contains("attacker.example"), "{body}");
+    assert!(
+        d.get_json("/api/status")["scan"].is_null(),
+        "a scan started"
+    );
+    let (status, _, _) = raw(
+        &d.base,
+        &format!("GET /api/status HTTP/1.1\r\nHost: attacker.example:{port}\r\nConnection: close\r\n\r\n"),
+        Duration::from_secs(10),
+    );
+    assert_eq!(status, 403);
+    let id = d.start_scan("victim");
+    let host = d.base.strip_prefix("http://").unwrap();
+    // The form a hostile page would submit.
+    let form = |origin: &str| {
+        let o = if origin.is_empty() {
+            String::new()
+        } else {
+            format!("Origin: {origin}\r\n")
+        };
+        format!(
+            "POST /api/scans/{id}/cancel HTTP/1.1\r\nHost: {host}\r\n{o}Content-Type: application/x-www-form-urlencoded\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
+        )
+    };
+    let (status, _, body) = raw(
+        &d.base,
+        &form("http://attacker.example"),
+        Duration::from_secs(10),
+    );
+    assert_eq!(status, 403, "{body}");
+    let (status, _, body) = raw(&d.base, &form(""), Duration::from_secs(10));
+    assert_eq!(status, 415, "{body}");
+    let json_cross = format!(
+        "POST /api/scans/{id}/cancel HTTP/1.1\r\nHost: {host}\r\nOrigin: null\r\nContent-Type: application/json\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
+    );
+    assert_eq!(raw(&d.base, &json_cross, Duration::from_secs(10)).0, 403);
+    assert_eq!(
+        d.get_json("/api/status")["scan"]["state"],
+        "running",
+        "cancelled"
+    );
+    // The daemon's own page may cancel.
+    let own = format!(
+        "POST /api/scans/{id}/cancel HTTP/1.1\r\nHost: {host}\r\nOrigin: http://{host}\r\nContent-Type: application/json\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
+    );
+    let (status, _, body) = raw(&d.base, &own, Duration::from_secs(10));
+    assert_eq!(status, 202, "{body}");
+    assert_eq!(
+        d.wait_scan_end(Duration::from_secs(60))["state"],
+        "cancelled"
+    );
+    let (status, head, _) = raw(
+        &d.base,
+        &format!("GET / HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"),
+        Duration::from_secs(10),
+    );
+    assert_eq!(status, 200);
+    assert!(head.contains("x-frame-options: deny"), "{head}");
+    assert!(head.contains("frame-ancestors 'none'"), "{head}");
+    assert!(head.contains("x-content-type-options: nosniff"), "{head}");
+    // localhost by name is this daemon.
+    let (status, _, _) = raw(
+        &d.base,
+        &format!("GET /api/health HTTP/1.1\r\nHost: localhost:{port}\r\nConnection: close\r\n\r\n"),
+        Duration::from_secs(10),
+    );
+    assert_eq!(status, 200);
+}

@@ -3,8 +3,10 @@
 //! ids and file names validated before any path is built, and a bearer token on every request
 //! but the health check and the static dashboard when one is configured.
 
+mod guard;
 mod live;
 mod scans;
+pub mod server;
 
 use crate::daemon::Daemon;
 use axum::extract::{Request, State};
@@ -95,12 +97,17 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .layer(axum::extract::DefaultBodyLimit::max(BODY_LIMIT))
         .layer(axum::middleware::from_fn_with_state(state.clone(), auth))
         .layer(axum::middleware::map_response(json_errors))
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            guard::guard,
+        ))
         .with_state(state)
 }
 
-/// Serve until `signal` resolves, then: stop accepting, end event streams, cancel the running
-/// scan (archived as cancelled, "daemon shutting down") and wait for it to be archived; open
-/// downloads get up to 10 s to finish.
+/// Serve until `signal` resolves, then: stop accepting, close idle connections, end event
+/// streams, cancel the running scan (archived as cancelled, "daemon shutting down") and wait
+/// for it to be archived; open downloads get up to 10 s to finish. The connection limits
+/// and timeouts are in [`server`].
 pub async fn serve(
     daemon: Arc<Daemon>,
     listener: tokio::net::TcpListener,
@@ -108,11 +115,21 @@ pub async fn serve(
 ) -> std::io::Result<()> {
     let (tx, rx) = watch::channel(false);
     let app = router(daemon.clone(), rx.clone());
-    let mut stop = rx.clone();
-    let server = axum::serve(listener, app).with_graceful_shutdown(async move {
-        let _ = stop.wait_for(|s| *s).await;
-    });
-    let mut server = tokio::spawn(async move { server.await });
+    let c = &daemon.config;
+    let limits = server::Limits {
+        header_timeout: c.header_timeout,
+        body_timeout: c.body_timeout,
+        max_connections: server::connection_cap(c.max_connections)
+            .map_err(std::io::Error::other)?,
+        max_per_client: c.max_connections_per_client,
+    };
+    let mut server = tokio::spawn(server::run(
+        listener,
+        app,
+        limits,
+        rx.clone(),
+        Duration::from_secs(10),
+    ));
     tokio::select! {
         r = &mut server => return r.map_err(std::io::Error::other)?,
         _ = signal => {}
@@ -121,13 +138,7 @@ pub async fn serve(
     let _ = tx.send(true);
     let d = daemon.clone();
     let job = tokio::task::spawn_blocking(move || d.shutdown());
-    if tokio::time::timeout(Duration::from_secs(10), &mut server)
-        .await
-        .is_err()
-    {
-        tracing::warn!("shutdown: connections still open after 10 s; closing them");
-        server.abort();
-    }
+    let _ = server.await;
     let _ = job.await;
     tracing::info!("footscand stopped");
     Ok(())

@@ -24,7 +24,18 @@ struct DaemonSection {
     archive: PathBuf,
     scanner_config: PathBuf,
     calibration: Option<PathBuf>,
+    allowed_hosts: Option<Vec<String>>,
+    header_timeout_s: Option<f64>,
+    body_timeout_s: Option<f64>,
+    max_connections: Option<usize>,
+    max_connections_per_client: Option<usize>,
 }
+
+/// Defaults of the HTTP limits.
+pub const DEFAULT_HEADER_TIMEOUT_S: f64 = 10.0;
+pub const DEFAULT_BODY_TIMEOUT_S: f64 = 10.0;
+pub const DEFAULT_MAX_CONNECTIONS: usize = 256;
+pub const DEFAULT_MAX_CONNECTIONS_PER_CLIENT: usize = 192;
 
 /// The resolved daemon configuration.
 #[derive(Clone, Debug)]
@@ -35,6 +46,17 @@ pub struct DaemonConfig {
     pub archive: PathBuf,
     pub scanner_config: PathBuf,
     pub calibration: Option<PathBuf>,
+    /// Host names (besides localhost and the addresses it answers on) the daemon accepts in
+    /// the Host header, e.g. its DNS name on the network.
+    pub allowed_hosts: Vec<String>,
+    /// Time for a request head, and the longest a kept-alive connection may sit idle.
+    pub header_timeout: std::time::Duration,
+    /// Time for a request body.
+    pub body_timeout: std::time::Duration,
+    /// Open connections at most (further lowered by the file-descriptor limit).
+    pub max_connections: usize,
+    /// Open connections from one client address at most.
+    pub max_connections_per_client: usize,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -107,6 +129,46 @@ impl DaemonConfig {
                 path: path.to_owned(),
             });
         }
+        let secs = |key: &str, v: Option<f64>, default: f64| {
+            let v = v.unwrap_or(default);
+            if v.is_finite() && (0.1..=3600.0).contains(&v) {
+                Ok(std::time::Duration::from_secs_f64(v))
+            } else {
+                Err(invalid(format!("{key} = {v}: must be 0.1..=3600 seconds")))
+            }
+        };
+        let header_timeout = secs(
+            "header_timeout_s",
+            d.header_timeout_s,
+            DEFAULT_HEADER_TIMEOUT_S,
+        )?;
+        let body_timeout = secs("body_timeout_s", d.body_timeout_s, DEFAULT_BODY_TIMEOUT_S)?;
+        let count = |key: &str, v: Option<usize>, default: usize| match v.unwrap_or(default) {
+            n @ 1..=100_000 => Ok(n),
+            n => Err(invalid(format!("{key} = {n}: must be 1..=100000"))),
+        };
+        let max_connections = count(
+            "max_connections",
+            d.max_connections,
+            DEFAULT_MAX_CONNECTIONS,
+        )?;
+        let max_connections_per_client = count(
+            "max_connections_per_client",
+            d.max_connections_per_client,
+            DEFAULT_MAX_CONNECTIONS_PER_CLIENT,
+        )?;
+        let allowed_hosts = d.allowed_hosts.unwrap_or_default();
+        for h in &allowed_hosts {
+            let ok = !h.is_empty()
+                && h.len() <= 253
+                && h.bytes()
+                    .all(|c| c.is_ascii_alphanumeric() || matches!(c, b'.' | b'-'));
+            if !ok {
+                return Err(invalid(format!(
+                    "allowed_hosts: {h:?} is not a host name (letters, digits, dots, hyphens; no port)"
+                )));
+            }
+        }
         let base = path.parent().unwrap_or(Path::new("."));
         let rel = |p: PathBuf| if p.is_absolute() { p } else { base.join(p) };
         Ok(DaemonConfig {
@@ -116,6 +178,14 @@ impl DaemonConfig {
             archive: rel(d.archive),
             scanner_config: rel(d.scanner_config),
             calibration: d.calibration.map(rel),
+            allowed_hosts: allowed_hosts
+                .into_iter()
+                .map(|h| h.to_ascii_lowercase())
+                .collect(),
+            header_timeout,
+            body_timeout,
+            max_connections,
+            max_connections_per_client,
         })
     }
 }

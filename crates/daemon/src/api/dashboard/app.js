@@ -65,10 +65,10 @@ async function responseError(method, path, r) {
 
 async function request(method, path, body) {
   const opts = { method, headers: authHeaders(), cache: 'no-store' };
-  if (body !== undefined) {
-    opts.headers['Content-Type'] = 'application/json';
-    opts.body = JSON.stringify(body);
-  }
+  // Every state-changing request says JSON (the daemon refuses others: a cross-site form
+  // cannot send this header).
+  if (method !== 'GET') opts.headers['Content-Type'] = 'application/json';
+  if (body !== undefined) opts.body = JSON.stringify(body);
   let r;
   try {
     r = await fetch(path, opts);
