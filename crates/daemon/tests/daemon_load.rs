@@ -285,3 +285,188 @@ fn ctrl_c_when_idle_exits_0() {
     };
     assert_eq!(status.code(), Some(0), "{}", d.stderr());
 }
+
+/// The 50-client target: during a full scan at the default step (0.5 mm over the default
+/// travel), 50 clients at once (event streams, status, preview and downloads of an earlier
+/// scan's large file), each at a dashboard's pace (a request every 100 ms), leave the scan
+/// with no dropped frames and get every answer.
+#[test]
+#[ignore = "target not met yet: 105-490 of 640 frames dropped on the debug build of a loaded 2-core machine (issue 17)"]
+fn fifty_clients_during_a_full_scan_drop_no_frames() {
+    use footscan_daemon::archive::{Archive, NewScan, Outcome, Status};
+    const FIFTY: usize = 50;
+    let _serial = serial();
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().join("archive");
+    // An earlier scan with a 4 MB file to download.
+    let old = {
+        let a = Archive::open(&root).unwrap();
+        let s = a
+            .begin(NewScan {
+                subject: "earlier".into(),
+                side: "left".into(),
+                notes: String::new(),
+            })
+            .unwrap();
+        let big: Vec<u8> = (0..4u32 << 20).map(|i| (i % 251) as u8).collect();
+        std::fs::write(s.dir.join("grid.bin"), &big).unwrap();
+        let r = a
+            .finish(
+                s,
+                Outcome {
+                    status: Status::Complete,
+                    reason: None,
+                    frames: 1,
+                    points: 1,
+                },
+            )
+            .unwrap();
+        r.id
+    };
+    let (cmd, archive) = command(
+        tmp.path(),
+        &Opts {
+            archive: Some(root),
+            ..Opts::default()
+        },
+    );
+    // The default scanner: full travel at the default 0.5 mm step.
+    let sim = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/sim.toml");
+    std::fs::copy(sim, tmp.path().join("scanner.toml")).unwrap();
+    let d = Footscand::spawn(cmd, archive, None);
+    let id = d.start_scan("fifty");
+    let t0 = Instant::now();
+    while d.get("/api/preview.png").status() != 200 {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "no frame within 60 s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    // (kind, request ms) of every answered request; failures.
+    let times = Arc::new(Mutex::new(Vec::<(usize, f64)>::new()));
+    let failures = Arc::new(Mutex::new(Vec::<String>::new()));
+    let workers: Vec<_> = (0..FIFTY)
+        .map(|i| {
+            let (base, stop, times, failures) = (
+                d.base.clone(),
+                stop.clone(),
+                times.clone(),
+                failures.clone(),
+            );
+            let (id, old) = (id.clone(), old.clone());
+            std::thread::spawn(move || {
+                // The clients stand for other machines: on this one they must not take the
+                // CPU the scanner would have (lowest priority for this thread).
+                // SAFETY: setpriority on the calling thread.
+                unsafe {
+                    let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
+                    libc::setpriority(libc::PRIO_PROCESS, tid, 19);
+                }
+                let c = reqwest::blocking::Client::builder()
+                    .timeout(Duration::from_secs(60))
+                    .build()
+                    .unwrap();
+                // LOAD50_ONLY=k: every client of kind k (0 events, 1 status, 2 preview,
+                // 3 download), to find which load costs frames.
+                let only: Option<usize> = std::env::var("LOAD50_ONLY")
+                    .ok()
+                    .and_then(|v| v.parse().ok());
+                let kind = only.unwrap_or(i % 4);
+                if kind == 0 {
+                    // An event stream, read until the scan's final state.
+                    let t = Instant::now();
+                    match c.get(format!("{base}/api/events")).send() {
+                        Ok(r) if r.status() == 200 => {
+                            use std::io::BufRead;
+                            let mut state = false;
+                            for line in std::io::BufReader::new(r).lines() {
+                                let Ok(line) = line else { break };
+                                if line == "event: state" {
+                                    state = true;
+                                } else if state && line.starts_with("data: ") {
+                                    if line.contains(&id) && !line.contains("running") {
+                                        break;
+                                    }
+                                    state = false;
+                                }
+                            }
+                            times
+                                .lock()
+                                .unwrap()
+                                .push((0, t.elapsed().as_secs_f64() * 1e3));
+                        }
+                        Ok(r) => failures
+                            .lock()
+                            .unwrap()
+                            .push(format!("events {}", r.status())),
+                        Err(e) => failures.lock().unwrap().push(format!("events: {e}")),
+                    }
+                    return;
+                }
+                while !stop.load(Ordering::Relaxed) {
+                    let t = Instant::now();
+                    let url = match kind {
+                        1 => format!("{base}/api/status"),
+                        2 => format!("{base}/api/preview.png?width={}", [160, 320, 640][i % 3]),
+                        _ => format!("{base}/api/scans/{old}/files/grid.bin"),
+                    };
+                    match c.get(&url).send().and_then(|r| {
+                        let s = r.status();
+                        r.bytes().map(|b| (s, b.len()))
+                    }) {
+                        Ok((s, n)) if s == 200 && n > 0 => times
+                            .lock()
+                            .unwrap()
+                            .push((kind, t.elapsed().as_secs_f64() * 1e3)),
+                        Ok((s, _)) => failures.lock().unwrap().push(format!("{url}: {s}")),
+                        Err(e) => failures.lock().unwrap().push(format!("{url}: {e}")),
+                    }
+                    // A dashboard's pace: status and preview ten times a second.
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+            })
+        })
+        .collect();
+    let end = d.wait_scan_end(Duration::from_secs(900));
+    stop.store(true, Ordering::Relaxed);
+    for w in workers {
+        w.join().expect("client thread");
+    }
+    assert_eq!(end["state"], "complete", "{end}");
+    let failures = failures.lock().unwrap();
+    assert!(
+        failures.is_empty(),
+        "{} failed requests: {:?}",
+        failures.len(),
+        &failures[..failures.len().min(5)]
+    );
+    let summary = d.record(&id)["summary"].clone();
+    let times = times.lock().unwrap();
+    let pct = |k: usize| {
+        let mut v: Vec<f64> = times.iter().filter(|x| x.0 == k).map(|x| x.1).collect();
+        let n = v.len();
+        (n, percentile(&mut v, 50.0), percentile(&mut v, 95.0))
+    };
+    let names = [
+        "event streams (ms to the final state)",
+        "status",
+        "preview",
+        "download 4 MB",
+    ];
+    println!(
+        "load50: {FIFTY} clients; scan {:.1} s, frames {}, dropped {}",
+        summary["seconds"].as_f64().unwrap_or(f64::NAN),
+        summary["frames"],
+        summary["dropped_frames"]
+    );
+    for (k, name) in names.iter().enumerate() {
+        let (n, p50, p95) = pct(k);
+        println!("load50: {name}: {n} answered, p50 {p50:.1} ms, p95 {p95:.1} ms");
+    }
+    assert_eq!(
+        summary["dropped_frames"], 0,
+        "frames dropped under 50 clients: {summary}"
+    );
+}

@@ -558,3 +558,101 @@ fn foreign_host_and_cross_site_posts_are_refused() {
     );
     assert_eq!(status, 200);
 }
+
+/// Item 9: a lowercase `bearer` scheme is accepted; Range requests resume a download; an
+/// event stream open when SIGTERM cancels a scan sees the scan's final state.
+#[test]
+fn range_lowercase_bearer_and_final_state_on_sigterm() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().join("archive");
+    let ids = archive_with_scans(&root, 1);
+    let big: Vec<u8> = (0..300_000u32).map(|i| (i % 253) as u8).collect();
+    std::fs::write(root.join(&ids[0]).join("grid.bin"), &big).unwrap();
+    let token = "0123456789abcdef-token";
+    let mut d = Footscand::start(
+        tmp.path(),
+        Opts {
+            archive: Some(root),
+            token: Some(token),
+            ..Opts::default()
+        },
+    );
+    let r = d
+        .client
+        .get(d.url("/api/status"))
+        .header("authorization", format!("bearer {token}"))
+        .send()
+        .unwrap();
+    assert_eq!(r.status(), 200, "lowercase bearer");
+    let url = d.url(&format!("/api/scans/{}/files/grid.bin", ids[0]));
+    let part = |range: &str| {
+        d.client
+            .get(&url)
+            .bearer_auth(token)
+            .header("range", range)
+            .send()
+            .unwrap()
+    };
+    let r = part("bytes=100000-");
+    assert_eq!(r.status(), 206);
+    assert_eq!(
+        r.headers()["content-range"],
+        format!("bytes 100000-299999/{}", big.len()).as_str()
+    );
+    assert_eq!(r.bytes().unwrap().as_ref(), &big[100_000..]);
+    let r = part("bytes=10-19");
+    assert_eq!(r.status(), 206);
+    assert_eq!(r.bytes().unwrap().as_ref(), &big[10..20]);
+    let r = part("bytes=-5");
+    assert_eq!(r.bytes().unwrap().as_ref(), &big[big.len() - 5..]);
+    let r = part("bytes=400000-");
+    assert_eq!(r.status(), 416);
+    let whole = d.get(&format!("/api/scans/{}/files/grid.bin", ids[0]));
+    assert_eq!(whole.headers()["accept-ranges"], "bytes");
+    assert_eq!(whole.bytes().unwrap().len(), big.len());
+
+    // An impossible date is not a scan id (400, not 404).
+    let r = d.get("/api/scans/20260231T221503Z-3f2a");
+    assert_eq!(r.status(), 400, "31 February accepted as an id");
+
+    // SIGTERM during a scan, with an event stream open.
+    let id = d.start_scan("term");
+    let t0 = Instant::now();
+    while d.get_json("/api/status")["scan"]["frames"]
+        .as_u64()
+        .unwrap()
+        < 5
+    {
+        assert!(t0.elapsed() < Duration::from_secs(60));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let follower = {
+        let (base, id) = (d.base.clone(), id.clone());
+        std::thread::spawn(move || {
+            use std::io::BufRead;
+            let r = reqwest::blocking::Client::new()
+                .get(format!("{base}/api/events"))
+                .bearer_auth("0123456789abcdef-token")
+                .send()
+                .unwrap();
+            let mut last_state = None;
+            let mut name = String::new();
+            for line in std::io::BufReader::new(r).lines().map_while(Result::ok) {
+                if let Some(n) = line.strip_prefix("event: ") {
+                    name = n.to_string();
+                } else if let Some(data) = line.strip_prefix("data: ") {
+                    let v: Value = serde_json::from_str(data).unwrap();
+                    if name == "state" && v["id"] == id.as_str() {
+                        last_state = Some(v);
+                    }
+                }
+            }
+            last_state
+        })
+    };
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(d.terminate(Duration::from_secs(60)).code(), Some(0));
+    let last = follower.join().unwrap().expect("a state event");
+    assert_eq!(last["state"], "cancelled", "{last}");
+    assert_eq!(last["reason"], "daemon shutting down");
+}

@@ -216,26 +216,56 @@ fn sse(e: &Event) -> SseEvent {
 }
 
 /// Server-sent events; the current scan's progress first (so a client that connects late
-/// sees where it is, or that it has ended), then every event until the daemon stops.
+/// sees where it is, or that it has ended), then every event until the daemon stops. When
+/// the daemon stops during a scan, the stream stays open until that scan's final state
+/// (cancelled, "daemon shutting down") has been sent, so clients see how it ended.
 pub async fn events(
     State(st): State<AppState>,
 ) -> Sse<impl Stream<Item = Result<SseEvent, Infallible>>> {
     let rx = st.daemon.subscribe();
     let first = st.daemon.scan_progress().map(Event::Progress);
     let shutdown = st.shutdown.clone();
+    let daemon = st.daemon.clone();
     let stream = futures_util::stream::unfold(
-        (rx, first, shutdown),
-        |(mut rx, mut first, mut shutdown)| async move {
+        (rx, first, shutdown, daemon),
+        |(mut rx, mut first, mut shutdown, daemon)| async move {
             if let Some(e) = first.take() {
-                return Some((Ok(sse(&e)), (rx, None, shutdown)));
+                return Some((Ok(sse(&e)), (rx, None, shutdown, daemon)));
             }
             loop {
                 if *shutdown.borrow() {
-                    return None;
+                    let running = daemon
+                        .scan_progress()
+                        .filter(|p| p.state == Status::Running)
+                        .map(|p| p.id);
+                    let id = running?;
+                    // Draining: forward until the scan's final state, within a limit.
+                    let end = tokio::time::timeout(Duration::from_secs(15), async {
+                        loop {
+                            match rx.recv().await {
+                                Ok(e @ Event::State { .. }) => {
+                                    if let Event::State {
+                                        id: ref i, state, ..
+                                    } = e
+                                    {
+                                        if *i == id && state != Status::Running {
+                                            return Some(e);
+                                        }
+                                    }
+                                }
+                                Ok(_) | Err(RecvError::Lagged(_)) => {}
+                                Err(RecvError::Closed) => return None,
+                            }
+                        }
+                    })
+                    .await;
+                    let e = end.ok().flatten()?;
+                    // Nothing follows: the next poll sees no running scan and ends.
+                    return Some((Ok(sse(&e)), (rx, None, shutdown, daemon)));
                 }
                 tokio::select! {
                     r = rx.recv() => match r {
-                        Ok(e) => return Some((Ok(sse(&e)), (rx, None, shutdown))),
+                        Ok(e) => return Some((Ok(sse(&e)), (rx, None, shutdown, daemon))),
                         Err(RecvError::Lagged(n)) => {
                             tracing::debug!("event stream lagged by {n} events");
                         }

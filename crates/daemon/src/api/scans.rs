@@ -146,6 +146,7 @@ pub async fn show(
 pub async fn download(
     State(st): State<AppState>,
     Path((id, name)): Path<(String, String)>,
+    headers: axum::http::HeaderMap,
 ) -> Result<Response, ApiError> {
     let id = parse_id(&id)?;
     if !valid_file_name(&name) {
@@ -178,7 +179,7 @@ pub async fn download(
     })
     .await
     .map_err(ApiError::internal)??;
-    let file = tokio::fs::File::open(&path)
+    let mut file = tokio::fs::File::open(&path)
         .await
         .map_err(|e| ApiError::not_found(format!("{}: {e}", path.display())))?;
     let len = file.metadata().await.map_err(ApiError::internal)?.len();
@@ -186,6 +187,35 @@ pub async fn download(
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
+    let range = match headers.get(header::RANGE).and_then(|v| v.to_str().ok()) {
+        None => None,
+        Some(r) => match byte_range(r, len) {
+            Ok(x) => x,
+            Err(()) => {
+                let mut resp = ApiError(
+                    StatusCode::RANGE_NOT_SATISFIABLE,
+                    format!("Range {r:?} is outside the file's {len} bytes"),
+                )
+                .into_response();
+                resp.headers_mut().insert(
+                    header::CONTENT_RANGE,
+                    format!("bytes */{len}").parse().expect("header value"),
+                );
+                return Ok(resp);
+            }
+        },
+    };
+    let (status, start, count) = match range {
+        Some((a, b)) => (StatusCode::PARTIAL_CONTENT, a, b - a + 1),
+        None => (StatusCode::OK, 0, len),
+    };
+    if start > 0 {
+        use tokio::io::AsyncSeekExt;
+        file.seek(std::io::SeekFrom::Start(start))
+            .await
+            .map_err(ApiError::internal)?;
+    }
+    let file = file.take(count);
     let stream = futures_util::stream::unfold(Some(file), |file| async move {
         let mut file = file?;
         let mut buf = vec![0u8; 64 * 1024];
@@ -198,13 +228,15 @@ pub async fn download(
             Err(e) => Some((Err(e), None)),
         }
     });
-    Ok((
+    let mut resp = (
+        status,
         [
             (
                 header::CONTENT_TYPE,
                 crate::archive::content_type(&name).to_string(),
             ),
-            (header::CONTENT_LENGTH, len.to_string()),
+            (header::CONTENT_LENGTH, count.to_string()),
+            (header::ACCEPT_RANGES, "bytes".to_string()),
             (
                 header::CONTENT_DISPOSITION,
                 format!("attachment; filename=\"{}-{name}\"", rec.id),
@@ -212,5 +244,73 @@ pub async fn download(
         ],
         Body::from_stream(stream),
     )
-        .into_response())
+        .into_response();
+    if let Some((a, b)) = range {
+        resp.headers_mut().insert(
+            header::CONTENT_RANGE,
+            format!("bytes {a}-{b}/{len}")
+                .parse()
+                .expect("header value"),
+        );
+    }
+    Ok(resp)
+}
+
+/// One byte range of `Range: bytes=a-b | a- | -n` as inclusive offsets into `len` bytes:
+/// `Ok(None)` for what is served whole (several ranges, another unit, a malformed header),
+/// `Err` for a range beyond the end (416).
+fn byte_range(header: &str, len: u64) -> Result<Option<(u64, u64)>, ()> {
+    let Some(spec) = header.trim().strip_prefix("bytes=") else {
+        return Ok(None);
+    };
+    if spec.contains(',') {
+        return Ok(None);
+    }
+    let Some((a, b)) = spec.trim().split_once('-') else {
+        return Ok(None);
+    };
+    let num = |t: &str| t.trim().parse::<u64>().ok();
+    let (start, end) = match (a.trim().is_empty(), b.trim().is_empty()) {
+        (true, false) => {
+            let Some(n) = num(b) else { return Ok(None) };
+            if n == 0 || len == 0 {
+                return Err(());
+            }
+            (len.saturating_sub(n), len - 1)
+        }
+        (false, _) => {
+            let Some(s) = num(a) else { return Ok(None) };
+            let e = if b.trim().is_empty() {
+                len.saturating_sub(1)
+            } else {
+                match num(b) {
+                    Some(e) if e >= s => e.min(len.saturating_sub(1)),
+                    _ => return Ok(None),
+                }
+            };
+            if s >= len {
+                return Err(());
+            }
+            (s, e)
+        }
+        (true, true) => return Ok(None),
+    };
+    Ok(Some((start, end)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::byte_range;
+
+    #[test]
+    fn ranges() {
+        assert_eq!(byte_range("bytes=0-99", 1000), Ok(Some((0, 99))));
+        assert_eq!(byte_range("bytes=900-", 1000), Ok(Some((900, 999))));
+        assert_eq!(byte_range("bytes=-100", 1000), Ok(Some((900, 999))));
+        assert_eq!(byte_range("bytes=990-2000", 1000), Ok(Some((990, 999))));
+        assert_eq!(byte_range("bytes=1000-", 1000), Err(()));
+        assert_eq!(byte_range("bytes=0-1,5-6", 1000), Ok(None));
+        assert_eq!(byte_range("items=0-1", 1000), Ok(None));
+        assert_eq!(byte_range("bytes=5-1", 1000), Ok(None));
+    }
 }

@@ -15,6 +15,16 @@ pub fn current_calibration_path(archive: &Path) -> PathBuf {
     archive.join("calibrations").join("current.toml")
 }
 
+/// Hand the memory a scan freed (frame buffers, the grid, the model) back to the system, so
+/// resident memory between scans is what the daemon holds, not what the last scan peaked at.
+fn release_free_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns free heap pages to the kernel.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
 /// Minimum spacing of progress events.
 const PROGRESS_PERIOD: Duration = Duration::from_millis(100);
 
@@ -191,6 +201,7 @@ impl Daemon {
             }
             p
         };
+        release_free_memory();
         tracing::info!(
             "scan {id} {}{}",
             status.as_str(),
