@@ -83,6 +83,19 @@ enum What {
         #[arg(long = "sigma")]
         sigmas: Vec<f64>,
     },
+    /// Last joining (Gordon surface) on the real last pairs: auxiliary sections, points per
+    /// section and rotation angle against build time and seam quality.
+    Join {
+        /// Directory holding lasts/ (default: $FOOTSCAN_DATA or ../shared/data).
+        #[arg(long)]
+        data: Option<PathBuf>,
+        /// Joins per setting; the fastest is reported.
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        /// One JSON array of objects instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -202,6 +215,27 @@ pub fn run(args: Args) -> Result<()> {
                 println!("{}", serde_json::to_string_pretty(&rows)?);
             } else {
                 print!("{}", bd::table(&rows));
+            }
+            Ok(())
+        }
+        What::Join {
+            data,
+            repeats,
+            json,
+        } => {
+            use footscan_last::join::study;
+            let dir = data.unwrap_or_else(|| {
+                std::env::var_os("FOOTSCAN_DATA")
+                    .map(PathBuf::from)
+                    .unwrap_or_else(|| PathBuf::from("../shared/data"))
+            });
+            let pairs = study::real_pairs(&dir)
+                .map_err(|e| anyhow::anyhow!("{e} (give --data DIR holding lasts/)"))?;
+            let rows = study::run(&pairs, &study::paper_cases(), repeats)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&rows)?);
+            } else {
+                print!("{}", study::table(&rows));
             }
             Ok(())
         }

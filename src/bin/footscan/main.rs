@@ -3,6 +3,7 @@
 mod bench;
 mod calibrate;
 mod detect;
+mod last;
 mod measure;
 mod model;
 mod scan;
@@ -59,6 +60,8 @@ enum Command {
     Bench(bench::Args),
     /// Run a laser-line detector on recorded frames and write one CSV line per image row.
     Detect(detect::Args),
+    /// Shoe-last stages on meshes (see `footscan last --help`).
+    Last(last::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -117,5 +120,6 @@ fn run() -> Result<()> {
         Command::Calibrate(args) => calibrate::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Detect(args) => detect::run(args),
+        Command::Last(args) => last::run(args),
     }
 }
