@@ -37,11 +37,13 @@ pub async fn status(State(st): State<AppState>) -> Json<Value> {
             f.role == role && matches!(f.fault.kind, FaultKind::Disconnected | FaultKind::Timeout)
         })
     };
-    let camera_lost = lost(DeviceRole::Camera);
+    let missing = crate::daemon::preflight::missing_devices(&d.scanner);
+    let absent = |role: &str| missing.iter().any(|(r, _)| *r == role);
+    let camera_lost = lost(DeviceRole::Camera) || absent("camera");
     let slider_alarm = fault.as_ref().is_some_and(|f| {
         f.role == DeviceRole::Slider && matches!(f.fault.kind, FaultKind::Alarm(_))
     });
-    let slider_lost = lost(DeviceRole::Slider);
+    let slider_lost = lost(DeviceRole::Slider) || absent("slider");
     let line = d.preview.line();
     let hw = cfg.hardware.as_ref().filter(|_| !sim);
     let (cam_name, mut w, mut h, format, slider_name) = match hw {

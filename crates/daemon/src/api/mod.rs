@@ -67,6 +67,7 @@ impl From<crate::daemon::DaemonError> for ApiError {
             E::Archive(e) => ApiError(StatusCode::INSUFFICIENT_STORAGE, e.to_string()),
             E::Setup(m) => ApiError::internal(m),
             E::Unsupported(m) => ApiError(StatusCode::NOT_IMPLEMENTED, m),
+            E::Unavailable(m) => ApiError(StatusCode::SERVICE_UNAVAILABLE, m),
         }
     }
 }

@@ -48,6 +48,11 @@ impl Daemon {
 
     /// Start a scan; returns its id. Busy while another job runs.
     pub fn start_scan(self: &Arc<Self>, meta: NewScan) -> Result<String, DaemonError> {
+        let missing = super::preflight::missing_devices(&self.scanner);
+        if !missing.is_empty() {
+            let why: Vec<String> = missing.into_iter().map(|(_, w)| w).collect();
+            return Err(DaemonError::Unavailable(why.join("; ")));
+        }
         if let Some(why) = self.busy() {
             return Err(DaemonError::Busy(why));
         }

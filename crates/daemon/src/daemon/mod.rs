@@ -4,6 +4,7 @@
 
 pub mod config;
 mod jobs;
+pub mod preflight;
 pub mod preview;
 
 pub use config::{DaemonConfig, DaemonConfigError};
@@ -109,6 +110,9 @@ pub enum DaemonError {
     Setup(String),
     #[error("{0}")]
     Unsupported(String),
+    /// A device the scan needs is missing (it may be plugged in later).
+    #[error("{0}")]
+    Unavailable(String),
 }
 
 /// The running job.
@@ -152,6 +156,10 @@ impl Daemon {
     pub fn open(config: DaemonConfig) -> Result<Arc<Daemon>, DaemonError> {
         let scanner = LoadedConfig::load(&config.scanner_config)
             .map_err(|e| DaemonError::Setup(e.to_string()))?;
+        preflight::check_config(&scanner).map_err(DaemonError::Setup)?;
+        for (_, why) in preflight::missing_devices(&scanner) {
+            tracing::warn!("{why}; scans are refused until it is present");
+        }
         let archive = Arc::new(Archive::open(&config.archive)?);
         // A calibration made by the daemon wins over the configured one (it is newer).
         let current = jobs::current_calibration_path(&config.archive);
