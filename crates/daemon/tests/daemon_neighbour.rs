@@ -716,3 +716,26 @@ fn what_can_be_checked_at_start_is_checked() {
         "nothing archived"
     );
 }
+
+/// Item 9: an over-long request target (414) and over-large headers (431) are answered with
+/// the API's JSON error, not an empty body.
+#[test]
+fn long_uri_and_large_headers_get_json_errors() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = Footscand::start(tmp.path(), Opts::default());
+    let host = d.base.strip_prefix("http://").unwrap().to_string();
+    let long = format!(
+        "GET /api/status?x={} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n",
+        "a".repeat(20_000)
+    );
+    let (status, head, body) = raw(&d.base, &long, Duration::from_secs(10));
+    assert_eq!(status, 414, "{head}");
+    assert!(body.contains("\"error\""), "{body:?}");
+    let big = format!(
+        "GET /api/status HTTP/1.1\r\nHost: {host}\r\nX-Big: {}\r\nConnection: close\r\n\r\n",
+        "b".repeat(40_000)
+    );
+    let (status, head, body) = raw(&d.base, &big, Duration::from_secs(10));
+    assert_eq!(status, 431, "{head}");
+    assert!(body.contains("\"error\""), "{body:?}");
+}

@@ -8,6 +8,7 @@
 //!   `Content-Type: application/json`, which a cross-site form or a no-preflight fetch cannot
 //!   send, and an Origin, if any, that is the daemon's own (`http(s)://<Host>`).
 //! - The request body must arrive within the body timeout (and within the body limit).
+//! - A request target over 8 KiB is 414 and headers over 32 KiB are 431, as JSON errors.
 //! - Every response says X-Content-Type-Options: nosniff and refuses framing
 //!   (X-Frame-Options: DENY, CSP frame-ancestors 'none').
 
@@ -52,8 +53,33 @@ fn forbidden(msg: String) -> Response {
     ApiError(StatusCode::FORBIDDEN, msg).into_response()
 }
 
+/// Longest request target (path and query) accepted.
+pub const MAX_URI: usize = 8 * 1024;
+/// Largest request head (all header names and values) accepted.
+pub const MAX_HEADERS: usize = 32 * 1024;
+
 pub async fn guard(State(st): State<AppState>, req: Request, next: Next) -> Response {
     let cfg = &st.daemon.config;
+    let uri_len = req.uri().path_and_query().map_or(0, |p| p.as_str().len());
+    if uri_len > MAX_URI {
+        return ApiError(
+            StatusCode::URI_TOO_LONG,
+            format!("request target of {uri_len} bytes: at most {MAX_URI}"),
+        )
+        .into_response();
+    }
+    let head: usize = req
+        .headers()
+        .iter()
+        .map(|(k, v)| k.as_str().len() + v.len() + 4)
+        .sum();
+    if head > MAX_HEADERS {
+        return ApiError(
+            StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
+            format!("request headers of {head} bytes: at most {MAX_HEADERS}"),
+        )
+        .into_response();
+    }
     let Some(host) = req
         .headers()
         .get(header::HOST)

@@ -272,7 +272,9 @@ pub async fn run(
             let conn = hyper::server::conn::http1::Builder::new()
                 .timer(TokioTimer::new())
                 .header_read_timeout(limits.header_timeout)
-                .max_buf_size(64 * 1024)
+                // Room for heads up to the API's own limits (guard.rs answers 414 and 431
+                // with JSON); beyond this hyper refuses them itself, without a body.
+                .max_buf_size(256 * 1024)
                 .serve_connection(TokioIo::new(stream), svc);
             let mut conn = std::pin::pin!(conn);
             let mut shutting = false;
