@@ -25,14 +25,14 @@ struct Args {
 /// Cap glibc's malloc arenas. Without a cap, every thread that ever allocated (the scan's
 /// pipeline threads, the runtime's blocking pool serving previews and downloads) keeps an
 /// arena of its own, and the frame-sized buffers freed into them stay resident: resident
-/// memory grew by tens of MB per long scan. Four arenas (and a trim after each scan) keep it flat (the soak bench
+/// memory grew by tens of MB per long scan. Two arenas (and a trim after each scan) keep it flat (the soak bench
 /// `cargo bench -p footscand --bench soak` measures it).
 fn limit_malloc_arenas() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     if std::env::var_os("MALLOC_ARENA_MAX").is_none() {
         // SAFETY: mallopt only tunes the allocator; called before any other thread exists.
         unsafe {
-            libc::mallopt(libc::M_ARENA_MAX, 4);
+            libc::mallopt(libc::M_ARENA_MAX, 2);
         }
     }
 }
