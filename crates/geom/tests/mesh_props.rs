@@ -55,6 +55,30 @@ fn check_sections(m: &TriMesh, plane: &Plane) -> Result<(), TestCaseError> {
     Ok(())
 }
 
+/// CI found this one: the plane y = 27 touches the lumpy solid from outside along a path of
+/// on-plane edges, which gave a zero-area loop (the path and back) instead of no loop.
+#[test]
+fn plane_touching_along_a_path_of_edges_gives_no_loop() {
+    let m = lumpy(6930683967020432615);
+    assert!(m.check().is_ok());
+    let plane = Plane::axis_aligned(1, 27.0);
+    let on_plane = m
+        .vertices
+        .iter()
+        .filter(|p| plane.signed_distance(p) == 0.0)
+        .count();
+    assert!(
+        on_plane >= 3,
+        "the case needs a path of on-plane vertices ({on_plane})"
+    );
+    for pl in [plane, plane.flipped()] {
+        for l in m.section(&pl) {
+            let a = l.to_polygon(&pl).signed_area();
+            assert!(a > 0.0, "loop of {} points with area {a}", l.len());
+        }
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(200))]
 

@@ -7,8 +7,8 @@
 //! triangle is crossed by zero or two of its edges, and on a closed 2-manifold mesh the
 //! segments join into closed loops with no special cases. A crossing point is a function of
 //! its edge alone, so the two triangles sharing an edge produce the identical point, and an
-//! on-plane vertex is returned exactly. Loops of zero length (the plane touching the surface
-//! at a vertex or along an edge from outside) are dropped.
+//! on-plane vertex is returned exactly. Loops of zero area (the plane touching the surface
+//! from outside at a vertex, along an edge or along a path of edges) are dropped.
 
 use super::TriMesh;
 use crate::plane::Plane;
@@ -107,8 +107,7 @@ impl TriMesh {
             if closed && pts.len() > 1 && pts.first() == pts.last() {
                 pts.pop();
             }
-            let distinct = pts.len();
-            if closed && distinct < 3 {
+            if closed && (pts.len() < 3 || encloses_nothing(&pts)) {
                 continue;
             }
             out.push(Polyline {
@@ -118,6 +117,23 @@ impl TriMesh {
         }
         out
     }
+}
+
+/// Whether a closed loop has zero vector area: the plane touching the surface from outside
+/// along a path of on-plane edges gives a loop that runs along the path and back (A B C B),
+/// the limit of a sliver whose area vanishes with the perturbation. Exact for such loops (each
+/// cross product cancels its reverse); the tolerance only absorbs the rounding of the sum.
+fn encloses_nothing(pts: &[P3]) -> bool {
+    let n = pts.len();
+    let o = pts[0].coords;
+    let mut area = crate::V3::zeros();
+    let mut perimeter = 0.0;
+    for i in 0..n {
+        let (a, b) = (pts[i].coords - o, pts[(i + 1) % n].coords - o);
+        area += a.cross(&b);
+        perimeter += (b - a).norm();
+    }
+    area.norm() <= 1e-12 * perimeter * perimeter
 }
 
 #[cfg(test)]
