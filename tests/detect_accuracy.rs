@@ -1,6 +1,6 @@
-//! Detectors against the simulator's ground truth (default scanner of SPEC section 2): the
-//! accuracy targets of the improved Bezier detector, and robustness to a glass reflection,
-//! specular spikes and Gray16 frames.
+//! Detectors against the simulator's ground truth (default scanner of docs/method.md section
+//! 2.4): the accuracy targets of the improved Bezier detector, and robustness to a glass
+//! reflection, specular spikes and Gray16 frames.
 
 use footscan::bench::detect::{accuracy, noise_config, sweep_frames, Accuracy};
 use footscan::detect::{build, DetectParams, Threshold, ThresholdParam};

@@ -1,4 +1,4 @@
-//! The parametric foot (SPEC sections 8 and 13) and its analytic measurement truth.
+//! The parametric foot (docs/method.md sections 8 and 13) and its analytic measurement truth.
 //!
 //! # Frames
 //! Foot frame: x' along the foot axis (heel point at x' = 0, toe tip at x' = L), y' toward the

@@ -1,11 +1,11 @@
 //! footscan simulator: what the scanner would see, with exact ground truth.
 //!
 //! Independent of the algorithms it checks: nothing here depends on the `footscan` crate.
-//! - [`foot`]: the parametric foot (SPEC section 13) with analytic measurement truth;
+//! - [`foot`]: the parametric foot (docs/method.md section 13) with analytic measurement truth;
 //! - [`last`]: parametric shoe lasts (round, pointed, square toe; heel height; size) with the
 //!   analytic truth of their bottom;
 //! - [`mesh_scene`]: any closed triangle mesh placed on the glass as a scene;
-//! - [`optics`]: the general optical model of SPEC section 2;
+//! - [`optics`]: the general optical model of docs/method.md section 2.3;
 //! - [`render`]: frames and their per-row ground truth;
 //! - [`camera`]: a [`footscan_hal::Camera`] that renders at the slider's true position;
 //! - [`grbl`]: a GRBL 1.1 emulator on a pseudo-terminal;

@@ -1,4 +1,4 @@
-//! The general optical model of SPEC section 2: camera pose, pinhole projection with
+//! The general optical model of docs/method.md section 2.3: camera pose, pinhole projection with
 //! Brown-Conrady distortion, and the laser plane, all relative to the physical slider position.
 //!
 //! Conventions (the main crate implements the inverse independently; keep them exact):
@@ -53,8 +53,8 @@ pub(crate) fn check_range(key: &str, v: f64, lo: f64, hi: f64) -> Result<(), Sim
     }
 }
 
-/// Optical configuration of the simulated scanner (SPEC section 2, defaults of the default
-/// simulated scanner).
+/// Optical configuration of the simulated scanner (docs/method.md section 2.3, defaults of the
+/// default simulated scanner of section 2.4).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct Optics {
@@ -106,7 +106,8 @@ impl Default for Optics {
 }
 
 impl Optics {
-    /// The ideal model of SPEC section 2: no distortion, no tilts (same size, F, c, D, L).
+    /// The ideal model of docs/method.md section 2.1: no distortion, no tilts (same size, F,
+    /// c, D, L).
     pub fn ideal(&self) -> Optics {
         Optics {
             k1: 0.0,

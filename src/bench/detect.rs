@@ -1,8 +1,8 @@
 //! Laser-line detectors against the simulator's ground truth, and their speed beside the
 //! memory-bandwidth floor.
 //!
-//! Frames: the default scanner of SPEC section 2 (`Optics::default()`), the line at sigma
-//! 1.0-3.0 px, three noise levels:
+//! Frames: the default scanner of docs/method.md section 2.4 (`Optics::default()`), the line
+//! at sigma 1.0-3.0 px, three noise levels:
 //! - `none`: noise disabled (exact pixel-integrated Gaussian plus ambient, rounded);
 //! - `default`: read noise 2 DN, shot noise at 40 e-/DN, 15 % speckle;
 //! - `double`: read noise 4 DN, 20 e-/DN (twice the shot-noise variance), 30 % speckle.

@@ -1,8 +1,8 @@
-//! Table 1 of seed 002 reproduced (SPEC section 7): the Bezier network against a global
-//! least-squares polynomial, a bicubic B-spline approximation, a NURBS fit and an
-//! interpolating C2 bicubic B-spline, all built from the same scan grid, for the Table-1
-//! configuration (an 88 x 91 sub-grid: 29 x 30 = 870 lattice segments, 32 evaluated points per
-//! segment) and for the full-resolution grid.
+//! Table 1 of the plantar scanner paper reproduced (docs/method.md section 7.5): the Bezier
+//! network against a global least-squares polynomial, a bicubic B-spline approximation, a NURBS
+//! fit and an interpolating C2 bicubic B-spline, all built from the same scan grid, for the
+//! Table-1 configuration (an 88 x 91 sub-grid: 29 x 30 = 870 lattice segments, 32 evaluated
+//! points per segment) and for the full-resolution grid.
 //!
 //! See [`crate::surface::compare`] for what each accuracy figure means. Timings are on one
 //! pinned core, the best of repeated runs for anything under 50 ms.
@@ -253,7 +253,7 @@ fn evaluate(fit: &Fitted, params: &[(f64, f64)], pattern: (usize, usize)) -> Vec
     }
 }
 
-/// The paper's Table 1 (SPEC section 7) for printing beside ours.
+/// The paper's Table 1 (docs/method.md section 7.5) for printing beside ours.
 pub const PAPER: [(&str, f64, f64, u64, u64, f64); 4] = [
     // method, model rms mm, representation rms mm, operations (total), bytes, seconds
     ("Least squared", 0.325, 1.135, 16_213_512, 421_472, 480.0),

@@ -1,8 +1,8 @@
-//! The Bezier depth network of seed 002 (eq. 13-16) as a second height mapping (SPEC section 5):
-//! `h = C(u, v) = sum_i sum_l C_il B_i^n(u) B_l^m(v)` with `u = a0 + a1 s` the line shift
-//! `s = c_0(r) - c` from the reference (glass) line normalised over the calibrated range
-//! (eq. 14) and `v = b0 + b1 r` the row (eq. 15), the control values `C_il = w_il h_il` solved
-//! so that the network passes through every calibration sample.
+//! The Bezier depth network of the plantar scanner paper (eq. 13-16) as a second height mapping
+//! (docs/method.md section 5.2): `h = C(u, v) = sum_i sum_l C_il B_i^n(u) B_l^m(v)` with
+//! `u = a0 + a1 s` the line shift `s = c_0(r) - c` from the reference (glass) line normalised
+//! over the calibrated range (eq. 14) and `v = b0 + b1 r` the row (eq. 15), the control values
+//! `C_il = w_il h_il` solved so that the network passes through every calibration sample.
 //!
 //! The paper's single network over all rows would have a degree near 1000 in v: its Bernstein
 //! collocation matrix is numerically singular (see [`bernstein_condition`]). Here the rows are

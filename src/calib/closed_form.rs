@@ -1,6 +1,7 @@
-//! The paper's closed forms (seed 002, eq. 20-21): per image row, the image centre c_x and the
-//! distance D from the line columns at three plate heights, under the ideal model of SPEC
-//! section 2 where `(c_k - c_x)(D + h_k) = F L` for every height k.
+//! The plantar scanner paper's closed forms (eq. 20-21, docs/method.md section 6.2): per image
+//! row, the image centre c_x and the distance D from the line columns at three plate heights,
+//! under the ideal model of docs/method.md section 2.1 where `(c_k - c_x)(D + h_k) = F L` for
+//! every height k.
 //!
 //! With K >= 3 heights the same relation is solved per row by linear least squares in
 //! (F L + c_x D, D, c_x): `c_k h_k = A - D c_k + c_x h_k`; with exactly three heights this is

@@ -1,16 +1,17 @@
-//! In-system calibration (SPEC section 6; seed 002 section 4, recast): the scanner calibrates
-//! itself from the line on a flat plate at known heights, a staircase gauge block of known
-//! step heights, step lengths and width, and its own slider positions.
+//! In-system calibration (docs/method.md section 6; the plantar scanner paper's section 4,
+//! recast): the scanner calibrates itself from the line on a flat plate at known heights, a
+//! staircase gauge block of known step heights, step lengths and width, and its own slider
+//! positions.
 //!
 //! 1. Start: the closed forms of eq. 20-21 per row ([`super::closed_form`]) give c_x, D and
 //!    F L; the block's known width gives F (and so L), the block's sides seen at several
 //!    heights give c_y, its sides and risers its pose.
-//! 2. A Levenberg-Marquardt fit of the general model of SPEC section 2 over every row of every
-//!    target: F, c_x, c_y, D, L, k1, k2, the laser plane's yaw and pitch, the slider scale, and
-//!    the block's pose (x, y, yaw) as nuisance parameters. Residuals: the height of each plate
-//!    and step row against its known height (in px of column through dh/dc), and the row of
-//!    each end of the line at a side or riser of the block against the model's prediction of
-//!    that edge (half a row from the last row that shows the line).
+//! 2. A Levenberg-Marquardt fit of the general model of docs/method.md section 2.3 over every
+//!    row of every target: F, c_x, c_y, D, L, k1, k2, the laser plane's yaw and pitch, the
+//!    slider scale, and the block's pose (x, y, yaw) as nuisance parameters. Residuals: the
+//!    height of each plate and step row against its known height (in px of column through
+//!    dh/dc), and the row of each end of the line at a side or riser of the block against the
+//!    model's prediction of that edge (half a row from the last row that shows the line).
 //! 3. The covariance of the fit (residuals in units of their measured noise: the spread of
 //!    repeated plate frames, and 1/sqrt(12) row for an end) gives a standard deviation per
 //!    parameter and, propagated through the triangulation, a height uncertainty (eq. 30-31).

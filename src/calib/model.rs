@@ -1,6 +1,6 @@
 use serde::{Deserialize, Serialize};
 
-/// The general scanner model of SPEC section 2.
+/// The general scanner model of docs/method.md section 2.3.
 ///
 /// Camera centre at (s·X, 0, −D) for reported slider position X and slider scale s; rotation
 /// R = Rz·Ry·Rx (camera to world) from `camera_tilt_deg`; Brown–Conrady distortion on

@@ -1,7 +1,7 @@
-//! The reference a user would otherwise pick (SPEC section 6): OpenCV checkerboard calibration
-//! (findChessboardCorners, cornerSubPix, calibrateCameraExtended) for F, c_x, c_y and the
-//! distortion, the board lying flat on the glass and shot at two slider positions for the
-//! camera's pose (glass normal and D) and the slider's direction and scale, and a
+//! The reference a user would otherwise pick (docs/method.md section 6.6): OpenCV checkerboard
+//! calibration (findChessboardCorners, cornerSubPix, calibrateCameraExtended) for F, c_x, c_y
+//! and the distortion, the board lying flat on the glass and shot at two slider positions for
+//! the camera's pose (glass normal and D) and the slider's direction and scale, and a
 //! least-squares laser plane through the line seen on the board at the other poses.
 //!
 //! Each pose is shot twice under the lamp: laser off (for the corners) and laser on; the line

@@ -6,7 +6,7 @@ use footscan_sim::targets::{BoardPose, Checkerboard, Placement, StaircaseGeometr
 use serde::{Deserialize, Serialize};
 
 /// The calibration procedure. Defaults are the procedure for the default simulated scanner
-/// (SPEC section 6); `footscan calibrate --plan FILE` reads one from TOML.
+/// (docs/method.md section 6.1); `footscan calibrate --plan FILE` reads one from TOML.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct CalibrationPlan {

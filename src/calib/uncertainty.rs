@@ -1,7 +1,8 @@
-//! Height uncertainty (seed 002 eq. 30-31, recast for the parametric model): the detection
-//! noise of one frame, measured as the spread of repeated frames, through the sensitivity
-//! dh/dc of the triangulation; and the calibration's own uncertainty, the parameter
-//! covariance propagated through dh/dtheta at the calibration samples.
+//! Height uncertainty (the plantar scanner paper's eq. 30-31, recast for the parametric model;
+//! docs/method.md section 6.5): the detection noise of one frame, measured as the spread of
+//! repeated frames, through the sensitivity dh/dc of the triangulation; and the calibration's
+//! own uncertainty, the parameter covariance propagated through dh/dtheta at the calibration
+//! samples.
 //!
 //! In the paper's eq. 30 the row coordinate also carries an uncertainty (u_v); here every row
 //! is measured at its own integer row, so only the column is uncertain.

@@ -1,5 +1,5 @@
-//! Bernstein (Bezier) curves of a window of pixel intensities (SPEC section 4, seed 002
-//! eq. 11-12) and the root of their derivative.
+//! Bernstein (Bezier) curves of a window of pixel intensities (the plantar scanner paper's
+//! eq. 11-12, docs/method.md section 4.1) and the root of their derivative.
 //!
 //! For a window of n + 1 samples I_0..I_n at uniform positions x_i = x_0 + i, the curve is
 //! x(t) = x_0 + n t, I(t) = sum B_i^n(t) I_i, and I'(t) = n sum B_i^(n-1)(t) d_i with

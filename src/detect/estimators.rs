@@ -1,5 +1,5 @@
 //! Per-row subpixel estimators behind the shared coarse search: the paper's Bezier method as
-//! written, and the baselines of SPEC section 4.
+//! written, and the baselines of docs/method.md section 4.4.
 
 use super::bernstein::{bisect_literal, Binomials, MAX_N};
 use super::coarse::{block_max, coarse_row, prefetch_ahead, CoarseConfig, CoarseScratch, Peak, Px};
@@ -253,9 +253,9 @@ impl Estimate for Steger {
     }
 }
 
-/// The paper's method as written (seed 002 eq. 11-12, SPEC section 4): a window of n + 1
-/// pixels centred on the integer maximum, the Bernstein curves x(t) and I(t), bisection on
-/// I'(t), the column x(t*).
+/// The plantar scanner paper's method as written (its eq. 11-12, docs/method.md section 4.1):
+/// a window of n + 1 pixels centred on the integer maximum, the Bernstein curves x(t) and
+/// I(t), bisection on I'(t), the column x(t*).
 #[derive(Clone, Debug)]
 pub struct BezierLiteral {
     pub n: usize,

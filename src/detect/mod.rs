@@ -1,4 +1,4 @@
-//! Laser-line detection: one subpixel column per image row (SPEC section 4).
+//! Laser-line detection: one subpixel column per image row (docs/method.md section 4).
 //!
 //! Every detector shares the coarse search of [`coarse`] (peak, extent, width, the reasons to
 //! reject a row, specular spikes skipped) and differs in the subpixel step:

@@ -1,5 +1,5 @@
-//! The measurement procedure of SPEC section 8 on a height map (definitions in the module doc
-//! of [`crate::measure`]).
+//! The measurement procedure of docs/method.md section 8 on a height map (definitions in the
+//! module doc of [`crate::measure`]).
 
 use super::fit::{fit_circle, local_quadratic, peak_vertex};
 use super::outline::{line_crossings, regions, simplify, Region};

@@ -1,4 +1,4 @@
-//! Foot landmarks and measurements (SPEC section 8) from a plantar height map.
+//! Foot landmarks and measurements (docs/method.md section 8) from a plantar height map.
 //!
 //! Input: a [`HeightMap`](crate::geom::HeightMap) (heights in mm on regular cells, NaN outside the footprint). For a
 //! scan ([`measure_grid`], the `measure.foot` stage, `footscan measure`) the footprint comes

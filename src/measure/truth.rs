@@ -115,7 +115,7 @@ pub fn compare_with_truth(
     scalar("heel_width_mm", Length, t.heel_width_mm, m.heel_width_mm);
     scalar("arch_height_mm", Length, t.arch_height_mm, m.arch_height_mm);
     scalar("arch_index", Index, t.arch_index, m.arch_index);
-    // Reported, not a figure of SPEC section 8: relative error of the contact area.
+    // Reported, not a figure of docs/method.md section 8: relative error of the contact area.
     scalar(
         "contact_area_rel",
         Index,

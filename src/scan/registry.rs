@@ -127,7 +127,7 @@ pub fn registry() -> Registry<Item, ScanContext> {
     );
     r.register(
         "measure.foot",
-        "foot measurements of SPEC 8 from the grid (and model): measurements.json, plantar.png (json, png, cell_mm, use_model, required)",
+        "foot measurements of docs/method.md section 8 from the grid (and model): measurements.json, plantar.png (json, png, cell_mm, use_model, required)",
         |p, ctx: &ScanContext| {
             let p: MeasureParams = params(p)?;
             Ok(Node::stage(MeasureStage::new(p, &ctx.out_dir)?))

@@ -1,7 +1,7 @@
 use super::{FrameMeta, FramePoints};
 use crate::detect::LinePeak;
 
-/// The scan grid of SPEC section 3: frame i (slider position X_i) by row j.
+/// The scan grid of docs/method.md section 3.2: frame i (slider position X_i) by row j.
 #[derive(Debug, Default)]
 pub struct ScanGrid {
     pub rows: usize,

@@ -1,4 +1,4 @@
-//! The network's basis (SPEC section 7) and the per-period interpolation matrices.
+//! The network's basis (docs/method.md section 7.1) and the per-period interpolation matrices.
 //!
 //! b0 = (1 + 4t)(1 - t)^4, b1 = 10 t^2 (1 - t)^3, b2 = 10 t^3 (1 - t)^2, b3 = (5 - 4t) t^4:
 //! the quintic Bernstein basis with doubled end control points (b0 = B0 + B1, b3 = B4 + B5),

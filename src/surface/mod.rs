@@ -1,5 +1,5 @@
-//! The plantar surface model (SPEC section 7): the Bezier network of seed 002 and the
-//! comparators of its Table 1.
+//! The plantar surface model (docs/method.md section 7): the Bezier network of the plantar
+//! scanner paper and the comparators of its Table 1 (section 7.5).
 //!
 //! - [`BezierNetwork`]: segments of 4 x 4 grid points (stride 3) storing C_ij = W_ij P_ij for
 //!   x, y and z; it interpolates every grid point, evaluates at any (s, t), over a regular

@@ -1,4 +1,5 @@
-//! The Bezier network of seed 002 (eq. 5, 25-29; SPEC section 7) over a grid of 3D points.
+//! The Bezier network of the plantar scanner paper (eq. 5, 25-29; docs/method.md section 7)
+//! over a grid of 3D points.
 //!
 //! The grid is cut into segments of 4 x 4 points with stride 3 (neighbours share an edge row
 //! or column); where fewer than 4 points remain at the grid's end the segment has the shorter

@@ -1,5 +1,5 @@
-//! Calibration targets (SPEC section 13): the staircase gauge block as a height field the
-//! frame renderer can image, and checkerboard images for the OpenCV reference calibration.
+//! Calibration targets (docs/method.md section 13): the staircase gauge block as a height field
+//! the frame renderer can image, and checkerboard images for the OpenCV reference calibration.
 //! A flat plate at a known height is [`crate::render::Scene::Plate`].
 
 pub mod checkerboard;

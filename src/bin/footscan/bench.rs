@@ -28,9 +28,9 @@ enum What {
         #[arg(long)]
         json: bool,
     },
-    /// Plantar surface models (seed 002 Table 1): the Bezier network against least squares,
-    /// B-spline approximation, NURBS and C2 B-spline interpolation on one scan, printed beside
-    /// the paper's figures.
+    /// Plantar surface models (the plantar scanner paper's Table 1, docs/method.md section
+    /// 7.5): the Bezier network against least squares, B-spline approximation, NURBS and C2
+    /// B-spline interpolation on one scan, printed beside the paper's figures.
     Surface {
         #[arg(long, default_value = "config/sim.toml")]
         config: PathBuf,

@@ -1,5 +1,5 @@
 //! The source stage: frames from the camera, each labelled with the slider position at its
-//! capture time (SPEC section 3, continuous mode).
+//! capture time (docs/method.md section 3.1, continuous mode).
 //!
 //! A poller thread owns the slider while the head moves and timestamps every status report;
 //! each frame's X is interpolated between the two reports around its capture timestamp, so a
