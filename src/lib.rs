@@ -9,6 +9,7 @@ pub mod calib;
 pub mod detect;
 pub mod geom;
 pub mod io;
+pub mod lastfit;
 pub mod measure;
 pub mod scan;
 pub mod scandata;

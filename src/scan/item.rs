@@ -13,6 +13,8 @@ pub enum Item {
     Grid(Arc<ScanGrid>),
     /// The plantar model built from the grid (stage `model.bezier`).
     Model(Arc<crate::surface::BezierNetwork>),
+    /// The foot's measurements (stage `measure.foot`), for the last stages after it.
+    Foot(Arc<crate::measure::Measurements>),
     Summary(Box<super::summary::ScanSummary>),
 }
 
@@ -24,6 +26,7 @@ impl Item {
             Item::Points(_) => "points",
             Item::Grid(_) => "grid",
             Item::Model(_) => "model",
+            Item::Foot(_) => "foot",
             Item::Summary(_) => "summary",
         }
     }

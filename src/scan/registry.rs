@@ -2,8 +2,8 @@
 //! may name and what `footscan stages` prints.
 
 use super::stages::{
-    out_file, Accumulate, Acquire, Detect, GridSink, HeightMapSink, MeasureParams, MeasureStage,
-    ModelParams, ModelStage, PlySink, SummarySink, Triangulate,
+    out_file, Accumulate, Acquire, AdjustParams, AdjustStage, Detect, GridSink, HeightMapSink,
+    MeasureParams, MeasureStage, ModelParams, ModelStage, PlySink, SummarySink, Triangulate,
 };
 use super::{item::Item, Devices, ScanCounters, ScanPlan, TruthSource};
 use crate::calib::Calibration;
@@ -131,6 +131,14 @@ pub fn registry() -> Registry<Item, ScanContext> {
         |p, ctx: &ScanContext| {
             let p: MeasureParams = params(p)?;
             Ok(Node::stage(MeasureStage::new(p, &ctx.out_dir)?))
+        },
+    );
+    r.register(
+        "last.adjust",
+        "a last's bottom adjusted to the measured foot (after measure.foot): bottom.igs, bottom.step, last_adjusted.stl, deviation.png, adjust.json (last = file, units, length_mm, fade_mm)",
+        |p, ctx: &ScanContext| {
+            let p: AdjustParams = params(p)?;
+            Ok(Node::stage(AdjustStage::new(p, &ctx.out_dir)?))
         },
     );
     r.register(

@@ -2,9 +2,11 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
+use footscan::lastfit::{adjust_scan, AdjustScanOptions};
 use footscan_geom::mesh::{TriMesh, Units};
 use footscan_geom::plane::Plane;
 use footscan_geom::{P3, V3};
+use footscan_last::adjust::last::LastOptions;
 use footscan_last::join::{self, output, JoinParams};
 use std::path::PathBuf;
 
@@ -20,6 +22,34 @@ enum What {
     /// writes joined.igs, joined.step, joined.stl (closed), seams.json, network.json,
     /// zebra.png and views.png to --out.
     Join(JoinArgs),
+    /// Adjust a last's bottom to a scanned foot (docs/method.md section 9): writes bottom.igs
+    /// and bottom.step (the adjusted bottom as a B-spline surface), last_adjusted.stl (the
+    /// whole last deformed to it, closed), deviation.png (heat map before and after) and
+    /// adjust.json to --out, all or nothing.
+    Adjust(AdjustArgs),
+}
+
+#[derive(Parser)]
+pub struct AdjustArgs {
+    /// Scan directory holding grid.bin and measurements.json (a scan whose pipeline ran
+    /// measure.foot, or one `footscan measure` has measured).
+    #[arg(long)]
+    scan: PathBuf,
+    /// The last (STL, OBJ or PLY; a closed mesh).
+    #[arg(long)]
+    last: PathBuf,
+    /// Units of the last file: mm, m, or auto (decided from the size).
+    #[arg(long, default_value = "auto")]
+    units: Units,
+    /// Scale the last so its length is this many mm (for unitless meshes).
+    #[arg(long)]
+    length: Option<f64>,
+    /// Height over which the deformation of the whole last fades out (mm).
+    #[arg(long, default_value_t = 30.0)]
+    fade_mm: f64,
+    /// Output directory (replaced as a whole once everything is written).
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(Parser)]
@@ -64,7 +94,84 @@ pub struct JoinArgs {
 pub fn run(args: Args) -> Result<()> {
     match args.what {
         What::Join(a) => run_join(a),
+        What::Adjust(a) => run_adjust(a),
     }
+}
+
+fn run_adjust(a: AdjustArgs) -> Result<()> {
+    if !(a.fade_mm > 0.0 && a.fade_mm <= 200.0) {
+        bail!("--fade-mm {}: valid range is (0, 200]", a.fade_mm);
+    }
+    let last_opts = LastOptions {
+        units: a.units,
+        length_mm: a.length,
+        ..LastOptions::default()
+    };
+    let opts = AdjustScanOptions {
+        fade_mm: a.fade_mm,
+        ..AdjustScanOptions::default()
+    };
+    let (d, w) = adjust_scan(&a.scan, &a.last, &last_opts, &opts, &a.out)?;
+    let adj = &d.adjustment;
+    println!(
+        "{} on the foot of {}{}",
+        a.last.display(),
+        a.scan.display(),
+        if adj.mirrored {
+            " (last of the other side: mirrored)"
+        } else {
+            ""
+        }
+    );
+    println!(
+        "rigid fit: rotation {:.2} deg, shift ({:.2}, {:.2}) mm; eps {:.4} (at {:.1}, {:.1}), zeta {:.4}",
+        adj.rotation_deg, adj.shift[0], adj.shift[1], adj.eps, adj.eps_at[0], adj.eps_at[1], adj.zeta
+    );
+    println!("deviation, bottom minus foot    before (rigid fit)    after");
+    let (b, f) = (adj.before, adj.after);
+    let rows = [
+        ("height RMS (mm)", b.height_rms_mm, f.height_rms_mm),
+        ("height max (mm)", b.height_max_mm, f.height_max_mm),
+        (
+            "footprint beyond 0.5 mm (%)",
+            100.0 * b.share_beyond_0_5,
+            100.0 * f.share_beyond_0_5,
+        ),
+        (
+            "footprint uncovered (%)",
+            100.0 * b.uncovered_share,
+            100.0 * f.uncovered_share,
+        ),
+        ("outline RMS (mm)", b.outline_rms_mm, f.outline_rms_mm),
+        ("outline max (mm)", b.outline_max_mm, f.outline_max_mm),
+        ("landmarks max (mm)", b.landmark_max_mm, f.landmark_max_mm),
+    ];
+    for (name, x, y) in rows {
+        println!("  {name:29} {x:12.3} {y:12.3}");
+    }
+    println!(
+        "bottom surface: {} x {} control points, fit RMS {:.3} mm, max {:.3} mm",
+        d.surface.surface.nu, d.surface.surface.nv, d.surface.rms_mm, d.surface.max_mm
+    );
+    println!(
+        "last deformed: fade {:.0} mm, largest change {:.2} mm, {} flipped triangles, volume {:.0} -> {:.0} mm^3",
+        d.deform.fade_mm,
+        d.deform.max_displacement_mm,
+        d.deform.flipped_triangles,
+        d.deform.volume_before_mm3,
+        d.deform.volume_after_mm3
+    );
+    println!(
+        "adjust {:.1} ms, surface {:.1} ms, deform {:.1} ms",
+        d.adjust_ms, d.surface_ms, d.deform_ms
+    );
+    for n in &d.report.notes {
+        println!("note: {n}");
+    }
+    for f in &w.files {
+        println!("wrote {}", f.display());
+    }
+    Ok(())
 }
 
 /// Parse a plane argument against the placed last it cuts.

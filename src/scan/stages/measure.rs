@@ -1,5 +1,6 @@
 //! `measure.foot`: measures the foot at the end of the stream from the grid and, when one
-//! comes down the pipeline, the plantar model.
+//! comes down the pipeline, the plantar model; the measurements go on down the pipeline for
+//! the last stages (`last.adjust`).
 
 use super::out_file;
 use crate::measure::{measure_grid, write_measurements};
@@ -82,7 +83,7 @@ impl Stage<Item> for MeasureStage {
         Ok(())
     }
 
-    fn finish(&mut self, _out: &mut Emitter<Item>) -> Result<(), BoxError> {
+    fn finish(&mut self, out: &mut Emitter<Item>) -> Result<(), BoxError> {
         let Some(grid) = self.grid.take() else {
             return Err("measure.foot received no scan grid: put it after accumulate".into());
         };
@@ -99,6 +100,7 @@ impl Stage<Item> for MeasureStage {
                 for w in &m.warnings {
                     tracing::warn!("{w}");
                 }
+                let _ = out.emit(Item::Foot(Arc::new(m)));
                 Ok(())
             }
             Err(e) if !self.required => {

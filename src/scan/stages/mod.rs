@@ -2,6 +2,7 @@
 //! modules. [`super::registry`] names each of them for `[[pipeline.stages]]`.
 
 mod acquire;
+mod adjust;
 mod measure;
 mod model;
 mod process;
@@ -9,6 +10,7 @@ mod sinks;
 mod tap;
 
 pub use acquire::Acquire;
+pub use adjust::{AdjustParams, AdjustStage};
 pub use measure::{MeasureParams, MeasureStage};
 pub use model::{ModelParams, ModelStage};
 pub use process::{Accumulate, Detect, Triangulate};

@@ -241,15 +241,26 @@ pub fn sole_envelope(body: &[Pt], toes: &[Vec<Pt>], axis: Pt, cut_point: Pt) -> 
             break;
         }
     }
+    // The front: the hull counterclockwise from where the body enters the forepart (the
+    // first body vertex after the rear chain) to where it leaves it (the last before the
+    // chain). Both are the body's widest points at the cut, so hull vertices or next to one.
+    // (Every hull point is in front of the cut, so the cut cannot be found on the hull.)
+    let (entry, exit) = (body[i], body[(start + n - 1) % n]);
     let h = hull.len();
-    if let Some(hs) = (0..h).find(|&k| !behind(hull[k]) && behind(hull[(k + h - 1) % h])) {
-        let mut k = hs;
-        while !behind(hull[k]) {
+    let nearest = |q: Pt| {
+        (0..h)
+            .min_by(|&a, &b| dist(hull[a], q).total_cmp(&dist(hull[b], q)))
+            .unwrap_or(0)
+    };
+    if h > 0 {
+        let (ke, kx) = (nearest(entry), nearest(exit));
+        let mut k = ke;
+        loop {
             out.push(hull[k]);
-            k = (k + 1) % h;
-            if k == hs {
+            if k == kx {
                 break;
             }
+            k = (k + 1) % h;
         }
     }
     out
@@ -467,6 +478,42 @@ mod tests {
                 [r * a.cos(), r * a.sin()]
             })
             .collect()
+    }
+
+    /// A foot-like body (an ellipse, heel at x = 0, toe-less front at x = 200) with five
+    /// separate toe pads in front of it, as the scanner measures them: the envelope keeps the
+    /// body behind the cut and closes over the pads in front, and every pad lies inside it.
+    #[test]
+    fn sole_envelope_closes_over_separate_toe_pads() {
+        let body: Vec<Pt> = circle(1.0, 400)
+            .iter()
+            .map(|q| [100.0 + 100.0 * q[0], 40.0 * q[1]])
+            .collect();
+        let pads: Vec<Vec<Pt>> = (0..5)
+            .map(|k| {
+                let c = [215.0 - 6.0 * k as f64, 25.0 - 12.0 * k as f64];
+                circle(5.0, 40).iter().map(|q| add(c, *q)).collect()
+            })
+            .collect();
+        let env = sole_envelope(&body, &pads, [1.0, 0.0], [160.0, 35.0]);
+        assert!(signed_area(&env) > signed_area(&body), "the pads add area");
+        let xmax = env.iter().map(|p| p[0]).fold(f64::MIN, f64::max);
+        assert!(
+            (xmax - 220.0).abs() < 0.1,
+            "front at the hallux pad's tip: {xmax}"
+        );
+        let poly =
+            footscan_geom::polygon::Polygon::new(env.iter().map(|p| P2::new(p[0], p[1])).collect());
+        for q in pads.iter().flatten().chain(body.iter()) {
+            assert!(
+                poly.contains(&P2::new(q[0], q[1])) || distance_to(&env, *q) < 1e-9,
+                "{q:?} outside the envelope"
+            );
+        }
+        // Behind the cut the envelope is the body itself.
+        for p in env.iter().filter(|p| p[0] < 150.0) {
+            assert!(distance_to(&body, *p) < 1e-9);
+        }
     }
 
     #[test]

@@ -230,6 +230,89 @@ pub struct Written {
     pub files: Vec<PathBuf>,
 }
 
+/// The files of one adjustment written into the existing directory `dir`; errors name
+/// `named_dir`'s file (the directory the user asked for).
+fn write_files(
+    dir: &Path,
+    named_dir: &Path,
+    adj: &Adjustment,
+    surf: &BottomSurface,
+    last: Option<(&PreparedLast, &TriMesh)>,
+    report: &Report,
+) -> Result<(), AdjustError> {
+    let io = |name: &str, e: &dyn std::fmt::Display| AdjustError::Output {
+        path: named_dir.join(name),
+        why: e.to_string(),
+    };
+    let header = Header::new("footscan adjusted last bottom");
+    let curves: Vec<_> = surf.outline.iter().cloned().collect();
+    let surfaces = [surf.surface.clone()];
+    iges::write(&dir.join(BOTTOM_IGES), &curves, &surfaces, &header)
+        .map_err(|e| io(BOTTOM_IGES, &e))?;
+    step::write(&dir.join(BOTTOM_STEP), &curves, &surfaces, &header)
+        .map_err(|e| io(BOTTOM_STEP, &e))?;
+    if let Some((_, mesh)) = last {
+        mesh.write(dir.join(LAST_STL), Format::StlBinary)
+            .map_err(|e| io(LAST_STL, &e))?;
+    }
+    let title = format!("{}  on  {}", report.last, report.foot);
+    heatmap(adj, &title)
+        .save_png(&dir.join(HEATMAP_PNG))
+        .map_err(|e| io(HEATMAP_PNG, &e))?;
+    let json = serde_json::to_vec_pretty(report).map_err(|e| io(REPORT_JSON, &e))?;
+    draw::write_atomic(&dir.join(REPORT_JSON), &json).map_err(|e| io(REPORT_JSON, &e))?;
+    Ok(())
+}
+
+/// The names [`write_files`] writes.
+fn names(with_last: bool) -> Vec<&'static str> {
+    let mut n = vec![BOTTOM_IGES, BOTTOM_STEP];
+    if with_last {
+        n.push(LAST_STL);
+    }
+    n.extend([HEATMAP_PNG, REPORT_JSON]);
+    n
+}
+
+/// Writes the outputs beside other files in the existing directory `dir` (a scan directory):
+/// into a temporary directory inside it, then each file renamed into place, so a reader sees
+/// every file whole; on an error the files already moved are removed again and nothing is
+/// left behind.
+pub fn write_into(
+    dir: &Path,
+    adj: &Adjustment,
+    surf: &BottomSurface,
+    last: Option<(&PreparedLast, &TriMesh)>,
+    report: &Report,
+) -> Result<Written, AdjustError> {
+    let io = |path: &Path, e: &dyn std::fmt::Display| AdjustError::Output {
+        path: path.to_path_buf(),
+        why: e.to_string(),
+    };
+    let tmp = dir.join(format!(".last-adjust.tmp{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(&tmp).map_err(|e| io(&tmp, &e))?;
+    let mut moved = Vec::new();
+    let result = write_files(&tmp, dir, adj, surf, last, report).and_then(|()| {
+        for n in names(last.is_some()) {
+            std::fs::rename(tmp.join(n), dir.join(n)).map_err(|e| io(&dir.join(n), &e))?;
+            moved.push(dir.join(n));
+        }
+        Ok(())
+    });
+    let _ = std::fs::remove_dir_all(&tmp);
+    if let Err(e) = result {
+        for f in &moved {
+            let _ = std::fs::remove_file(f);
+        }
+        return Err(e);
+    }
+    Ok(Written {
+        dir: dir.to_path_buf(),
+        files: moved,
+    })
+}
+
 /// Writes the outputs into `out` all or nothing: into a temporary directory beside it, then
 /// renamed into place (an existing `out` is replaced only once everything is written). On
 /// an error nothing is left behind.
@@ -256,25 +339,7 @@ pub fn write_outputs(
     let tmp = parent.join(format!(".{name}.tmp{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
     std::fs::create_dir_all(&tmp).map_err(|e| io(&tmp, &e))?;
-    let result = (|| {
-        let header = Header::new("footscan adjusted last bottom");
-        let curves: Vec<_> = surf.outline.iter().cloned().collect();
-        let surfaces = [surf.surface.clone()];
-        iges::write(&tmp.join(BOTTOM_IGES), &curves, &surfaces, &header)
-            .map_err(|e| io(&out.join(BOTTOM_IGES), &e))?;
-        step::write(&tmp.join(BOTTOM_STEP), &curves, &surfaces, &header)
-            .map_err(|e| io(&out.join(BOTTOM_STEP), &e))?;
-        if let Some((_, mesh)) = last {
-            mesh.write(tmp.join(LAST_STL), Format::StlBinary)
-                .map_err(|e| io(&out.join(LAST_STL), &e))?;
-        }
-        let title = format!("{}  on  {}", report.last, report.foot);
-        heatmap(adj, &title)
-            .save_png(&tmp.join(HEATMAP_PNG))
-            .map_err(|e| io(&out.join(HEATMAP_PNG), &e))?;
-        let json = serde_json::to_vec_pretty(report).map_err(|e| io(&out.join(REPORT_JSON), &e))?;
-        draw::write_atomic(&tmp.join(REPORT_JSON), &json)
-            .map_err(|e| io(&out.join(REPORT_JSON), &e))?;
+    let result = write_files(&tmp, out, adj, surf, last, report).and_then(|()| {
         // Replace `out` only now.
         let old = parent.join(format!(".{name}.old{}", std::process::id()));
         let had = out.exists();
@@ -291,18 +356,13 @@ pub fn write_outputs(
             let _ = std::fs::remove_dir_all(&old);
         }
         Ok(())
-    })();
+    });
     if result.is_err() {
         let _ = std::fs::remove_dir_all(&tmp);
     }
     result?;
-    let mut files = vec![out.join(BOTTOM_IGES), out.join(BOTTOM_STEP)];
-    if last.is_some() {
-        files.push(out.join(LAST_STL));
-    }
-    files.extend([out.join(HEATMAP_PNG), out.join(REPORT_JSON)]);
     Ok(Written {
         dir: out.to_path_buf(),
-        files,
+        files: names(last.is_some()).iter().map(|n| out.join(n)).collect(),
     })
 }

@@ -1,0 +1,204 @@
+//! A scan as the foot of the last stages: the scanner's measurements and scan grid turned into
+//! the plain inputs of [`footscan_last::adjust`] ([`FootPlantar`]), and the whole bottom
+//! adjustment of a saved scan ([`adjust_scan`]) that `footscan last adjust` and the pipeline
+//! stage `last.adjust` share.
+//!
+//! Heights come from the scan grid rasterised on the adjustment's cell (0.5 mm: each cell the
+//! mean of the 3-6 measured points in it), not from the Bezier network: the adjustment only
+//! compares heights and then fits its own cubic B-spline bottom through them, so the
+//! network's normal jumps across segment edges (docs/method.md section 7.4) never reach the
+//! bottom surface, and cells the network leaves out at the outline are kept.
+
+use crate::measure::{rasterize_grid, MeasureError, Measurements, Side};
+use crate::scandata::ScanGrid;
+use footscan_last::adjust::last::{deform_last, prepare_last, DeformReport, PreparedLast};
+use footscan_last::adjust::output::{Report, Written};
+use footscan_last::adjust::surface::{fit_bottom, BottomSurface};
+use footscan_last::adjust::{
+    self, AdjustError, AdjustOptions, Adjustment, FootLandmarks, FootPlantar, HeightGrid,
+};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Why a scan could not be adjusted to a last; every variant names its input.
+#[derive(Debug, thiserror::Error)]
+pub enum LastFitError {
+    #[error(
+        "scan {}: no measurements.json: measure the foot first (`footscan measure --scan {}`, \
+         or name the measure.foot stage before last.adjust in the pipeline)",
+        dir.display(), dir.display()
+    )]
+    NoMeasurements { dir: PathBuf },
+    #[error("scan {}: {what}: {why}", dir.display())]
+    Scan {
+        dir: PathBuf,
+        what: String,
+        why: String,
+    },
+    #[error(transparent)]
+    Measure(#[from] MeasureError),
+    #[error(transparent)]
+    Adjust(#[from] AdjustError),
+}
+
+/// The foot of a scan: outline, toe pads and landmarks from the measurements, heights from the
+/// grid rasterised on `cell_mm`.
+pub fn foot_plantar(
+    source: &str,
+    grid: &ScanGrid,
+    m: &Measurements,
+    cell_mm: f64,
+) -> Result<FootPlantar, MeasureError> {
+    let map = rasterize_grid(grid, cell_mm)?;
+    Ok(FootPlantar {
+        source: source.to_string(),
+        side: match m.side {
+            Side::Left => adjust::Side::Left,
+            Side::Right => adjust::Side::Right,
+        },
+        outline: m.outline.clone(),
+        toe_outlines: m.toe_outlines.clone(),
+        landmarks: FootLandmarks {
+            heel_point: m.heel_point,
+            toe_tip: m.toe_tip,
+            hallux: m.hallux_point,
+            mt1_head: m.mt1_head,
+            mt5_head: m.mt5_head,
+            waist_inner: m.waist_inner,
+            waist_outer: m.waist_outer,
+            arch_point: m.arch_point,
+            arch_height_mm: m.arch_height_mm,
+        },
+        heights: HeightGrid {
+            x0: map.x0,
+            y0: map.y0,
+            cell_mm: map.cell_mm,
+            nx: map.nx,
+            ny: map.ny,
+            z: map.z,
+        },
+    })
+}
+
+/// Reads a saved scan's grid.bin and measurements.json as the adjustment's foot.
+pub fn foot_from_scan_dir(dir: &Path, cell_mm: f64) -> Result<FootPlantar, LastFitError> {
+    let scan_err = |what: &str, why: String| LastFitError::Scan {
+        dir: dir.to_path_buf(),
+        what: what.to_string(),
+        why,
+    };
+    let mpath = dir.join("measurements.json");
+    let text = match std::fs::read(&mpath) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(LastFitError::NoMeasurements {
+                dir: dir.to_path_buf(),
+            })
+        }
+        Err(e) => return Err(scan_err("measurements.json", e.to_string())),
+    };
+    let m: Measurements = serde_json::from_slice(&text).map_err(|e| {
+        scan_err(
+            "measurements.json",
+            format!("not the scanner's measurements ({e})"),
+        )
+    })?;
+    let gpath = dir.join("grid.bin");
+    let grid = ScanGrid::load(&gpath).map_err(|e| scan_err("grid.bin", e.to_string()))?;
+    Ok(foot_plantar(
+        &dir.display().to_string(),
+        &grid,
+        &m,
+        cell_mm,
+    )?)
+}
+
+/// Knobs of [`adjust_scan`] beyond the last file's own.
+#[derive(Clone, Copy, Debug)]
+pub struct AdjustScanOptions {
+    pub adjust: AdjustOptions,
+    /// Control point spacing of the bottom B-spline surface (mm).
+    pub surface_spacing_mm: f64,
+    /// Height over which the deformation of the whole last fades out (mm; at least four times
+    /// the largest change is used).
+    pub fade_mm: f64,
+}
+
+impl Default for AdjustScanOptions {
+    fn default() -> Self {
+        AdjustScanOptions {
+            adjust: AdjustOptions::default(),
+            surface_spacing_mm: 3.0,
+            fade_mm: 30.0,
+        }
+    }
+}
+
+/// One adjustment's results and timings (ms), before anything is written.
+pub struct AdjustedLast {
+    pub adjustment: Adjustment,
+    pub surface: BottomSurface,
+    pub mesh: footscan_geom::mesh::TriMesh,
+    pub deform: DeformReport,
+    pub report: Report,
+    pub adjust_ms: f64,
+    pub surface_ms: f64,
+    pub deform_ms: f64,
+}
+
+/// Adjusts a prepared last to a foot: the bottom ([`adjust::adjust`]), its B-spline surface
+/// and the whole last deformed to it.
+pub fn adjust_last(
+    foot: &FootPlantar,
+    last: &PreparedLast,
+    opts: &AdjustScanOptions,
+) -> Result<AdjustedLast, AdjustError> {
+    let t = Instant::now();
+    let a = adjust::adjust(foot, &last.bottom, &opts.adjust)?;
+    let adjust_ms = t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
+    let surf = fit_bottom(&a, opts.surface_spacing_mm)?;
+    let surface_ms = t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
+    let (mesh, dr) = deform_last(last, &a, opts.fade_mm)?;
+    let deform_ms = t.elapsed().as_secs_f64() * 1e3;
+    let report = Report::new(
+        &foot.source,
+        &last.path.display().to_string(),
+        &a,
+        &surf,
+        Some(dr),
+    );
+    Ok(AdjustedLast {
+        adjustment: a,
+        surface: surf,
+        mesh,
+        deform: dr,
+        report,
+        adjust_ms,
+        surface_ms,
+        deform_ms,
+    })
+}
+
+/// `footscan last adjust`: the scan in `scan_dir` against the last file, outputs into `out`
+/// (all or nothing).
+pub fn adjust_scan(
+    scan_dir: &Path,
+    last_path: &Path,
+    last_opts: &adjust::last::LastOptions,
+    opts: &AdjustScanOptions,
+    out: &Path,
+) -> Result<(AdjustedLast, Written), LastFitError> {
+    let foot = foot_from_scan_dir(scan_dir, opts.adjust.cell_mm)?;
+    let last = prepare_last(last_path, last_opts)?;
+    let done = adjust_last(&foot, &last, opts)?;
+    let written = adjust::output::write_outputs(
+        out,
+        &done.adjustment,
+        &done.surface,
+        Some((&last, &done.mesh)),
+        &done.report,
+    )?;
+    Ok((done, written))
+}
