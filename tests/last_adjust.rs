@@ -73,6 +73,9 @@ fn scan_with_last_adjust_then_the_cli_on_every_real_last() {
     )
     .unwrap();
     let scan = tmp.path().join("scan");
+    // A file --out held before: the scan must not claim it wrote it.
+    std::fs::create_dir(&scan).unwrap();
+    std::fs::write(scan.join("old-notes.txt"), "from an earlier visit").unwrap();
     let o = footscan()
         .args(["scan", "--config"])
         .arg(&cfg)
@@ -81,6 +84,13 @@ fn scan_with_last_adjust_then_the_cli_on_every_real_last() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let said = String::from_utf8_lossy(&o.stdout);
+    let wrote = said.lines().find(|l| l.starts_with("wrote ")).unwrap_or("");
+    assert!(
+        wrote.contains("adjust.json") && wrote.contains("grid.bin"),
+        "{said}"
+    );
+    assert!(!wrote.contains("old-notes.txt"), "{wrote}");
     for f in [
         "bottom.igs",
         "bottom.step",

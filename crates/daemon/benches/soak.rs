@@ -29,8 +29,11 @@ fn rss_mb(pid: u32) -> f64 {
 }
 
 fn main() {
-    if std::env::args().any(|a| a == "--list") {
-        return; // `cargo test --benches` asks for a list
+    // `cargo bench` passes --bench; `cargo test --all-targets` runs this binary without it
+    // (or with --list), and a 10-minute soak does not belong in the test suite.
+    if !std::env::args().any(|a| a == "--bench") {
+        println!("soak: a benchmark; run it with `cargo bench -p footscand --bench soak`");
+        return;
     }
     let scans: usize = env("SOAK_SCANS", 20);
     let step: f64 = env("SOAK_STEP_MM", 0.25);

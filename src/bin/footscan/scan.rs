@@ -31,16 +31,22 @@ pub fn run(config: PathBuf, out: PathBuf, calibration: Option<PathBuf>, quiet: b
         cancel.cancel();
     })
     .context("installing the Ctrl-C handler")?;
+    let started = std::time::SystemTime::now();
     let summary = scan::run_scan(&cfg, &opts, |p| {
         bar.set_length(p.expected_frames);
         bar.set_position(p.frames.min(p.expected_frames));
         bar.set_message(format!("{} dropped", p.dropped));
     })
     .with_context(|| {
-        format!(
-            "scan failed (the reason is kept in {})",
-            out.join("scan.json").display()
-        )
+        let json = out.join("scan.json");
+        if written_since(&json, started) {
+            format!("scan failed (the reason is kept in {})", json.display())
+        } else {
+            format!(
+                "scan failed (and {} could not be written, so the reason is only here)",
+                json.display()
+            )
+        }
     })?;
     bar.finish_and_clear();
     if summary.status != "complete" {
@@ -69,11 +75,11 @@ pub fn run(config: PathBuf, out: PathBuf, calibration: Option<PathBuf>, quiet: b
             s.name, s.input, s.output, s.dropped, s.mean_latency_ms, s.max_latency_ms
         );
     }
-    // What the configured sinks actually wrote, not a fixed list.
+    // What this scan's stages actually wrote, not a fixed list nor what --out held before.
     let mut files: Vec<String> = std::fs::read_dir(&out)
         .map(|d| {
             d.filter_map(|e| e.ok())
-                .filter(|e| e.path().is_file())
+                .filter(|e| e.path().is_file() && written_since(&e.path(), started))
                 .map(|e| e.file_name().to_string_lossy().into_owned())
                 .collect()
         })
@@ -81,4 +87,11 @@ pub fn run(config: PathBuf, out: PathBuf, calibration: Option<PathBuf>, quiet: b
     files.sort();
     println!("wrote {}/{{{}}}", out.display(), files.join(", "));
     Ok(())
+}
+
+/// Whether `path` is a file modified at or after `t` (this run wrote it).
+fn written_since(path: &std::path::Path, t: std::time::SystemTime) -> bool {
+    std::fs::metadata(path)
+        .and_then(|m| m.modified())
+        .is_ok_and(|m| m >= t)
 }

@@ -649,6 +649,8 @@ pub fn content_type(name: &str) -> &'static str {
         Some("png") => "image/png",
         Some("toml") => "application/toml",
         Some("csv") => "text/csv",
+        Some("igs" | "iges") => "model/iges",
+        Some("step" | "stp") => "model/step",
         _ => "application/octet-stream",
     }
 }

@@ -627,7 +627,7 @@ async function loadResult(id) {
   $('result').dataset.scanId = rec.id;
   $('result-empty').hidden = true;
 
-  for (const [name, img, fig] of [['heightmap.png', 'heightmap', 'heightmap-fig'], ['plantar.png', 'plantar', 'plantar-fig']]) {
+  for (const [name, img, fig] of [['heightmap.png', 'heightmap', 'heightmap-fig'], ['plantar.png', 'plantar', 'plantar-fig'], ['deviation.png', 'deviation', 'deviation-fig']]) {
     if (names.has(name)) {
       $(img).src = fileUrl(rec.id, name);
       $(fig).hidden = false;
