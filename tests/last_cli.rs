@@ -1,9 +1,14 @@
 //! `footscan last join` on the RoundTip pair (unitless meshes scaled by --length): the files
 //! it promises, seams.json's figures within the seam targets, and a bad plane refused with a
-//! message naming it. The lasts are read at test time (FOOTSCAN_DATA, default: the shared data
-//! directory beside the repository).
+//! message naming it. The bottom adjustment on a real simulated scan: `footscan scan` with the
+//! `last.adjust` stage after measure.foot (the last's files land in the scan directory beside
+//! the scan's), then `footscan last adjust` on the saved scan against each of the four real
+//! lasts scaled to the foot's size class, with the bounds on the result, and bad
+//! inputs refused by name with nothing written. The lasts are read at test time
+//! (FOOTSCAN_DATA, default: the shared data directory beside the repository).
 
-use std::path::PathBuf;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn footscan() -> Command {
@@ -118,4 +123,176 @@ fn last_join_refuses_a_plane_that_misses_the_last() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success());
     assert!(err.contains("a.stl"), "{err}");
+}
+
+fn report(dir: &Path) -> Value {
+    serde_json::from_slice(&std::fs::read(dir.join("adjust.json")).unwrap()).unwrap()
+}
+
+/// The targets on an adjusted bottom: outline RMS 0.3 mm, landmarks 0.5 mm, sole
+/// height RMS 0.3 mm; and the deformed last better than the rigid fit.
+fn check(r: &Value, what: &str) {
+    let after = &r["after"];
+    let f = |k: &str| after[k].as_f64().unwrap();
+    println!(
+        "{what}: eps {:.4} zeta {:.4}; after: height RMS {:.3} max {:.3} mm, >0.5 mm {:.2} %, outline RMS {:.3} mm, landmarks {:.3} mm; before: height RMS {:.2}, outline RMS {:.2}",
+        r["eps"].as_f64().unwrap(),
+        r["zeta"].as_f64().unwrap(),
+        f("height_rms_mm"),
+        f("height_max_mm"),
+        100.0 * f("share_beyond_0_5"),
+        f("outline_rms_mm"),
+        f("landmark_max_mm"),
+        r["before"]["height_rms_mm"].as_f64().unwrap(),
+        r["before"]["outline_rms_mm"].as_f64().unwrap(),
+    );
+    assert!(f("outline_rms_mm") <= 0.3, "{what}: outline RMS");
+    assert!(f("landmark_max_mm") <= 0.5, "{what}: landmarks");
+    assert!(f("height_rms_mm") <= 0.3, "{what}: height RMS");
+    assert!(f("uncovered_share") == 0.0, "{what}: footprint uncovered");
+    assert!(r["before"]["height_rms_mm"].as_f64().unwrap() > f("height_rms_mm"));
+}
+
+#[test]
+fn scan_with_last_adjust_then_the_cli_on_every_real_last() {
+    let lasts = lasts_dir();
+    let tmp = tempfile::tempdir().unwrap();
+    let base =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/sim.toml"))
+            .unwrap();
+    let warped = lasts.join("LastScan_Warped.stl");
+    let cfg = tmp.path().join("scan-last.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "{base}\n[[pipeline.stages]]\nstage = \"last.adjust\"\nlast = {:?}\nlength_mm = 262.0\n",
+            warped.display().to_string()
+        ),
+    )
+    .unwrap();
+    let scan = tmp.path().join("scan");
+    // A file --out held before: the scan must not claim it wrote it.
+    std::fs::create_dir(&scan).unwrap();
+    std::fs::write(scan.join("old-notes.txt"), "from an earlier visit").unwrap();
+    let o = footscan()
+        .args(["scan", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(&scan)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let said = String::from_utf8_lossy(&o.stdout);
+    let wrote = said.lines().find(|l| l.starts_with("wrote ")).unwrap_or("");
+    assert!(
+        wrote.contains("adjust.json") && wrote.contains("grid.bin"),
+        "{said}"
+    );
+    assert!(!wrote.contains("old-notes.txt"), "{wrote}");
+    for f in [
+        "bottom.igs",
+        "bottom.step",
+        "last_adjusted.stl",
+        "deviation.png",
+        "adjust.json",
+        "measurements.json",
+        "grid.bin",
+    ] {
+        assert!(
+            scan.join(f).is_file(),
+            "{f} missing from the scan directory"
+        );
+    }
+    let in_scan = report(&scan);
+    check(&in_scan, "stage last.adjust, LastScan_Warped");
+    // Nothing temporary left behind in the scan directory.
+    for e in std::fs::read_dir(&scan).unwrap() {
+        let n = e.unwrap().file_name().to_string_lossy().to_string();
+        assert!(!n.starts_with('.'), "{n} left in the scan directory");
+    }
+
+    // The CLI on the saved scan: every real last, scaled to the foot's size class (foot
+    // length + 12 mm toe allowance; the foot is 250 mm).
+    for name in [
+        "LastScan_Default.stl",
+        "LastScan_Warped.stl",
+        "Last_Flat_RoundTip.stl",
+        "Last_Heeled_RoundTip.stl",
+    ] {
+        let out = tmp.path().join(name.trim_end_matches(".stl"));
+        let o = footscan()
+            .args(["last", "adjust", "--scan"])
+            .arg(&scan)
+            .arg("--last")
+            .arg(lasts.join(name))
+            .args(["--length", "262", "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&o.stdout);
+        println!("{text}");
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(text.contains("outline RMS"), "{text}");
+        let r = report(&out);
+        check(&r, name);
+        if name == "LastScan_Warped.stl" {
+            // The stage and the CLI do the same computation on the same inputs.
+            // (The stage's grid is in memory, the CLI's read back from grid.bin, which stores
+            // f32 coordinates: equal to 1e-4 mm.)
+            let k = |v: &Value| v["after"]["height_rms_mm"].as_f64().unwrap();
+            assert!(
+                (k(&r) - k(&in_scan)).abs() < 1e-4,
+                "{} vs {}",
+                k(&r),
+                k(&in_scan)
+            );
+        }
+        // The deformed last is a closed solid in millimetres that OpenCASCADE-free readers
+        // accept: binary STL with 84 + 50 n bytes.
+        let stl = std::fs::read(out.join("last_adjusted.stl")).unwrap();
+        let n = u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize;
+        assert_eq!(stl.len(), 84 + 50 * n);
+    }
+
+    // Bad input: a scan without measurements, a last in metres said to be millimetres, a
+    // last far too short for the foot. Each names its input; nothing is written.
+    let bare = tmp.path().join("bare");
+    std::fs::create_dir(&bare).unwrap();
+    std::fs::copy(scan.join("grid.bin"), bare.join("grid.bin")).unwrap();
+    let cases: [(&Path, PathBuf, &[&str], &str); 3] = [
+        (&bare, warped.clone(), &[], "measurements.json"),
+        (
+            &scan,
+            warped.clone(),
+            &["--units", "mm"],
+            "LastScan_Warped.stl",
+        ),
+        (
+            &scan,
+            warped.clone(),
+            &["--length", "120"],
+            "shorter than the foot",
+        ),
+    ];
+    for (k, (s, last, extra, says)) in cases.iter().enumerate() {
+        let out = tmp.path().join(format!("bad{k}"));
+        let o = footscan()
+            .args(["last", "adjust", "--scan"])
+            .arg(s)
+            .arg("--last")
+            .arg(last)
+            .args(*extra)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "case {k} succeeded");
+        assert!(err.contains(says), "case {k}: {err}");
+        assert!(!out.exists(), "case {k}: {} written", out.display());
+    }
 }

@@ -264,6 +264,14 @@ fn write_files(
     Ok(())
 }
 
+/// An output error naming the file or directory.
+fn io(path: &Path, e: &dyn std::fmt::Display) -> AdjustError {
+    AdjustError::Output {
+        path: path.to_path_buf(),
+        why: e.to_string(),
+    }
+}
+
 /// The names [`write_files`] writes.
 fn names(with_last: bool) -> Vec<&'static str> {
     let mut n = vec![BOTTOM_IGES, BOTTOM_STEP];
@@ -285,10 +293,6 @@ pub fn write_into(
     last: Option<(&PreparedLast, &TriMesh)>,
     report: &Report,
 ) -> Result<Written, AdjustError> {
-    let io = |path: &Path, e: &dyn std::fmt::Display| AdjustError::Output {
-        path: path.to_path_buf(),
-        why: e.to_string(),
-    };
     let tmp = dir.join(format!(".last-adjust.tmp{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
     std::fs::create_dir_all(&tmp).map_err(|e| io(&tmp, &e))?;
@@ -323,10 +327,6 @@ pub fn write_outputs(
     last: Option<(&PreparedLast, &TriMesh)>,
     report: &Report,
 ) -> Result<Written, AdjustError> {
-    let io = |path: &Path, e: &dyn std::fmt::Display| AdjustError::Output {
-        path: path.to_path_buf(),
-        why: e.to_string(),
-    };
     let parent = match out.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
