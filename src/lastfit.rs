@@ -124,6 +124,20 @@ pub struct AdjustScanOptions {
     pub fade_mm: f64,
 }
 
+impl AdjustScanOptions {
+    /// The defaults with the fade a user asked for (the CLI's --fade-mm, the stage's
+    /// fade_mm), checked here once for both.
+    pub fn with_fade_mm(fade_mm: f64) -> Result<Self, String> {
+        if !(fade_mm > 0.0 && fade_mm <= 200.0) {
+            return Err(format!("fade {fade_mm} mm: valid range is (0, 200]"));
+        }
+        Ok(AdjustScanOptions {
+            fade_mm,
+            ..AdjustScanOptions::default()
+        })
+    }
+}
+
 impl Default for AdjustScanOptions {
     fn default() -> Self {
         AdjustScanOptions {

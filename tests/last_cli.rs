@@ -125,6 +125,20 @@ fn last_join_refuses_a_plane_that_misses_the_last() {
     assert!(err.contains("a.stl"), "{err}");
 }
 
+/// `footscan last adjust --scan SCAN --last LAST EXTRA... --out OUT`.
+fn last_adjust(scan: &Path, last: &Path, extra: &[&str], out: &Path) -> std::process::Output {
+    footscan()
+        .args(["last", "adjust", "--scan"])
+        .arg(scan)
+        .arg("--last")
+        .arg(last)
+        .args(extra)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
 fn report(dir: &Path) -> Value {
     serde_json::from_slice(&std::fs::read(dir.join("adjust.json")).unwrap()).unwrap()
 }
@@ -220,15 +234,7 @@ fn scan_with_last_adjust_then_the_cli_on_every_real_last() {
         "Last_Heeled_RoundTip.stl",
     ] {
         let out = tmp.path().join(name.trim_end_matches(".stl"));
-        let o = footscan()
-            .args(["last", "adjust", "--scan"])
-            .arg(&scan)
-            .arg("--last")
-            .arg(lasts.join(name))
-            .args(["--length", "262", "--out"])
-            .arg(&out)
-            .output()
-            .unwrap();
+        let o = last_adjust(&scan, &lasts.join(name), &["--length", "262"], &out);
         let text = String::from_utf8_lossy(&o.stdout);
         println!("{text}");
         assert!(
@@ -280,16 +286,7 @@ fn scan_with_last_adjust_then_the_cli_on_every_real_last() {
     ];
     for (k, (s, last, extra, says)) in cases.iter().enumerate() {
         let out = tmp.path().join(format!("bad{k}"));
-        let o = footscan()
-            .args(["last", "adjust", "--scan"])
-            .arg(s)
-            .arg("--last")
-            .arg(last)
-            .args(*extra)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap();
+        let o = last_adjust(s, last, extra, &out);
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success(), "case {k} succeeded");
         assert!(err.contains(says), "case {k}: {err}");

@@ -99,18 +99,13 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 fn run_adjust(a: AdjustArgs) -> Result<()> {
-    if !(a.fade_mm > 0.0 && a.fade_mm <= 200.0) {
-        bail!("--fade-mm {}: valid range is (0, 200]", a.fade_mm);
-    }
     let last_opts = LastOptions {
         units: a.units,
         length_mm: a.length,
         ..LastOptions::default()
     };
-    let opts = AdjustScanOptions {
-        fade_mm: a.fade_mm,
-        ..AdjustScanOptions::default()
-    };
+    let opts = AdjustScanOptions::with_fade_mm(a.fade_mm)
+        .map_err(|e| anyhow::anyhow!("--fade-mm: {e}"))?;
     let (d, w) = adjust_scan(&a.scan, &a.last, &last_opts, &opts, &a.out)?;
     let adj = &d.adjustment;
     println!(

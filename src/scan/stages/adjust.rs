@@ -54,22 +54,18 @@ impl AdjustStage {
                 return Err(format!("length_mm = {l}: a last is 50-500 mm long").into());
             }
         }
-        if !(p.fade_mm > 0.0 && p.fade_mm <= 200.0) {
-            return Err(format!("fade_mm = {}: valid range is (0, 200]", p.fade_mm).into());
-        }
         let opts = LastOptions {
             units,
             length_mm: p.length_mm,
             ..LastOptions::default()
         };
+        let adjust_opts =
+            AdjustScanOptions::with_fade_mm(p.fade_mm).map_err(|e| format!("fade_mm: {e}"))?;
         let last = prepare_last(&p.last, &opts).map_err(|e| e.to_string())?;
         Ok(AdjustStage {
             last,
             out_dir: out_dir.to_path_buf(),
-            opts: AdjustScanOptions {
-                fade_mm: p.fade_mm,
-                ..AdjustScanOptions::default()
-            },
+            opts: adjust_opts,
             grid: None,
             foot: None,
         })

@@ -272,6 +272,13 @@ fn io(path: &Path, e: &dyn std::fmt::Display) -> AdjustError {
     }
 }
 
+/// `path` as a new empty directory (a leftover of a killed run removed first).
+fn fresh_dir(path: PathBuf) -> Result<PathBuf, AdjustError> {
+    let _ = std::fs::remove_dir_all(&path);
+    std::fs::create_dir_all(&path).map_err(|e| io(&path, &e))?;
+    Ok(path)
+}
+
 /// The names [`write_files`] writes.
 fn names(with_last: bool) -> Vec<&'static str> {
     let mut n = vec![BOTTOM_IGES, BOTTOM_STEP];
@@ -293,9 +300,7 @@ pub fn write_into(
     last: Option<(&PreparedLast, &TriMesh)>,
     report: &Report,
 ) -> Result<Written, AdjustError> {
-    let tmp = dir.join(format!(".last-adjust.tmp{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir_all(&tmp).map_err(|e| io(&tmp, &e))?;
+    let tmp = fresh_dir(dir.join(format!(".last-adjust.tmp{}", std::process::id())))?;
     let mut moved = Vec::new();
     let result = write_files(&tmp, dir, adj, surf, last, report).and_then(|()| {
         for n in names(last.is_some()) {
@@ -336,9 +341,7 @@ pub fn write_outputs(
         .ok_or_else(|| io(out, &"not a directory path"))?
         .to_string_lossy()
         .to_string();
-    let tmp = parent.join(format!(".{name}.tmp{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir_all(&tmp).map_err(|e| io(&tmp, &e))?;
+    let tmp = fresh_dir(parent.join(format!(".{name}.tmp{}", std::process::id())))?;
     let result = write_files(&tmp, out, adj, surf, last, report).and_then(|()| {
         // Replace `out` only now.
         let old = parent.join(format!(".{name}.old{}", std::process::id()));
