@@ -243,8 +243,34 @@ fn hardware_sections_are_validated_with_line_and_column() {
         "{e}"
     );
     assert!(e.contains(&format!("line {line}")), "{e}");
+    let e = parse(text.replace("pixel_format = \"auto\"", "pixel_format = \"NV12\""));
+    assert!(
+        e.contains("NV12") && e.contains("RGB3") && e.contains("BA81"),
+        "{e}"
+    );
+    // Colour formats: a channel is needed, and a grey format cannot give a colour channel.
     let e = parse(text.replace("pixel_format = \"auto\"", "pixel_format = \"RGB3\""));
-    assert!(e.contains("RGB3") && e.contains("\"Y16\""), "{e}");
+    assert!(
+        e.contains("RGB3") && e.contains("channel") && e.contains("red-minus-others"),
+        "{e}"
+    );
+    let e = parse(text.replace(
+        "pixel_format = \"auto\"",
+        "pixel_format = \"GREY\"\nchannel = \"red\"",
+    ));
+    assert!(e.contains("GREY") && e.contains("channel red"), "{e}");
+    let ok = text.replace(
+        "pixel_format = \"auto\"",
+        "pixel_format = \"RGGB\"\nchannel = \"red-minus-others\"",
+    );
+    let c = LoadedConfig::parse(Path::new("scanner.toml"), ok).unwrap();
+    let cam = &c.config.hardware.as_ref().unwrap().camera;
+    assert_eq!(cam.channel, Some(footscan_hal::Channel::RedMinusOthers));
+    let e = parse(text.replace("pixel_format = \"auto\"", "channel = \"purple\""));
+    assert!(
+        e.contains("purple") && e.contains("green-minus-others"),
+        "{e}"
+    );
     let e = parse(text.replace("buffers = 4 ", "buffers = 2 "));
     assert!(
         e.contains("hardware.camera.buffers = 2") && e.contains("4 to 32"),

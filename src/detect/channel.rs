@@ -10,75 +10,8 @@
 
 use super::DetectError;
 use footscan_hal::{Frame, PixelFormat, Pixels, Timestamp};
-use serde::Deserialize;
 
-/// Which grey channel of a colour frame the detectors see.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(try_from = "String")]
-pub enum Channel {
-    /// BT.601 luma, (77 R + 150 G + 29 B) / 256; a grey frame as it is.
-    Luma,
-    Red,
-    Green,
-    Blue,
-    /// max(0, R - (G + B) / 2): a red laser over white, grey and black surfaces.
-    RedMinusOthers,
-    /// max(0, G - (R + B) / 2): a green laser likewise.
-    GreenMinusOthers,
-}
-
-/// The names [`Channel::parse`] accepts.
-pub const CHANNEL_NAMES: &str =
-    "luma, red, green, blue, red-minus-others, green-minus-others (or R, G, B, R-(G+B)/2, G-(R+B)/2)";
-
-impl Channel {
-    pub fn parse(s: &str) -> Result<Self, DetectError> {
-        Ok(match s.trim() {
-            "luma" | "gray" | "grey" | "Y" => Channel::Luma,
-            "red" | "R" => Channel::Red,
-            "green" | "G" => Channel::Green,
-            "blue" | "B" => Channel::Blue,
-            "red-minus-others" | "R-(G+B)/2" => Channel::RedMinusOthers,
-            "green-minus-others" | "G-(R+B)/2" => Channel::GreenMinusOthers,
-            other => {
-                return Err(DetectError::Param(format!(
-                    "channel = {other:?}: one of {CHANNEL_NAMES}"
-                )))
-            }
-        })
-    }
-
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Channel::Luma => "luma",
-            Channel::Red => "red",
-            Channel::Green => "green",
-            Channel::Blue => "blue",
-            Channel::RedMinusOthers => "red-minus-others",
-            Channel::GreenMinusOthers => "green-minus-others",
-        }
-    }
-
-    /// The channel's value of one pixel (in the pixel's own units).
-    #[inline(always)]
-    fn of(self, r: u32, g: u32, b: u32) -> u32 {
-        match self {
-            Channel::Luma => (77 * r + 150 * g + 29 * b) >> 8,
-            Channel::Red => r,
-            Channel::Green => g,
-            Channel::Blue => b,
-            Channel::RedMinusOthers => r.saturating_sub((g + b) / 2),
-            Channel::GreenMinusOthers => g.saturating_sub((r + b) / 2),
-        }
-    }
-}
-
-impl TryFrom<String> for Channel {
-    type Error = String;
-    fn try_from(s: String) -> Result<Self, String> {
-        Channel::parse(&s).map_err(|e| e.to_string())
-    }
-}
+pub use footscan_hal::{Channel, CHANNEL_NAMES};
 
 /// Interleaved RGB samples, row-major, no padding.
 #[derive(Clone, Debug, PartialEq)]

@@ -199,7 +199,7 @@ pub struct DetectParams {
 pub fn build(name: &str, p: &DetectParams) -> Result<Box<dyn Detector>, DetectError> {
     if let Some(c) = p.channel.filter(|&c| c != Channel::Luma) {
         return Err(DetectError::Param(format!(
-            "channel = {}: this detector sees grey frames (Gray8/Gray16); only luma applies",
+            "channel = {}: this detector sees grey frames (Gray8/Gray16); only luma applies (a V4L2 camera converts colour itself: set hardware.camera.channel)",
             c.as_str()
         )));
     }

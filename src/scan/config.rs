@@ -60,9 +60,16 @@ pub struct HardwareCamera {
     pub device: PathBuf,
     pub width: u32,
     pub height: u32,
-    /// `auto` (GREY, Y16, Y12, Y10, YUYV, MJPG: the first the device offers) or one of them.
+    /// `auto` (the first the device offers: GREY, Y16, Y12, Y10, YUYV, MJPG without a channel;
+    /// RGB3, BGR3, Bayer, YUYV, MJPG with a colour one) or one of those, RGB3, BGR3, RGGB,
+    /// BA81, GBRG, GRBG.
     #[serde(default = "default_pixel_format")]
     pub pixel_format: String,
+    /// The grey channel the driver converts colour frames to, once per frame (luma, red,
+    /// green, blue, red-minus-others, green-minus-others); unset: grey formats and the luma of
+    /// YUYV/MJPG. The detect stages then see that channel as a grey frame.
+    #[serde(default)]
+    pub channel: Option<footscan_hal::Channel>,
     /// mmap buffers, 4 to 32.
     #[serde(default = "default_buffers")]
     pub buffers: u32,
@@ -351,10 +358,20 @@ impl LoadedConfig {
             && footscan_v4l2::SourceFormat::parse(&c.pixel_format).is_none()
         {
             return Err(format!(
-                "hardware.camera.pixel_format = {:?}{}: valid are \"auto\", \"GREY\", \"Y10\", \"Y12\", \"Y16\", \"YUYV\", \"MJPG\"",
+                "hardware.camera.pixel_format = {:?}{}: valid are \"auto\", {}",
                 c.pixel_format,
-                cam("pixel_format")
+                cam("pixel_format"),
+                footscan_v4l2::SourceFormat::names()
             ));
+        }
+        if let Some(f) = footscan_v4l2::SourceFormat::parse(&c.pixel_format) {
+            f.check_channel(c.channel).map_err(|e| {
+                format!(
+                    "hardware.camera.pixel_format = {:?}{}: {e} (hardware.camera.channel)",
+                    c.pixel_format,
+                    cam("pixel_format")
+                )
+            })?;
         }
         if !(4..=32).contains(&c.buffers) {
             return Err(format!(

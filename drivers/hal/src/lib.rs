@@ -6,12 +6,14 @@
 //! with, so slider positions can be interpolated at a frame's capture time.
 
 mod camera;
+mod channel;
 mod error;
 mod frame;
 mod slider;
 mod time;
 
 pub use camera::{Camera, CameraInfo};
+pub use channel::{Channel, CHANNEL_NAMES};
 pub use error::{DeviceFault, FaultKind, HalError, HalResult};
 pub use frame::{Frame, FramePool, PixelFormat, Pixels};
 pub use slider::{Slider, SliderInfo, SliderSettings, SliderState, SliderStatus};

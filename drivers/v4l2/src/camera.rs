@@ -7,7 +7,7 @@ use crate::format::{Converter, SourceFormat};
 use crate::stream::{
     buffer_timestamp, DequeueError, Direction, MmapQueue, SeqTracker, TimestampSource,
 };
-use footscan_hal::{Camera, CameraInfo, Frame, FramePool, HalError, HalResult, Timestamp};
+use footscan_hal::{Camera, CameraInfo, Channel, Frame, FramePool, HalError, HalResult, Timestamp};
 use std::io;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -19,8 +19,12 @@ pub struct V4l2Config {
     pub path: PathBuf,
     pub width: u32,
     pub height: u32,
-    /// Formats to accept, in order of preference; empty = [`SourceFormat::PREFERENCE`].
+    /// Formats to accept, in order of preference; empty = [`SourceFormat::preference`] of
+    /// `channel`.
     pub formats: Vec<SourceFormat>,
+    /// The grey channel colour formats are converted to (once per frame, in the driver); None:
+    /// grey formats, and the luma of YUYV and MJPG.
+    pub channel: Option<Channel>,
     /// Frame rate to ask for (VIDIOC_S_PARM); None keeps the device's.
     pub fps: Option<f64>,
     /// Driver buffers for mmap streaming, at least 4.
@@ -43,6 +47,7 @@ impl Default for V4l2Config {
             width: 1280,
             height: 1024,
             formats: Vec::new(),
+            channel: None,
             fps: None,
             buffers: 4,
             exposure_us: None,
@@ -112,6 +117,56 @@ pub fn io_error(device: &str, what: &str, e: io::Error) -> HalError {
     }
 }
 
+/// The format to stream: the first of `wanted` (or of [`SourceFormat::preference`]) that the
+/// device offers and that can give `channel`, with the fourcc the device spells it with. The
+/// errors name the fourccs: a named format that cannot give the channel, or none offered (then
+/// what the device has and which of it would do).
+pub fn choose_format(
+    offered: &[v4l::FourCC],
+    wanted: &[SourceFormat],
+    channel: Option<Channel>,
+) -> Result<(SourceFormat, v4l::FourCC), String> {
+    for f in wanted {
+        f.check_channel(channel)?;
+    }
+    let prefs = if wanted.is_empty() {
+        SourceFormat::preference(channel)
+    } else {
+        wanted.to_vec()
+    };
+    for f in &prefs {
+        if let Some(&o) = offered
+            .iter()
+            .find(|&&o| SourceFormat::from_fourcc(o) == Some(*f))
+        {
+            return Ok((*f, o));
+        }
+    }
+    let has: Vec<String> = offered.iter().map(|f| f.to_string()).collect();
+    let usable: Vec<String> = offered
+        .iter()
+        .filter_map(|&o| SourceFormat::from_fourcc(o))
+        .filter(|f| f.check_channel(channel).is_ok())
+        .map(|f| f.to_string())
+        .collect();
+    let channel_s = channel.map_or("no channel (grey)".to_string(), |c| format!("channel {c}"));
+    Err(format!(
+        "none of the formats {} is offered for {channel_s} (the device has {}; footscan converts {}; of the device's, {})",
+        prefs
+            .iter()
+            .map(|f| f.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        if has.is_empty() { "none".to_string() } else { has.join(", ") },
+        SourceFormat::names(),
+        if usable.is_empty() {
+            "none would do".to_string()
+        } else {
+            format!("{} would do", usable.join(", "))
+        }
+    ))
+}
+
 impl V4l2Camera {
     /// Open the node, negotiate format, size and rate, and apply exposure and gain.
     pub fn open(cfg: &V4l2Config) -> HalResult<Self> {
@@ -150,39 +205,15 @@ impl V4l2Camera {
             dv::set_dv_timings(fd, &t).map_err(|e| io_error(&name, "VIDIOC_S_DV_TIMINGS", e))?;
         }
 
-        // Format: the first preferred one the device offers.
+        // Format: the first preferred one the device offers that can give the channel.
         let offered: Vec<v4l::FourCC> = dev
             .enum_formats()
             .map_err(|e| io_error(&name, "VIDIOC_ENUM_FMT", e))?
             .into_iter()
             .map(|d| d.fourcc)
             .collect();
-        let prefs = if cfg.formats.is_empty() {
-            SourceFormat::PREFERENCE.to_vec()
-        } else {
-            cfg.formats.clone()
-        };
-        let source = prefs
-            .iter()
-            .copied()
-            .find(|f| {
-                offered
-                    .iter()
-                    .any(|&o| SourceFormat::from_fourcc(o) == Some(*f))
-            })
-            .ok_or_else(|| {
-                let list: Vec<String> = offered.iter().map(|f| f.to_string()).collect();
-                invalid(format!(
-                    "none of the formats {:?} is offered (the device has {})",
-                    prefs.iter().map(|f| f.to_string()).collect::<Vec<_>>(),
-                    list.join(", ")
-                ))
-            })?;
-        let fourcc = offered
-            .iter()
-            .copied()
-            .find(|&o| SourceFormat::from_fourcc(o) == Some(source))
-            .unwrap_or(source.fourcc());
+        let (source, fourcc) =
+            choose_format(&offered, &cfg.formats, cfg.channel).map_err(invalid)?;
         let mut want = v4l::Format::new(cfg.width, cfg.height, fourcc);
         want.field_order = v4l::format::FieldOrder::Progressive;
         let got = dev
@@ -194,7 +225,9 @@ impl V4l2Camera {
                 cfg.width, cfg.height, fourcc, got.width, got.height, got.fourcc
             )));
         }
-        let conv = Converter::new(source, got.width, got.height, got.stride as usize);
+        let conv = Converter::new(source, got.width, got.height, got.stride as usize)
+            .with_channel(cfg.channel)
+            .map_err(|e| invalid(e.to_string()))?;
 
         // Rate: asked for where the device takes it, otherwise what it reports.
         if let Some(fps) = cfg.fps {
@@ -539,6 +572,42 @@ mod tests {
         let e = V4l2Camera::open(&cfg).err().unwrap();
         // /dev/null answers VIDIOC_QUERYCAP with ENOTTY.
         assert!(matches!(e, HalError::Io { .. }), "{e}");
+    }
+
+    #[test]
+    fn format_choice_follows_the_channel_and_names_what_would_do() {
+        let f = |s: &[u8; 4]| v4l::FourCC::new(s);
+        let offered = [f(b"YUYV"), f(b"MJPG"), f(b"BA81"), f(b"NV12")];
+        // No channel: grey formats first, so YUYV's luma.
+        assert_eq!(
+            choose_format(&offered, &[], None).unwrap().0,
+            SourceFormat::Yuyv
+        );
+        // A colour channel: Bayer (a sample per pixel) before YUYV's shared chroma.
+        assert_eq!(
+            choose_format(&offered, &[], Some(Channel::RedMinusOthers))
+                .unwrap()
+                .0,
+            SourceFormat::BayerBggr
+        );
+        // Named colour-only format without a channel, grey format with a colour channel.
+        let e = choose_format(&offered, &[SourceFormat::BayerBggr], None).unwrap_err();
+        assert!(e.contains("BA81") && e.contains("channel"), "{e}");
+        let e = choose_format(&offered, &[SourceFormat::Grey], Some(Channel::Green)).unwrap_err();
+        assert!(e.contains("GREY") && e.contains("green"), "{e}");
+        // Nothing usable offered: the device's formats and which of them would do.
+        let e = choose_format(
+            &[f(b"NV12"), f(b"YUYV")],
+            &[SourceFormat::Rgb24],
+            Some(Channel::Red),
+        )
+        .unwrap_err();
+        assert!(
+            e.contains("RGB3") && e.contains("NV12, YUYV") && e.contains("YUYV would do"),
+            "{e}"
+        );
+        let e = choose_format(&[f(b"NV12")], &[], Some(Channel::Red)).unwrap_err();
+        assert!(e.contains("none would do"), "{e}");
     }
 
     #[test]

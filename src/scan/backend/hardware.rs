@@ -58,6 +58,7 @@ pub fn v4l2_config(c: &HardwareCamera, cam: &CameraSection) -> V4l2Config {
         width: c.width,
         height: c.height,
         formats: SourceFormat::parse(&c.pixel_format).into_iter().collect(),
+        channel: c.channel,
         fps: Some(cam.fps),
         buffers: c.buffers,
         exposure_us: Some(cam.exposure_us),
