@@ -668,37 +668,104 @@ fn range_lowercase_bearer_and_final_state_on_sigterm() {
 #[test]
 fn what_can_be_checked_at_start_is_checked() {
     let tmp = tempfile::tempdir().unwrap();
-    let refused = |edit: &dyn Fn(String) -> String, want: &[&str]| {
+    // Start on the short scanner config edited by `edit` (and the daemon config by `daemon`):
+    // footscand must exit non-zero, saying each of `want`.
+    let refused = |edit: &dyn Fn(String) -> String, daemon: &str, want: &[&str]| {
         let dir = tempfile::tempdir_in(tmp.path()).unwrap();
-        let (mut cmd, _) = command(dir.path(), &Opts::default());
+        let (mut cmd, archive) = command(dir.path(), &Opts::default());
         let sc = dir.path().join("scanner.toml");
         let text = edit(std::fs::read_to_string(&sc).unwrap());
+        assert_ne!(text, std::fs::read_to_string(&sc).unwrap(), "edit applied");
         std::fs::write(&sc, text).unwrap();
+        let dc = dir.path().join("footscand.toml");
+        let text = std::fs::read_to_string(&dc).unwrap() + daemon;
+        std::fs::write(&dc, text).unwrap();
         let (status, out) = exit_of(cmd.spawn().unwrap(), Duration::from_secs(30));
         let status = status.unwrap_or_else(|| panic!("started: {out}"));
         assert!(!status.success(), "started: {out}");
         for w in want {
             assert!(out.contains(w), "{w:?} not in: {out}");
         }
+        assert!(!archive.exists(), "the archive was touched: {out}");
     };
     refused(
         &|t| t.replacen("stage = \"triangulate\"", "stage = \"triangulat\"", 1),
-        &["\"triangulat\"", "not a stage", "triangulate"],
+        "",
+        &[
+            "scanner.toml",
+            "\"triangulat\"",
+            "not a stage",
+            "triangulate",
+        ],
+    );
+    // Stage parameters: an unknown key (with the valid ones) and a value out of range, each
+    // with its line.
+    refused(
+        &|t| t.replace("file = \"points.ply\"", "fille = \"points.ply\""),
+        "",
+        &["scanner.toml", "sink.ply", "`fille`", "`file`", "line "],
+    );
+    refused(
+        &|t| t.replace("cell_mm = 0.1 ", "cell_mm = 5.0 "),
+        "",
+        &["measure.foot", "cell_mm = 5", "[0.05, 1]", "line "],
     );
     refused(
         &|t| t.replace("end_mm = 200.0", "end_mm = 400.0"),
+        "",
         &["400", "travel", "sim.slider.travel_mm"],
     );
-    // The hardware backend with devices that are not there.
+    // Impossible optics: a parameter out of its range, and a laser line the camera cannot see.
+    refused(
+        &|t| t.replacen("f_px = 2000.0", "f_px = 0.0", 1),
+        "",
+        &["scanner.toml", "[sim.optics]", "f_px", "expected"],
+    );
+    refused(
+        &|t| t.replacen("l_mm = 70.0", "l_mm = 400.0", 1),
+        "",
+        &["[sim.optics]", "laser line", "outside", "l_mm = 400"],
+    );
+    // Missing calibration files, from the scanner config and from the daemon config.
+    refused(
+        &|t| {
+            t.replacen(
+                "[scanner]\n",
+                "[scanner]\ncalibration = \"absent.toml\"\n",
+                1,
+            )
+        },
+        "",
+        &["absent.toml", "scanner.calibration", "scanner.toml"],
+    );
+    refused(
+        &|t| t + "\n",
+        "calibration = \"gone.toml\"\n",
+        &["gone.toml", "calibration in [daemon]", "footscand.toml"],
+    );
+    // The hardware backend: without its calibration file it does not start; with it, devices
+    // that are not there are reported absent and scans are refused with 503 naming them.
     let dir = tmp.path().join("hw");
     std::fs::create_dir(&dir).unwrap();
     let (cmd, archive) = command(&dir, &Opts::default());
+    let sim = std::fs::read_to_string(dir.join("scanner.toml")).unwrap();
     let hw = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/footscan.toml");
     let text = std::fs::read_to_string(hw)
         .unwrap()
         .replace("/dev/video0", "/dev/video-footscan-test-absent")
         .replace("/dev/ttyUSB0", "/dev/ttyFOOTSCAN-test-absent");
     std::fs::write(dir.join("scanner.toml"), text).unwrap();
+    let mut cmd = cmd;
+    let (status, out) = exit_of(cmd.spawn().unwrap(), Duration::from_secs(30));
+    assert!(status.is_some_and(|s| !s.success()), "started: {out}");
+    assert!(
+        out.contains("calibration.toml") && out.contains("scanner.calibration"),
+        "{out}"
+    );
+    let sim = footscan::scan::LoadedConfig::parse(std::path::Path::new("sim.toml"), sim).unwrap();
+    footscan::scan::sim::true_calibration(&sim.config)
+        .save(&dir.join("calibration.toml"))
+        .unwrap();
     let d = Footscand::spawn(cmd, archive, None);
     let st = d.get_json("/api/status");
     assert_eq!(st["devices"]["camera"]["connected"], false, "{st}");

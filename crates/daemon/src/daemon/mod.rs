@@ -11,7 +11,6 @@ pub use config::{DaemonConfig, DaemonConfigError};
 pub use preview::Preview;
 
 use crate::archive::{Archive, ArchiveError, Status};
-use footscan::calib::Calibration;
 use footscan::scan::{CancelToken, LoadedConfig, ScanFault};
 use serde::Serialize;
 use std::path::PathBuf;
@@ -156,30 +155,31 @@ impl Daemon {
     pub fn open(config: DaemonConfig) -> Result<Arc<Daemon>, DaemonError> {
         let scanner = LoadedConfig::load(&config.scanner_config)
             .map_err(|e| DaemonError::Setup(e.to_string()))?;
-        preflight::check_config(&scanner).map_err(DaemonError::Setup)?;
+        // A calibration made by the daemon wins over the configured one (it is newer).
+        let current = jobs::current_calibration_path(&config.archive);
+        let daemon_cal = if current.is_file() {
+            Some((current, "the daemon's last calibration".to_string()))
+        } else {
+            config.calibration.clone().map(|p| {
+                let from = format!("calibration in [daemon] of {}", config.path.display());
+                (p, from)
+            })
+        };
+        let cal = preflight::scan_calibration(
+            &scanner,
+            daemon_cal.as_ref().map(|(p, f)| (p.as_path(), f.as_str())),
+        )
+        .map_err(DaemonError::Setup)?;
+        preflight::check_config(&scanner, &cal).map_err(DaemonError::Setup)?;
         for (_, why) in preflight::missing_devices(&scanner) {
             tracing::warn!("{why}; scans are refused until it is present");
         }
         let archive = Arc::new(Archive::open(&config.archive)?);
-        // A calibration made by the daemon wins over the configured one (it is newer).
-        let current = jobs::current_calibration_path(&config.archive);
-        let cal_path = if current.is_file() {
-            Some(current)
-        } else {
-            config.calibration.clone()
-        };
-        let calibration = match cal_path {
-            Some(p) => {
-                let c = Calibration::load(&p)
-                    .map_err(|e| DaemonError::Setup(format!("calibration {}: {e}", p.display())))?;
-                Some(CalibrationInfo {
-                    method: c.method,
-                    date: c.date,
-                    path: p,
-                })
-            }
-            None => None,
-        };
+        let calibration = daemon_cal.map(|(path, _)| CalibrationInfo {
+            method: cal.method,
+            date: cal.date,
+            path,
+        });
         // The last scan, as status shows it until the next one starts.
         let last_scan = archive.list()?.into_iter().next().map(|r| {
             let summary: Option<serde_json::Value> = archive
