@@ -226,16 +226,42 @@ pub fn prepare_mesh(
             }
         }
     }
-    // Outline: the bottom seen from below (cells whose lowest surface is the region), its
-    // largest 4-connected piece; a last bottom is one interval across at every station
-    // along its length, so the outline is the piece's extreme cells per column, smoothed.
-    let piece = largest_piece(&mask, nx, ny);
+    let (bottom, lowest) = bottom_from_below(&input, &lowest, &mask)?;
+    Ok(PreparedLast {
+        path: path.to_path_buf(),
+        mesh,
+        bottom,
+        lowest,
+        load: None,
+        bottom_triangles: region.len(),
+        levelled_by_deg: tilt,
+    })
+}
+
+/// A bottom from its heights seen from below: `mask` marks the cells that belong to it (the
+/// downward-facing region of a mesh, the gently sloped cells of a scan). The outline is the
+/// largest 4-connected piece's extreme cells per column, smoothed (a last bottom is one
+/// interval across at every station along its length); the heights are kept inside it. Also
+/// returns the heights continued outward over the whole grid, the reference for heights
+/// above the bottom (not whatever surface is lowest: the back of the heel overhangs the
+/// bottom).
+pub fn bottom_from_below(
+    source: &str,
+    below: &HeightGrid,
+    mask: &[bool],
+) -> Result<(LastBottom, HeightGrid), AdjustError> {
+    let err = |why: String| AdjustError::Last {
+        input: source.to_string(),
+        why,
+    };
+    let (nx, ny, cell) = (below.nx, below.ny, below.cell_mm);
+    let piece = largest_piece(mask, nx, ny);
     let (mut lower, mut upper) = (Vec::new(), Vec::new());
     for i in 0..nx {
         let js: Vec<usize> = (0..ny).filter(|&j| piece[j * nx + i]).collect();
         if let (Some(&a), Some(&b)) = (js.first(), js.last()) {
-            lower.push([lowest.x(i), lowest.y(a) - cell / 2.0]);
-            upper.push([lowest.x(i), lowest.y(b) + cell / 2.0]);
+            lower.push([below.x(i), below.y(a) - cell / 2.0]);
+            upper.push([below.x(i), below.y(b) + cell / 2.0]);
         }
     }
     if lower.len() < 8 {
@@ -249,8 +275,8 @@ pub fn prepare_mesh(
     let pinned = vec![false; outline_pts.len()];
     outline::taubin(&mut outline_pts, &pinned, 10, 0.5, -0.53);
     outline::make_ccw(&mut outline_pts);
-    let inside = outline::inside_mask(&outline_pts, x0, y0, cell, nx, ny);
-    let mut heights = lowest.clone();
+    let inside = outline::inside_mask(&outline_pts, below.x0, below.y0, cell, nx, ny);
+    let mut heights = below.clone();
     for (k, z) in heights.z.iter_mut().enumerate() {
         if !inside[k] {
             *z = f64::NAN;
@@ -259,23 +285,43 @@ pub fn prepare_mesh(
     if heights.valid_cells() == 0 {
         return Err(err("the bottom outline covers no grid cell".into()));
     }
-    // Heights above the bottom are measured from the bottom surface continued outward
-    // (not from whatever surface is lowest: the back of the heel overhangs the bottom).
-    let mut lowest = heights.clone();
-    lowest.fill();
-    Ok(PreparedLast {
-        path: path.to_path_buf(),
-        mesh,
-        bottom: LastBottom {
-            source: input.clone(),
+    let mut continued = heights.clone();
+    continued.fill();
+    Ok((
+        LastBottom {
+            source: source.to_string(),
             outline: outline_pts,
             heights,
         },
-        lowest,
-        load: None,
-        bottom_triangles: region.len(),
-        levelled_by_deg: tilt,
-    })
+        continued,
+    ))
+}
+
+/// The bottom of a scanned last (heights from below on a grid, NaN where nothing was
+/// seen; x heel to toe as a foot stands): the cells whose surface slopes less than a
+/// mesh triangle counts as facing down (`down_cos`, as [`LastOptions`]), their largest
+/// piece and its outline, as [`bottom_from_below`].
+pub fn scanned_bottom(
+    source: &str,
+    below: &HeightGrid,
+    down_cos: f64,
+) -> Result<LastBottom, AdjustError> {
+    let (nx, ny, c) = (below.nx, below.ny, below.cell_mm);
+    // |grad z| <= tan(acos(down_cos)) is n.z >= down_cos for the surface's unit normal.
+    let max_slope = (1.0 - down_cos * down_cos).max(0.0).sqrt() / down_cos;
+    let z = |i: usize, j: usize| below.z[j * nx + i];
+    let mut mask = vec![false; nx * ny];
+    for j in 1..ny.saturating_sub(1) {
+        for i in 1..nx.saturating_sub(1) {
+            let (gx, gy) = (
+                (z(i + 1, j) - z(i - 1, j)) / (2.0 * c),
+                (z(i, j + 1) - z(i, j - 1)) / (2.0 * c),
+            );
+            // NaN neighbours (the edge of what was seen) leave the cell out.
+            mask[j * nx + i] = gx.hypot(gy) <= max_slope;
+        }
+    }
+    Ok(bottom_from_below(source, below, &mask)?.0)
 }
 
 /// What [`deform_last`] did.
@@ -287,9 +333,25 @@ pub struct DeformReport {
     pub max_displacement_mm: f64,
     /// Triangles whose normal turned by more than 90 degrees (0 for a sound deformation).
     pub flipped_triangles: usize,
+    /// Vertices whose displacement was relaxed to undo a fold, and the most any of them
+    /// moved from where the faded field put it (mm).
+    pub relaxed_vertices: usize,
+    pub relaxed_max_mm: f64,
+    /// The deformed last's bottom vertices inside the adjusted outline against the adjusted
+    /// bottom's heights: how many, RMS and largest height difference (mm).
+    pub bottom_vertices: usize,
+    pub bottom_rms_mm: f64,
+    pub bottom_max_mm: f64,
     pub volume_before_mm3: f64,
     pub volume_after_mm3: f64,
 }
+
+/// Rounds of damping around folds (0.8 each: after 50 rounds 1e-5 of the change is left)
+/// before a fold is reported as left.
+const UNTANGLE_ROUNDS: usize = 50;
+const UNTANGLE_DAMPING: f64 = 0.8;
+/// A vertex within this height of the original bottom is a bottom vertex (mm).
+const BOTTOM_VERTEX_MM: f64 = 0.25;
 
 /// Smooth fade from 1 at the bottom to 0 at height 1 (quintic, zero slope and curvature at
 /// both ends).
@@ -315,8 +377,8 @@ pub fn deform_last(
         .iter()
         .map(|v| {
             let p = [v.x, v.y];
-            let q = adj.to_foot.apply(p);
-            let t = adj.forward.apply(q);
+            let q = adj.rigid.apply(p);
+            let t = adj.forward.apply(adj.to_foot.apply(p));
             let zb = prep.lowest.sample_clamped(v.x, v.y);
             let nb = adj.heights.sample_clamped(t[0], t[1]);
             let hb = v.z - zb;
@@ -339,13 +401,113 @@ pub fn deform_last(
             .fold(0.0, f64::max);
         fade_len = fade_len.max(4.0 * near);
     }
-    let mut max_d: f64 = 0.0;
-    for (v, (q, d, hb)) in mesh.vertices.iter_mut().zip(&moves) {
-        let w = fade(hb / fade_len);
-        *v = q + w * d;
-        max_d = max_d.max((w * d).norm());
+    let mut disp: Vec<V3> = moves
+        .iter()
+        .map(|(_, d, hb)| fade(hb / fade_len) * d)
+        .collect();
+    let faded = disp.clone();
+    // Orientation each triangle should keep: its original normal under the rigid fit (a
+    // mirrored last's triangles are turned round below, which restores the sign).
+    let a = adj.rigid.a;
+    let mirrored = adj.to_foot.det() < 0.0;
+    let want: Vec<V3> = (0..mesh.triangles.len())
+        .map(|t| {
+            let n = prep.mesh.face_normal(t);
+            let n = V3::new(
+                a[0][0] * n.x + a[0][1] * n.y,
+                a[1][0] * n.x + a[1][1] * n.y,
+                n.z,
+            );
+            if mirrored {
+                -n
+            } else {
+                n
+            }
+        })
+        .collect();
+    let flipped_now = |disp: &[V3]| -> Vec<usize> {
+        (0..mesh.triangles.len())
+            .filter(|&t| {
+                let [i, j, k] = mesh.triangles[t].map(|i| i as usize);
+                let (pi, pj, pk) = (
+                    moves[i].0 + disp[i],
+                    moves[j].0 + disp[j],
+                    moves[k].0 + disp[k],
+                );
+                (pj - pi).cross(&(pk - pi)).dot(&want[t]) < 0.0
+            })
+            .collect()
+    };
+    // Where the faded field still folds a triangle (the slivers of a narrow end, a steep
+    // wall over a bottom that moves much), the non-rigid part of the change is damped
+    // around the fold, a little more each round, until no triangle is turned over. With no
+    // change left a triangle is as it was in the last, so the repair always ends; it stays
+    // local because it starts at the fold and reaches only as far as folds still are.
+    let mut bad = flipped_now(&disp);
+    let mut relaxed = vec![false; disp.len()];
+    if !bad.is_empty() {
+        let mut nbrs: Vec<Vec<u32>> = vec![Vec::new(); disp.len()];
+        for tri in &mesh.triangles {
+            for e in 0..3 {
+                let (u, w) = (tri[e], tri[(e + 1) % 3]);
+                nbrs[u as usize].push(w);
+                nbrs[w as usize].push(u);
+            }
+        }
+        for n in &mut nbrs {
+            n.sort_unstable();
+            n.dedup();
+        }
+        let mut region = vec![false; disp.len()];
+        for _ in 0..UNTANGLE_ROUNDS {
+            if bad.is_empty() {
+                break;
+            }
+            region.iter_mut().for_each(|r| *r = false);
+            for &t in &bad {
+                for &i in &mesh.triangles[t] {
+                    region[i as usize] = true;
+                    for &n in &nbrs[i as usize] {
+                        region[n as usize] = true;
+                    }
+                }
+            }
+            for (i, d) in disp.iter_mut().enumerate() {
+                if region[i] {
+                    *d *= UNTANGLE_DAMPING;
+                    relaxed[i] = true;
+                }
+            }
+            bad = flipped_now(&disp);
+        }
     }
-    if adj.to_foot.det() < 0.0 {
+    let mut max_d: f64 = 0.0;
+    let mut relax_max: f64 = 0.0;
+    for (i, v) in mesh.vertices.iter_mut().enumerate() {
+        *v = moves[i].0 + disp[i];
+        max_d = max_d.max(disp[i].norm());
+        relax_max = relax_max.max((disp[i] - faded[i]).norm());
+    }
+    // The deformed last's bottom against the adjusted bottom: bottom vertices (on the
+    // original bottom) that land inside the adjusted outline.
+    let (mut bottom_max, mut bottom_ss, mut bottom_n) = (0.0f64, 0.0, 0usize);
+    let h = &adj.heights;
+    for (v, m) in mesh.vertices.iter().zip(&moves) {
+        if m.2.abs() > BOTTOM_VERTEX_MM {
+            continue;
+        }
+        match h.cell_of(v.x, v.y) {
+            Some((i, j)) if adj.inside[j * h.nx + i] => {}
+            _ => continue,
+        }
+        let d = v.z - h.sample(v.x, v.y);
+        if d.is_finite() {
+            bottom_max = bottom_max.max(d.abs());
+            bottom_ss += d * d;
+            bottom_n += 1;
+        }
+    }
+    if mirrored {
         mesh.flip();
     }
     let input = prep.path.display().to_string();
@@ -353,24 +515,18 @@ pub fn deform_last(
         input: input.clone(),
         why: format!("the deformed last is not a valid solid: {defect}"),
     })?;
-    let a = adj.rigid.a;
-    let flipped = (0..mesh.triangles.len())
-        .filter(|&t| {
-            let n = prep.mesh.face_normal(t);
-            let n0 = V3::new(
-                a[0][0] * n.x + a[0][1] * n.y,
-                a[1][0] * n.x + a[1][1] * n.y,
-                n.z,
-            );
-            mesh.face_normal(t).dot(&n0) < 0.0
-        })
-        .count();
+    let flipped = bad.len();
     Ok((
         mesh,
         DeformReport {
             fade_mm: fade_len,
             max_displacement_mm: max_d,
             flipped_triangles: flipped,
+            relaxed_vertices: relaxed.iter().filter(|&&r| r).count(),
+            relaxed_max_mm: relax_max,
+            bottom_vertices: bottom_n,
+            bottom_rms_mm: (bottom_ss / bottom_n.max(1) as f64).sqrt(),
+            bottom_max_mm: bottom_max,
             volume_before_mm3: prep.mesh.volume(),
             volume_after_mm3: report.volume,
         },
