@@ -89,6 +89,60 @@ fn a_sim_scan_rides_over_corrupted_status_reports() {
     assert!(dir.path().join("points.ply").exists());
 }
 
+/// config/sim.toml over `end_mm` without the foot measurement (a part of a foot has none).
+fn short_sim_config(end_mm: &str, edit: impl Fn(String) -> String) -> LoadedConfig {
+    let path = root().join("config/sim.toml");
+    let text = edit(
+        std::fs::read_to_string(&path)
+            .unwrap()
+            .replace("end_mm = 320.0", &format!("end_mm = {end_mm}")),
+    );
+    let m = text.find("stage = \"measure.foot\"").unwrap();
+    let (a, b) = (
+        text[..m].rfind("[[pipeline.stages]]").unwrap(),
+        m + text[m..].find("[[pipeline.stages]]").unwrap(),
+    );
+    LoadedConfig::parse(&path, format!("{}{}", &text[..a], &text[b..])).unwrap()
+}
+
+/// The laser on the emulator's spindle output: the scan switches it on, takes a laser-off
+/// frame at rest at each end (no line in any row of either), subtracts the first from every
+/// frame, and switches the laser off at the end.
+#[test]
+fn a_sim_scan_takes_laser_off_frames_at_both_ends() {
+    let cfg = short_sim_config("60.0", |t| {
+        t.replace("home = true", "home = true\nbackground = \"ends\"")
+            .replace("[sim.slider]", "[sim.slider]\nlaser = \"spindle\"")
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let summary = run_scan(&cfg, &ScanOptions::new(dir.path()), |_| {}).unwrap();
+    let truth = summary.truth.clone().unwrap();
+    println!(
+        "{} frames, laser off {:?}, truth {truth:?}",
+        summary.frames, summary.laser_off
+    );
+    assert_eq!(summary.status, "complete");
+    let off = summary.laser_off.expect("laser-off frames counted");
+    assert_eq!(off.frames, 2, "one at each end");
+    assert_eq!(off.rows_found, 0, "false detections in laser-off frames");
+    // Every scan frame had the laser on: the line is found where the truth has it.
+    assert!(summary.frames >= 50, "{} frames", summary.frames);
+    assert!(truth.compared > 10_000, "{truth:?}");
+    assert!(truth.missed_rows * 50 < truth.compared, "{truth:?}");
+    assert!(truth.rms_mm < 0.2, "{truth:?}");
+
+    // Without a laser the controller switches, laser-off frames cannot be taken.
+    let path = root().join("config/sim.toml");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("home = true", "home = true\nbackground = \"ends\"");
+    let e = LoadedConfig::parse(&path, text).unwrap_err().to_string();
+    assert!(
+        e.contains("scan.background") && e.contains("sim.slider.laser"),
+        "{e}"
+    );
+}
+
 #[test]
 fn footscan_toml_parses_with_the_sim_pipeline() {
     let cfg = LoadedConfig::load(&root().join("config/footscan.toml")).unwrap();

@@ -24,7 +24,7 @@
 
 use crate::optics::SimError;
 use crate::render::{FrameTruth, Renderer, Scene};
-use crate::PositionSource;
+use crate::{LaserSource, PositionSource};
 use footscan_hal::{Camera, CameraInfo, Frame, FramePool, HalError, HalResult, Timestamp};
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -130,6 +130,8 @@ pub struct SimCamera {
     renderer: Renderer,
     fps: f64,
     position: Arc<dyn PositionSource>,
+    /// None: the laser always shines.
+    laser: Option<Arc<dyn LaserSource>>,
     seed: u64,
     pool: FramePool,
     name: String,
@@ -177,6 +179,7 @@ impl SimCamera {
             renderer,
             fps,
             position,
+            laser: None,
             seed,
             pool,
             name: "sim-camera".into(),
@@ -188,6 +191,12 @@ impl SimCamera {
             scene: SceneHandle::default(),
             scratch: FrameTruth::default(),
         })
+    }
+
+    /// Render each frame with the laser as `laser` says at its capture time (the GRBL
+    /// emulator's output, [`crate::grbl::GrblEmulator::laser_source`]).
+    pub fn set_laser_source(&mut self, laser: Arc<dyn LaserSource>) {
+        self.laser = Some(laser);
     }
 
     /// The shared ground-truth log (clone it before handing the camera away).
@@ -321,9 +330,10 @@ impl Camera for SimCamera {
                     })?;
             }
             let x = self.position.physical_x(tk);
+            let lit = self.laser.as_ref().is_none_or(|l| l.laser_on(tk));
             let mut frame = self.pool.take(k, tk);
             self.renderer
-                .render_into(x, k, &mut frame.pixels, &mut self.scratch);
+                .render_into_lit(x, k, lit, &mut frame.pixels, &mut self.scratch);
             self.truth.insert(k, std::mem::take(&mut self.scratch));
             return Ok(frame);
         }

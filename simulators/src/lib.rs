@@ -31,6 +31,12 @@ pub trait PositionSource: Send + Sync {
     fn physical_x(&self, at: Timestamp) -> f64;
 }
 
+/// Whether the laser shines at a given instant: the GRBL emulator's spindle or coolant output
+/// when the laser is wired to one; the simulated camera renders no line while it is off.
+pub trait LaserSource: Send + Sync {
+    fn laser_on(&self, at: Timestamp) -> bool;
+}
+
 /// A head that never moves (tests, calibration targets imaged at fixed positions).
 #[derive(Clone, Copy, Debug)]
 pub struct FixedPosition(pub f64);

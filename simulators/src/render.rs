@@ -425,7 +425,24 @@ impl Renderer {
         pixels: &mut Pixels,
         truth: &mut FrameTruth,
     ) {
+        self.render_into_lit(physical_x, frame_index, true, pixels, truth)
+    }
+
+    /// [`Renderer::render_into`] with the laser on or off: with it off the frame is the scene's
+    /// background and noise only (no line, no glass reflection, no specular spike: all three
+    /// are laser light) and every row's truth is [`RowTruth::NoLine`].
+    pub fn render_into_lit(
+        &mut self,
+        physical_x: f64,
+        frame_index: u64,
+        laser_on: bool,
+        pixels: &mut Pixels,
+        truth: &mut FrameTruth,
+    ) {
         self.truth_into(physical_x, truth);
+        if !laser_on {
+            truth.rows.iter_mut().for_each(|r| *r = RowTruth::NoLine);
+        }
         let (w, h) = (self.optics.width as usize, self.optics.height as usize);
         let n = w * h;
         if pixels.len() != n || pixels.format() != self.noise.format {
@@ -439,13 +456,17 @@ impl Renderer {
         match pixels {
             Pixels::Gray8(buf) => {
                 fill_background(buf, &self.bg8, &mut bg_rng);
-                self.draw_lines(buf, truth, &mut rng, |v| v as u8);
-                self.draw_spikes(buf, truth, &mut rng, u8::MAX);
+                if laser_on {
+                    self.draw_lines(buf, truth, &mut rng, |v| v as u8);
+                    self.draw_spikes(buf, truth, &mut rng, u8::MAX);
+                }
             }
             Pixels::Gray16(buf) => {
                 fill_background(buf, &self.bg16, &mut bg_rng);
-                self.draw_lines(buf, truth, &mut rng, |v| v as u16);
-                self.draw_spikes(buf, truth, &mut rng, u16::MAX);
+                if laser_on {
+                    self.draw_lines(buf, truth, &mut rng, |v| v as u16);
+                    self.draw_spikes(buf, truth, &mut rng, u16::MAX);
+                }
             }
         }
     }

@@ -108,6 +108,11 @@ pub struct HardwareSlider {
     /// (`scan.step_mm` x `camera.fps` x 60) must not exceed it, and neither may it exceed the
     /// controller's `$110` (GRBL would silently clamp the feed and the frames would bunch).
     pub max_feed_mm_min: f64,
+    /// The output the laser is wired to: `spindle` (M3 S`laser_power` / M5), `flood` (M8/M9)
+    /// or `mist` (M7/M9, GRBL builds with ENABLE_M7); unset: the scan does not switch it.
+    pub laser: Option<String>,
+    /// `S` of M3 when the laser is on the spindle output (GRBL's `$30` is full power).
+    pub laser_power: f64,
 }
 
 impl Default for HardwareSlider {
@@ -120,8 +125,23 @@ impl Default for HardwareSlider {
             reset_timeout_s: 5.0,
             homing_timeout_s: 60.0,
             max_feed_mm_min: 3000.0,
+            laser: None,
+            laser_power: 1000.0,
         }
     }
+}
+
+/// The driver's laser output of `[hardware.slider]` (None: unset or not a known output).
+pub fn laser_output(s: &HardwareSlider) -> Option<footscan_grbl::LaserOutput> {
+    use footscan_grbl::LaserOutput;
+    Some(match s.laser.as_deref()? {
+        "spindle" => LaserOutput::Spindle {
+            power: s.laser_power,
+        },
+        "flood" => LaserOutput::Flood,
+        "mist" => LaserOutput::Mist,
+        _ => return None,
+    })
 }
 
 /// Serial rates a GRBL board is built for (`BAUD_RATE` in its config.h).
@@ -143,6 +163,21 @@ pub struct ScanSection {
     pub status_poll_hz: f64,
     /// Home the slider before scanning.
     pub home: bool,
+    /// Laser-off frames: `none`, or `ends` (one at rest before the move and one after it; the
+    /// first is subtracted from every frame by the detect stage, docs/method.md section 4.6).
+    /// Needs a laser the controller switches (`hardware.slider.laser`, `sim.slider.laser`).
+    /// Not every N frames: GRBL runs M3/M5/M8/M9 in step with the planner, so switching the
+    /// laser would stop the scan move.
+    pub background: ScanBackground,
+}
+
+/// `scan.background`.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ScanBackground {
+    #[default]
+    None,
+    Ends,
 }
 
 impl Default for ScanSection {
@@ -154,6 +189,7 @@ impl Default for ScanSection {
             approach_feed_mm_min: 3000.0,
             status_poll_hz: 100.0,
             home: true,
+            background: ScanBackground::None,
         }
     }
 }
@@ -317,6 +353,20 @@ impl LoadedConfig {
                 self.locate(&["camera", "fps"]).unwrap_or_default()
             ));
         }
+        if s.background == ScanBackground::Ends {
+            let switched = match (&self.config.scanner.backend, &self.config.hardware) {
+                (Backend::Sim, _) => {
+                    self.config.sim.slider.laser != footscan_sim::grbl::LaserWiring::Always
+                }
+                (Backend::Hardware, h) => h.as_ref().is_some_and(|h| h.slider.laser.is_some()),
+            };
+            if !switched {
+                return Err(format!(
+                    "scan.background = \"ends\"{} needs a laser the controller switches: set hardware.slider.laser (\"spindle\", \"flood\" or \"mist\") or, simulated, sim.slider.laser (\"spindle\" or \"flood\")",
+                    at("background")
+                ));
+            }
+        }
         match (&self.config.scanner.backend, &self.config.hardware) {
             (Backend::Hardware, None) => {
                 return Err(format!(
@@ -385,6 +435,21 @@ impl LoadedConfig {
             return Err(format!(
                 "hardware.slider.port{}: missing or empty; name the serial port, e.g. \"/dev/ttyUSB0\" or a /dev/serial/by-id/ path",
                 sl("port")
+            ));
+        }
+        if let Some(l) = &s.laser {
+            if laser_output(s).is_none() {
+                return Err(format!(
+                    "hardware.slider.laser = {l:?}{}: valid are \"spindle\" (M3/M5), \"flood\" (M8/M9), \"mist\" (M7/M9)",
+                    sl("laser")
+                ));
+            }
+        }
+        if !(s.laser_power > 0.0 && s.laser_power <= 100_000.0) {
+            return Err(format!(
+                "hardware.slider.laser_power = {}{}: valid range is (0, 100000] (GRBL's $30 is full power)",
+                s.laser_power,
+                sl("laser_power")
             ));
         }
         if !GRBL_BAUDS.contains(&s.baud) {

@@ -35,6 +35,9 @@ impl Item {
 pub struct AcquiredFrame {
     pub meta: FrameMeta,
     pub frame: Frame,
+    /// Taken with the laser off (`scan.background`): the detect stage uses it as the
+    /// background and passes nothing on for it.
+    pub laser_off: bool,
 }
 
 /// A stage received an item it cannot handle: a pipeline declared in the wrong order.

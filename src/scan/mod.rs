@@ -43,6 +43,10 @@ pub struct ScanPlan {
     pub poll_period: Duration,
     pub frame_timeout: Duration,
     pub move_timeout: Duration,
+    /// The controller switches the laser: on for the scan, off after it.
+    pub laser: bool,
+    /// A laser-off frame at rest before and after the move (`scan.background = "ends"`).
+    pub laser_off_ends: bool,
 }
 
 impl ScanPlan {
@@ -59,6 +63,15 @@ impl ScanPlan {
             poll_period: Duration::from_secs_f64(1.0 / s.status_poll_hz),
             frame_timeout: Duration::from_secs_f64((10.0 / c.camera.fps).max(1.0)),
             move_timeout: Duration::from_secs_f64(travel_s.max(10.0) * 2.0 + 10.0),
+            laser: match (&c.scanner.backend, &c.hardware) {
+                (config::Backend::Sim, _) => {
+                    c.sim.slider.laser != footscan_sim::grbl::LaserWiring::Always
+                }
+                (config::Backend::Hardware, h) => {
+                    h.as_ref().is_some_and(|h| h.slider.laser.is_some())
+                }
+            },
+            laser_off_ends: s.background == config::ScanBackground::Ends,
         }
     }
 
@@ -74,6 +87,8 @@ pub struct ScanCounters {
     frames: AtomicU64,
     dropped: AtomicU64,
     stationary: AtomicU64,
+    laser_off_frames: AtomicU64,
+    laser_off_rows: AtomicU64,
 }
 
 impl ScanCounters {
@@ -94,5 +109,17 @@ impl ScanCounters {
     }
     pub fn stationary(&self) -> u64 {
         self.stationary.load(Ordering::Relaxed)
+    }
+    /// A laser-off frame in which the detector found a line in `rows_found` rows.
+    pub fn add_laser_off(&self, rows_found: u64) {
+        self.laser_off_frames.fetch_add(1, Ordering::Relaxed);
+        self.laser_off_rows.fetch_add(rows_found, Ordering::Relaxed);
+    }
+    /// Laser-off frames and the rows found in them.
+    pub fn laser_off(&self) -> (u64, u64) {
+        (
+            self.laser_off_frames.load(Ordering::Relaxed),
+            self.laser_off_rows.load(Ordering::Relaxed),
+        )
     }
 }

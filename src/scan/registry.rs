@@ -91,7 +91,9 @@ pub fn registry() -> Registry<Item, ScanContext> {
             let p: DetectParams = params(p)?;
             let det = build(d.name, &p)?;
             Ok(Node::stage(
-                Detect::new(d.stage, det).with_tap(ctx.tap.clone()),
+                Detect::new(d.stage, det)
+                    .with_tap(ctx.tap.clone())
+                    .with_counters(ctx.counters.clone()),
             ))
         });
     }

@@ -146,6 +146,9 @@ fn finish(s: &mut ScanSummary, counters: &ScanCounters, started: Instant) {
     s.frames = counters.frames();
     s.dropped_frames = counters.dropped();
     s.stationary_frames = counters.stationary();
+    let (frames, rows_found) = counters.laser_off();
+    s.laser_off =
+        (frames > 0).then_some(crate::scan::summary::LaserOffStats { frames, rows_found });
     s.seconds = started.elapsed().as_secs_f64();
 }
 

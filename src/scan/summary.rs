@@ -58,6 +58,16 @@ pub struct ScanSummary {
     pub stages: Vec<StageReport>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub truth: Option<TruthStats>,
+    /// Laser-off frames (`scan.background = "ends"`) and the rows in which the detector still
+    /// found a line (false detections: should be 0).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub laser_off: Option<LaserOffStats>,
+}
+
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
+pub struct LaserOffStats {
+    pub frames: u64,
+    pub rows_found: u64,
 }
 
 /// Point count and truth comparison of a finished grid; run totals are filled in by the caller.
@@ -78,6 +88,7 @@ pub fn summarize(grid: &ScanGrid, truth: Option<&dyn TruthSource>) -> ScanSummar
         x_range_mm,
         stages: Vec::new(),
         truth: truth.map(|t| compare(grid, t)),
+        laser_off: None,
     }
 }
 
@@ -129,6 +140,7 @@ impl ScanSummary {
             x_range_mm: [f64::NAN; 2],
             stages: Vec::new(),
             truth: None,
+            laser_off: None,
         }
     }
 

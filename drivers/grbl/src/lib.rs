@@ -35,7 +35,8 @@
 //! - `exchange`: a line sent and its answer awaited under a named wait policy (how long,
 //!   patient while the machine moves or not, resync after a timeout or not); status queries;
 //!   streaming.
-//! - `slider`: [`GrblSlider`], the scanner's view: connect, home, move, jog, hold, stop.
+//! - `slider`: [`GrblSlider`], the scanner's view: connect, home, move, jog, hold, stop, laser
+//!   on/off ([`LaserOutput`]).
 //!
 //! `message`, `codes` and `settings` parse what GRBL sends and name its codes.
 
@@ -50,5 +51,5 @@ mod tracker;
 pub use codes::{alarm_message, error_message};
 pub use message::{banner_version, parse_line, parse_status, Message, StatusReport};
 pub use settings::{BuildInfo, GrblSettings};
-pub use slider::{GrblConfig, GrblSlider};
+pub use slider::{GrblConfig, GrblSlider, LaserOutput};
 pub use tracker::GrblStats;

@@ -36,6 +36,34 @@ pub struct GrblConfig {
     /// Serial RX buffer of the controller for character counting; replaced by the value in
     /// `$I`'s `[OPT:...]` when the controller reports one.
     pub rx_buffer: usize,
+    /// The output the laser is wired to; None: the laser is not switched by the controller.
+    pub laser: Option<LaserOutput>,
+}
+
+/// The controller output that switches the laser (GRBL boards have a spindle enable/PWM pin
+/// and coolant pins; a line laser sits on whichever is free).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LaserOutput {
+    /// `M3 S<power>` on, `M5` off. With laser mode on (`$32=1`) GRBL keeps the spindle output
+    /// off while the axes stand still, so a scanner needs `$32=0`.
+    Spindle { power: f64 },
+    /// `M8` on, `M9` off (flood coolant pin).
+    Flood,
+    /// `M7` on, `M9` off (mist coolant pin: only in GRBL builds with `ENABLE_M7`).
+    Mist,
+}
+
+impl LaserOutput {
+    /// The g-code line switching the laser on or off.
+    pub fn command(self, on: bool) -> String {
+        match (self, on) {
+            (LaserOutput::Spindle { power }, true) => format!("M3S{power}"),
+            (LaserOutput::Spindle { .. }, false) => "M5".into(),
+            (LaserOutput::Flood, true) => "M8".into(),
+            (LaserOutput::Mist, true) => "M7".into(),
+            (LaserOutput::Flood | LaserOutput::Mist, false) => "M9".into(),
+        }
+    }
 }
 
 impl Default for GrblConfig {
@@ -47,6 +75,7 @@ impl Default for GrblConfig {
             homing_timeout: Duration::from_secs(60),
             poll_interval: Duration::from_millis(20),
             rx_buffer: 128,
+            laser: None,
         }
     }
 }
@@ -482,6 +511,38 @@ impl Slider for GrblSlider {
             }
             SliderState::Home => self.soft_reset(),
             _ => Ok(()),
+        }
+    }
+
+    /// The configured output's command (see [`LaserOutput`]). GRBL executes spindle and
+    /// coolant commands in step with the planner (after the queued motion), so a laser switched
+    /// mid-move would first stop the move: scans switch it at rest. A refusal names the command
+    /// and the controller's `error:N` with its meaning.
+    fn laser(&mut self, on: bool) -> HalResult<()> {
+        let Some(out) = self.config.laser else {
+            return Err(HalError::InvalidArgument {
+                device: self.port_name().to_string(),
+                detail: "no laser output configured (laser = \"spindle\", \"flood\" or \"mist\")"
+                    .into(),
+            });
+        };
+        self.fail_if_alarm()?;
+        let line = out.command(on);
+        match self.command(&line) {
+            Ok(_) => Ok(()),
+            Err(HalError::Rejected {
+                device,
+                code,
+                message,
+            }) => Err(HalError::Rejected {
+                device,
+                code,
+                message: format!(
+                    "laser {} refused: the controller answered `{line}` with error:{code} ({message})",
+                    if on { "on" } else { "off" }
+                ),
+            }),
+            Err(e) => Err(e),
         }
     }
 

@@ -417,3 +417,62 @@ fn a_second_banner_during_connect_is_tolerated() {
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
     h.join().unwrap();
 }
+
+#[test]
+fn laser_on_off_through_spindle_and_coolant_and_refusals_named() {
+    use footscan_grbl::LaserOutput;
+    use footscan_sim::grbl::LaserWiring;
+    for (wiring, out, on_line) in [
+        (
+            LaserWiring::Spindle,
+            LaserOutput::Spindle { power: 1000.0 },
+            "M3",
+        ),
+        (LaserWiring::Flood, LaserOutput::Flood, "M8"),
+    ] {
+        let cfg = EmulatorConfig {
+            laser: wiring,
+            homing_enabled: false,
+            ..EmulatorConfig::default()
+        };
+        let drv = GrblConfig {
+            laser: Some(out),
+            ..GrblConfig::default()
+        };
+        let (emu, mut s) = connected(cfg, drv);
+        assert!(!emu.laser_on(), "{wiring:?}: off at power-up");
+        s.laser(true).expect("laser on");
+        assert!(emu.laser_on(), "{wiring:?}: on after {on_line}");
+        let gc = s.command("$G").unwrap().join(" ");
+        assert!(gc.contains(on_line), "{gc}");
+        s.laser(false).expect("laser off");
+        assert!(!emu.laser_on(), "{wiring:?}: off again");
+        // A refused command names the command and the controller's answer.
+        emu.inject(Fault::RejectNext(20));
+        let e = s.laser(true).unwrap_err().to_string();
+        assert!(
+            e.contains(on_line) && e.contains("error:20") && e.contains("laser on"),
+            "{e}"
+        );
+        assert!(!emu.laser_on());
+    }
+    // M7 (mist) is not in GRBL's default build: refused with error:20, named.
+    let cfg = EmulatorConfig {
+        homing_enabled: false,
+        ..EmulatorConfig::default()
+    };
+    let drv = GrblConfig {
+        laser: Some(LaserOutput::Mist),
+        ..GrblConfig::default()
+    };
+    let (_emu, mut s) = connected(cfg, drv);
+    let e = s.laser(true).unwrap_err().to_string();
+    assert!(
+        e.contains("`M7`") && e.contains("error:20") && e.contains("unsupported"),
+        "{e}"
+    );
+    // Without a configured output the driver says so and sends nothing.
+    let (_emu, mut s) = homed();
+    let e = s.laser(true).unwrap_err().to_string();
+    assert!(e.contains("no laser output"), "{e}");
+}

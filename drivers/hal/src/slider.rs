@@ -81,6 +81,15 @@ pub trait Slider: Send {
     /// Stop motion now and discard queued moves (jog cancel / feed hold + soft reset).
     fn stop(&mut self) -> HalResult<()>;
     fn settings(&mut self) -> HalResult<SliderSettings>;
+    /// Switch the laser (wired to a controller output) on or off; returns once the controller
+    /// has accepted the command. Sliders without a laser output refuse.
+    fn laser(&mut self, on: bool) -> HalResult<()> {
+        let _ = on;
+        Err(crate::HalError::InvalidArgument {
+            device: "slider".into(),
+            detail: "no laser output is configured on this slider".into(),
+        })
+    }
 }
 
 #[cfg(test)]

@@ -112,6 +112,10 @@ pub(crate) struct Modal {
     /// mm/min; 0 means undefined (GRBL's reset state).
     pub feed: f64,
     pub spindle: f64,
+    /// M3/M4 (true) or M5.
+    pub spindle_on: bool,
+    /// M8 (true) or M9.
+    pub flood: bool,
     /// gc_state.position: where the last accepted block ends, mm.
     pub x: f64,
 }
@@ -124,6 +128,8 @@ impl Modal {
             inches: false,
             feed: 0.0,
             spindle: 0.0,
+            spindle_on: false,
+            flood: false,
             x,
         }
     }
@@ -137,7 +143,9 @@ impl Modal {
         let units = if self.inches { "G20" } else { "G21" };
         let dist = if self.absolute { "G90" } else { "G91" };
         format!(
-            "[GC:{m} G54 G17 {units} {dist} G94 M5 M9 T0 F{} S{}]",
+            "[GC:{m} G54 G17 {units} {dist} G94 {} {} T0 F{} S{}]",
+            if self.spindle_on { "M3" } else { "M5" },
+            if self.flood { "M8" } else { "M9" },
             self.feed.round(),
             self.spindle.round()
         )
@@ -260,8 +268,16 @@ pub(crate) fn interpret(line: &[u8], modal: &mut Modal) -> Result<Action, u8> {
                 };
                 match m {
                     0 | 1 | 2 | 30 => seen.group(GROUP_PROGRAM)?,
-                    3..=5 => seen.group(GROUP_SPINDLE)?,
-                    7..=9 => seen.group(GROUP_COOLANT)?,
+                    3..=5 => {
+                        seen.group(GROUP_SPINDLE)?;
+                        next.spindle_on = m != 5;
+                    }
+                    // M7 (mist) exists only in GRBL builds with ENABLE_M7; the default build
+                    // refuses it as an unsupported command.
+                    8 | 9 => {
+                        seen.group(GROUP_COOLANT)?;
+                        next.flood = m == 8;
+                    }
                     _ => return Err(err::UNSUPPORTED_COMMAND),
                 }
             }

@@ -87,6 +87,10 @@ pub(crate) struct Machine {
     pub rx_overflow: u64,
     /// Most non-realtime bytes ever waiting in the RX buffer at once.
     pub rx_peak: usize,
+    pub laser_wiring: super::LaserWiring,
+    /// When the laser changed state (time, on), oldest first; before the first, it is off
+    /// unless wired to be always on.
+    pub laser_changes: Vec<(f64, bool)>,
 }
 
 impl Machine {
@@ -103,7 +107,33 @@ impl Machine {
             pending_alarm: None,
             rx_overflow: 0,
             rx_peak: 0,
+            laser_wiring: cfg.laser,
+            laser_changes: Vec::new(),
         }
+    }
+
+    /// Record the outputs after a block or a reset at `now` (a change of the laser only).
+    pub fn set_outputs(&mut self, now: f64, spindle: bool, flood: bool) {
+        let on = self.laser_wiring.on(spindle, flood);
+        if self.laser_at(now) != on {
+            // Keep the history bounded like the motion timeline's (a scan switches a few times).
+            if self.laser_changes.len() >= 4096 {
+                self.laser_changes.drain(..2048);
+            }
+            self.laser_changes.push((now, on));
+        }
+    }
+
+    /// Whether the laser shone at `t`.
+    pub fn laser_at(&self, t: f64) -> bool {
+        if self.laser_wiring == super::LaserWiring::Always {
+            return true;
+        }
+        self.laser_changes
+            .iter()
+            .rev()
+            .find(|c| c.0 <= t)
+            .is_some_and(|c| c.1)
     }
 
     fn setting(&self, k: u32) -> f64 {

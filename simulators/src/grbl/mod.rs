@@ -17,9 +17,12 @@
 //!   soon as its block enters the planner (15 blocks), not when it completes. A line that finds
 //!   the planner full waits (unanswered) until a block finishes.
 //! - `$$`, `$#`, `$G`, `$I`, `$N`, `$C`, `$X`, `$H`, `$RST=`, `$N=value`, `$J=` jogs; g-code
-//!   `G0 G1 G4 G17-19 G20 G21 G40 G53 G54-59 G61 G80 G90 G91 G94`, `M0-2 M3-5 M7-9 M30`,
+//!   `G0 G1 G4 G17-19 G20 G21 G40 G53 G54-59 G61 G80 G90 G91 G94`, `M0-2 M3-5 M8 M9 M30`,
 //!   words `F N P S T X Y Z` (Y and Z are accepted and ignored: a single-axis machine). Arcs,
-//!   probing and offsets answer `error:20`.
+//!   probing, offsets and M7 (mist: not in GRBL's default build) answer `error:20`.
+//! - a laser wired to the spindle (M3/M5) or flood coolant (M8/M9) output
+//!   ([`EmulatorConfig::laser`]): [`GrblEmulator::laser_source`] tells the simulated camera
+//!   whether it shone at a frame's capture time. A reset switches both outputs off.
 //! - realtime bytes act on arrival, even mid-line: `?` status report
 //!   `<Idle|MPos:12.345,0.000,0.000|FS:0,0>` (with `|WCO:` and `|Ov:` every few reports as
 //!   GRBL does; `WPos` when `$10` bit 0 is clear; `Bf:` when bit 1 is set), `!` feed hold
@@ -34,7 +37,8 @@
 //!   in order (no data is lost) but counted in [`GrblEmulator::rx_overflow_bytes`], so a test
 //!   can prove that a character-counting client never overflows.
 //!
-//! Deviations: CRLF counts as one line end (GRBL would answer the empty line between `\r` and
+//! Deviations: spindle and coolant commands take effect when their line is read (GRBL waits
+//! for the queued motion first); CRLF counts as one line end (GRBL would answer the empty line between `\r` and
 //! `\n` with a second `ok`); blocks join with a full stop (no junction look-ahead); a G4 sharing a
 //! block with axis words is refused with `error:31`.
 //!
@@ -51,7 +55,7 @@ mod motion;
 mod pty;
 mod server;
 
-use crate::PositionSource;
+use crate::{LaserSource, PositionSource};
 use crossbeam_channel::Sender;
 use footscan_hal::Timestamp;
 use machine::Machine;
@@ -89,6 +93,29 @@ pub struct EmulatorConfig {
     pub status_latency_us: u64,
     /// Serial RX buffer, bytes (reported in `$I` as `[OPT:V,15,N]`).
     pub rx_buffer: usize,
+    /// What switches the laser: `always` (wired to its own supply: always on, as before the
+    /// laser was switchable), `spindle` (M3/M4 on, M5 off) or `flood` (M8 on, M9 off).
+    pub laser: LaserWiring,
+}
+
+/// Where the simulated laser is wired.
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum LaserWiring {
+    #[default]
+    Always,
+    Spindle,
+    Flood,
+}
+
+impl LaserWiring {
+    fn on(self, spindle: bool, flood: bool) -> bool {
+        match self {
+            LaserWiring::Always => true,
+            LaserWiring::Spindle => spindle,
+            LaserWiring::Flood => flood,
+        }
+    }
 }
 
 impl Default for EmulatorConfig {
@@ -103,6 +130,7 @@ impl Default for EmulatorConfig {
             homing_seconds: 0.3,
             status_latency_us: 0,
             rx_buffer: 128,
+            laser: LaserWiring::Always,
         }
     }
 }
@@ -168,6 +196,15 @@ pub(crate) struct Shared {
 impl Shared {
     fn lock(&self) -> MutexGuard<'_, Machine> {
         self.machine.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// The emulator's output history as a [`LaserSource`] for the simulated camera.
+struct EmulatorLaser(Arc<Shared>);
+
+impl LaserSource for EmulatorLaser {
+    fn laser_on(&self, at: Timestamp) -> bool {
+        self.0.lock().laser_at(at.as_secs_f64())
     }
 }
 
@@ -294,6 +331,17 @@ impl GrblEmulator {
     /// characters correctly).
     pub fn rx_overflow_bytes(&self) -> u64 {
         self.shared.lock().rx_overflow
+    }
+
+    /// Whether the laser shone at any time, from the output history (for the simulated
+    /// camera; valid after the emulator is dropped too).
+    pub fn laser_source(&self) -> Arc<dyn LaserSource> {
+        Arc::new(EmulatorLaser(self.shared.clone()))
+    }
+
+    /// Whether the laser is on now.
+    pub fn laser_on(&self) -> bool {
+        self.shared.lock().laser_at(Timestamp::now().as_secs_f64())
     }
 
     /// Current `$N` settings.

@@ -383,6 +383,7 @@ impl Server {
             (m.alarm, m.timeline.machine_at(now))
         };
         self.modal = Modal::new(x);
+        self.machine().set_outputs(now, false, false);
         self.wco_counter = 0;
         self.ovr_counter = 0;
         self.emit(BANNER);
@@ -531,6 +532,9 @@ impl Server {
         match action {
             Action::None => {
                 self.modal = modal;
+                if state != MachineState::Check {
+                    self.apply_outputs(now);
+                }
                 self.respond(Ok(()));
             }
             Action::Dwell(p) => {
@@ -538,6 +542,7 @@ impl Server {
                 if state == MachineState::Check {
                     return self.respond(Ok(()));
                 }
+                self.apply_outputs(now);
                 self.blocked = Some(Blocked::Sync(p));
                 self.tick(now);
             }
@@ -558,6 +563,7 @@ impl Server {
                 if state == MachineState::Check {
                     return self.respond(Ok(()));
                 }
+                self.apply_outputs(now);
                 let spec = Spec {
                     kind: MoveKind::Line,
                     target: x,
@@ -566,6 +572,12 @@ impl Server {
                 self.queue_or_block(now, spec);
             }
         }
+    }
+
+    /// The spindle and coolant outputs of the modal state, to the machine (the laser).
+    fn apply_outputs(&mut self, now: f64) {
+        let (spindle, flood) = (self.modal.spindle_on, self.modal.flood);
+        self.machine().set_outputs(now, spindle, flood);
     }
 
     fn queue_or_block(&mut self, now: f64, spec: Spec) {

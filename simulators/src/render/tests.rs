@@ -335,3 +335,37 @@ fn inverse_normal_is_accurate() {
         assert!((back - p).abs() < 1e-12 * p.max(1e-3), "{p}");
     }
 }
+
+#[test]
+fn laser_off_frames_have_no_line_and_the_same_background() {
+    let noise = NoiseConfig {
+        glass_reflection: 0.3,
+        specular_spike_rate: 5.0,
+        ..NoiseConfig::default()
+    };
+    let mut r = renderer(Optics::default(), noise, Scene::Plate { height_mm: 10.0 });
+    let (mut on, mut off) = (Pixels::Gray8(Vec::new()), Pixels::Gray8(Vec::new()));
+    let (mut t_on, mut t_off) = (FrameTruth::default(), FrameTruth::default());
+    r.render_into_lit(50.0, 7, true, &mut on, &mut t_on);
+    r.render_into_lit(50.0, 7, false, &mut off, &mut t_off);
+    assert!(t_on.line_count() > 0);
+    assert_eq!(t_off.line_count(), 0, "no line while the laser is off");
+    assert_eq!(t_off.slider_x, t_on.slider_x);
+    let (Pixels::Gray8(a), Pixels::Gray8(b)) = (&on, &off) else {
+        unreachable!()
+    };
+    // Same background noise (same frame index): only pixels near the line differ.
+    let differ = a.iter().zip(b).filter(|(x, y)| x != y).count();
+    assert!(
+        differ * 20 < a.len(),
+        "{differ} of {} pixels differ",
+        a.len()
+    );
+    let brightest = |v: &[u8]| *v.iter().max().unwrap();
+    assert!(
+        brightest(a) > 150 && brightest(b) < 60,
+        "{} {}",
+        brightest(a),
+        brightest(b)
+    );
+}

@@ -47,6 +47,7 @@ pub fn grbl_config(s: &HardwareSlider) -> GrblConfig {
         reset_timeout: Duration::from_secs_f64(s.reset_timeout_s),
         homing_timeout: Duration::from_secs_f64(s.homing_timeout_s),
         poll_interval: Duration::from_secs_f64(1.0 / s.poll_hz),
+        laser: crate::scan::config::laser_output(s),
         ..GrblConfig::default()
     }
 }
@@ -180,6 +181,15 @@ pub fn open_slider(
                 )));
             }
         }
+    }
+    if matches!(
+        grbl_config(s).laser,
+        Some(footscan_grbl::LaserOutput::Spindle { .. })
+    ) && settings.raw.get(&32).is_some_and(|&v| v != 0.0)
+    {
+        return Err(check(
+            "hardware.slider.laser = \"spindle\" but the controller is in laser mode ($32=1), which keeps the spindle output off while the axes stand still (no laser for the laser-off/at-rest frames): set $32=0 or wire the laser to a coolant output".into(),
+        ));
     }
     if scan.home && !settings.homing_enabled() {
         return Err(check(

@@ -4,11 +4,11 @@
 use crate::calib::{Calibration, CameraModel};
 use crate::scan::config::{ScanConfig, SceneKind, SimFaults};
 use crate::scan::{Devices, TruthSource};
-use footscan_grbl::{GrblConfig, GrblSlider};
+use footscan_grbl::{GrblConfig, GrblSlider, LaserOutput};
 use footscan_hal::{Camera, HalError, Slider};
 use footscan_sim::camera::{CameraFaults, SimCamera, TruthLog};
 use footscan_sim::foot::Foot;
-use footscan_sim::grbl::{Fault, GrblEmulator};
+use footscan_sim::grbl::{Fault, GrblEmulator, LaserWiring};
 use footscan_sim::optics::Optics;
 use footscan_sim::render::{Renderer, RowTruth, Scene};
 use std::sync::Arc;
@@ -98,9 +98,18 @@ pub fn open_sim_devices(cfg: &ScanConfig, scene: Scene) -> Result<SimDevices, Si
     let sim = &cfg.sim;
     let emulator =
         Arc::new(GrblEmulator::spawn(sim.slider.clone()).map_err(SimOpenError::Emulator)?);
+    // The driver switches whichever output the simulated laser is wired to.
+    let laser = match sim.slider.laser {
+        LaserWiring::Always => None,
+        LaserWiring::Spindle => Some(LaserOutput::Spindle { power: 1000.0 }),
+        LaserWiring::Flood => Some(LaserOutput::Flood),
+    };
     let mut slider = GrblSlider::new(
         emulator.port_path().to_string_lossy(),
-        GrblConfig::default(),
+        GrblConfig {
+            laser,
+            ..GrblConfig::default()
+        },
     );
     slider.connect()?;
     if cfg.scan.home {
@@ -114,6 +123,7 @@ pub fn open_sim_devices(cfg: &ScanConfig, scene: Scene) -> Result<SimDevices, Si
         emulator.position_source(),
         sim.seed,
     )?;
+    camera.set_laser_source(emulator.laser_source());
     camera.set_exposure_us(cfg.camera.exposure_us)?;
     camera.set_gain(cfg.camera.gain)?;
     Ok(SimDevices {

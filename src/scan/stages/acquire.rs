@@ -140,9 +140,16 @@ impl Source<Item> for Acquire {
             .move_to(plan.start_mm, plan.approach_feed_mm_min)
             .map_err(sl)?;
         slider.wait_idle(plan.move_timeout).map_err(sl)?;
-        camera
-            .start()
-            .map_err(|e| DeviceError::hal(DeviceRole::Camera, e))?;
+        let cam = |e| DeviceError::hal(DeviceRole::Camera, e);
+        if plan.laser_off_ends {
+            self.laser_off_frame(slider.as_mut(), camera.as_mut(), out, &plan)?;
+        } else {
+            camera.start().map_err(cam)?;
+        }
+        if plan.laser {
+            slider.laser(true).map_err(sl)?;
+        }
+        // Taken after the laser came on: frames before it are never labelled (nor used).
         let before = slider.status().map_err(sl)?;
         slider.move_to(plan.end_mm, plan.feed_mm_min).map_err(sl)?;
 
@@ -162,8 +169,61 @@ impl Source<Item> for Acquire {
             let _ = poller.join();
             r
         });
+        let result = result.and_then(|()| {
+            if plan.laser_off_ends && !out.is_cancelled() {
+                slider.wait_idle(plan.move_timeout).map_err(sl)?;
+                self.laser_off_frame(slider.as_mut(), camera.as_mut(), out, &plan)?;
+            }
+            Ok(())
+        });
+        if plan.laser {
+            // Off after the scan, whatever happened (a failed scan leaves no laser shining).
+            let _ = slider.laser(false);
+        }
         let _ = camera.stop();
         result
+    }
+}
+
+impl Acquire {
+    /// Switch the laser off, take a frame at rest and pass it on marked laser-off (the camera
+    /// is started if it is not streaming). The frame is the second stamped after the
+    /// controller accepted the command: the first may have begun its exposure before.
+    fn laser_off_frame(
+        &self,
+        slider: &mut dyn Slider,
+        camera: &mut dyn Camera,
+        out: &mut Emitter<Item>,
+        plan: &ScanPlan,
+    ) -> Result<(), BoxError> {
+        let sl = |e| DeviceError::hal(DeviceRole::Slider, e);
+        let cam = |e| DeviceError::hal(DeviceRole::Camera, e);
+        slider.laser(false).map_err(sl)?;
+        let off = Timestamp::now();
+        let at = slider.status().map_err(sl)?;
+        camera.start().map_err(cam)?;
+        let mut after = 0;
+        let frame = loop {
+            let f = camera.next_frame(plan.frame_timeout).map_err(cam)?;
+            if f.timestamp > off {
+                after += 1;
+                if after == 2 {
+                    break f;
+                }
+            }
+        };
+        let meta = FrameMeta {
+            index: 0,
+            seq: frame.seq,
+            timestamp: frame.timestamp,
+            x_mm: at.x_mm,
+        };
+        let _ = out.emit(Item::Frame(AcquiredFrame {
+            meta,
+            frame,
+            laser_off: true,
+        }));
+        Ok(())
     }
 }
 
@@ -240,7 +300,11 @@ impl Acquire {
             index += 1;
             self.counters.add_frame();
             if out
-                .emit(Item::Frame(AcquiredFrame { meta, frame }))
+                .emit(Item::Frame(AcquiredFrame {
+                    meta,
+                    frame,
+                    laser_off: false,
+                }))
                 .is_err()
             {
                 break;

@@ -2,16 +2,20 @@
 
 use super::FrameTap;
 use crate::calib::Triangulator;
-use crate::detect::{Detector, LinePeak};
+use crate::detect::{Detector, Image, LinePeak, Prep};
 use crate::pipeline::{BoxError, Emitter, Stage};
-use crate::scan::item::{unexpected, FrameLines, FramePoints, Item};
-use crate::scan::ScanGrid;
+use crate::scan::item::{unexpected, AcquiredFrame, FrameLines, FramePoints, Item};
+use crate::scan::{ScanCounters, ScanGrid};
 use std::sync::Arc;
 
 pub struct Detect {
     name: &'static str,
     detector: Box<dyn Detector>,
     tap: Option<Arc<dyn FrameTap>>,
+    /// The laser-off background, subtracted from every frame once a laser-off frame came.
+    prep: Prep,
+    background: bool,
+    counters: Option<Arc<ScanCounters>>,
 }
 
 impl Detect {
@@ -20,6 +24,9 @@ impl Detect {
             name,
             detector,
             tap: None,
+            prep: Prep::new(None),
+            background: false,
+            counters: None,
         }
     }
 
@@ -28,6 +35,36 @@ impl Detect {
         self.tap = tap;
         self
     }
+
+    /// Count the laser-off frames and the rows found in them into `counters`.
+    pub fn with_counters(mut self, counters: Arc<ScanCounters>) -> Self {
+        self.counters = Some(counters);
+        self
+    }
+
+    /// A laser-off frame: the rows the detector finds in it as it is are false detections
+    /// (counted); the first one becomes the background. Nothing goes downstream.
+    fn laser_off(&mut self, af: AcquiredFrame) -> Result<(), BoxError> {
+        let mut lines = vec![LinePeak::NONE; af.frame.height as usize];
+        self.detector.detect(&af.frame, &mut lines);
+        let found = lines.iter().filter(|l| l.is_valid()).count() as u64;
+        if found > 0 {
+            tracing::warn!(
+                seq = af.meta.seq,
+                rows = found,
+                "line found in a laser-off frame"
+            );
+        }
+        if let Some(c) = &self.counters {
+            c.add_laser_off(found);
+        }
+        if !self.background {
+            let name = format!("laser-off frame {}", af.meta.seq);
+            self.prep.set_background(&Image::Gray(af.frame), &name)?;
+            self.background = true;
+        }
+        Ok(())
+    }
 }
 
 impl Stage<Item> for Detect {
@@ -35,16 +72,21 @@ impl Stage<Item> for Detect {
         let Item::Frame(af) = item else {
             return Err(unexpected(self.name, &item, "frames"));
         };
-        let mut lines = vec![LinePeak::NONE; af.frame.height as usize];
-        self.detector.detect(&af.frame, &mut lines);
-        if let Some(tap) = &self.tap {
-            tap.frame(&af.meta, &af.frame, &lines);
+        if af.laser_off {
+            return self.laser_off(af);
         }
-        drop(af.frame); // hand the buffer back to the camera's pool before blocking downstream
-        let _ = out.emit(Item::Lines(FrameLines {
-            meta: af.meta,
-            lines,
-        }));
+        let mut lines = vec![LinePeak::NONE; af.frame.height as usize];
+        let (meta, img) = (af.meta, Image::Gray(af.frame));
+        let seen = self.prep.prepare(&img, "scan frame")?;
+        self.detector.detect(seen, &mut lines);
+        let Image::Gray(frame) = img else {
+            unreachable!("made grey above")
+        };
+        if let Some(tap) = &self.tap {
+            tap.frame(&meta, &frame, &lines);
+        }
+        drop(frame); // hand the buffer back to the camera's pool before blocking downstream
+        let _ = out.emit(Item::Lines(FrameLines { meta, lines }));
         Ok(())
     }
 }
