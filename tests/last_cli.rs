@@ -293,3 +293,111 @@ fn scan_with_last_adjust_then_the_cli_on_every_real_last() {
         assert!(!out.exists(), "case {k}: {} written", out.display());
     }
 }
+
+/// `footscan last join` on the RoundTip pair scaled to 260 mm, with `extra` arguments.
+fn last_join(extra: &[&str], out: &Path) -> std::process::Output {
+    let lasts = lasts_dir();
+    let o = footscan()
+        .args(["last", "join", "--length", "260", "--back"])
+        .arg(lasts.join("Last_Heeled_RoundTip.stl"))
+        .arg("--toe")
+        .arg(lasts.join("Last_Flat_RoundTip.stl"))
+        .args(extra)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    println!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
+#[test]
+fn last_join_by_the_blend_with_a_table_writes_what_the_gordon_join_writes() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("b.txt");
+    std::fs::write(&table, "# t b\n0 0\n0.25 0.2\n0.5 1\n0.75 0.2\n1 0\n").unwrap();
+    let out = dir.path().join("blend");
+    let blend = format!("table:{}", table.display());
+    let o = last_join(&["--method", "blend", "--blend", &blend], &out);
+    assert!(o.status.success());
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    for f in [
+        "joined.igs",
+        "joined.step",
+        "joined.stl",
+        "seams.json",
+        "zebra.png",
+        "views.png",
+    ] {
+        let p = out.join(f);
+        assert!(
+            p.metadata().map(|m| m.len() > 0).unwrap_or(false),
+            "{} missing or empty",
+            p.display()
+        );
+        assert!(stdout.contains(f), "{f} not reported");
+    }
+    let json: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("seams.json")).unwrap()).unwrap();
+    assert_eq!(json["method"], "blend");
+    assert_eq!(json["points_per_slice"], 240);
+    assert!(
+        json["stl"].as_str().unwrap().starts_with("closed"),
+        "{json}"
+    );
+    // The same seam figures as the Gordon join's seams.json; the slices close the gap.
+    for seam in ["back_seam", "toe_seam"] {
+        let s = &json["quality"][seam];
+        assert!(s["gap_max_mm"].as_f64().unwrap() <= 0.01, "{s}");
+        assert!(s["normal_max_deg"].as_f64().unwrap().is_finite(), "{s}");
+        assert!(s["curvature_rel_max"].as_f64().unwrap().is_finite(), "{s}");
+    }
+    // The fill used the table: b at every fill slice is the table's, linear between rows.
+    let at = |t: f64| {
+        let rows = [(0.0, 0.0), (0.25, 0.2), (0.5, 1.0), (0.75, 0.2), (1.0, 0.0)];
+        let i = rows.iter().position(|r| r.0 >= t).unwrap().max(1);
+        let (a, b) = (rows[i - 1], rows[i]);
+        a.1 + (b.1 - a.1) * (t - a.0) / (b.0 - a.0)
+    };
+    let w = json["weights"].as_array().unwrap();
+    assert!(w.len() >= 9, "{w:?}");
+    for r in w {
+        let (t, b) = (r[0].as_f64().unwrap(), r[1].as_f64().unwrap());
+        assert!((b - at(t)).abs() < 1e-9, "b({t}) = {b}, table {}", at(t));
+    }
+}
+
+#[test]
+fn last_join_refuses_a_bad_blend_naming_the_word_or_the_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("b.txt");
+    std::fs::write(&table, "0 0\n0.5 1\n0.4 0\n").unwrap();
+    let bad_table = format!("table:{}", table.display());
+    let missing = format!("table:{}", dir.path().join("none.txt").display());
+    let cases: [(&[&str], String); 4] = [
+        (&["--blend", "cubic"], "table:FILE".into()),
+        (
+            &["--blend", &bad_table],
+            format!("{}, line 3", table.display()),
+        ),
+        (&["--blend", &missing], "none.txt".into()),
+        (
+            &["--blend", "poly", "--toe-plane", "150,0,0,1,0.2,0"],
+            "not parallel".into(),
+        ),
+    ];
+    for (k, (args, says)) in cases.iter().enumerate() {
+        let out = dir.path().join(format!("out{k}"));
+        let mut a = vec!["--method", "blend"];
+        a.extend_from_slice(args);
+        let o = last_join(&a, &out);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "case {k} succeeded");
+        assert!(err.contains(says.as_str()), "case {k}: {err}");
+        assert!(!out.exists(), "case {k}: {} written", out.display());
+    }
+}

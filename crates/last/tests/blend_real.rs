@@ -5,7 +5,7 @@ use footscan_geom::mesh::{TriMesh, Units};
 use footscan_last::blend::fair::Functional;
 use footscan_last::blend::output::{quality, write};
 use footscan_last::blend::weight::Weight;
-use footscan_last::blend::{fill, Blend, BlendParams};
+use footscan_last::blend::{fill, Blend, BlendParams, Piece};
 use std::path::PathBuf;
 
 fn data_dir() -> PathBuf {
@@ -222,5 +222,32 @@ fn written_files_are_read_back_by_independent_readers() {
                 file.display()
             );
         }
+    }
+}
+
+/// The RoundTip pair the other way round (Heeled back, Flat toe, as `footscan bench join`
+/// takes it): a blended boundary slice carries a kink that the closed-form extension once
+/// amplified to 1e9 mm within five steps. Every fill slice must stay within the two lasts'
+/// box.
+#[test]
+fn fills_stay_between_the_lasts_with_the_heeled_back() {
+    let (_, flat, heeled) = pairs().swap_remove(1);
+    for w in [Weight::Linear, Weight::Poly] {
+        let p = BlendParams {
+            blend: Blend::Fixed(w.clone()),
+            ..Default::default()
+        };
+        let f = fill(&heeled, &flat, &p).unwrap();
+        let (bb, tb) = (f.back_mesh.bbox(), f.toe_mesh.bbox());
+        let (lo, hi) = (bb.min.inf(&tb.min), bb.max.sup(&tb.max));
+        let mut worst = 0.0f64;
+        for s in f.slices.iter().filter(|s| s.piece == Piece::Fill) {
+            for q in &s.points {
+                let out = (lo - q).sup(&(q - hi)).max().max(0.0);
+                worst = worst.max(out);
+            }
+        }
+        println!("{}: farthest fill point {worst:.3} mm outside the lasts' box, {} points by curve extension", w.name(), f.by_curve);
+        assert!(worst < 2.0, "{}: {worst} mm outside", w.name());
     }
 }

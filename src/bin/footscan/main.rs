@@ -4,6 +4,7 @@ mod bench;
 mod calibrate;
 mod detect;
 mod last;
+mod last_join;
 mod measure;
 mod model;
 mod scan;

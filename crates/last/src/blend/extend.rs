@@ -23,6 +23,10 @@ pub struct Extension {
 /// Neighbour differences below this (mm) leave the direction along the slice undefined.
 const TINY: f64 = 1e-9;
 
+/// Farthest R_i may lie from Q_i, in steps |Q_i - P_i| (S_i twice as far) before the
+/// closed forms are taken as broken at that point.
+const REACH: f64 = 2.0;
+
 /// Extend the slices `o`, `p`, `q` (in the order they run towards the gap, equally spaced)
 /// by R and S. `closed` slices wrap around; open ones get their two end points by extending
 /// the curve through O_i, P_i, Q_i.
@@ -93,6 +97,15 @@ fn point_closed_form(
         (q.coords - 2.0 * r.coords) - second_across - gamma * mixed - 4.0 * gamma * gamma * along;
     let eta = (a + r.coords).dot(&b) / bb;
     let s = P3::from(eta * b - a);
+    // A smooth part puts R about half a step and S about a step past Q. Where Q's
+    // neighbours sit much closer than the step across the slices (the resampling crowds
+    // points between near crossings, a blended slice carries a kink), the gamma'^2 term
+    // divides by |b|^2 and the closed forms throw the point off by orders of magnitude,
+    // which the next extension amplifies again; such a point is extended along its curve.
+    let step = (q - p).norm();
+    if (r - q).norm() > REACH * step || (s - q).norm() > 2.0 * REACH * step {
+        return None;
+    }
     Some((r, s))
 }
 

@@ -50,6 +50,8 @@ pub enum BlendError {
         value: String,
         valid: &'static str,
     },
+    #[error(transparent)]
+    Table(#[from] weight::TableError),
     #[error("surface construction failed: {0}")]
     Nurbs(#[from] NurbsError),
 }
@@ -65,6 +67,30 @@ pub enum Blend {
 }
 
 impl Blend {
+    /// The blend a command-line word names: `linear`, `poly`, `morph`, `extension`, `fair`
+    /// (least curvature variation), `fair-energy` (least curvature, the reference) or
+    /// `table:FILE` (a file of `t b` rows, [`Weight::read_table`]).
+    pub fn from_arg(s: &str) -> Result<Blend, BlendError> {
+        Ok(match s.trim() {
+            "linear" => Blend::Fixed(Weight::Linear),
+            "poly" => Blend::Fixed(Weight::Poly),
+            "morph" => Blend::Fixed(Weight::Morph),
+            "extension" => Blend::Fixed(Weight::Extension),
+            "fair" => Blend::Fair(Functional::Variation),
+            "fair-energy" => Blend::Fair(Functional::Energy),
+            t => match t.strip_prefix("table:") {
+                Some(f) if !f.is_empty() => Blend::Fixed(Weight::read_table(f.as_ref())?),
+                _ => {
+                    return Err(param_err(
+                        "blend",
+                        t,
+                        "linear, poly, morph, extension, fair, fair-energy or table:FILE",
+                    ))
+                }
+            },
+        })
+    }
+
     pub fn name(&self) -> String {
         match self {
             Blend::Fixed(w) => w.name(),
@@ -491,6 +517,45 @@ pub fn fill(back: &TriMesh, toe: &TriMesh, p: &BlendParams) -> Result<Filled, Bl
     })
 }
 
+/// What the fairing measures a blend on: the kept parts' last four slices either side of
+/// the gap, every k-th point of them.
+struct FairGrid {
+    back: Vec<Vec<P3>>,
+    toe: Vec<Vec<P3>>,
+    gap: f64,
+    k: usize,
+}
+
+impl FairGrid {
+    fn new(pts: &[Vec<P3>], nb: usize, gap: f64, k: usize, fair_points: usize) -> FairGrid {
+        let step = (pts[0].len() / fair_points).max(1);
+        let sub = |s: &Vec<P3>| -> Vec<P3> { s.iter().step_by(step).copied().collect() };
+        FairGrid {
+            back: pts[nb - 4..nb].iter().map(sub).collect(),
+            toe: pts[nb..nb + 4].iter().map(sub).collect(),
+            gap,
+            k,
+        }
+    }
+
+    /// The functional over the fill built with `b` and three kept slices either side.
+    fn cost(&self, b: &dyn Fn(f64) -> f64, f: Functional) -> f64 {
+        let (bk, t) = (&self.back, &self.toe);
+        let (fs, _) = blend_slices(
+            [&bk[1], &bk[2], &bk[3]],
+            [&t[2], &t[1], &t[0]],
+            self.gap,
+            self.k,
+            b,
+        );
+        let mut grid: Vec<Vec<P3>> = bk[..3].to_vec();
+        grid.extend(fs.into_iter().map(|s| s.1));
+        grid.extend(t[1..].iter().cloned());
+        let nl = grid.len();
+        fair::grid_functional(&grid, 2, nl - 3, f)
+    }
+}
+
 /// The fairing: b as a table at [`FAIR_KNOTS`], searched greedily from the morph alone (b =
 /// 1, as the fairing paper starts from the morphed mesh) for the least functional over the
 /// fill and the kept parts' three slices either side, on every k-th point of the slices.
@@ -502,25 +567,10 @@ fn search(
     f: Functional,
     fair_points: usize,
 ) -> FairReport {
-    let n = pts[0].len();
-    let step = (n / fair_points).max(1);
-    let sub = |s: &Vec<P3>| -> Vec<P3> { s.iter().step_by(step).copied().collect() };
-    let b: Vec<Vec<P3>> = pts[nb - 4..nb].iter().map(sub).collect();
-    let t: Vec<Vec<P3>> = pts[nb..nb + 4].iter().map(sub).collect();
+    let g = FairGrid::new(pts, nb, gap, k, fair_points);
     let cost = |x: &[f64]| {
         let rows: Vec<(f64, f64)> = FAIR_KNOTS.iter().copied().zip(x.iter().copied()).collect();
-        let (fs, _) = blend_slices(
-            [&b[1], &b[2], &b[3]],
-            [&t[2], &t[1], &t[0]],
-            gap,
-            k,
-            &|tt| weight::table_at(&rows, tt),
-        );
-        let mut grid: Vec<Vec<P3>> = b[..3].to_vec();
-        grid.extend(fs.into_iter().map(|s| s.1));
-        grid.extend(t[1..].iter().cloned());
-        let nl = grid.len();
-        fair::grid_functional(&grid, 2, nl - 3, f)
+        g.cost(&|tt| weight::table_at(&rows, tt), f)
     };
     let start = vec![1.0; FAIR_KNOTS.len()];
     let cost_morph = cost(&start);
@@ -534,5 +584,114 @@ fn search(
         cost: c,
         cost_morph,
         evaluations: evals,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Slices of a tube along x whose elliptic section changes with x by `shape` (half axes
+    /// across and up at x) with a bump of the bottom that the two parts place differently,
+    /// so the morph and the extensions disagree in the gap.
+    fn slices(zs: &[f64], shape: &dyn Fn(f64) -> (f64, f64, f64), n: usize) -> Vec<Vec<P3>> {
+        zs.iter()
+            .map(|&z| {
+                let (a, c, bump) = shape(z);
+                (0..n)
+                    .map(|k| {
+                        let th = std::f64::consts::TAU * k as f64 / n as f64;
+                        let r = 1.0 + bump * (2.0 * th).cos().powi(2);
+                        P3::new(z, a * th.sin() * r, -c * th.cos() * r)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn fairing_picks_the_least_functional_among_the_blends() {
+        let (gap, k, d, n) = (20.0, 5, 2.0, 48);
+        let back_z: Vec<f64> = (0..4).map(|i| -3.0 * d + i as f64 * d).collect();
+        let toe_z: Vec<f64> = (0..4).map(|i| gap + i as f64 * d).collect();
+        let mut pts = slices(
+            &back_z,
+            &|z| (40.0 + 0.3 * z + 0.01 * z * z, 35.0 - 0.1 * z, 0.05),
+            n,
+        );
+        pts.extend(slices(
+            &toe_z,
+            &|z| {
+                let s = z - gap;
+                (36.0 - 0.5 * s - 0.02 * s * s, 28.0 - 0.4 * s, 0.12)
+            },
+            n,
+        ));
+        let nb = 4;
+        let grid = FairGrid::new(&pts, nb, gap, k, n);
+        let candidates = [
+            Weight::Morph,
+            Weight::Extension,
+            Weight::Linear,
+            Weight::Poly,
+            Weight::Table(vec![(0.0, 0.0), (0.5, 0.5), (1.0, 0.0)]),
+        ];
+        let mut chosen = Vec::new();
+        for f in [Functional::Variation, Functional::Energy] {
+            let r = search(&pts, nb, gap, k, f, n);
+            let table = Weight::Table(r.table.clone());
+            // The report's cost is the functional of the table it reports.
+            let own = grid.cost(&|t| table.at(t), f);
+            assert!(
+                (own - r.cost).abs() <= 1e-9 * own.abs(),
+                "{own} vs {}",
+                r.cost
+            );
+            for w in &candidates {
+                let c = grid.cost(&|t| w.at(t), f);
+                println!("{f:?}: {} {c:.6e} (fair {:.6e})", w.name(), r.cost);
+                assert!(
+                    r.cost <= c * (1.0 + 1e-12),
+                    "{f:?}: the fairing's {:.6e} is above {}'s {c:.6e}",
+                    r.cost,
+                    w.name()
+                );
+            }
+            chosen.push(table);
+        }
+        // Each fairing beats the other on its own functional (or ties).
+        let (var_t, en_t) = (&chosen[0], &chosen[1]);
+        let v = |w: &Weight, f| grid.cost(&|t| w.at(t), f);
+        assert!(v(var_t, Functional::Variation) <= v(en_t, Functional::Variation));
+        assert!(v(en_t, Functional::Energy) <= v(var_t, Functional::Energy));
+    }
+
+    #[test]
+    fn blend_words_of_the_command_line() {
+        assert_eq!(
+            Blend::from_arg("linear").unwrap(),
+            Blend::Fixed(Weight::Linear)
+        );
+        assert_eq!(Blend::from_arg("poly").unwrap(), Blend::Fixed(Weight::Poly));
+        assert_eq!(
+            Blend::from_arg("fair").unwrap(),
+            Blend::Fair(Functional::Variation)
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("b.txt");
+        std::fs::write(&f, "0 0\n0.5 0.9\n1 0\n").unwrap();
+        assert_eq!(
+            Blend::from_arg(&format!("table:{}", f.display())).unwrap(),
+            Blend::Fixed(Weight::Table(vec![(0.0, 0.0), (0.5, 0.9), (1.0, 0.0)]))
+        );
+        std::fs::write(&f, "0 0\n0.5 0.9\n0.4 0\n").unwrap();
+        let e = Blend::from_arg(&format!("table:{}", f.display()))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(&format!("{}, line 3", f.display())), "{e}");
+        for bad in ["cubic", "table:", "Linear"] {
+            let e = Blend::from_arg(bad).unwrap_err().to_string();
+            assert!(e.contains("table:FILE"), "{bad}: {e}");
+        }
     }
 }

@@ -64,8 +64,23 @@ pub struct Written {
     pub slices: PathBuf,
 }
 
+impl Written {
+    pub fn files(&self) -> Vec<PathBuf> {
+        vec![
+            self.iges.clone(),
+            self.step.clone(),
+            self.stl.clone(),
+            self.json.clone(),
+            self.zebra.clone(),
+            self.views.clone(),
+            self.slices.clone(),
+        ]
+    }
+}
+
 #[derive(Serialize)]
 struct Report<'a> {
+    method: &'static str,
     blend: &'a str,
     gap_mm: f64,
     step_mm: f64,
@@ -77,6 +92,9 @@ struct Report<'a> {
     fair: &'a Option<super::FairReport>,
     quality: &'a Quality,
     timings_ms: super::Timings,
+    back_plane: [f64; 6],
+    toe_plane: [f64; 6],
+    stl: String,
 }
 
 fn io(e: impl std::fmt::Display, path: &Path) -> std::io::Error {
@@ -86,7 +104,6 @@ fn io(e: impl std::fmt::Display, path: &Path) -> std::io::Error {
 /// Write `dir/NAME.igs`, `.step`, `.stl`, `.json`, `NAME_zebra.png`, `NAME_views.png` and
 /// `NAME_slices.png`.
 pub fn write(f: &Filled, q: &Quality, dir: &Path, name: &str) -> std::io::Result<Written> {
-    std::fs::create_dir_all(dir)?;
     let path = |ext: &str| dir.join(format!("{name}{ext}"));
     let w = Written {
         iges: path(".igs"),
@@ -97,15 +114,46 @@ pub fn write(f: &Filled, q: &Quality, dir: &Path, name: &str) -> std::io::Result
         views: path("_views.png"),
         slices: path("_slices.png"),
     };
+    write_to(f, q, dir, w)
+}
+
+/// Write the files under the Gordon join's names (joined.igs, joined.step, joined.stl,
+/// seams.json, zebra.png, views.png, and slices.png), so `footscan last join` leaves the
+/// same files whichever method it ran.
+pub fn write_as_join(f: &Filled, q: &Quality, dir: &Path) -> std::io::Result<Written> {
+    let w = Written {
+        iges: dir.join("joined.igs"),
+        step: dir.join("joined.step"),
+        stl: dir.join("joined.stl"),
+        json: dir.join("seams.json"),
+        zebra: dir.join("zebra.png"),
+        views: dir.join("views.png"),
+        slices: dir.join("slices.png"),
+    };
+    write_to(f, q, dir, w)
+}
+
+fn write_to(f: &Filled, q: &Quality, dir: &Path, w: Written) -> std::io::Result<Written> {
+    std::fs::create_dir_all(dir)?;
     let surfs = [f.back.clone(), f.fill.clone(), f.toe.clone()];
     let header = Header::new(&format!("footscan blend fill ({})", f.blend));
     iges::write(&w.iges, &[], &surfs, &header).map_err(|e| io(e, &w.iges))?;
     step::write(&w.step, &[], &surfs, &header).map_err(|e| io(e, &w.step))?;
     let t = tessellate(f, 160, 1.0);
-    TriMesh::new(t.vertices.clone(), t.triangles.clone())
-        .write(&w.stl, Format::StlBinary)
+    let mesh = TriMesh::new(t.vertices.clone(), t.triangles.clone());
+    let stl = match mesh.check() {
+        Ok(r) => format!("closed, volume {:.0} mm3", r.volume),
+        Err(d) => format!("not closed: {d}"),
+    };
+    mesh.write(&w.stl, Format::StlBinary)
         .map_err(|e| io(e, &w.stl))?;
+    let plane6 = |p: &footscan_geom::plane::Plane| {
+        [
+            p.origin.x, p.origin.y, p.origin.z, p.normal.x, p.normal.y, p.normal.z,
+        ]
+    };
     let report = Report {
+        method: "blend",
         blend: &f.blend,
         gap_mm: f.gap_mm,
         step_mm: f.step_mm,
@@ -117,6 +165,9 @@ pub fn write(f: &Filled, q: &Quality, dir: &Path, name: &str) -> std::io::Result
         fair: &f.fair,
         quality: q,
         timings_ms: f.timings,
+        back_plane: plane6(&f.back_plane),
+        toe_plane: plane6(&f.toe_plane),
+        stl,
     };
     let json = serde_json::to_string_pretty(&report).map_err(|e| io(e, &w.json))?;
     crate::draw::write_atomic(&w.json, json.as_bytes())?;

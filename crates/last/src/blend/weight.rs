@@ -137,3 +137,58 @@ pub fn table_at(rows: &[(f64, f64)], t: f64) -> f64 {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn err(text: &str) -> String {
+        Weight::parse_table(text, "b.txt").unwrap_err().to_string()
+    }
+
+    #[test]
+    fn table_rows_with_comments_commas_and_blank_lines() {
+        let w = Weight::parse_table("# t b\n0 0\n\n0.5, 1  # middle\n1\t0.2\n", "b.txt").unwrap();
+        assert_eq!(w, Weight::Table(vec![(0.0, 0.0), (0.5, 1.0), (1.0, 0.2)]));
+        assert!((w.at(0.25) - 0.5).abs() < 1e-12);
+        assert!((w.at(0.75) - 0.6).abs() < 1e-12);
+        // Constant beyond the ends of a table that does not span [0, 1].
+        let w = Weight::parse_table("0.2 0.4\n0.8 0.6", "b.txt").unwrap();
+        assert_eq!((w.at(0.0), w.at(1.0)), (0.4, 0.6));
+    }
+
+    #[test]
+    fn bad_tables_name_the_file_and_the_line() {
+        let e = err("0 0\n0.5 1 2\n");
+        assert!(e.contains("b.txt, line 2") && e.contains("3 fields"), "{e}");
+        let e = err("0 0\n# note\n0.5 x\n");
+        assert!(
+            e.contains("line 3") && e.contains("\"x\" is not a number"),
+            "{e}"
+        );
+        // Not increasing in t.
+        let e = err("0 0\n0.5 1\n0.5 0.8\n");
+        assert!(
+            e.contains("line 3") && e.contains("does not increase"),
+            "{e}"
+        );
+        let e = err("0.6 0\n0.4 1\n");
+        assert!(
+            e.contains("line 2") && e.contains("does not increase"),
+            "{e}"
+        );
+        // Outside [0, 1], in t or in b.
+        let e = err("0 0\n1.5 1\n");
+        assert!(e.contains("line 2") && e.contains("outside [0, 1]"), "{e}");
+        let e = err("0 -0.1\n1 1\n");
+        assert!(e.contains("line 1") && e.contains("outside [0, 1]"), "{e}");
+        let e = err("nan 0.5\n1 1\n");
+        assert!(e.contains("line 1"), "{e}");
+        let e = err("# only a comment\n0.5 0.5\n");
+        assert!(e.contains("b.txt: 1 rows"), "{e}");
+        let e = Weight::read_table(Path::new("/nonexistent/b.txt"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("/nonexistent/b.txt"), "{e}");
+    }
+}

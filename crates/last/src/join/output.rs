@@ -210,6 +210,7 @@ pub struct Written {
 
 #[derive(Serialize)]
 struct Report<'a> {
+    method: &'static str,
     quality: &'a Quality,
     timings: &'a Timings,
     sections: usize,
@@ -251,6 +252,7 @@ pub fn write(j: &Joined, dir: &Path, name: &str) -> std::io::Result<Written> {
         ]
     };
     let report = Report {
+        method: "gordon",
         quality: &quality,
         timings: &j.timings,
         sections: j.network.sections.len(),

@@ -1,0 +1,273 @@
+//! `footscan last join`: the toe part of one last joined to the back part of another, by the
+//! Gordon surface (docs/method.md section 11) or the blend of morph and extension (section
+//! 12), so a last maker can run both on the same lasts and compare the same files and figures.
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, ValueEnum};
+use footscan_geom::mesh::{TriMesh, Units};
+use footscan_geom::plane::Plane;
+use footscan_geom::{P3, V3};
+use footscan_last::blend::{self, Blend, BlendParams};
+use footscan_last::join::{self, output, JoinParams};
+use std::path::PathBuf;
+
+/// How the gap between the two kept parts is closed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Method {
+    /// A Gordon surface through the sections of both parts and guide curves across the gap.
+    Gordon,
+    /// Planar slices blending a linear morph with a G1/G2 extension of both parts.
+    Blend,
+}
+
+#[derive(Parser)]
+pub struct JoinArgs {
+    /// Last whose back part (heel to the back plane) is kept (STL, OBJ or PLY).
+    #[arg(long)]
+    back: PathBuf,
+    /// Last whose toe part (toe plane to the tip) is kept.
+    #[arg(long)]
+    toe: PathBuf,
+    /// Back cutting plane: `X` (mm along the last in the common frame, heel at 0), `P%` (of
+    /// the back last's length), or `ox,oy,oz,nx,ny,nz` (normal towards the toe). Default 62%.
+    #[arg(long)]
+    back_plane: Option<String>,
+    /// Toe cutting plane, as --back-plane (of the toe last's length). Default 70%. The blend
+    /// needs it parallel to the back plane.
+    #[arg(long)]
+    toe_plane: Option<String>,
+    /// How the gap is closed: `gordon` (a Gordon surface on sections and guides) or `blend`
+    /// (slices blending a linear morph with an extension of both parts).
+    #[arg(long, value_enum, default_value_t = Method::Gordon)]
+    method: Method,
+    /// Blending function of --method blend: b, the weight of the morph against the
+    /// extension at each fill slice. `linear` (0 at both seams, 1 mid-gap), `poly` (the same
+    /// with zero slope at both ends and mid-gap), `fair` (b searched for the least curvature
+    /// variation of the fill), `fair-energy` (least curvature, for reference), `morph` (1),
+    /// `extension` (0), or `table:FILE`: a text file of rows `t b`, t the position across the
+    /// gap (0 at the back plane, 1 at the toe plane) strictly increasing, b in [0, 1]; two
+    /// numbers per row split by spaces or a comma, `#` starts a comment, at least two rows;
+    /// b is linear between rows and constant beyond the first and last.
+    #[arg(long, default_value = "poly")]
+    blend: String,
+    /// Auxiliary sections on the back and toe sides, `B,T` (or one number for both; gordon).
+    #[arg(long, default_value = "2,2")]
+    aux: String,
+    /// Points per section (default 500 for gordon, 240 per slice for blend).
+    #[arg(long)]
+    points: Option<usize>,
+    /// Rotation angle of the plane bundle that places the guides (gordon) or aligns the
+    /// slices (blend), degrees.
+    #[arg(long, default_value_t = 45.0)]
+    angle: f64,
+    /// Units of both meshes: mm, m, or auto (decided from the size).
+    #[arg(long, default_value = "auto")]
+    units: Units,
+    /// Scale both lasts so their length is this many mm (for unitless meshes).
+    #[arg(long)]
+    length: Option<f64>,
+    /// Take the meshes as already placed in a common frame (x heel to toe, z up) instead of
+    /// superimposing them at the ball.
+    #[arg(long)]
+    as_is: bool,
+    /// Output directory (created if missing).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Parse a plane argument against the placed last it cuts.
+fn parse_plane(s: &str, placed: &TriMesh, which: &str) -> Result<Plane> {
+    let bad = || {
+        format!(
+            "--{which}-plane {s:?}: expected X (mm along the last), P% (of its length) or \
+             ox,oy,oz,nx,ny,nz"
+        )
+    };
+    let b = placed.bbox();
+    let across = |x: f64| {
+        Plane::with_axis(P3::new(x, 0.5 * (b.min.y + b.max.y), 0.0), V3::x(), V3::y())
+            .with_context(bad)
+    };
+    if let Some(p) = s.strip_suffix('%') {
+        let f: f64 = p.trim().parse().ok().with_context(bad)?;
+        if !(0.0..=100.0).contains(&f) {
+            bail!("{}: the percentage must be 0 to 100", bad());
+        }
+        return across(b.min.x + f / 100.0 * b.extent().x);
+    }
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .ok()
+        .with_context(bad)?;
+    match v.as_slice() {
+        [x] => across(*x),
+        [ox, oy, oz, nx, ny, nz] => {
+            Plane::new(P3::new(*ox, *oy, *oz), V3::new(*nx, *ny, *nz)).with_context(bad)
+        }
+        _ => bail!("{}", bad()),
+    }
+}
+
+pub fn run(a: JoinArgs) -> Result<()> {
+    // Arguments first, so a bad word costs no mesh reading.
+    let blend = match a.method {
+        Method::Blend => Some(Blend::from_arg(&a.blend).context("--blend")?),
+        Method::Gordon => None,
+    };
+    let aux: Vec<usize> = a
+        .aux
+        .split(',')
+        .map(|x| x.trim().parse::<usize>())
+        .collect::<Result<_, _>>()
+        .ok()
+        .with_context(|| format!("--aux {:?}: expected B,T or N (whole numbers)", a.aux))?;
+    let (aux_back, aux_toe) = match aux.as_slice() {
+        [n] => (*n, *n),
+        [b, t] => (*b, *t),
+        _ => bail!("--aux {:?}: expected B,T or N", a.aux),
+    };
+    let load = |p: &PathBuf| -> Result<TriMesh> {
+        Ok(TriMesh::load_solid(p, a.units, a.length)
+            .with_context(|| format!("reading last {}", p.display()))?
+            .0)
+    };
+    let (back, toe) = (load(&a.back)?, load(&a.toe)?);
+    let placement = if a.as_is {
+        join::Placement::AsIs
+    } else {
+        join::Placement::Ball
+    };
+    let back_plane = match &a.back_plane {
+        Some(s) => Some(parse_plane(s, &join::place(&back, &placement), "back")?),
+        None => None,
+    };
+    let toe_plane = match &a.toe_plane {
+        Some(s) => Some(parse_plane(s, &join::place(&toe, &placement), "toe")?),
+        None => None,
+    };
+    let name = format!(
+        "{} back + {} toe",
+        a.back.file_stem().unwrap_or_default().to_string_lossy(),
+        a.toe.file_stem().unwrap_or_default().to_string_lossy()
+    );
+    if let Some(blend) = blend {
+        let p = BlendParams {
+            back_plane,
+            toe_plane,
+            points: a.points.unwrap_or(BlendParams::default().points),
+            angle_deg: a.angle,
+            placement_back: placement,
+            placement_toe: placement,
+            blend,
+            ..BlendParams::default()
+        };
+        return run_blend(&back, &toe, &p, &name, &a);
+    }
+    let p = JoinParams {
+        back_plane,
+        toe_plane,
+        aux_back,
+        aux_toe,
+        points: a.points.unwrap_or(JoinParams::default().points),
+        angle_deg: a.angle,
+        placement_back: placement,
+        placement_toe: placement,
+        ..JoinParams::default()
+    };
+    let j = join::join(&back, &toe, &p)?;
+    let w = output::write(&j, &a.out, &name)
+        .with_context(|| format!("writing into {}", a.out.display()))?;
+    let q = &w.quality;
+    let t = &j.timings;
+    println!(
+        "{name}: gordon, {} sections x {} guides, {} points per section, {} deg",
+        j.network.sections.len(),
+        j.network.guides.len(),
+        p.points,
+        a.angle
+    );
+    println!(
+        "join {:.1} ms (place {:.1}, sections {:.1}, curves {:.1}, Gordon {:.1}, split {:.1})",
+        t.total, t.place, t.sections, t.curves, t.gordon, t.split
+    );
+    print_seams(&[("back", &q.back_seam), ("toe", &q.toe_seam)]);
+    print_deviation(&[("back", &q.back_deviation), ("toe", &q.toe_deviation)]);
+    for f in &w.files {
+        println!("wrote {}", f.display());
+    }
+    Ok(())
+}
+
+fn print_seams(s: &[(&str, &join::seam::SeamMetrics)]) {
+    for (s, m) in s {
+        println!(
+            "{s} seam: gap {:.1e} mm, normal jump {:.1e} deg, curvature jump {:.1e} (relative)",
+            m.gap_max_mm, m.normal_max_deg, m.curvature_rel_max
+        );
+    }
+}
+
+fn print_deviation(d: &[(&str, &join::seam::Deviation)]) {
+    for (s, d) in d {
+        println!(
+            "{s} part from its mesh: rms {:.3} mm, max {:.3} mm",
+            d.rms_mm, d.max_mm
+        );
+    }
+}
+
+fn run_blend(
+    back: &TriMesh,
+    toe: &TriMesh,
+    p: &BlendParams,
+    name: &str,
+    a: &JoinArgs,
+) -> Result<()> {
+    let f = blend::fill(back, toe, p)?;
+    let q = blend::output::quality(&f, 400);
+    let w = blend::output::write_as_join(&f, &q, &a.out)
+        .with_context(|| format!("writing into {}", a.out.display()))?;
+    let t = &f.timings;
+    let fill_slices = f
+        .slices
+        .iter()
+        .filter(|s| s.piece == blend::Piece::Fill)
+        .count();
+    println!(
+        "{name}: blend {}, gap {:.1} mm filled by {fill_slices} slices {:.2} mm apart, {} points \
+         per slice, {} slices in all",
+        f.blend,
+        f.gap_mm,
+        0.5 * f.step_mm,
+        f.u.len(),
+        f.slices.len()
+    );
+    println!(
+        "fill {:.1} ms (slices {:.1}, blend {:.1}, surfaces {:.1})",
+        t.total, t.slices, t.blend, t.surfaces
+    );
+    if let Some(fr) = &f.fair {
+        let b: Vec<String> = fr.table.iter().map(|r| format!("{:.2}", r.1)).collect();
+        println!(
+            "fairing ({}): b = {} at t = 0, 1/6, ..., 1; {:.3e} against {:.3e} for the morph \
+             alone, {} evaluations",
+            fr.functional,
+            b.join(" "),
+            fr.cost,
+            fr.cost_morph,
+            fr.evaluations
+        );
+    }
+    print_seams(&[("back", &q.back_seam), ("toe", &q.toe_seam)]);
+    println!(
+        "fill fairness: curvature variation {:.3e} 1/mm^2, curvature energy {:.3e}",
+        q.fill_variation, q.fill_energy
+    );
+    print_deviation(&[("back", &q.back_deviation), ("toe", &q.toe_deviation)]);
+    for f in w.files() {
+        println!("wrote {}", f.display());
+    }
+    Ok(())
+}
