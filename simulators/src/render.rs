@@ -67,6 +67,10 @@ pub struct NoiseConfig {
     pub electrons_per_dn: f64,
     /// Multiplicative per-pixel speckle on the laser signal (relative sigma).
     pub speckle: f64,
+    /// Correlation length of the speckle along the row, px: each pixel's speckle is the mean of
+    /// this many independent deviates shared with its neighbours (a box of that width, variance
+    /// kept), as a laser's speckle grains span several pixels. 0 or 1: independent per pixel.
+    pub speckle_corr_px: f64,
     /// Relative intensity of a weak second line at the glass (h = 0) column; 0 = off.
     pub glass_reflection: f64,
     /// Expected number of specular spikes (small saturated blobs) per frame.
@@ -88,6 +92,7 @@ impl Default for NoiseConfig {
             read_noise_dn: 2.0,
             electrons_per_dn: 40.0,
             speckle: 0.15,
+            speckle_corr_px: 0.0,
             glass_reflection: 0.0,
             specular_spike_rate: 0.0,
             drop_rate: 0.0,
@@ -113,6 +118,12 @@ impl NoiseConfig {
         check_range("read_noise_dn", self.read_noise_dn, 0.0, 1e3)?;
         check_range("electrons_per_dn", self.electrons_per_dn, 0.0, 1e6)?;
         check_range("speckle", self.speckle, 0.0, 10.0)?;
+        check_range(
+            "speckle_corr_px",
+            self.speckle_corr_px,
+            0.0,
+            MAX_SPECKLE_CORR as f64,
+        )?;
         check_range("glass_reflection", self.glass_reflection, 0.0, 10.0)?;
         check_range("specular_spike_rate", self.specular_spike_rate, 0.0, 1e4)?;
         check_range("drop_rate", self.drop_rate, 0.0, 1.0)?;
@@ -238,6 +249,54 @@ impl FrameTruth {
             .iter()
             .filter(|r| matches!(r, RowTruth::Line { .. }))
             .count()
+    }
+}
+
+/// Longest speckle correlation along the row, px.
+pub const MAX_SPECKLE_CORR: usize = 8;
+
+/// Speckle deviates correlated along a row: the mean of the last `len` independent normals
+/// times sqrt(len) (unit variance, correlation falling linearly to 0 over `len` px). `len` <= 1
+/// uses the pixel's own deviate, so frames without correlation are as before.
+struct Speckle {
+    ring: [f64; MAX_SPECKLE_CORR],
+    len: usize,
+    i: usize,
+    sum: f64,
+    scale: f64,
+}
+
+impl Speckle {
+    fn new(corr_px: f64) -> Self {
+        let len = (corr_px.round() as usize).clamp(1, MAX_SPECKLE_CORR);
+        Speckle {
+            ring: [0.0; MAX_SPECKLE_CORR],
+            len,
+            i: 0,
+            sum: 0.0,
+            scale: 1.0 / (len as f64).sqrt(),
+        }
+    }
+    /// Start a row: the ring is filled with `fresh()` deviates.
+    fn start(&mut self, mut fresh: impl FnMut() -> f64) {
+        if self.len > 1 {
+            self.sum = 0.0;
+            for k in 0..self.len {
+                self.ring[k] = fresh();
+                self.sum += self.ring[k];
+            }
+        }
+    }
+    /// The next pixel's deviate; `z` is a fresh independent one.
+    #[inline]
+    fn next(&mut self, z: f64) -> f64 {
+        if self.len <= 1 {
+            return z;
+        }
+        self.sum += z - self.ring[self.i];
+        self.ring[self.i] = z;
+        self.i = (self.i + 1) % self.len;
+        self.sum * self.scale
     }
 }
 
@@ -486,6 +545,7 @@ impl Renderer {
         let amb = self.noise.ambient_dn * self.gain;
         let (scale, max) = (self.scale(), self.max_value());
         let mut signal = std::mem::take(&mut self.signal);
+        let mut speckle = Speckle::new(self.noise.speckle_corr_px);
         for (r, row_truth) in truth.rows.iter().enumerate() {
             let mut lines = [(0.0, 0.0); 2];
             let mut k = 0;
@@ -520,6 +580,10 @@ impl Renderer {
                 add_gaussian(&mut signal, c0, mu, sigma, a, reach);
             }
             let row = &mut buf[r * w..(r + 1) * w];
+            let normal = &self.normal;
+            if self.noise.enabled {
+                speckle.start(|| normal[(rng.next_u64() & 0xFFFF) as usize] as f64);
+            }
             for (i, &s) in signal.iter().enumerate() {
                 let s = s as f64;
                 if s < 1e-3 {
@@ -528,7 +592,7 @@ impl Renderer {
                 }
                 let v = if self.noise.enabled {
                     let bits = rng.next_u64();
-                    let z1 = self.normal[(bits & 0xFFFF) as usize] as f64;
+                    let z1 = speckle.next(self.normal[(bits & 0xFFFF) as usize] as f64);
                     let z2 = self.normal[((bits >> 16) & 0xFFFF) as usize] as f64;
                     let mean = amb + s * (1.0 + self.noise.speckle * z1).max(0.0);
                     mean + self.noise_sd(mean) * z2
@@ -938,6 +1002,9 @@ fn brent(ctx: &TruthCtx, a: Sample, b: Sample, target: f64) -> Option<Sample> {
     }
     Some(sb)
 }
+
+mod sloped;
+pub use sloped::render_sloped_line;
 
 #[cfg(test)]
 mod tests;

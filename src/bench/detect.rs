@@ -2,10 +2,17 @@
 //! memory-bandwidth floor.
 //!
 //! Frames: the default scanner of docs/method.md section 2.4 (`Optics::default()`), the line
-//! at sigma 1.0-3.0 px, three noise levels:
+//! at sigma 0.6-3.0 px, five noise levels:
 //! - `none`: noise disabled (exact pixel-integrated Gaussian plus ambient, rounded);
 //! - `default`: read noise 2 DN, shot noise at 40 e-/DN, 15 % speckle;
-//! - `double`: read noise 4 DN, 20 e-/DN (twice the shot-noise variance), 30 % speckle.
+//! - `double`: read noise 4 DN, 20 e-/DN (twice the shot-noise variance), 30 % speckle;
+//! - `shot4`: the default with strong shot noise, 4 e-/DN (a small-pixel sensor at high gain);
+//! - `speckle4`: the default with the speckle correlated along the row over 4 px (grains
+//!   wider than a pixel do not average out across the line's few pixels).
+//!
+//! Slope sweep: straight lines crossing rows at 0, 0.5, 1, 1.5 and 2.5 px per row
+//! ([`footscan_sim::render::render_sloped_line`], sigma across the line), 512 x 160, three
+//! seeds per cell, bezier-plus beside cog at every noise level.
 //!
 //! Scenes per (sigma, noise): flat plates at 0, 6, 18 and 45 mm (the line is slanted and curved
 //! by the tilts and the distortion, so its rows sweep every subpixel offset) and the default
@@ -39,12 +46,19 @@ pub struct DetectRow {
     pub outlier_rate: f64,
     pub fps_per_core: f64,
     pub floor_fps_per_core: f64,
+    /// Slope sweep rows: px per row of the straight line (None: the scene sweep).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slope_px_per_row: Option<f64>,
 }
 
 /// Noise levels of the sweep.
-pub const NOISE_LEVELS: [&str; 3] = ["none", "default", "double"];
+pub const NOISE_LEVELS: [&str; 5] = ["none", "default", "double", "shot4", "speckle4"];
 /// Line sigmas of the sweep (px).
-pub const SIGMAS: [f64; 5] = [1.0, 1.6, 2.0, 2.5, 3.0];
+pub const SIGMAS: [f64; 6] = [0.6, 1.0, 1.6, 2.0, 2.5, 3.0];
+/// Slopes of the slope sweep (px per row).
+pub const SLOPES: [f64; 5] = [0.0, 0.5, 1.0, 1.5, 2.5];
+/// Detectors of the slope sweep: the estimator and the baseline it must beat.
+pub const SLOPE_DETECTORS: [&str; 2] = ["bezier-plus", "cog"];
 
 /// The noise configuration called `level` at line sigma `sigma`.
 pub fn noise_config(level: &str, sigma: f64) -> NoiseConfig {
@@ -63,6 +77,14 @@ pub fn noise_config(level: &str, sigma: f64) -> NoiseConfig {
             read_noise_dn: 2.0 * d.read_noise_dn,
             electrons_per_dn: 0.5 * d.electrons_per_dn,
             speckle: 2.0 * d.speckle,
+            ..base
+        },
+        "shot4" => NoiseConfig {
+            electrons_per_dn: 4.0,
+            ..base
+        },
+        "speckle4" => NoiseConfig {
+            speckle_corr_px: 4.0,
             ..base
         },
         other => panic!("unknown noise level {other}"),
@@ -224,6 +246,8 @@ pub struct Options {
     pub noise: Vec<String>,
     /// Detectors (default: all).
     pub detectors: Vec<String>,
+    /// Slopes of the slope sweep (empty: none).
+    pub slopes: Vec<f64>,
 }
 
 impl Default for Options {
@@ -234,6 +258,7 @@ impl Default for Options {
             sigmas: SIGMAS.to_vec(),
             noise: NOISE_LEVELS.iter().map(|s| s.to_string()).collect(),
             detectors: NAMES.iter().map(|s| s.to_string()).collect(),
+            slopes: SLOPES.to_vec(),
         }
     }
 }
@@ -295,11 +320,144 @@ pub fn run(opts: &Options) -> Vec<DetectRow> {
                         .map(|x| x.1)
                         .unwrap_or(f64::NAN),
                     floor_fps_per_core: floor,
+                    slope_px_per_row: None,
                 });
             }
         }
     }
+    rows.extend(slope_sweep(opts, &fps, floor));
     rows
+}
+
+/// RMS error over rows 8..h-8 of the sloped frames (a row without a line counts as 1 px, an
+/// error is capped at 1 px), and the rows found.
+fn sloped_rms(det: &mut dyn Detector, frames: &[(Frame, Vec<f64>)]) -> (f64, f64) {
+    let (mut s, mut n, mut found) = (0.0, 0usize, 0usize);
+    for (f, truth) in frames {
+        let mut out = vec![LinePeak::NONE; truth.len()];
+        det.detect(f, &mut out);
+        for r in 8..truth.len() - 8 {
+            n += 1;
+            s += if out[r].is_valid() {
+                found += 1;
+                (out[r].col - truth[r]).powi(2).min(1.0)
+            } else {
+                1.0
+            };
+        }
+    }
+    ((s / n.max(1) as f64).sqrt(), found as f64 / n.max(1) as f64)
+}
+
+/// bezier-plus and cog on straight lines over slope x sigma x noise (see the module doc).
+pub fn slope_sweep(opts: &Options, fps: &[(String, f64)], floor: f64) -> Vec<DetectRow> {
+    let (w, h) = (512usize, 160usize);
+    let mut rows = Vec::new();
+    for &slope in &opts.slopes {
+        for &sigma in &opts.sigmas {
+            for level in &opts.noise {
+                let noise = noise_config(level, sigma);
+                let frames: Vec<(Frame, Vec<f64>)> = (1..=3u64)
+                    .map(|seed| {
+                        let (px, t) = footscan_sim::render::render_sloped_line(
+                            w,
+                            h,
+                            slope,
+                            &noise,
+                            seed * 1000 + (slope * 10.0) as u64,
+                        );
+                        let f = Frame::new(0, Timestamp::default(), w as u32, h as u32, {
+                            Pixels::Gray8(px)
+                        });
+                        (f, t)
+                    })
+                    .collect();
+                for name in SLOPE_DETECTORS {
+                    let mut det = build(name, &DetectParams::default()).expect("detector");
+                    let (rms, found) = sloped_rms(det.as_mut(), &frames);
+                    rows.push(DetectRow {
+                        detector: name.to_string(),
+                        sigma_px: sigma,
+                        noise: level.clone(),
+                        rms_px: rms,
+                        bias_px: f64::NAN,
+                        max_px: f64::NAN,
+                        outlier_rate: 1.0 - found,
+                        fps_per_core: fps
+                            .iter()
+                            .find(|(n, _)| n == name)
+                            .map(|x| x.1)
+                            .unwrap_or(f64::NAN),
+                        floor_fps_per_core: floor,
+                        slope_px_per_row: Some(slope),
+                    });
+                }
+            }
+        }
+    }
+    rows
+}
+
+/// The slope sweep as one line per slope and sigma: bezier-plus's RMS without noise, then per
+/// noise level bezier-plus's and cog's RMS and their ratio.
+pub fn slope_table(rows: &[DetectRow]) -> String {
+    let sw: Vec<&DetectRow> = rows
+        .iter()
+        .filter(|r| r.slope_px_per_row.is_some())
+        .collect();
+    if sw.is_empty() {
+        return String::new();
+    }
+    let mut levels: Vec<&str> = Vec::new();
+    for r in &sw {
+        if r.noise != "none" && !levels.contains(&r.noise.as_str()) {
+            levels.push(&r.noise);
+        }
+    }
+    let get = |slope: f64, sigma: f64, level: &str, det: &str| {
+        sw.iter()
+            .find(|r| {
+                r.slope_px_per_row == Some(slope)
+                    && r.sigma_px == sigma
+                    && r.noise == level
+                    && r.detector == det
+            })
+            .map_or(f64::NAN, |r| r.rms_px)
+    };
+    let mut s = String::from(
+        "
+slope x sigma: straight lines, RMS px (bp = bezier-plus, ratio = bp / cog)
+",
+    );
+    s += &format!("{:>5} {:>5} {:>9}", "slope", "sigma", "bp none");
+    for l in &levels {
+        s += &format!(" | {:>8} {:>6} {:>5}", format!("bp {l}"), "cog", "ratio");
+    }
+    s += "
+";
+    let mut keys: Vec<(f64, f64)> = Vec::new();
+    for r in &sw {
+        let k = (r.slope_px_per_row.unwrap(), r.sigma_px);
+        if !keys.contains(&k) {
+            keys.push(k);
+        }
+    }
+    for (slope, sigma) in keys {
+        s += &format!(
+            "{slope:>5.1} {sigma:>5.1} {:>9.4}",
+            get(slope, sigma, "none", "bezier-plus")
+        );
+        for l in &levels {
+            let (bp, cog) = (
+                get(slope, sigma, l, "bezier-plus"),
+                get(slope, sigma, l, "cog"),
+            );
+            s += &format!(" | {bp:>8.4} {cog:>6.4} {:>5.2}", bp / cog);
+        }
+        s += "
+";
+    }
+    s
 }
 
 /// The rows as a text table, with the speed summary.
@@ -308,7 +466,7 @@ pub fn table(rows: &[DetectRow]) -> String {
         "{:<12} {:>5} {:>8} {:>8} {:>9} {:>8} {:>8} {:>9} {:>9}\n",
         "detector", "sigma", "noise", "rms_px", "bias_px", "max_px", "outlier", "fps/core", "floor"
     );
-    for r in rows {
+    for r in rows.iter().filter(|r| r.slope_px_per_row.is_none()) {
         s += &format!(
             "{:<12} {:>5.1} {:>8} {:>8.4} {:>9.4} {:>8.3} {:>8.4} {:>9.0} {:>9.0}\n",
             r.detector,
@@ -322,5 +480,14 @@ pub fn table(rows: &[DetectRow]) -> String {
             r.floor_fps_per_core
         );
     }
+    if let Some(bp) = rows.iter().find(|r| r.detector == "bezier-plus") {
+        s += &format!(
+            "\nbezier-plus {:.0} frames/s per core, floor {:.0}: {:.2}x the floor's time\n",
+            bp.fps_per_core,
+            bp.floor_fps_per_core,
+            bp.floor_fps_per_core / bp.fps_per_core
+        );
+    }
+    s += &slope_table(rows);
     s
 }
