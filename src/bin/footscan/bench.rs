@@ -83,18 +83,25 @@ enum What {
         #[arg(long = "sigma")]
         sigmas: Vec<f64>,
     },
-    /// Last joining (Gordon surface) on the real last pairs: auxiliary sections, points per
-    /// section and rotation angle against build time and seam quality.
+    /// Last joining on the real last pairs: the Gordon join (45 and 10 deg) beside the blend
+    /// fill (linear, poly, fair) in one table of seam figures, fill fairness, fit of the kept
+    /// parts and time; then the Gordon join's parameter study (auxiliary sections, points per
+    /// section and rotation angle against time and seam quality).
     Join {
         /// Directory holding lasts/ (default: $FOOTSCAN_DATA or ../shared/data).
         #[arg(long)]
         data: Option<PathBuf>,
-        /// Joins per setting; the fastest is reported.
+        /// Runs per setting; the fastest is reported.
         #[arg(long, default_value_t = 5)]
         repeats: usize,
-        /// One JSON array of objects instead of the table.
+        /// One JSON object {"methods": [...], "study": [...]} instead of the tables.
         #[arg(long)]
         json: bool,
+        /// Also write pictures into this directory: time_vs_points.png (the Gordon join's
+        /// time against points per section) and zebra_PAIR.png (the Gordon join at 45 deg
+        /// beside the polynomial blend, zebra stripes of the join region) for each pair.
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
 }
 
@@ -222,8 +229,9 @@ pub fn run(args: Args) -> Result<()> {
             data,
             repeats,
             json,
+            out,
         } => {
-            use footscan_last::join::study;
+            use footscan_last::join::{compare, study};
             let dir = data.unwrap_or_else(|| {
                 std::env::var_os("FOOTSCAN_DATA")
                     .map(PathBuf::from)
@@ -231,11 +239,55 @@ pub fn run(args: Args) -> Result<()> {
             });
             let pairs = study::real_pairs(&dir)
                 .map_err(|e| anyhow::anyhow!("{e} (give --data DIR holding lasts/)"))?;
-            let rows = study::run(&pairs, &study::paper_cases(), repeats)?;
+            let (rows, pics) = compare::run(&pairs, &compare::methods(), repeats, out.is_some())?;
+            let study_rows = study::run(&pairs, &study::paper_cases(), repeats)?;
             if json {
-                println!("{}", serde_json::to_string_pretty(&rows)?);
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&serde_json::json!({
+                        "methods": rows,
+                        "study": study_rows
+                    }))?
+                );
             } else {
-                print!("{}", study::table(&rows));
+                println!(
+                    "joining methods on the same lasts and planes (seams: gap, normal jump, \
+                     relative curvature jump; fill: curvature variation; fit: kept parts against \
+                     their meshes, worse of the two; time: best of {repeats})"
+                );
+                print!("{}", compare::table(&rows));
+                println!("\nGordon join parameter study (time: best of {repeats})");
+                print!("{}", study::table(&study_rows));
+            }
+            if let Some(out) = out {
+                std::fs::create_dir_all(&out)?;
+                let p = out.join("time_vs_points.png");
+                compare::time_vs_points_png(&p, &study_rows)?;
+                eprintln!("wrote {}", p.display());
+                for pair in &pairs {
+                    let pick = |m: &str| {
+                        pics.iter()
+                            .find(|p| p.pair == pair.name && p.method == m)
+                            .expect("a picture of every method")
+                    };
+                    let slug: String = pair
+                        .name
+                        .split_whitespace()
+                        .next()
+                        .unwrap_or("pair")
+                        .to_lowercase();
+                    let p = out.join(format!("zebra_{slug}.png"));
+                    let caption = format!(
+                        "{}: Gordon join at 45 deg (left) and polynomial blend (right)",
+                        pair.name
+                    );
+                    compare::zebra_side_by_side_png(
+                        &p,
+                        [pick("gordon 45 deg"), pick("blend poly")],
+                        &caption,
+                    )?;
+                    eprintln!("wrote {}", p.display());
+                }
             }
             Ok(())
         }

@@ -17,6 +17,7 @@
 //! 5. Seam figures and deviation from the original meshes ([`seam`]), pictures ([`zebra`]),
 //!    IGES, STEP, a closed STL and JSON ([`output`]).
 
+pub mod compare;
 pub mod gordon;
 pub mod guides;
 pub mod output;

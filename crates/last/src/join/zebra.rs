@@ -145,7 +145,8 @@ fn lambert(n: &V3, part: u8) -> Colour {
     ])
 }
 
-fn bounds(t: &Tessellation, o: &Ortho, clip: (f64, f64)) -> [f64; 4] {
+/// Bounds of the tessellation in the view's plane, over the points inside the x range `clip`.
+pub fn bounds(t: &Tessellation, o: &Ortho, clip: (f64, f64)) -> [f64; 4] {
     let mut b = [
         f64::INFINITY,
         f64::NEG_INFINITY,
@@ -163,7 +164,7 @@ fn bounds(t: &Tessellation, o: &Ortho, clip: (f64, f64)) -> [f64; 4] {
 }
 
 /// Draw the seam curves (points given) over a panel.
-fn seams(c: &mut Canvas, view: &View, o: &Ortho, seam_pts: &[Vec<P3>]) {
+pub fn seams(c: &mut Canvas, view: &View, o: &Ortho, seam_pts: &[Vec<P3>]) {
     for s in seam_pts {
         let pts: Vec<(f64, f64)> = s
             .iter()

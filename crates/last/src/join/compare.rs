@@ -1,0 +1,465 @@
+//! The two joining methods side by side on the same lasts: the Gordon join ([`super`]) and
+//! the blend of morph and extension ([`crate::blend`]), with the same placement and planes,
+//! measured by the same seam figures, the same fairness integral over the piece between the
+//! seams and the same deviation of the kept parts, so a last maker can choose from one table
+//! (docs/method.md sections 11 and 12). Also the pictures that go with it: both methods'
+//! zebra stripes in one picture, and the Gordon join's time against points per section.
+
+use super::output::{self as jout, Tessellation};
+use super::seam::{Deviation, SeamMetrics};
+use super::study::{self, Pair};
+use super::{join, zebra, JoinParams};
+use crate::blend::fair::{self, Functional};
+use crate::blend::weight::Weight;
+use crate::blend::{self, Blend, BlendError, BlendParams};
+use crate::draw::{Canvas, View, BLACK, BLUE, GREEN, GREY, RED, WHITE};
+use footscan_geom::nurbs::NurbsSurface;
+use footscan_geom::P3;
+use image::Rgb;
+use serde::Serialize;
+use std::path::Path;
+use std::time::Instant;
+
+/// One joining method with its settings.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Method {
+    /// The Gordon join at the paper's settings with this bundle angle.
+    Gordon { angle_deg: f64 },
+    /// The blend fill with this blending function, at its defaults.
+    Blend(Blend),
+}
+
+impl Method {
+    pub fn name(&self) -> String {
+        match self {
+            Method::Gordon { angle_deg } => format!("gordon {angle_deg:.0} deg"),
+            Method::Blend(b) => format!("blend {}", b.name()),
+        }
+    }
+}
+
+/// The methods of the comparison: the Gordon join at the paper's 45 deg and at 10 deg, the
+/// blend with the linear and polynomial functions and faired.
+pub fn methods() -> Vec<Method> {
+    vec![
+        Method::Gordon { angle_deg: 45.0 },
+        Method::Gordon { angle_deg: 10.0 },
+        Method::Blend(Blend::Fixed(Weight::Linear)),
+        Method::Blend(Blend::Fixed(Weight::Poly)),
+        Method::Blend(Blend::Fair(Functional::Variation)),
+    ]
+}
+
+/// The figures of one seam that the gates name.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Seam {
+    pub gap_mm: f64,
+    pub normal_max_deg: f64,
+    pub normal_mean_deg: f64,
+    pub curvature_rel_max: f64,
+}
+
+impl From<&SeamMetrics> for Seam {
+    fn from(m: &SeamMetrics) -> Seam {
+        Seam {
+            gap_mm: m.gap_max_mm,
+            normal_max_deg: m.normal_max_deg,
+            normal_mean_deg: m.normal_mean_deg,
+            curvature_rel_max: m.curvature_rel_max,
+        }
+    }
+}
+
+/// One method on one pair.
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    pub pair: String,
+    pub method: String,
+    /// Fastest of the repeats, ms: from the two meshes to the three surfaces.
+    pub time_ms: f64,
+    pub back_seam: Seam,
+    pub toe_seam: Seam,
+    /// Integral of the squared principal-curvature variation over the piece between the
+    /// seams (the Gordon join's patch, the blend's fill), 1/mm^2.
+    pub fill_variation: f64,
+    /// Worst of the two kept parts against their meshes, mm.
+    pub fit_rms_mm: f64,
+    pub fit_max_mm: f64,
+}
+
+/// What the zebra picture of one result needs.
+pub struct Picture {
+    pub pair: String,
+    pub method: String,
+    pub tess: Tessellation,
+    pub seams: Vec<Vec<P3>>,
+    /// x range of the join region.
+    pub clip: (f64, f64),
+}
+
+fn seam_curves(back: &NurbsSurface, toe: &NurbsSurface) -> Vec<Vec<P3>> {
+    [(back, 1.0), (toe, 0.0)]
+        .iter()
+        .map(|(s, v)| (0..=200).map(|i| s.point(i as f64 / 200.0, *v)).collect())
+        .collect()
+}
+
+/// Run every method on every pair (best time of `repeats`); with `pictures`, also the
+/// tessellations for the zebra pictures.
+pub fn run(
+    pairs: &[Pair],
+    methods: &[Method],
+    repeats: usize,
+    pictures: bool,
+) -> Result<(Vec<Row>, Vec<Picture>), BlendError> {
+    let mut rows = Vec::new();
+    let mut pics = Vec::new();
+    let best_of = |f: &mut dyn FnMut() -> Result<f64, BlendError>| -> Result<f64, BlendError> {
+        let mut best = f64::INFINITY;
+        for _ in 0..repeats.max(1) {
+            best = best.min(f()?);
+        }
+        Ok(best)
+    };
+    for pair in pairs {
+        for m in methods {
+            let row_of = |time_ms: f64,
+                          b: &SeamMetrics,
+                          t: &SeamMetrics,
+                          var: f64,
+                          d: [&Deviation; 2]|
+             -> Row {
+                Row {
+                    pair: pair.name.clone(),
+                    method: m.name(),
+                    time_ms,
+                    back_seam: b.into(),
+                    toe_seam: t.into(),
+                    fill_variation: var,
+                    fit_rms_mm: d[0].rms_mm.max(d[1].rms_mm),
+                    fit_max_mm: d[0].max_mm.max(d[1].max_mm),
+                }
+            };
+            match m {
+                Method::Gordon { angle_deg } => {
+                    let p = JoinParams {
+                        angle_deg: *angle_deg,
+                        ..JoinParams::default()
+                    };
+                    let time = best_of(&mut || {
+                        let t = Instant::now();
+                        join(&pair.back, &pair.toe, &p)?;
+                        Ok(t.elapsed().as_secs_f64() * 1e3)
+                    })?;
+                    let j = join(&pair.back, &pair.toe, &p)?;
+                    let q = jout::quality(&j, 400);
+                    let (var, _) = fair::surface_fairness(&j.patch, 96, 24);
+                    rows.push(row_of(
+                        time,
+                        &q.back_seam,
+                        &q.toe_seam,
+                        var,
+                        [&q.back_deviation, &q.toe_deviation],
+                    ));
+                    if pictures {
+                        pics.push(Picture {
+                            pair: pair.name.clone(),
+                            method: m.name(),
+                            tess: jout::tessellate(&j, 240, 1.0),
+                            seams: seam_curves(&j.back, &j.toe),
+                            clip: (j.back_plane.origin.x - 35.0, j.toe_plane.origin.x + 35.0),
+                        });
+                    }
+                }
+                Method::Blend(b) => {
+                    let p = BlendParams {
+                        blend: b.clone(),
+                        ..BlendParams::default()
+                    };
+                    let time = best_of(&mut || {
+                        let t = Instant::now();
+                        blend::fill(&pair.back, &pair.toe, &p)?;
+                        Ok(t.elapsed().as_secs_f64() * 1e3)
+                    })?;
+                    let f = blend::fill(&pair.back, &pair.toe, &p)?;
+                    let q = blend::output::quality(&f, 400);
+                    rows.push(row_of(
+                        time,
+                        &q.back_seam,
+                        &q.toe_seam,
+                        q.fill_variation,
+                        [&q.back_deviation, &q.toe_deviation],
+                    ));
+                    if pictures {
+                        pics.push(Picture {
+                            pair: pair.name.clone(),
+                            method: m.name(),
+                            tess: blend::output::tessellate(&f, 240, 1.0),
+                            seams: seam_curves(&f.back, &f.toe),
+                            clip: (
+                                f.back_plane.origin.x - 35.0,
+                                f.back_plane.origin.x + f.gap_mm + 35.0,
+                            ),
+                        });
+                    }
+                }
+            }
+        }
+    }
+    Ok((rows, pics))
+}
+
+/// The rows as one plain-text table: per seam the gap, the normal jump (max/mean) and the
+/// relative curvature jump; the fill's curvature variation; the kept parts' fit; time.
+pub fn table(rows: &[Row]) -> String {
+    let mut s = format!(
+        "{:<24} {:<16} {:>8} | {:>8} {:>13} {:>8} | {:>8} {:>13} {:>8} | {:>9} | {:>7} {:>7}\n",
+        "pair",
+        "method",
+        "time ms",
+        "back gap",
+        "normal deg",
+        "curv rel",
+        "toe gap",
+        "normal deg",
+        "curv rel",
+        "fill var",
+        "fit rms",
+        "fit max"
+    );
+    s.push_str(&format!(
+        "{:<24} {:<16} {:>8} | {:>8} {:>13} {:>8} | {:>8} {:>13} {:>8} | {:>9} | {:>7} {:>7}\n",
+        "", "", "", "mm", "max/mean", "max", "mm", "max/mean", "max", "1/mm^2", "mm", "mm"
+    ));
+    let nm = |s: &Seam| {
+        if s.normal_max_deg < 1e-3 {
+            format!("{:.0e}/{:.0e}", s.normal_max_deg, s.normal_mean_deg)
+        } else {
+            format!("{:.2}/{:.2}", s.normal_max_deg, s.normal_mean_deg)
+        }
+    };
+    for r in rows {
+        s.push_str(&format!(
+            "{:<24} {:<16} {:>8.1} | {:>8.1e} {:>13} {:>8.1e} | {:>8.1e} {:>13} {:>8.1e} | {:>9.3e} | {:>7.3} {:>7.3}\n",
+            r.pair,
+            r.method,
+            r.time_ms,
+            r.back_seam.gap_mm,
+            nm(&r.back_seam),
+            r.back_seam.curvature_rel_max,
+            r.toe_seam.gap_mm,
+            nm(&r.toe_seam),
+            r.toe_seam.curvature_rel_max,
+            r.fill_variation,
+            r.fit_rms_mm,
+            r.fit_max_mm
+        ));
+    }
+    s
+}
+
+/// Zebra stripes of two results in one picture, left and right, each a top view over a side
+/// view of the join region at one common scale, so stripes compare stripe for stripe.
+pub fn zebra_side_by_side_png(
+    path: &Path,
+    pics: [&Picture; 2],
+    caption: &str,
+) -> std::io::Result<()> {
+    let (w, h) = (1600u32, 920u32);
+    let mut c = Canvas::new(w, h, WHITE);
+    let col_w = w as f64 / 2.0;
+    for (k, o) in [zebra::Ortho::top(), zebra::Ortho::side()]
+        .iter()
+        .enumerate()
+    {
+        // One scale for both columns: the union of their bounds.
+        let b = pics.iter().map(|p| zebra::bounds(&p.tess, o, p.clip)).fold(
+            [
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            ],
+            |a, b| {
+                [
+                    a[0].min(b[0]),
+                    a[1].max(b[1]),
+                    a[2].min(b[2]),
+                    a[3].max(b[3]),
+                ]
+            },
+        );
+        let top = 60.0 + k as f64 * 430.0;
+        for (i, p) in pics.iter().enumerate() {
+            let left = i as f64 * col_w + 20.0;
+            let view = View::fit(b, left, top + 400.0, col_w - 40.0, 390.0);
+            zebra::render(&mut c, &view, o, &p.tess, p.clip, &|n, _, _| {
+                zebra::stripe(n, 18.0)
+            });
+            zebra::seams(&mut c, &view, o, &p.seams);
+            c.text(
+                left as i64,
+                top as i64 - 16,
+                &format!("{}: {} view", p.method, o.title),
+                BLACK,
+                1,
+            );
+        }
+    }
+    c.text(20, 8, caption, BLACK, 1);
+    c.text(
+        20,
+        24,
+        "isophotes of one light direction; red: seams. A kink in the stripes at a seam: tangent break",
+        BLACK,
+        1,
+    );
+    c.save_png(path)
+}
+
+/// The Gordon join's time against points per section from the study rows (one line per pair)
+/// beside the line through the origin and the time at 500 points (linear growth).
+pub fn time_vs_points_png(path: &Path, rows: &[study::Row]) -> std::io::Result<()> {
+    let (w, h) = (900u32, 620u32);
+    let mut c = Canvas::new(w, h, WHITE);
+    let base = study::Case {
+        aux: 2,
+        points: 500,
+        angle_deg: 45.0,
+    };
+    let mut pairs: Vec<&str> = rows.iter().map(|r| r.pair.as_str()).collect();
+    pairs.dedup();
+    let series: Vec<(&str, Vec<(f64, f64)>)> = pairs
+        .iter()
+        .map(|p| {
+            let mut v: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.pair == *p && r.aux == base.aux && r.angle_deg == base.angle_deg)
+                .map(|r| (r.points as f64, r.time_ms))
+                .collect();
+            // The base case recurs in each sweep of the study: keep its fastest time.
+            v.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+            v.dedup_by(|a, b| a.0 == b.0);
+            (*p, v)
+        })
+        .collect();
+    let xmax = series
+        .iter()
+        .flat_map(|s| s.1.iter().map(|p| p.0))
+        .fold(0.0, f64::max)
+        .max(1.0);
+    let ymax = series
+        .iter()
+        .flat_map(|s| s.1.iter().map(|p| p.1))
+        .fold(0.0, f64::max)
+        .max(1e-3)
+        * 1.15;
+    let (left, bottom, pw, ph) = (90.0, 540.0, 760.0, 460.0);
+    let sx = pw / xmax;
+    let sy = ph / ymax;
+    let view = View {
+        x0: 0.0,
+        y0: 0.0,
+        scale: 1.0,
+        left,
+        bottom,
+    };
+    let px = |x: f64, y: f64| view.px(x * sx, y * sy);
+    c.line_px(px(0.0, 0.0), px(xmax, 0.0), BLACK, 1);
+    c.line_px(px(0.0, 0.0), px(0.0, ymax), BLACK, 1);
+    let ystep = [1.0, 2.0, 5.0, 10.0, 20.0, 50.0]
+        .into_iter()
+        .find(|s| ymax / s <= 8.0)
+        .unwrap_or(100.0);
+    let mut y = 0.0;
+    while y <= ymax {
+        let (a, b) = (px(0.0, y), px(xmax, y));
+        c.line_px((a.0 - 5.0, a.1), a, BLACK, 1);
+        c.line_px(a, b, Rgb([225, 225, 225]), 1);
+        c.text(
+            a.0 as i64 - 50,
+            a.1 as i64 - 4,
+            &format!("{y:>4.0}"),
+            BLACK,
+            1,
+        );
+        y += ystep;
+    }
+    let mut x = 0.0;
+    while x <= xmax + 1e-9 {
+        let a = px(x, 0.0);
+        c.line_px(a, (a.0, a.1 + 5.0), BLACK, 1);
+        c.text(
+            a.0 as i64 - 12,
+            a.1 as i64 + 10,
+            &format!("{x:.0}"),
+            BLACK,
+            1,
+        );
+        x += 100.0;
+    }
+    let colours = [BLUE, GREEN, RED];
+    for (k, (name, pts)) in series.iter().enumerate() {
+        let col = colours[k % colours.len()];
+        for seg in pts.windows(2) {
+            c.line_px(px(seg[0].0, seg[0].1), px(seg[1].0, seg[1].1), col, 2);
+        }
+        for p in pts {
+            let q = px(p.0, p.1);
+            for d in -3..=3 {
+                c.line_px(
+                    (q.0 - 3.0, q.1 + d as f64),
+                    (q.0 + 3.0, q.1 + d as f64),
+                    col,
+                    1,
+                );
+            }
+        }
+        // Linear growth through the origin and the 500-point time.
+        if let Some(r) = pts.iter().find(|p| p.0 == base.points as f64) {
+            let k_lin = r.1 / r.0;
+            let end = (xmax, k_lin * xmax);
+            let (a, b) = (px(0.0, 0.0), px(end.0, end.1.min(ymax)));
+            let b = if end.1 > ymax {
+                px(ymax / k_lin, ymax)
+            } else {
+                b
+            };
+            let n = 40;
+            for i in (0..n).step_by(2) {
+                let t0 = i as f64 / n as f64;
+                let t1 = (i + 1) as f64 / n as f64;
+                c.line_px(
+                    (a.0 + (b.0 - a.0) * t0, a.1 + (b.1 - a.1) * t0),
+                    (a.0 + (b.0 - a.0) * t1, a.1 + (b.1 - a.1) * t1),
+                    col,
+                    1,
+                );
+            }
+        }
+        c.text(
+            120,
+            70 + 16 * k as i64,
+            &format!("{name}: measured (solid), linear through 500 points (dashed)"),
+            col,
+            1,
+        );
+    }
+    c.text(
+        20,
+        12,
+        "Gordon join: time (ms, best of the repeats, one core) against points per section",
+        BLACK,
+        1,
+    );
+    c.text(20, 28, "2 + 2 auxiliary sections, 45 deg", GREY, 1);
+    c.text(
+        (left + pw / 2.0) as i64 - 80,
+        bottom as i64 + 34,
+        "points per section",
+        BLACK,
+        1,
+    );
+    c.text(10, 50, "ms", BLACK, 1);
+    c.save_png(path)
+}
