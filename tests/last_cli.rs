@@ -401,3 +401,114 @@ fn last_join_refuses_a_bad_blend_naming_the_word_or_the_file_and_line() {
         assert!(!out.exists(), "case {k}: {} written", out.display());
     }
 }
+
+/// A solid along x from 0 to `len` whose cross-section (y, z) is the band between the
+/// polylines `outer` and `inner` (same length, outer[k] facing inner[k]), as STL at `path`.
+fn band_prism_stl(outer: &[(f64, f64)], inner: &[(f64, f64)], len: f64, path: &Path) {
+    use footscan_geom::mesh::{Format, TriMesh};
+    use footscan_geom::P3;
+    let m = outer.len();
+    let ring: Vec<(f64, f64)> = outer.iter().chain(inner.iter().rev()).copied().collect();
+    let n = ring.len() as u32;
+    let mut v: Vec<P3> = ring.iter().map(|&(y, z)| P3::new(0.0, y, z)).collect();
+    v.extend(ring.iter().map(|&(y, z)| P3::new(len, y, z)));
+    let (a, b) = (|j: u32| j % n, |j: u32| n + j % n);
+    let mut t = Vec::new();
+    for j in 0..n {
+        t.push([a(j), a(j + 1), b(j + 1)]);
+        t.push([a(j), b(j + 1), b(j)]);
+    }
+    for k in 0..m as u32 - 1 {
+        let (o0, o1, i1, i0) = (k, k + 1, n - 2 - k, n - 1 - k);
+        t.extend([[a(o1), a(o0), a(i0)], [a(o1), a(i0), a(i1)]]);
+        t.extend([[b(o0), b(o1), b(i0)], [b(i0), b(o1), b(i1)]]);
+    }
+    let mut mesh = TriMesh::new(v, t);
+    if mesh.volume() < 0.0 {
+        mesh.triangles.iter_mut().for_each(|tr| tr.swap(1, 2));
+    }
+    mesh.write(path, Format::StlBinary).unwrap();
+}
+
+#[test]
+fn last_join_names_the_section_plane_or_last_it_cannot_use() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |f: &str| dir.path().join(f);
+    // An arch (half ring open below): its centroid lies under the arch, outside the loop.
+    let arc = |r: f64, dx: f64| -> Vec<(f64, f64)> {
+        (0..=24)
+            .map(|k| {
+                let a = std::f64::consts::PI * k as f64 / 24.0;
+                (r * a.cos() + dx, r * a.sin())
+            })
+            .collect()
+    };
+    band_prism_stl(&arc(40.0, 0.0), &arc(30.0, 0.0), 260.0, &p("arch.stl"));
+    // Two small arches side by side in one file: every section is two loops.
+    band_prism_stl(&arc(10.0, -30.0), &arc(5.0, -30.0), 260.0, &p("a.stl"));
+    let mut two = footscan_geom::mesh::TriMesh::read(p("a.stl")).unwrap();
+    let other = {
+        band_prism_stl(&arc(10.0, 30.0), &arc(5.0, 30.0), 260.0, &p("b.stl"));
+        footscan_geom::mesh::TriMesh::read(p("b.stl")).unwrap()
+    };
+    let n = two.vertices.len() as u32;
+    two.vertices.extend(other.vertices.iter().copied());
+    two.triangles
+        .extend(other.triangles.iter().map(|t| t.map(|i| i + n)));
+    two.write(p("two.stl"), footscan_geom::mesh::Format::StlBinary)
+        .unwrap();
+    let mut far = footscan_geom::mesh::TriMesh::read(p("arch.stl")).unwrap();
+    far.translate(&footscan_geom::V3::new(1000.0, 0.0, 0.0));
+    far.write(p("far.stl"), footscan_geom::mesh::Format::StlBinary)
+        .unwrap();
+    let cases: [(&str, &str, &[&str], &[&str]); 4] = [
+        (
+            "arch.stl",
+            "arch.stl",
+            &[],
+            &[
+                "of the back last at",
+                "cannot be aligned",
+                "misses the loop",
+            ],
+        ),
+        (
+            "two.stl",
+            "arch.stl",
+            &[],
+            &["back last", "(161.2, 0.0, 0.0)", "2 loops"],
+        ),
+        (
+            "arch.stl",
+            "two.stl",
+            &["--method", "blend"],
+            &["toe last", "(182.0, 0.0, 0.0)", "2 loops"],
+        ),
+        (
+            "arch.stl",
+            "far.stl",
+            &[],
+            &["do not overlap", "1000.0..1260.0"],
+        ),
+    ];
+    for (k, (back, toe, extra, says)) in cases.iter().enumerate() {
+        let out = p(&format!("out{k}"));
+        let o = footscan()
+            .args(["last", "join", "--as-is", "--units", "mm", "--back"])
+            .arg(p(back))
+            .arg("--toe")
+            .arg(p(toe))
+            .args(*extra)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        println!("case {k}: {err}");
+        assert!(!o.status.success(), "case {k} succeeded");
+        for s in *says {
+            assert!(err.contains(s), "case {k}: {s:?} not in {err}");
+        }
+        assert!(!out.exists(), "case {k}: {} written", out.display());
+    }
+}

@@ -223,3 +223,105 @@ fn write_outputs_when_asked() {
         }
     }
 }
+
+/// A solid along x from 0 to `len` whose cross-section (y, z) is the band between the
+/// polylines `outer` and `inner` (same length, outer[k] facing inner[k]).
+fn band_prism(outer: &[(f64, f64)], inner: &[(f64, f64)], len: f64) -> TriMesh {
+    let m = outer.len();
+    let ring: Vec<(f64, f64)> = outer.iter().chain(inner.iter().rev()).copied().collect();
+    let n = ring.len() as u32;
+    let mut v: Vec<P3> = ring.iter().map(|&(y, z)| P3::new(0.0, y, z)).collect();
+    v.extend(ring.iter().map(|&(y, z)| P3::new(len, y, z)));
+    let (a, b) = (|j: u32| j % n, |j: u32| n + j % n);
+    let mut t = Vec::new();
+    for j in 0..n {
+        t.push([a(j), a(j + 1), b(j + 1)]);
+        t.push([a(j), b(j + 1), b(j)]);
+    }
+    for k in 0..m as u32 - 1 {
+        let (o0, o1, i1, i0) = (k, k + 1, n - 2 - k, n - 1 - k);
+        t.push([a(o1), a(o0), a(i0)]);
+        t.push([a(o1), a(i0), a(i1)]);
+        t.push([b(o0), b(o1), b(i0)]);
+        t.push([b(i0), b(o1), b(i1)]);
+    }
+    let mut mesh = TriMesh::new(v, t);
+    if mesh.volume() < 0.0 {
+        for tr in mesh.triangles.iter_mut() {
+            tr.swap(1, 2);
+        }
+    }
+    mesh.check().expect("a valid solid");
+    mesh
+}
+
+/// An arch (a half ring, open below) 260 mm long: its sections are single loops whose
+/// centroid lies in the open space under the arch.
+fn arch() -> TriMesh {
+    let arc = |r: f64| -> Vec<(f64, f64)> {
+        (0..=24)
+            .map(|k| {
+                let a = std::f64::consts::PI * k as f64 / 24.0;
+                (r * a.cos(), r * a.sin())
+            })
+            .collect()
+    };
+    band_prism(&arc(40.0), &arc(30.0), 260.0)
+}
+
+/// Two 30 x 60 mm bars 20 mm apart, 260 mm long: every section is two loops.
+fn two_bars() -> TriMesh {
+    let bar = |y0: f64| {
+        band_prism(
+            &[(y0, 0.0), (y0 + 30.0, 0.0)],
+            &[(y0, 60.0), (y0 + 30.0, 60.0)],
+            260.0,
+        )
+    };
+    let (a, b) = (bar(-50.0), bar(20.0));
+    let n = a.vertices.len() as u32;
+    let mut v = a.vertices.clone();
+    v.extend(b.vertices.iter().copied());
+    let mut t = a.triangles.clone();
+    t.extend(b.triangles.iter().map(|tr| tr.map(|i| i + n)));
+    TriMesh::new(v, t)
+}
+
+#[test]
+fn sections_that_cannot_be_aligned_and_planes_cutting_two_loops_are_named() {
+    let as_is = JoinParams {
+        placement_back: join::Placement::AsIs,
+        placement_toe: join::Placement::AsIs,
+        ..params(45.0)
+    };
+    let a = arch();
+    let e = join::join(&a, &a, &as_is).unwrap_err();
+    println!("{e}");
+    assert!(matches!(e, JoinError::NotAligned { .. }), "{e}");
+    let s = e.to_string();
+    assert!(
+        s.contains("of the back last at") && s.contains("mm from the back plane"),
+        "{s}"
+    );
+    assert!(
+        s.contains("downward ray from the centroid misses the loop"),
+        "{s}"
+    );
+    let bars = two_bars();
+    let e = join::join(&bars, &bars, &as_is).unwrap_err();
+    println!("{e}");
+    match &e {
+        JoinError::ManyLoops { last, plane, loops } => {
+            assert_eq!((last.as_str(), *loops), ("back", 2), "{e}");
+            // The default back plane: across the last at 62 % of its 260 mm.
+            assert!(plane.contains("161.2"), "{e}");
+        }
+        _ => panic!("expected ManyLoops: {e}"),
+    }
+    // The toe last alone in two pieces: the toe last is named.
+    let e = join::join(&a, &bars, &as_is).unwrap_err();
+    assert!(
+        matches!(&e, JoinError::ManyLoops { last, .. } if last == "toe"),
+        "{e}"
+    );
+}

@@ -401,6 +401,9 @@ pub fn fill(back: &TriMesh, toe: &TriMesh, p: &BlendParams) -> Result<Filled, Bl
     b_off.reverse();
     let t_off = part_offsets(toe_extent, d, p);
     let nb = b_off.len();
+    // The cutting planes first, so a plane cutting a last into several loops is named as given.
+    sections::cut(&bm, &back_plane, 0.0, "back")?;
+    sections::cut(&tm, &toe_plane, 0.0, "toe")?;
     let mut secs: Vec<Section> = Vec::with_capacity(nb + t_off.len());
     for &o in &b_off {
         secs.push(sections::cut(&bm, &shifted(&back_plane, -o), -o, "back")?);

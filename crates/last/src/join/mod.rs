@@ -408,6 +408,10 @@ pub fn join(back: &TriMesh, toe: &TriMesh, p: &JoinParams) -> Result<Joined, Joi
             }
         )
     };
+    // The cutting planes themselves first, so a plane that cuts a last into several loops is
+    // named as given rather than by the first section behind it that falls apart.
+    sections::cut(&bm, &back_plane, 0.0, "back")?;
+    sections::cut(&tm, &toe_plane, 0.0, "toe")?;
     for &(part, off) in specs
         .iter()
         .chain(mids.iter().map(|m| (m.0, m.1)).collect::<Vec<_>>().iter())
