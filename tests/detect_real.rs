@@ -31,17 +31,18 @@ fn default_detector_on_real_flat_boards_and_laser_off_frames() {
             .map(|p| p.resid_px)
             .filter(|v| v.is_finite())
             .fold(f64::INFINITY, f64::min);
-        // Straightness: within 40 % of the straightest detector (target 5 %), and below 0.7 px.
+        // Straightness: within 35 % of the straightest detector (target 5 %; 34 % on the
+        // ciclop board with its laser-off frame, where steger is straighter), below 0.7 px.
         assert!(
-            r.resid_px <= 1.4 * best && r.resid_px < 0.7,
+            r.resid_px <= 1.35 * best && r.resid_px < 0.7,
             "{} {}: bezier-plus {:.4} px, best {best:.4}",
             r.frame,
             r.region,
             r.resid_px
         );
-        // Rows found where the line is visible (target 98 %): at least 60 %, and with the
-        // laser-off frame subtracted at least 90 %.
-        let floor = if r.background { 90.0 } else { 60.0 };
+        // Rows found where the line is visible (target 98 %): at least 96 % (96.3 % on the
+        // charuco board, ambiguous rows), and with the laser-off frame subtracted at least 97 %.
+        let floor = if r.background { 97.0 } else { 96.0 };
         assert!(
             r.found_pct >= floor,
             "{} {}: {:.1} % of visible rows",

@@ -8,7 +8,9 @@
 //! and the laser-off partner. Per frame, region and detector:
 //! - `visible`: rows of the region whose channel peak stands out of the row's median by at least
 //!   a third of the region's typical (90th percentile) contrast and 12 DN: the line is there;
-//! - `found`: visible rows with an accepted line; `found_pct` = found / visible;
+//! - `found`: visible rows with an accepted line; `found_pct` = found / visible; `missed`: the
+//!   visible rows without one, by the coarse search's reason (threshold, ambiguous, saturated,
+//!   border; `subpixel` when the row passed the search but the estimator gave no column);
 //! - `resid_px`: RMS of the residuals to a robust polynomial in the row (order 3, refitted
 //!   with Tukey biweights), over the rows within 2 px of it; `outliers`: found rows beyond 2 px;
 //! - laser-off frames: the rows of the whole frame with a line (false detections);
@@ -35,6 +37,8 @@ pub struct RealRow {
     pub visible: usize,
     pub found: usize,
     pub found_pct: f64,
+    /// Visible rows without a line, by reason (`ambiguous 40, below_threshold 3`).
+    pub missed: String,
     pub resid_px: f64,
     pub outliers: usize,
 }
@@ -319,6 +323,7 @@ pub fn run(dir: &Path, detectors: &[String]) -> Result<(Vec<RealRow>, Vec<Spread
                     visible: 0,
                     found,
                     found_pct: f64::NAN,
+                    missed: String::new(),
                     resid_px: f64::NAN,
                     outliers: found,
                 });
@@ -358,13 +363,23 @@ pub fn run(dir: &Path, detectors: &[String]) -> Result<(Vec<RealRow>, Vec<Spread
                     let out = detect_all(det.as_mut(), f);
                     let (mut rr, mut cc) = (Vec::new(), Vec::new());
                     let mut found = 0;
+                    let mut missed: BTreeMap<&str, usize> = BTreeMap::new();
                     for (i, p) in out.iter().enumerate() {
                         if p.is_valid() {
                             rr.push(i as f64);
                             cc.push(p.col);
                             found += vis[i] as usize;
+                        } else if vis[i] {
+                            *missed
+                                .entry(p.reject.map_or("subpixel", |r| r.as_str()))
+                                .or_default() += 1;
                         }
                     }
+                    let missed = missed
+                        .iter()
+                        .map(|(k, v)| format!("{k} {v}"))
+                        .collect::<Vec<_>>()
+                        .join(", ");
                     let res = robust_residuals(&rr, &cc);
                     let inl: Vec<f64> = res.iter().copied().filter(|r| r.abs() <= 2.0).collect();
                     let resid =
@@ -396,6 +411,7 @@ pub fn run(dir: &Path, detectors: &[String]) -> Result<(Vec<RealRow>, Vec<Spread
                         visible,
                         found,
                         found_pct: 100.0 * found as f64 / visible.max(1) as f64,
+                        missed,
                         resid_px: if inl.len() >= 8 { resid } else { f64::NAN },
                         outliers: res.len() - inl.len(),
                     });
@@ -446,7 +462,7 @@ pub fn all_detectors() -> Vec<String> {
 /// Both tables as text.
 pub fn table(rows: &[RealRow], spreads: &[SpreadRow]) -> String {
     let mut s = format!(
-        "{:<58} {:<16} {:<10} {:>3} {:<12} {:>5} {:>5} {:>5} {:>7} {:>8} {:>5}\n",
+        "{:<58} {:<16} {:<10} {:>3} {:<12} {:>5} {:>5} {:>5} {:>7} {:>8} {:>5}  {}\n",
         "frame",
         "region",
         "channel",
@@ -457,11 +473,12 @@ pub fn table(rows: &[RealRow], spreads: &[SpreadRow]) -> String {
         "found",
         "found%",
         "resid",
-        "out"
+        "out",
+        "missed"
     );
     for r in rows {
         s += &format!(
-            "{:<58} {:<16} {:<10} {:>3} {:<12} {:>5} {:>5} {:>5} {:>7.1} {:>8.4} {:>5}\n",
+            "{:<58} {:<16} {:<10} {:>3} {:<12} {:>5} {:>5} {:>5} {:>7.1} {:>8.4} {:>5}  {}\n",
             r.frame,
             r.region,
             r.channel,
@@ -472,7 +489,8 @@ pub fn table(rows: &[RealRow], spreads: &[SpreadRow]) -> String {
             r.found,
             r.found_pct,
             r.resid_px,
-            r.outliers
+            r.outliers,
+            r.missed
         );
     }
     s += &format!(
