@@ -92,10 +92,11 @@ fn both_pairs_at_45_and_10_degrees_meet_the_seam_gates() {
                 }
             }
             // Kept parts against their meshes: the 0.1 mm goal is not met at the sharp top
-            // rim of the lasts (a C2 surface rounds it) and on long facets; these are the
-            // bounds met (figures printed above).
+            // rim of the lasts (a C2 surface rounds it), at the toe tip and on long facets;
+            // these are the bounds met with sections 2.5 mm apart (5 mm gave up to 0.16 mm
+            // RMS and 1.2 mm max; figures printed above).
             for d in [&q.back_deviation, &q.toe_deviation] {
-                assert!(d.rms_mm < 0.2 && d.max_mm < 1.5, "{name} {angle}: {d:?}");
+                assert!(d.rms_mm < 0.15 && d.max_mm < 0.8, "{name} {angle}: {d:?}");
             }
         }
     }

@@ -42,8 +42,12 @@ fn compare(back: &str, toe: &str, len: Option<f64>, angle: f64) -> serde_json::V
             .unwrap()
             .0
     };
+    // Kept parts sectioned every 5 mm, as when the comparison was first made: the crossing
+    // parameters are means over all sections, and on the network the 2.5 mm default gives,
+    // OCCT 8.0.1's own crossing search stops with OrderingFailed on the RoundTip pair.
     let p = JoinParams {
         angle_deg: angle,
+        part_step_mm: 5.0,
         ..JoinParams::default()
     };
     let j = join::join(&load(back), &load(toe), &p).unwrap();
