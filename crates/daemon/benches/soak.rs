@@ -2,8 +2,9 @@
 //!
 //! `cargo bench -p footscand --bench soak` runs SOAK_SCANS (default 20) full simulated
 //! scans at SOAK_STEP_MM (default 0.25 mm: 1,280 frames over the default 320 mm travel)
-//! through one daemon, printing VmRSS after each, and exits 1 if the largest is over
-//! SOAK_LIMIT_MB (default 250). `--profile dev` runs it on the debug build.
+//! through one daemon, printing after each its resident memory (VmRSS) and its peak during
+//! the scan (VmHWM, reset before each), and exits 1 if any is over SOAK_LIMIT_MB (default
+//! 250). `--profile dev` runs it on the debug build.
 
 #[path = "../tests/daemon_support/mod.rs"]
 mod daemon_support;
@@ -18,14 +19,24 @@ fn env<T: std::str::FromStr>(key: &str, default: T) -> T {
         .unwrap_or(default)
 }
 
-/// VmRSS of `pid` in MB.
-fn rss_mb(pid: u32) -> f64 {
+/// `key` (VmRSS, VmHWM) of `pid` in MB.
+fn status_mb(pid: u32, key: &str) -> f64 {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
     status
         .lines()
-        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .find_map(|l| l.strip_prefix(key)?.strip_prefix(':'))
         .and_then(|v| v.split_whitespace().next()?.parse::<f64>().ok())
         .map_or(f64::NAN, |kb| kb / 1024.0)
+}
+
+fn rss_mb(pid: u32) -> f64 {
+    status_mb(pid, "VmRSS")
+}
+
+/// Restart the kernel's peak-RSS count (VmHWM) of `pid`, so the next reading is the peak of
+/// one scan, exactly, not the largest of a few samples.
+fn reset_peak(pid: u32) {
+    std::fs::write(format!("/proc/{pid}/clear_refs"), "5").expect("reset VmHWM (clear_refs)");
 }
 
 fn main() {
@@ -64,11 +75,10 @@ fn main() {
     let mut during_worst: f64 = 0.0;
     for i in 0..scans {
         let t = Instant::now();
+        reset_peak(pid);
         let id = d.start_scan(&format!("soak{i}"));
-        // Sample during the scan too: the peak, not only what is left after.
         loop {
             let s = d.get_json("/api/status");
-            during_worst = during_worst.max(rss_mb(pid));
             if s["scan"]["state"] != "running" {
                 assert_eq!(s["scan"]["state"], "complete", "scan {id}: {s}");
                 break;
@@ -78,10 +88,12 @@ fn main() {
         let rec = d.record(&id);
         let frames = rec["frames"].as_u64().unwrap_or(0);
         let dropped = rec["summary"]["dropped_frames"].as_u64().unwrap_or(0);
+        let peak = status_mb(pid, "VmHWM");
+        during_worst = during_worst.max(peak);
         let after = rss_mb(pid);
         worst = worst.max(after);
         println!(
-            "scan {:2}: {frames} frames ({dropped} dropped) in {:.1} s; RSS after {after:.0} MB (peak so far {during_worst:.0} MB)",
+            "scan {:2}: {frames} frames ({dropped} dropped) in {:.1} s; RSS after {after:.0} MB, peak {peak:.0} MB",
             i + 1,
             t.elapsed().as_secs_f64()
         );
