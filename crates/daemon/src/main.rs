@@ -50,13 +50,25 @@ fn limit_malloc_arenas() {
 /// Run the HTTP side (the runtime's workers and its blocking pool: previews, downloads,
 /// archive queries) at a lower CPU priority than the scan pipeline's threads: when clients
 /// saturate the CPU, web answers slow down instead of the scanner dropping frames. Linux
-/// nice values are per thread, and lowering one's own priority needs no privilege.
+/// nice values are per thread, and lowering one's own priority needs no privilege. A new
+/// thread inherits its creator's value, so jobs are started from a thread made before the
+/// runtime (`daemon::jobs::Launcher`), not from these.
 fn lower_priority() {
     #[cfg(target_os = "linux")]
     // SAFETY: gettid and setpriority on the calling thread only.
     unsafe {
         let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
-        libc::setpriority(libc::PRIO_PROCESS, tid, 10);
+        if libc::setpriority(libc::PRIO_PROCESS, tid, 10) != 0 {
+            // Once: every runtime thread would say the same.
+            static SAID: std::sync::Once = std::sync::Once::new();
+            let e = std::io::Error::last_os_error();
+            SAID.call_once(|| {
+                tracing::warn!(
+                    "cannot lower the HTTP threads' priority ({e}): web clients compete with \
+                     the scan for the CPU (a seccomp filter without setpriority?)"
+                )
+            });
+        }
     }
 }
 

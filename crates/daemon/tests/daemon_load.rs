@@ -286,12 +286,77 @@ fn ctrl_c_when_idle_exits_0() {
     assert_eq!(status.code(), Some(0), "{}", d.stderr());
 }
 
+/// Nice value of every thread of `pid`, by thread name.
+fn thread_nice(pid: u32) -> Vec<(String, i64)> {
+    let mut out = Vec::new();
+    for t in std::fs::read_dir(format!("/proc/{pid}/task"))
+        .unwrap()
+        .flatten()
+    {
+        let (Ok(stat), Ok(comm)) = (
+            std::fs::read_to_string(t.path().join("stat")),
+            std::fs::read_to_string(t.path().join("comm")),
+        ) else {
+            continue; // the thread ended
+        };
+        // After "pid (comm) ": state is field 3 and nice field 19.
+        let rest = &stat[stat.rfind(')').unwrap() + 2..];
+        let nice = rest.split(' ').nth(16).unwrap().parse().unwrap();
+        out.push((comm.trim().to_string(), nice));
+    }
+    out
+}
+
+/// Web clients must not take the scanner's CPU: the HTTP runtime runs at a lower priority,
+/// and the scan's threads (its pipeline and the simulator) at the daemon's own, although scans
+/// are started from an HTTP request.
+#[test]
+fn scan_threads_keep_the_daemon_priority_above_the_http_threads() {
+    let _serial = serial();
+    let tmp = tempfile::tempdir().unwrap();
+    let d = Footscand::start(tmp.path(), Opts::default());
+    let pid = d.child.id();
+    d.start_scan("priority");
+    let t0 = Instant::now();
+    let threads = loop {
+        let t = thread_nice(pid);
+        if t.iter().any(|(n, _)| n == "acquire") {
+            break t;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "no acquire thread: {t:?}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let main = threads.iter().find(|(n, _)| n == "footscand").unwrap().1;
+    for (name, nice) in &threads {
+        if name.starts_with("tokio-") {
+            assert!(*nice > main, "{name} at nice {nice}, the daemon at {main}");
+        }
+        if [
+            "scan-",
+            "acquire",
+            "detect.",
+            "triangulate",
+            "accumulate",
+            "grbl-",
+        ]
+        .iter()
+        .any(|p| name.starts_with(p))
+        {
+            assert_eq!(*nice, main, "{name}: {threads:?}");
+        }
+    }
+    d.wait_scan_end(Duration::from_secs(120));
+}
+
 /// The 50-client target: during a full scan at the default step (0.5 mm over the default
 /// travel), 50 clients at once (event streams, status, preview and downloads of an earlier
 /// scan's large file), each at a dashboard's pace (a request every 100 ms), leave the scan
 /// with no dropped frames and get every answer.
 #[test]
-#[ignore = "target not met yet: 105-490 of 640 frames dropped on the debug build of a loaded 2-core machine (issue 17)"]
+#[ignore = "met on a quiet 2-core machine (0 of 642 dropped, debug and release builds), not while other nice-0 work saturates both cores (1-4 dropped with two busy loops): the daemon cannot outrank it (issue 17)"]
 fn fifty_clients_during_a_full_scan_drop_no_frames() {
     use footscan_daemon::archive::{Archive, NewScan, Outcome, Status};
     const FIFTY: usize = 50;

@@ -25,6 +25,52 @@ fn release_free_memory() {
     }
 }
 
+/// Starts the job threads (a scan and its pipeline, a calibration) from a thread of the
+/// daemon's own priority. Linux threads inherit the nice value of the thread that creates
+/// them, and jobs are started from the HTTP runtime's threads, which run at a lower priority
+/// (`lower_priority` in main.rs) so that web clients cannot take the scanner's CPU: spawned
+/// from there, the whole scan pipeline ran at that lower priority too, on a par with the
+/// clients, and dropped frames under load. An unprivileged thread cannot raise its priority
+/// back, so the threads are created by this one, made where the daemon was opened.
+pub(super) struct Launcher {
+    tx: std::sync::mpsc::Sender<Launch>,
+}
+
+type Launch = (
+    String,
+    Box<dyn FnOnce() + Send>,
+    std::sync::mpsc::Sender<std::io::Result<std::thread::JoinHandle<()>>>,
+);
+
+impl Launcher {
+    /// Call on a thread of the priority jobs should have.
+    pub(super) fn new() -> std::io::Result<Launcher> {
+        let (tx, rx) = std::sync::mpsc::channel::<Launch>();
+        std::thread::Builder::new()
+            .name("job-launcher".into())
+            .spawn(move || {
+                for (name, job, reply) in rx {
+                    let _ = reply.send(std::thread::Builder::new().name(name).spawn(job));
+                }
+            })?;
+        Ok(Launcher { tx })
+    }
+
+    /// Start `job` on a new thread named `name`.
+    pub(super) fn spawn(
+        &self,
+        name: String,
+        job: impl FnOnce() + Send + 'static,
+    ) -> std::io::Result<std::thread::JoinHandle<()>> {
+        let (reply, handle) = std::sync::mpsc::channel();
+        let gone = || std::io::Error::other("the job launcher thread is gone");
+        self.tx
+            .send((name, Box::new(job), reply))
+            .map_err(|_| gone())?;
+        handle.recv().map_err(|_| gone())?
+    }
+}
+
 /// Minimum spacing of progress events.
 const PROGRESS_PERIOD: Duration = Duration::from_millis(100);
 
@@ -80,9 +126,11 @@ impl Daemon {
         let calibration = st.calibration.as_ref().map(|c| c.path.clone());
         let me = self.clone();
         let token = cancel.clone();
-        let thread = std::thread::Builder::new()
-            .name(format!("scan-{id}"))
-            .spawn(move || me.run_scan_job(active, token, calibration))
+        let thread = self
+            .launcher
+            .spawn(format!("scan-{id}"), move || {
+                me.run_scan_job(active, token, calibration)
+            })
             .map_err(|e| DaemonError::Setup(format!("cannot start the scan thread: {e}")))?;
         st.job = Some(Job::Scan {
             id: id.clone(),
@@ -272,9 +320,11 @@ impl Daemon {
         };
         st.calibrating = Some(job.clone());
         let me = self.clone();
-        let thread = std::thread::Builder::new()
-            .name(format!("calibrate-{id}"))
-            .spawn(move || me.run_calibration_job(job, method))
+        let thread = self
+            .launcher
+            .spawn(format!("calibrate-{id}"), move || {
+                me.run_calibration_job(job, method)
+            })
             .map_err(|e| DaemonError::Setup(format!("cannot start the calibration thread: {e}")))?;
         st.job = Some(Job::Calibration { _thread: thread });
         drop(st);

@@ -148,10 +148,12 @@ pub struct Daemon {
     events: broadcast::Sender<Event>,
     state: Mutex<State>,
     started: Instant,
+    launcher: jobs::Launcher,
 }
 
 impl Daemon {
-    /// Load the scanner config and the calibration, open (and recover) the archive.
+    /// Load the scanner config and the calibration, open (and recover) the archive. Jobs
+    /// will run at the priority of the calling thread.
     pub fn open(config: DaemonConfig) -> Result<Arc<Daemon>, DaemonError> {
         let scanner = LoadedConfig::load(&config.scanner_config)
             .map_err(|e| DaemonError::Setup(e.to_string()))?;
@@ -213,6 +215,8 @@ impl Daemon {
                 ..State::default()
             }),
             started: Instant::now(),
+            launcher: jobs::Launcher::new()
+                .map_err(|e| DaemonError::Setup(format!("cannot start the job launcher: {e}")))?,
         }))
     }
 
