@@ -752,7 +752,7 @@ fn what_can_be_checked_at_start_is_checked() {
     let hw = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/footscan.toml");
     let text = std::fs::read_to_string(hw)
         .unwrap()
-        .replace("/dev/video0", "/dev/video-footscan-test-absent")
+        .replace("/dev/video0", dir.join("video-absent").to_str().unwrap())
         .replace("/dev/ttyUSB0", "/dev/ttyFOOTSCAN-test-absent");
     std::fs::write(dir.join("scanner.toml"), text).unwrap();
     let mut cmd = cmd;
@@ -774,8 +774,19 @@ fn what_can_be_checked_at_start_is_checked() {
     assert_eq!(s, 503, "{v}");
     let msg = v["error"].as_str().unwrap();
     assert!(
-        msg.contains("/dev/video-footscan-test-absent")
-            && msg.contains("/dev/ttyFOOTSCAN-test-absent"),
+        msg.contains("video-absent") && msg.contains("/dev/ttyFOOTSCAN-test-absent"),
+        "{msg}"
+    );
+    // A device plugged in later is seen without a restart (here a file stands for the node).
+    std::fs::write(dir.join("video-absent"), "").unwrap();
+    let st = d.get_json("/api/status");
+    assert_eq!(st["devices"]["camera"]["connected"], true, "{st}");
+    assert_eq!(st["devices"]["slider"]["connected"], false, "{st}");
+    let (s, v) = d.post("/api/scans", r#"{"subject": "a", "side": "left"}"#);
+    assert_eq!(s, 503, "{v}");
+    let msg = v["error"].as_str().unwrap();
+    assert!(
+        !msg.contains("video-absent") && msg.contains("ttyFOOTSCAN"),
         "{msg}"
     );
     assert!(
