@@ -11,11 +11,14 @@
 
 use crate::measure::{rasterize_grid, MeasureError, Measurements, Side};
 use crate::scandata::ScanGrid;
-use footscan_last::adjust::last::{deform_last, prepare_last, DeformReport, PreparedLast};
+use footscan_last::adjust::last::{
+    deform_last, prepare_last, scanned_bottom, DeformReport, LastOptions, PreparedLast,
+};
 use footscan_last::adjust::output::{Report, Written};
 use footscan_last::adjust::surface::{fit_bottom, BottomSurface};
 use footscan_last::adjust::{
     self, AdjustError, AdjustOptions, Adjustment, FootLandmarks, FootPlantar, HeightGrid,
+    LastBottom,
 };
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -148,46 +151,120 @@ impl Default for AdjustScanOptions {
     }
 }
 
+/// A last as the adjustment's input: a last mesh (its bottom found as its downward-facing
+/// region; the whole last is deformed too), or the scan of a last's bottom (a scan directory
+/// of `footscan scan --config config/sim-last.toml` or of a last on the real scanner: the
+/// bottom only, so nothing to deform).
+pub enum LastSource {
+    Mesh(Box<PreparedLast>),
+    Scan { dir: PathBuf, bottom: LastBottom },
+}
+
+impl LastSource {
+    /// A directory is a scan of a last bottom (its grid.bin), anything else a mesh file.
+    pub fn load(path: &Path, opts: &LastOptions, cell_mm: f64) -> Result<Self, LastFitError> {
+        if path.is_dir() {
+            let gpath = path.join("grid.bin");
+            let grid = ScanGrid::load(&gpath).map_err(|e| LastFitError::Scan {
+                dir: path.to_path_buf(),
+                what: "grid.bin (a last scan directory needs its scan grid)".into(),
+                why: e.to_string(),
+            })?;
+            let map = rasterize_grid(&grid, cell_mm)?;
+            let below = HeightGrid {
+                x0: map.x0,
+                y0: map.y0,
+                cell_mm: map.cell_mm,
+                nx: map.nx,
+                ny: map.ny,
+                z: map.z,
+            };
+            let source = format!("last scan {}", path.display());
+            let bottom = scanned_bottom(&source, &below, opts.down_cos)?;
+            Ok(LastSource::Scan {
+                dir: path.to_path_buf(),
+                bottom,
+            })
+        } else {
+            Ok(LastSource::Mesh(Box::new(prepare_last(path, opts)?)))
+        }
+    }
+
+    pub fn bottom(&self) -> &LastBottom {
+        match self {
+            LastSource::Mesh(p) => &p.bottom,
+            LastSource::Scan { bottom, .. } => bottom,
+        }
+    }
+
+    pub fn path(&self) -> &Path {
+        match self {
+            LastSource::Mesh(p) => &p.path,
+            LastSource::Scan { dir, .. } => dir,
+        }
+    }
+
+    pub fn mesh(&self) -> Option<&PreparedLast> {
+        match self {
+            LastSource::Mesh(p) => Some(p),
+            LastSource::Scan { .. } => None,
+        }
+    }
+}
+
 /// One adjustment's results and timings (ms), before anything is written.
 pub struct AdjustedLast {
     pub adjustment: Adjustment,
     pub surface: BottomSurface,
-    pub mesh: footscan_geom::mesh::TriMesh,
-    pub deform: DeformReport,
+    /// The whole last deformed (a mesh input only).
+    pub deformed: Option<(footscan_geom::mesh::TriMesh, DeformReport)>,
     pub report: Report,
     pub adjust_ms: f64,
     pub surface_ms: f64,
     pub deform_ms: f64,
 }
 
-/// Adjusts a prepared last to a foot: the bottom ([`adjust::adjust`]), its B-spline surface
-/// and the whole last deformed to it.
+impl AdjustedLast {
+    /// What [`footscan_last::adjust::output`] writes besides the bottom: the prepared last
+    /// and its deformed mesh, for a mesh input.
+    pub fn whole_last<'a>(
+        &'a self,
+        last: &'a LastSource,
+    ) -> Option<(&'a PreparedLast, &'a footscan_geom::mesh::TriMesh)> {
+        Some((last.mesh()?, &self.deformed.as_ref()?.0))
+    }
+}
+
+/// Adjusts a last to a foot: the bottom ([`adjust::adjust`]), its B-spline surface and, for
+/// a last mesh, the whole last deformed to it.
 pub fn adjust_last(
     foot: &FootPlantar,
-    last: &PreparedLast,
+    last: &LastSource,
     opts: &AdjustScanOptions,
 ) -> Result<AdjustedLast, AdjustError> {
     let t = Instant::now();
-    let a = adjust::adjust(foot, &last.bottom, &opts.adjust)?;
+    let a = adjust::adjust(foot, last.bottom(), &opts.adjust)?;
     let adjust_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
     let surf = fit_bottom(&a, opts.surface_spacing_mm)?;
     let surface_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
-    let (mesh, dr) = deform_last(last, &a, opts.fade_mm)?;
+    let deformed = match last.mesh() {
+        Some(p) => Some(deform_last(p, &a, opts.fade_mm)?),
+        None => None,
+    };
     let deform_ms = t.elapsed().as_secs_f64() * 1e3;
     let report = Report::new(
         &foot.source,
-        &last.path.display().to_string(),
+        &last.path().display().to_string(),
         &a,
         &surf,
-        Some(dr),
+        deformed.as_ref().map(|d| d.1),
     );
     Ok(AdjustedLast {
         adjustment: a,
         surface: surf,
-        mesh,
-        deform: dr,
+        deformed,
         report,
         adjust_ms,
         surface_ms,
@@ -195,23 +272,23 @@ pub fn adjust_last(
     })
 }
 
-/// `footscan last adjust`: the scan in `scan_dir` against the last file, outputs into `out`
-/// (all or nothing).
+/// `footscan last adjust`: the scan in `scan_dir` against the last (a mesh file or a last
+/// scan directory), outputs into `out` (all or nothing).
 pub fn adjust_scan(
     scan_dir: &Path,
     last_path: &Path,
-    last_opts: &adjust::last::LastOptions,
+    last_opts: &LastOptions,
     opts: &AdjustScanOptions,
     out: &Path,
 ) -> Result<(AdjustedLast, Written), LastFitError> {
     let foot = foot_from_scan_dir(scan_dir, opts.adjust.cell_mm)?;
-    let last = prepare_last(last_path, last_opts)?;
+    let last = LastSource::load(last_path, last_opts, opts.adjust.cell_mm)?;
     let done = adjust_last(&foot, &last, opts)?;
     let written = adjust::output::write_outputs(
         out,
         &done.adjustment,
         &done.surface,
-        Some((&last, &done.mesh)),
+        done.whole_last(&last),
         &done.report,
     )?;
     Ok((done, written))

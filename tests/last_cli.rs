@@ -257,6 +257,12 @@ fn scan_with_last_adjust_then_the_cli_on_every_real_last() {
                 k(&in_scan)
             );
         }
+        // The deformed last keeps the adjusted bottom and folds at most a few rim triangles
+        // (16 of 6,784 for LastScan_Default on this foot, 0-1 for the others).
+        let d = &r["deform"];
+        let g = |k: &str| d[k].as_f64().unwrap();
+        assert!(g("bottom_max_mm") <= 1.0, "{name}: {d}");
+        assert!(g("flipped_triangles") <= 30.0, "{name}: {d}");
         // The deformed last is a closed solid in millimetres that OpenCASCADE-free readers
         // accept: binary STL with 84 + 50 n bytes.
         let stl = std::fs::read(out.join("last_adjusted.stl")).unwrap();
@@ -264,12 +270,44 @@ fn scan_with_last_adjust_then_the_cli_on_every_real_last() {
         assert_eq!(stl.len(), 84 + 50 * n);
     }
 
+    // A scanned last bottom as the last: the simulator's parametric last (round toe, 260 mm,
+    // heel 25 mm) scanned like a foot, then adjusted to the foot scan. Only the bottom: no
+    // whole last is written.
+    let last_scan = tmp.path().join("last-scan");
+    let o = footscan()
+        .args(["scan", "--config"])
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/sim-last.toml"))
+        .arg("--out")
+        .arg(&last_scan)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = tmp.path().join("from-last-scan");
+    let o = last_adjust(&scan, &last_scan, &[], &out);
+    let text = String::from_utf8_lossy(&o.stdout);
+    println!("{text}");
+    assert!(
+        o.status.success(),
+        "last scan: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(text.contains("no whole last to deform"), "{text}");
+    check(&report(&out), "scanned parametric last bottom");
+    for f in ["bottom.igs", "bottom.step", "deviation.png", "adjust.json"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    assert!(!out.join("last_adjusted.stl").exists());
+
     // Bad input: a scan without measurements, a last in metres said to be millimetres, a
     // last far too short for the foot. Each names its input; nothing is written.
     let bare = tmp.path().join("bare");
     std::fs::create_dir(&bare).unwrap();
     std::fs::copy(scan.join("grid.bin"), bare.join("grid.bin")).unwrap();
-    let cases: [(&Path, PathBuf, &[&str], &str); 3] = [
+    // A directory given as the last is a last scan: without its grid.bin, refused.
+    let empty = tmp.path().join("empty-last-scan");
+    std::fs::create_dir(&empty).unwrap();
+    let cases: [(&Path, PathBuf, &[&str], &str); 4] = [
+        (&scan, empty.clone(), &[], "grid.bin"),
         (&bare, warped.clone(), &[], "measurements.json"),
         (
             &scan,

@@ -33,14 +33,16 @@ pub struct AdjustArgs {
     /// measure.foot, or one `footscan measure` has measured).
     #[arg(long)]
     scan: PathBuf,
-    /// The last (STL, OBJ or PLY; a closed mesh).
+    /// The last: a mesh file (STL, OBJ or PLY; a closed mesh), or the directory of a scan of
+    /// the last's bottom (`footscan scan` with a last on the glass; its grid.bin): then the
+    /// bottom is adjusted and there is no whole last to deform.
     #[arg(long)]
     last: PathBuf,
     /// Units of the last file: mm, m, or auto (decided from the size).
     #[arg(long, default_value = "auto")]
     units: Units,
-    /// Scale the last so its length is this many mm (for unitless meshes).
-    #[arg(long)]
+    /// Scale the last so its length is this many mm (for unitless meshes): 50-500.
+    #[arg(long, value_parser = last_length)]
     length: Option<f64>,
     /// Height over which the deformation of the whole last fades out (mm).
     #[arg(long, default_value_t = 30.0)]
@@ -54,6 +56,16 @@ pub fn run(args: Args) -> Result<()> {
     match args.what {
         What::Join(a) => crate::last_join::run(a),
         What::Adjust(a) => run_adjust(a),
+    }
+}
+
+/// The same range the pipeline stage checks: a last is 50-500 mm long.
+fn last_length(s: &str) -> Result<f64, String> {
+    let l: f64 = s.parse().map_err(|e| format!("{s:?}: {e}"))?;
+    if l > 50.0 && l < 500.0 {
+        Ok(l)
+    } else {
+        Err(format!("{l} mm: a last is 50-500 mm long"))
     }
 }
 
@@ -107,14 +119,21 @@ fn run_adjust(a: AdjustArgs) -> Result<()> {
         "bottom surface: {} x {} control points, fit RMS {:.3} mm, max {:.3} mm",
         d.surface.surface.nu, d.surface.surface.nv, d.surface.rms_mm, d.surface.max_mm
     );
-    println!(
-        "last deformed: fade {:.0} mm, largest change {:.2} mm, {} flipped triangles, volume {:.0} -> {:.0} mm^3",
-        d.deform.fade_mm,
-        d.deform.max_displacement_mm,
-        d.deform.flipped_triangles,
-        d.deform.volume_before_mm3,
-        d.deform.volume_after_mm3
-    );
+    match &d.deformed {
+        Some((_, r)) => println!(
+            "last deformed: fade {:.0} mm, largest change {:.2} mm, {} flipped triangles ({} vertices damped by up to {:.2} mm to undo folds), bottom vertices vs adjusted bottom RMS {:.3} max {:.3} mm, volume {:.0} -> {:.0} mm^3",
+            r.fade_mm,
+            r.max_displacement_mm,
+            r.flipped_triangles,
+            r.relaxed_vertices,
+            r.relaxed_max_mm,
+            r.bottom_rms_mm,
+            r.bottom_max_mm,
+            r.volume_before_mm3,
+            r.volume_after_mm3
+        ),
+        None => println!("a scanned last bottom: the bottom is adjusted, no whole last to deform"),
+    }
     println!(
         "adjust {:.1} ms, surface {:.1} ms, deform {:.1} ms",
         d.adjust_ms, d.surface_ms, d.deform_ms

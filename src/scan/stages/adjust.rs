@@ -3,13 +3,13 @@
 //! in the scan directory). The last file is read and checked when the pipeline is built, so a
 //! missing or broken last stops the scan (and footscand) before anything moves.
 
-use crate::lastfit::{adjust_last, foot_plantar, AdjustScanOptions};
+use crate::lastfit::{adjust_last, foot_plantar, AdjustScanOptions, LastSource};
 use crate::measure::Measurements;
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::Item;
 use crate::scandata::ScanGrid;
 use footscan_geom::mesh::Units;
-use footscan_last::adjust::last::{prepare_last, LastOptions, PreparedLast};
+use footscan_last::adjust::last::LastOptions;
 use footscan_last::adjust::output::write_into;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -18,7 +18,8 @@ use std::sync::Arc;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AdjustParams {
-    /// The last (STL, OBJ or PLY; a closed mesh).
+    /// The last: a mesh file (STL, OBJ or PLY; a closed mesh) or the directory of a scan of a
+    /// last bottom (its grid.bin; the bottom is adjusted, there is no whole last to deform).
     pub last: PathBuf,
     /// Units of the last file: "auto" (from its size), "mm" or "m".
     #[serde(default = "default_units")]
@@ -39,7 +40,7 @@ fn default_fade() -> f64 {
 
 /// Keeps the grid and the measurements; adjusts at the end of the stream.
 pub struct AdjustStage {
-    last: PreparedLast,
+    last: LastSource,
     out_dir: PathBuf,
     opts: AdjustScanOptions,
     grid: Option<Arc<ScanGrid>>,
@@ -61,7 +62,8 @@ impl AdjustStage {
         };
         let adjust_opts =
             AdjustScanOptions::with_fade_mm(p.fade_mm).map_err(|e| format!("fade_mm: {e}"))?;
-        let last = prepare_last(&p.last, &opts).map_err(|e| e.to_string())?;
+        let last = LastSource::load(&p.last, &opts, adjust_opts.adjust.cell_mm)
+            .map_err(|e| e.to_string())?;
         Ok(AdjustStage {
             last,
             out_dir: out_dir.to_path_buf(),
@@ -99,13 +101,13 @@ impl Stage<Item> for AdjustStage {
             &self.out_dir,
             &done.adjustment,
             &done.surface,
-            Some((&self.last, &done.mesh)),
+            done.whole_last(&self.last),
             &done.report,
         )
         .map_err(|e| format!("last.adjust: {e}"))?;
         let (b, a) = (done.adjustment.before, done.adjustment.after);
         tracing::info!(
-            last = %self.last.path.display(),
+            last = %self.last.path().display(),
             eps = done.adjustment.eps,
             zeta = done.adjustment.zeta,
             height_rms_before_mm = b.height_rms_mm,

@@ -350,8 +350,91 @@ pub struct DeformReport {
 /// before a fold is reported as left.
 const UNTANGLE_ROUNDS: usize = 50;
 const UNTANGLE_DAMPING: f64 = 0.8;
+/// Rounds (10 Jacobi sweeps each) in which the change around a fold is first smoothed
+/// towards its neighbours' mean, keeping most of it; damping follows only where that fails
+/// (a fan of slivers round one vertex).
+const SMOOTH_ROUNDS: usize = 25;
 /// A vertex within this height of the original bottom is a bottom vertex (mm).
 const BOTTOM_VERTEX_MM: f64 = 0.25;
+
+/// Cell of the grid the bottom's change is averaged on (mm).
+const BLUR_CELL_MM: f64 = 2.0;
+/// Half-width of the average per mm above the bottom, its least value, and the height over
+/// which the exact change gives way to the average (mm).
+const BLUR_PER_MM: f64 = 1.0;
+const BLUR_MIN_MM: f64 = 3.0;
+const BLUR_RAMP_MM: f64 = 8.0;
+
+fn smoothstep(s: f64) -> f64 {
+    let s = s.clamp(0.0, 1.0);
+    s * s * (3.0 - 2.0 * s)
+}
+
+/// A vector field on a grid with its summed-area table: box means of any half-width in O(1),
+/// continuous in the box's centre and size (the table is interpolated bilinearly).
+struct BoxField {
+    x0: f64,
+    y0: f64,
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    /// (nx + 1) x (ny + 1) sums of the cells below and left of each corner.
+    sat: Vec<V3>,
+}
+
+impl BoxField {
+    fn new(over: &HeightGrid, cell: f64, f: impl Fn(f64, f64) -> V3) -> BoxField {
+        let (x0, y0) = (over.x0, over.y0);
+        let nx = ((over.x(over.nx - 1) - x0) / cell).ceil() as usize + 1;
+        let ny = ((over.y(over.ny - 1) - y0) / cell).ceil() as usize + 1;
+        let mut sat = vec![V3::zeros(); (nx + 1) * (ny + 1)];
+        for j in 0..ny {
+            let mut row = V3::zeros();
+            for i in 0..nx {
+                row += f(x0 + (i as f64 + 0.5) * cell, y0 + (j as f64 + 0.5) * cell);
+                sat[(j + 1) * (nx + 1) + i + 1] = sat[j * (nx + 1) + i + 1] + row;
+            }
+        }
+        BoxField {
+            x0,
+            y0,
+            cell,
+            nx,
+            ny,
+            sat,
+        }
+    }
+
+    /// The table at (x, y), bilinear between corners, clamped to the grid.
+    fn at(&self, x: f64, y: f64) -> V3 {
+        let fx = ((x - self.x0) / self.cell).clamp(0.0, self.nx as f64);
+        let fy = ((y - self.y0) / self.cell).clamp(0.0, self.ny as f64);
+        let (i, j) = (
+            (fx as usize).min(self.nx - 1),
+            (fy as usize).min(self.ny - 1),
+        );
+        let (u, v) = (fx - i as f64, fy - j as f64);
+        let w = self.nx + 1;
+        let s = |i: usize, j: usize| self.sat[j * w + i];
+        s(i, j) * ((1.0 - u) * (1.0 - v))
+            + s(i + 1, j) * (u * (1.0 - v))
+            + s(i, j + 1) * ((1.0 - u) * v)
+            + s(i + 1, j + 1) * (u * v)
+    }
+
+    /// Mean over the square of half-width r about (x, y), clipped to the grid.
+    fn mean(&self, x: f64, y: f64, r: f64) -> V3 {
+        let xa = (x - r).max(self.x0);
+        let xb = (x + r).min(self.x0 + self.nx as f64 * self.cell);
+        let ya = (y - r).max(self.y0);
+        let yb = (y + r).min(self.y0 + self.ny as f64 * self.cell);
+        let area = (xb - xa) * (yb - ya) / (self.cell * self.cell);
+        if area <= 0.0 {
+            return self.at(x, y) * 0.0;
+        }
+        (self.at(xb, yb) - self.at(xa, yb) - self.at(xb, ya) + self.at(xa, ya)) / area
+    }
+}
 
 /// Smooth fade from 1 at the bottom to 0 at height 1 (quintic, zero slope and curvature at
 /// both ends).
@@ -372,21 +455,44 @@ pub fn deform_last(
     fade_mm: f64,
 ) -> Result<(TriMesh, DeformReport), AdjustError> {
     let mut mesh = prep.mesh.clone();
+    // The adjusted bottom continued beyond its outline the way the last's own bottom is
+    // (`prep.lowest`), so the rim and sides, which fall outside both outlines, change by
+    // the difference of two smooth continuations (the adjusted grid's own values out there
+    // follow the foot's sides up and then drop, which turned the last's rim over).
+    let mut new_bottom = adj.heights.clone();
+    for (z, &inside) in new_bottom.z.iter_mut().zip(&adj.inside) {
+        if !inside {
+            *z = f64::NAN;
+        }
+    }
+    new_bottom.fill();
+    let change = |x: f64, y: f64| -> V3 {
+        let p = [x, y];
+        let q = adj.rigid.apply(p);
+        let t = adj.forward.apply(adj.to_foot.apply(p));
+        let zb = prep.lowest.sample_clamped(x, y);
+        let nb = new_bottom.sample_clamped(t[0], t[1]);
+        V3::new(t[0] - q[0], t[1] - q[1], nb - zb)
+    };
+    // Above the bottom the change is taken from a box average of the bottom's change whose
+    // half-width grows with the height: a wall leaning over the rim, where the plan map
+    // stretches most, is moved by a smooth field instead of being folded by the rim's.
+    let blurred = BoxField::new(&prep.lowest, BLUR_CELL_MM, change);
     let moves: Vec<(P3, V3, f64)> = mesh
         .vertices
         .iter()
         .map(|v| {
-            let p = [v.x, v.y];
-            let q = adj.rigid.apply(p);
-            let t = adj.forward.apply(adj.to_foot.apply(p));
-            let zb = prep.lowest.sample_clamped(v.x, v.y);
-            let nb = adj.heights.sample_clamped(t[0], t[1]);
-            let hb = v.z - zb;
-            (
-                P3::new(q[0], q[1], v.z),
-                V3::new(t[0] - q[0], t[1] - q[1], nb - zb),
-                hb,
-            )
+            let q = adj.rigid.apply([v.x, v.y]);
+            let hb = v.z - prep.lowest.sample_clamped(v.x, v.y);
+            let exact = change(v.x, v.y);
+            let s = smoothstep(hb / BLUR_RAMP_MM);
+            let d = if s > 0.0 {
+                let r = (hb * BLUR_PER_MM).max(BLUR_MIN_MM);
+                exact + s * (blurred.mean(v.x, v.y, r) - exact)
+            } else {
+                exact
+            };
+            (P3::new(q[0], q[1], v.z), d, hb)
         })
         .collect();
     // Long enough that the shear the fade makes stays small: the fade's steepest slope is
@@ -438,13 +544,20 @@ pub fn deform_last(
             })
             .collect()
     };
-    // Where the faded field still folds a triangle (the slivers of a narrow end, a steep
-    // wall over a bottom that moves much), the non-rigid part of the change is damped
-    // around the fold, a little more each round, until no triangle is turned over. With no
-    // change left a triangle is as it was in the last, so the repair always ends; it stays
-    // local because it starts at the fold and reaches only as far as folds still are.
+    // Where the faded field still folds a triangle (the rim where the bottom turns up into
+    // the side, thin in plan, under a plan map that moves it much; the slivers of a narrow
+    // end), the change around the fold is first smoothed towards its neighbours' mean, then,
+    // where that does not undo it, damped a little more each round. Bottom vertices are
+    // pinned: the bottom stays the adjusted one, so a fold in the rim itself stays and is
+    // reported. The repair is local (it starts at the folds) and is kept only as far as it
+    // reduced them.
     let mut bad = flipped_now(&disp);
     let mut relaxed = vec![false; disp.len()];
+    // Bottom vertices are the adjusted bottom and stay.
+    let pinned: Vec<bool> = moves
+        .iter()
+        .map(|m| m.2.abs() <= BOTTOM_VERTEX_MM)
+        .collect();
     if !bad.is_empty() {
         let mut nbrs: Vec<Vec<u32>> = vec![Vec::new(); disp.len()];
         for tri in &mesh.triangles {
@@ -459,11 +572,21 @@ pub fn deform_last(
             n.dedup();
         }
         let mut region = vec![false; disp.len()];
-        for _ in 0..UNTANGLE_ROUNDS {
+        let mut best = (bad.clone(), disp.clone(), relaxed.clone());
+        for round in 0..SMOOTH_ROUNDS + UNTANGLE_ROUNDS {
             if bad.is_empty() {
                 break;
             }
-            region.iter_mut().for_each(|r| *r = false);
+            if round >= SMOOTH_ROUNDS {
+                region.iter_mut().for_each(|r| *r = false);
+            }
+            let grow: Vec<usize> = (0..disp.len())
+                .filter(|&i| region[i])
+                .flat_map(|i| nbrs[i].iter().map(|&n| n as usize))
+                .collect();
+            for i in grow {
+                region[i] = true;
+            }
             for &t in &bad {
                 for &i in &mesh.triangles[t] {
                     region[i as usize] = true;
@@ -472,14 +595,37 @@ pub fn deform_last(
                     }
                 }
             }
-            for (i, d) in disp.iter_mut().enumerate() {
-                if region[i] {
-                    *d *= UNTANGLE_DAMPING;
-                    relaxed[i] = true;
+            if round < SMOOTH_ROUNDS {
+                for _ in 0..10 {
+                    let next: Vec<(usize, V3)> = (0..disp.len())
+                        .filter(|&i| region[i] && !pinned[i] && !nbrs[i].is_empty())
+                        .map(|i| {
+                            let m = nbrs[i].iter().map(|&n| disp[n as usize]).sum::<V3>()
+                                / nbrs[i].len() as f64;
+                            (i, m)
+                        })
+                        .collect();
+                    for (i, m) in next {
+                        disp[i] = m;
+                        relaxed[i] = true;
+                    }
+                }
+            } else {
+                for (i, d) in disp.iter_mut().enumerate() {
+                    if region[i] && !pinned[i] {
+                        *d *= UNTANGLE_DAMPING;
+                        relaxed[i] = true;
+                    }
                 }
             }
             bad = flipped_now(&disp);
+            if bad.len() < best.0.len() {
+                best = (bad.clone(), disp.clone(), relaxed.clone());
+            }
         }
+        // The repair keeps what it did only as far as it helped: with the bottom pinned, a
+        // fold in the rim itself cannot be undone, and damping beside it can make more.
+        (bad, disp, relaxed) = best;
     }
     let mut max_d: f64 = 0.0;
     let mut relax_max: f64 = 0.0;
