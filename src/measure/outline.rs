@@ -7,6 +7,8 @@
 //! the footprint, each outline vertex is within half a cell of the true outline, without bias.
 
 use crate::geom::HeightMap;
+use footscan_geom::polygon::Polygon;
+use footscan_geom::{P2, V2};
 
 /// One 4-connected region of valid cells.
 #[derive(Clone, Debug)]
@@ -169,80 +171,22 @@ fn outer_outline(map: &HeightMap, label: &[u32], id: u32, cells: &[usize]) -> Ve
     best
 }
 
+// The polygon operations live in the geometry layer (footscan_geom::polygon); these keep the
+// `[x, y]` form the measurements use.
+
 /// Signed area of a closed polygon (counterclockwise positive).
 pub fn signed_area(p: &[[f64; 2]]) -> f64 {
-    let n = p.len();
-    (0..n)
-        .map(|i| {
-            let (a, b) = (p[i], p[(i + 1) % n]);
-            a[0] * b[1] - b[0] * a[1]
-        })
-        .sum::<f64>()
-        / 2.0
+    Polygon::from_arrays(p).signed_area()
 }
 
 /// Parameters t where the line `o + t d` crosses the closed polygon `p`.
 pub fn line_crossings(p: &[[f64; 2]], o: [f64; 2], d: [f64; 2]) -> Vec<f64> {
-    let n = [-d[1], d[0]];
-    let side = |q: [f64; 2]| (q[0] - o[0]) * n[0] + (q[1] - o[1]) * n[1];
-    let along = |q: [f64; 2]| (q[0] - o[0]) * d[0] + (q[1] - o[1]) * d[1];
-    let mut ts = Vec::new();
-    for i in 0..p.len() {
-        let (a, b) = (p[i], p[(i + 1) % p.len()]);
-        let (sa, sb) = (side(a), side(b));
-        if (sa < 0.0) != (sb < 0.0) {
-            let f = sa / (sa - sb);
-            ts.push(along(a) + f * (along(b) - along(a)));
-        }
-    }
-    ts
+    Polygon::from_arrays(p).line_crossings(&P2::new(o[0], o[1]), &V2::new(d[0], d[1]))
 }
 
 /// Douglas-Peucker simplification of a closed polygon to `tol` mm.
 pub fn simplify(p: &[[f64; 2]], tol: f64) -> Vec<[f64; 2]> {
-    if p.len() < 4 {
-        return p.to_vec();
-    }
-    // Split the ring at vertex 0 and the vertex farthest from it.
-    let far = (1..p.len())
-        .max_by(|&a, &b| dist2(p[0], p[a]).total_cmp(&dist2(p[0], p[b])))
-        .unwrap_or(1);
-    let mut keep = vec![false; p.len() + 1];
-    keep[0] = true;
-    keep[far] = true;
-    keep[p.len()] = true;
-    let ring: Vec<[f64; 2]> = p.iter().copied().chain(std::iter::once(p[0])).collect();
-    let mut stack = vec![(0, far), (far, p.len())];
-    while let Some((a, b)) = stack.pop() {
-        let (mut worst, mut at) = (0.0, 0);
-        for k in a + 1..b {
-            let d = seg_dist(ring[k], ring[a], ring[b]);
-            if d > worst {
-                (worst, at) = (d, k);
-            }
-        }
-        if worst > tol {
-            keep[at] = true;
-            stack.push((a, at));
-            stack.push((at, b));
-        }
-    }
-    (0..p.len()).filter(|&k| keep[k]).map(|k| p[k]).collect()
-}
-
-fn dist2(a: [f64; 2], b: [f64; 2]) -> f64 {
-    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)
-}
-
-fn seg_dist(q: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
-    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-    let l2 = dx * dx + dy * dy;
-    let t = if l2 > 0.0 {
-        (((q[0] - a[0]) * dx + (q[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    dist2(q, [a[0] + t * dx, a[1] + t * dy]).sqrt()
+    Polygon::from_arrays(p).simplify(tol).to_arrays()
 }
 
 #[cfg(test)]
