@@ -13,6 +13,16 @@
 //!   with derivatives, curvature, knot insertion and refinement, degree elevation,
 //!   interpolation, least-squares approximation, skinning.
 //! - [`export`]: curves and surfaces to IGES 5.3 and STEP AP214.
+//!
+//! Why written here rather than taken from a crate: curvo (NURBS) is on nalgebra 0.34 while the
+//! workspace (and levenberg-marquardt) is on 0.33, and it has no least-squares fit with fixed
+//! ends, no skinning at given parameters and no IGES/STEP; no maintained crate writes IGES;
+//! truck-stepio writes STEP from truck's own topology types, a large tree to carry two entity
+//! kinds (a B-spline curve and surface) that a few hundred lines write and OpenCASCADE reads
+//! back in the tests; parry3d-f64 (on nalgebra 0.33) has a BVH and plane sections, but the
+//! sections here must close exactly when vertices lie on the plane (and drop the zero-area
+//! loops a tangent plane makes) and the signed distance needs angle-weighted pseudo-normals, so
+//! the tree is ours too, at the meshes' size (2,000-17,000 triangles) a small one.
 
 pub mod bbox;
 pub mod export;
