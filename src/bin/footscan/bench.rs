@@ -79,7 +79,7 @@ enum What {
         /// Only these detectors (repeatable; default all).
         #[arg(long = "detector")]
         detectors: Vec<String>,
-        /// Only these line sigmas, px (repeatable; default 1.0 1.6 2.0 2.5 3.0).
+        /// Only these line sigmas, px (repeatable; default 0.6 1.0 1.6 2.0 2.5 3.0).
         #[arg(long = "sigma")]
         sigmas: Vec<f64>,
     },
