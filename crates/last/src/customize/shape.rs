@@ -5,14 +5,14 @@
 //! mesh is cut, not only on the curves. So the foot is cut by planes across its axis; each
 //! section is replaced by its convex hull (the path of a tape: it bridges the arch and the
 //! gaps between toes) clipped at the last's top height; the sections are deformed by a few
-//! smooth fields (widths scaled about the axis, heights scaled, the upper part widened, the
+//! smooth fields (widths scaled about the axis, heights scaled, the midfoot's upper part widened, the
 //! toe part stretched forward, the bottom lifted behind the heel allowance) and joined into a
 //! closed tube. The eight field values are solved by Newton's method so that the eight rule
 //! targets, measured by cutting the resulting mesh, are met. Each section stays star-shaped
 //! about its centroid and the stations are parallel planes in order, so the tube cannot
 //! intersect itself.
 
-use super::measure::{measure, Measures, ANKLE_Z, INSTEP_X, OUTLINE_Z};
+use super::measure::{measure, Measures, ANKLE_X, ANKLE_Z, INSTEP_X, OUTLINE_Z};
 use super::CustomizeError;
 use footscan_geom::mesh::TriMesh;
 use footscan_geom::polygon::convex_hull;
@@ -150,6 +150,11 @@ pub struct Nodes {
     /// Start of the toe stretch and the foot's toe tip.
     pub stretch_from: f64,
     pub tip: f64,
+    /// The ankle girth's station; the end of the heel width's window (L / 4); where the
+    /// ball region starts (the widening is zero there).
+    pub ankle: f64,
+    pub heel_window: f64,
+    pub forefoot: f64,
     pub length: f64,
     pub heel_allowance: f64,
 }
@@ -165,6 +170,9 @@ impl Nodes {
             ball: ball.max(INSTEP_X * l + 1.0),
             stretch_from: m.b.x.max(m.c.x) + 0.04 * l,
             tip: m.a.x,
+            ankle: (ANKLE_X * l).clamp(m.heel_centre.x + 1.0, INSTEP_X * l - 2.0),
+            heel_window: (0.25 * l).min(ANKLE_X * l - 1.0),
+            forefoot: (m.b.x.min(m.c.x) - 0.05 * l).max(INSTEP_X * l + 1.0),
             length: l,
             heel_allowance: 0.0,
         }
@@ -188,19 +196,35 @@ fn blend(nodes: &[(f64, f64)], x: f64) -> f64 {
 }
 
 /// The eight field values: toe extension (mm), width scales at heel, waist, ball, height
-/// scales at heel, instep, ball, and the widening of the upper part.
+/// scales at the ankle station (and behind it), instep, ball, and the widening of the upper
+/// part of the midfoot (between the heel and the ball).
+///
+/// Each value acts where its rule is measured, so the Newton system is well conditioned: the
+/// widening (which the long-heel girth needs: its plane crosses the midfoot's walls at mid
+/// height) is zero over the heel width's window and in front of the instep it fades out
+/// before the ball. It used to act over the whole length, where it also changed the ball
+/// girth, and the solver found a root far from the foot: ball height scaled 0.72 and the upper
+/// part widened 27 % on the 260 mm simulated foot, which put the top of the toe box 9-11 mm
+/// into the foot (docs/method.md section 10).
 pub type Params = [f64; 8];
 
 /// The deformed closed mesh of the last.
 pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
-    let [ext, syh, syw, syb, szh, szi, szb, kup] = *p;
+    let [ext, syh, syw, syb, sza, szi, szb, kup] = *p;
     let sy = [(nd.heel, syh), (nd.waist, syw), (nd.ball, syb)];
-    let sz = [(nd.heel, szh), (nd.instep, szi), (nd.ball, szb)];
+    let sz = [(nd.ankle, sza), (nd.instep, szi), (nd.ball, szb)];
+    let ku = [
+        (nd.heel_window, 0.0),
+        (nd.ankle, kup),
+        (nd.instep, kup),
+        (nd.forefoot, 0.0),
+    ];
     let (z0, z1) = (0.5 * ANKLE_Z * nd.length, ANKLE_Z * nd.length);
     let stretch = 1.0 + ext / (nd.tip - nd.stretch_from).max(1.0);
     let mut rings: Vec<Vec<P3>> = Vec::with_capacity(sec.rings.len());
     for (x, ring) in sec.xs.iter().zip(&sec.rings) {
         let (fy, fz) = (blend(&sy, *x), blend(&sz, *x));
+        let kup = blend(&ku, *x);
         let xn = if *x > nd.stretch_from {
             nd.stretch_from + (x - nd.stretch_from) * stretch
         } else {
