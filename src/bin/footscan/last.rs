@@ -25,6 +25,8 @@ enum What {
     /// whole last deformed to it, closed), deviation.png (heat map before and after) and
     /// adjust.json to --out, all or nothing.
     Adjust(AdjustArgs),
+    /// A last made for one foot by the comfort rules (docs/method.md section 10).
+    Customize(crate::last_customize::CustomizeArgs),
 }
 
 #[derive(Parser)]
@@ -56,6 +58,7 @@ pub fn run(args: Args) -> Result<()> {
     match args.what {
         What::Join(a) => crate::last_join::run(a),
         What::Adjust(a) => run_adjust(a),
+        What::Customize(a) => crate::last_customize::run(a),
     }
 }
 

@@ -4,10 +4,12 @@ mod bench;
 mod calibrate;
 mod detect;
 mod last;
+mod last_customize;
 mod last_join;
 mod measure;
 mod model;
 mod scan;
+mod sim;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -63,6 +65,8 @@ enum Command {
     Detect(detect::Args),
     /// Shoe-last stages on meshes (see `footscan last --help`).
     Last(last::Args),
+    /// The simulator's objects as files with their truth (see `footscan sim --help`).
+    Sim(sim::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -122,5 +126,6 @@ fn run() -> Result<()> {
         Command::Bench(args) => bench::run(args),
         Command::Detect(args) => detect::run(args),
         Command::Last(args) => last::run(args),
+        Command::Sim(args) => sim::run(args),
     }
 }

@@ -108,6 +108,9 @@ pub struct Clearance {
     pub ball_mm: f64,
     pub heel_seat_mm: f64,
     pub overall_mm: f64,
+    /// The foot vertex where the overall minimum is (foot frame, mm): says which rule or
+    /// which feature of the foot mesh it comes from (docs/method.md section 10).
+    pub worst_at_mm: [f64; 3],
 }
 
 /// The rule targets for a foot: (rule, quantity, foot value, change, bound, source).
@@ -297,6 +300,7 @@ pub fn customize(
 fn clearance(foot: &TriMesh, last: &TriMesh, fm: &Measures) -> Clearance {
     let bvh = Bvh::new(last);
     let (mut toe, mut ball, mut heel, mut all) = (f64::MAX, f64::MAX, f64::MAX, f64::MAX);
+    let mut at = [f64::NAN; 3];
     let xb = fm.b.x.max(fm.c.x);
     let top = shape::TOP_Z * fm.length;
     for p in &foot.vertices {
@@ -307,7 +311,10 @@ fn clearance(foot: &TriMesh, last: &TriMesh, fm: &Measures) -> Clearance {
             continue;
         };
         let c = -sd.distance;
-        all = all.min(c);
+        if c < all {
+            all = c;
+            at = [p.x, p.y, p.z];
+        }
         if p.x > xb + 0.04 * fm.length {
             toe = toe.min(c);
         } else if p.x > fm.b.x.min(fm.c.x) - 0.05 * fm.length {
@@ -321,6 +328,7 @@ fn clearance(foot: &TriMesh, last: &TriMesh, fm: &Measures) -> Clearance {
         ball_mm: ball,
         heel_seat_mm: heel,
         overall_mm: all,
+        worst_at_mm: at,
     }
 }
 
@@ -671,6 +679,64 @@ pub fn write_outputs(c: &Customized, inp: &Inputs, dir: &Path) -> Result<(), Cus
     let p = dir.join("customize.png");
     picture::draw(c, &p).map_err(|e| out(&p, e.to_string()))?;
     Ok(())
+}
+
+/// The files [`write_outputs`] writes, in order.
+pub const OUTPUT_FILES: [&str; 6] = [
+    "last.stl",
+    "last.igs",
+    "last.step",
+    "frame.igs",
+    "report.json",
+    "customize.png",
+];
+
+/// [`write_outputs`] all or nothing: into a temporary directory beside `out`, which replaces
+/// `out` only once every file is written (a reader never sees half a last, and a failed run
+/// leaves an earlier result as it was). Returns the files written.
+pub fn write_outputs_atomic(
+    c: &Customized,
+    inp: &Inputs,
+    out: &Path,
+) -> Result<Vec<std::path::PathBuf>, CustomizeError> {
+    let err = |p: &Path, why: String| CustomizeError::Output {
+        path: p.display().to_string(),
+        why,
+    };
+    let parent = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    let name = out
+        .file_name()
+        .ok_or_else(|| err(out, "not a directory path".into()))?
+        .to_string_lossy()
+        .to_string();
+    let pid = std::process::id();
+    let tmp = parent.join(format!(".{name}.tmp{pid}"));
+    let _ = std::fs::remove_dir_all(&tmp);
+    let result = write_outputs(c, inp, &tmp).and_then(|()| {
+        let old = parent.join(format!(".{name}.old{pid}"));
+        let had = out.exists();
+        if had {
+            std::fs::rename(out, &old).map_err(|e| err(out, e.to_string()))?;
+        }
+        if let Err(e) = std::fs::rename(&tmp, out) {
+            if had {
+                let _ = std::fs::rename(&old, out);
+            }
+            return Err(err(out, e.to_string()));
+        }
+        if had {
+            let _ = std::fs::remove_dir_all(&old);
+        }
+        Ok(())
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    result?;
+    Ok(OUTPUT_FILES.iter().map(|n| out.join(n)).collect())
 }
 
 pub mod picture;

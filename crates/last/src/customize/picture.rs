@@ -101,14 +101,14 @@ pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
         2,
     );
     let mut y = 40;
-    cv.text(940, y, "rule      foot   target   last", BLACK, 2);
+    cv.text(900, y, "rule    foot  target   last", BLACK, 2);
     for r in &c.rules {
         y += 24;
         let s = format!(
-            "{:<5} {:7.1} {:7.1} {:7.1}",
+            "{:<5}{:7.1} {:7.1}{:7.1}",
             r.rule, r.foot_mm, r.target_mm, r.last_mm
         );
-        cv.text(940, y, &s, if r.met { GREEN } else { RED }, 2);
+        cv.text(900, y, &s, if r.met { GREEN } else { RED }, 2);
     }
     y += 34;
     let cl = &c.clearance;
@@ -116,7 +116,7 @@ pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
         format!("clearance toe {:+.1}", cl.toe_box_mm),
         format!("ball {:+.1} heel {:+.1}", cl.ball_mm, cl.heel_seat_mm),
     ] {
-        cv.text(940, y, &s, BLACK, 2);
+        cv.text(900, y, &s, BLACK, 2);
         y += 24;
     }
     cv.save_png(path)

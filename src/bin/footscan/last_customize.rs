@@ -1,0 +1,143 @@
+//! `footscan last customize`: a last made for one foot from its characteristic curves and the
+//! comfort rules (docs/method.md section 10). The library does the work; this file reads the
+//! inputs, prints the rule table and writes the outputs all or nothing.
+
+use anyhow::{anyhow, Result};
+use clap::Parser;
+use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
+use footscan_last::customize::{customize, load_foot, write_outputs_atomic, Inputs};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Heel heights a last is made for (mm): flat to a high dress heel.
+const HEEL_RANGE_MM: (f64, f64) = (0.0, 120.0);
+
+#[derive(Parser)]
+pub struct CustomizeArgs {
+    /// The whole foot as a closed mesh (STL, OBJ or PLY; millimetres or metres, z up), as a
+    /// 3D foot scanner or `footscan sim foot` writes it.
+    #[arg(long)]
+    foot: PathBuf,
+    /// Comfort rule file (TOML by curve type I-IV; see config/last-rules.toml).
+    #[arg(long, default_value = "config/last-rules.toml")]
+    rules: PathBuf,
+    /// Shoe type: dress (leather), sport, football, hiking, casual.
+    #[arg(long, default_value = "dress")]
+    shoe: Shoe,
+    /// Wearer: man, woman, child.
+    #[arg(long, default_value = "man")]
+    wearer: Wearer,
+    /// Heel height of the shoe (mm), 0-120.
+    #[arg(long, default_value_t = 25.0, value_parser = heel_mm)]
+    heel_mm: f64,
+    /// Output directory (replaced as a whole once everything is written).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+fn heel_mm(s: &str) -> Result<f64, String> {
+    let h: f64 = s.parse().map_err(|e| format!("{s:?}: {e}"))?;
+    if (HEEL_RANGE_MM.0..=HEEL_RANGE_MM.1).contains(&h) {
+        Ok(h)
+    } else {
+        Err(format!(
+            "{h} mm: a heel is {:.0}-{:.0} mm high",
+            HEEL_RANGE_MM.0, HEEL_RANGE_MM.1
+        ))
+    }
+}
+
+pub fn run(a: CustomizeArgs) -> Result<()> {
+    // The rule file first: a typo in it is named before the foot is read.
+    let rules = RuleSet::load(&a.rules).map_err(|e| anyhow!(e))?;
+    let inp = Inputs {
+        shoe: a.shoe,
+        wearer: a.wearer,
+        heel_mm: a.heel_mm,
+    };
+    let t0 = Instant::now();
+    let (foot, frame) = load_foot(&a.foot).map_err(|e| named(&a.foot, e))?;
+    let t_load = t0.elapsed();
+    let t1 = Instant::now();
+    let c = customize(foot, frame, &rules, &inp).map_err(|e| named(&a.foot, e))?;
+    let t_custom = t1.elapsed();
+    let fm = &c.foot_measures;
+    println!(
+        "{}: {:?} foot, length {:.2} mm, {} triangles; {:?} last for a {:?}, heel {:.0} mm",
+        a.foot.display(),
+        c.frame_in_world.side,
+        fm.length,
+        c.foot.triangles.len(),
+        inp.shoe,
+        inp.wearer,
+        inp.heel_mm
+    );
+    println!(
+        "{:5} {:16} {:>8} {:>7} {:>8} {:>8} {:>7} {:>6}  met",
+        "rule", "quantity", "foot", "change", "target", "last", "error", "bound"
+    );
+    for r in &c.rules {
+        println!(
+            "{:5} {:16} {:8.2} {:+7.2} {:8.2} {:8.2} {:+7.3} {:6.2}  {}",
+            r.rule,
+            r.quantity,
+            r.foot_mm,
+            r.change_mm,
+            r.target_mm,
+            r.last_mm,
+            r.error_mm,
+            r.bound_mm,
+            if r.met { "yes" } else { "NO" }
+        );
+    }
+    println!("(last: measured by cutting the output mesh)");
+    for f in &c.fits {
+        println!(
+            "fit {:16} {:4} points {:4} control points, max {:.4} mm, rms {:.4} mm",
+            f.curve, f.data_points, f.control_points, f.max_error_mm, f.rms_error_mm
+        );
+    }
+    for d in &c.curves.deform {
+        println!(
+            "deform {:16} type {} {} constraints, largest control move {:.2} mm, length {:.2} mm{}",
+            d.curve,
+            d.curve_type,
+            d.constraints,
+            d.max_control_move_mm,
+            d.length_mm,
+            d.target_mm
+                .map(|t| format!(" (target {t:.2})"))
+                .unwrap_or_default()
+        );
+    }
+    let cl = &c.clearance;
+    println!(
+        "clearance (foot inside the last, below its top): toe box {:+.2} ball {:+.2} heel seat {:+.2} overall {:+.2} mm at ({:.1}, {:.1}, {:.1})",
+        cl.toe_box_mm, cl.ball_mm, cl.heel_seat_mm, cl.overall_mm, cl.worst_at_mm[0], cl.worst_at_mm[1], cl.worst_at_mm[2]
+    );
+    let t2 = Instant::now();
+    let files = write_outputs_atomic(&c, &inp, &a.out)?;
+    let t_write = t2.elapsed();
+    println!(
+        "load {:.0} ms, customize {:.0} ms ({} mesh evaluations), write {:.0} ms",
+        t_load.as_secs_f64() * 1e3,
+        t_custom.as_secs_f64() * 1e3,
+        c.evaluations,
+        t_write.as_secs_f64() * 1e3
+    );
+    for f in &files {
+        println!("wrote {}", f.display());
+    }
+    Ok(())
+}
+
+/// A customization error with the foot file in front unless the message names it already.
+fn named(foot: &std::path::Path, e: footscan_last::customize::CustomizeError) -> anyhow::Error {
+    let msg = e.to_string();
+    let name = foot.display().to_string();
+    if msg.contains(&name) {
+        anyhow!(msg)
+    } else {
+        anyhow!("{name}: {msg}")
+    }
+}

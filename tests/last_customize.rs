@@ -1,0 +1,336 @@
+//! `footscan last customize` and `footscan sim foot` end to end: a simulated foot written by
+//! the CLI, customized by the CLI, and the output last.stl read back and cut here by planes
+//! with code of this file (not the library's measure), so a rule reported as met is met on
+//! the file. Bad inputs: each a clear error naming the input, with nothing written.
+
+use footscan_geom::mesh::TriMesh;
+use footscan_geom::plane::Plane;
+use footscan_geom::polygon::convex_hull;
+use footscan_geom::{P2, P3, V3};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn footscan(args: &[&str]) -> (bool, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_footscan"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).into(),
+        String::from_utf8_lossy(&o.stderr).into(),
+    )
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Perimeter of the convex hull of a mesh's section by a plane (the tape's path).
+fn hull_girth(m: &TriMesh, plane: &Plane) -> f64 {
+    let pts: Vec<P2> = m
+        .section(plane)
+        .iter()
+        .flat_map(|l| l.points.iter().map(|p| plane.to_local(p)))
+        .collect();
+    convex_hull(&pts).perimeter()
+}
+
+/// The rule quantities of a last in the foot frame (right foot: medial +y), cut here.
+/// `l`: the foot length placing the stations.
+fn cut_last(m: &TriMesh, l: f64) -> [f64; 8] {
+    // Bottom length: the section 1.5 mm above the glass.
+    let ol: Vec<P3> = m
+        .section(&Plane::axis_aligned(2, 1.5))
+        .into_iter()
+        .flat_map(|p| p.points)
+        .collect();
+    let xmin = ol.iter().map(|p| p.x).fold(f64::MAX, f64::min);
+    let xmax = ol.iter().map(|p| p.x).fold(f64::MIN, f64::max);
+    // Plan extremes: sections x = const every 0.25 mm (the narrowest waist can lie between
+    // the last's own sections).
+    let rings: Vec<(f64, f64, f64, P3, P3)> = (0..)
+        .map(|k| xmin + 0.25 * k as f64)
+        .take_while(|&x| x < 0.9 * l)
+        .filter_map(|x| {
+            let pts: Vec<P3> = m
+                .section(&Plane::axis_aligned(0, x))
+                .into_iter()
+                .flat_map(|p| p.points)
+                .collect();
+            let lo = *pts.iter().min_by(|u, v| u.y.total_cmp(&v.y))?;
+            let hi = *pts.iter().max_by(|u, v| u.y.total_cmp(&v.y))?;
+            Some((x, lo.y, hi.y, hi, lo))
+        })
+        .collect();
+    let in_x = |a: f64, b: f64| rings.iter().filter(move |r| r.0 >= a && r.0 <= b);
+    let b = in_x(0.55 * l, 0.85 * l)
+        .max_by(|u, v| u.2.total_cmp(&v.2))
+        .unwrap()
+        .3;
+    let c = in_x(0.55 * l, 0.85 * l)
+        .min_by(|u, v| u.1.total_cmp(&v.1))
+        .unwrap()
+        .4;
+    let heel = in_x(0.0, 0.25 * l)
+        .max_by(|u, v| (u.2 - u.1).total_cmp(&(v.2 - v.1)))
+        .unwrap();
+    let hc = 0.5 * (heel.3.x + heel.4.x);
+    let d = in_x(hc, b.x).map(|r| r.2).fold(f64::MAX, f64::min);
+    let e = in_x(hc, c.x).map(|r| r.1).fold(f64::MIN, f64::max);
+    let ball = Plane::with_axis(
+        P3::new(b.x, b.y, 0.0),
+        V3::new(c.y - b.y, -(c.x - b.x), 0.0),
+        V3::new(c.x - b.x, c.y - b.y, 0.0),
+    )
+    .unwrap();
+    let across = |x: f64| Plane::with_axis(P3::new(x, 0.0, 0.0), V3::x(), V3::y()).unwrap();
+    let inst = across(0.55 * l);
+    let top = m
+        .section(&inst)
+        .into_iter()
+        .flat_map(|p| p.points)
+        .max_by(|u, v| u.z.total_cmp(&v.z))
+        .unwrap();
+    let dir = V3::new(top.x, 0.0, top.z);
+    let lh = Plane::with_axis(P3::origin(), dir.cross(&V3::y()), V3::y()).unwrap();
+    [
+        xmax - xmin,
+        b.y - c.y,
+        d - e,
+        heel.2 - heel.1,
+        hull_girth(m, &ball),
+        hull_girth(m, &inst),
+        hull_girth(m, &lh),
+        hull_girth(m, &across(0.30 * l)),
+    ]
+}
+
+#[test]
+fn simulated_foot_customized_and_cut_independently() {
+    let dir = tempfile::tempdir().unwrap();
+    let foot = dir.path().join("foot.stl");
+    let (ok, out, err) = footscan(&[
+        "sim",
+        "foot",
+        "--length",
+        "260",
+        "--side",
+        "right",
+        "--out",
+        s(&foot),
+    ]);
+    assert!(ok, "{out}{err}");
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(foot.with_extension("json")).unwrap())
+            .unwrap();
+    assert_eq!(truth["length_mm"], 260.0);
+    assert!(
+        truth["girths_perpendicular_to_axis"]
+            .as_array()
+            .unwrap()
+            .len()
+            > 10
+    );
+    let out_dir = dir.path().join("last");
+    let (ok, out, err) = footscan(&[
+        "last",
+        "customize",
+        "--foot",
+        s(&foot),
+        "--rules",
+        "config/last-rules.toml",
+        "--shoe",
+        "dress",
+        "--wearer",
+        "man",
+        "--heel-mm",
+        "25",
+        "--out",
+        s(&out_dir),
+    ]);
+    assert!(ok, "{out}{err}");
+    println!("{out}");
+    for f in [
+        "last.stl",
+        "last.igs",
+        "last.step",
+        "frame.igs",
+        "report.json",
+        "customize.png",
+    ] {
+        assert!(out_dir.join(f).is_file(), "{f} missing");
+    }
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("report.json")).unwrap())
+            .unwrap();
+    let last = TriMesh::read(out_dir.join("last.stl")).unwrap();
+    last.check().expect("last.stl closed");
+    let rules = rep["rules"].as_array().unwrap();
+    let l = rules[0]["foot_mm"].as_f64().unwrap();
+    let cut = cut_last(&last, l);
+    for (r, v) in rules.iter().zip(cut) {
+        let t = r["target_mm"].as_f64().unwrap();
+        let bound = if r["quantity"].as_str().unwrap().contains("girth") {
+            0.5
+        } else {
+            0.2
+        };
+        println!(
+            "{} {:16} target {t:8.2} cut {v:8.2}",
+            r["rule"], r["quantity"]
+        );
+        assert!(
+            (v - t).abs() <= bound,
+            "{}: cut {v:.3}, target {t:.3}",
+            r["rule"]
+        );
+    }
+}
+
+#[test]
+fn bad_inputs_are_named_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let foot = dir.path().join("foot.stl");
+    assert!(
+        footscan(&[
+            "sim",
+            "foot",
+            "--length",
+            "230",
+            "--stations",
+            "120",
+            "--around",
+            "64",
+            "--out",
+            s(&foot)
+        ])
+        .0
+    );
+    let m = TriMesh::read(&foot).unwrap();
+    // An open mesh: one triangle dropped.
+    let mut open = m.clone();
+    open.triangles.pop();
+    let open_p = dir.path().join("open.stl");
+    open.write(&open_p, footscan_geom::mesh::Format::StlBinary)
+        .unwrap();
+    // Not a foot: a closed box 400 mm long.
+    let cube_p = dir.path().join("box.stl");
+    let v: Vec<P3> = (0..8)
+        .map(|i| {
+            P3::new(
+                400.0 * (i & 1) as f64,
+                40.0 * ((i >> 1) & 1) as f64,
+                40.0 * (i >> 2) as f64,
+            )
+        })
+        .collect();
+    let t = vec![
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    TriMesh::new(v, t)
+        .write(&cube_p, footscan_geom::mesh::Format::StlBinary)
+        .unwrap();
+    // Rule files: an unknown rule, an unknown shoe type.
+    let text = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("config/last-rules.toml"),
+    )
+    .unwrap();
+    let n_lines = text.lines().count();
+    let unknown_rule = dir.path().join("rule.toml");
+    std::fs::write(
+        &unknown_rule,
+        format!("{text}\n[\"V-Z\"]\ncurve = \"ankle_girth\"\n"),
+    )
+    .unwrap();
+    let unknown_shoe = dir.path().join("shoe.toml");
+    let shoe_text = text.replacen("casual = 18.0 }", "casual = 18.0, sandal = 10.0 }", 1);
+    let shoe_line = shoe_text
+        .lines()
+        .position(|l| l.contains("sandal"))
+        .unwrap()
+        + 1;
+    std::fs::write(&unknown_shoe, &shoe_text).unwrap();
+    let rules = "config/last-rules.toml";
+    let cases: Vec<(Vec<&str>, Vec<String>)> = vec![
+        (
+            vec!["--foot", s(&open_p), "--rules", rules],
+            vec![s(&open_p).into()],
+        ),
+        (
+            vec!["--foot", s(&cube_p), "--rules", rules],
+            vec![s(&cube_p).into(), "not a foot".into()],
+        ),
+        (
+            vec!["--foot", s(&foot), "--rules", s(&unknown_rule)],
+            vec![
+                s(&unknown_rule).into(),
+                format!("line {}", n_lines + 2),
+                "V-Z".into(),
+            ],
+        ),
+        (
+            vec!["--foot", s(&foot), "--rules", s(&unknown_shoe)],
+            vec![
+                s(&unknown_shoe).into(),
+                format!("line {shoe_line}"),
+                "sandal".into(),
+            ],
+        ),
+    ];
+    for (args, want) in cases {
+        let out_dir = dir.path().join("out");
+        let mut a = vec!["last", "customize", "--out", s(&out_dir)];
+        a.extend(args.iter());
+        let (ok, out, err) = footscan(&a);
+        assert!(!ok, "{a:?} succeeded: {out}");
+        for w in &want {
+            assert!(err.contains(w.as_str()), "{a:?}: {err:?} lacks {w:?}");
+        }
+        assert!(!out_dir.exists(), "{a:?} wrote {}", out_dir.display());
+        let stray: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
+            .collect();
+        assert!(stray.is_empty(), "{a:?} left {stray:?}");
+    }
+}
+
+/// A real foot (a left foot from a 3D scan, ../shared/data/feet; read, never copied).
+/// Ignored: on this foot the rules are not met yet (see docs/method.md section 10).
+#[test]
+#[ignore = "real scanned foot: the field does not converge yet (waist -13.5 mm, heel +22 mm off)"]
+fn real_foot_customized() {
+    let foot = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/feet/find_template/template_mm.stl");
+    if !foot.exists() {
+        eprintln!("{} absent: skipped", foot.display());
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("last");
+    let (ok, out, err) = footscan(&[
+        "last",
+        "customize",
+        "--foot",
+        s(&foot),
+        "--rules",
+        "config/last-rules.toml",
+        "--out",
+        s(&out_dir),
+    ]);
+    assert!(ok, "{out}{err}");
+}
