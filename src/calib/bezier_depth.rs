@@ -49,20 +49,9 @@ pub struct DepthBlock {
     pub control: Vec<f64>,
 }
 
-/// Bernstein basis B_i^n(t), i = 0..=n.
-pub fn bernstein(n: usize, t: f64, out: &mut [f64]) {
-    out[..=n].fill(0.0);
-    out[0] = 1.0;
-    // de Casteljau-style build-up: stable for t in and near [0, 1].
-    for j in 1..=n {
-        let mut prev = 0.0;
-        for b in out.iter_mut().take(j + 1) {
-            let cur = *b;
-            *b = (1.0 - t) * cur + t * prev;
-            prev = cur;
-        }
-    }
-}
+/// Bernstein basis B_i^n(t), i = 0..=n: the shared basis, under the name this module's
+/// equations use.
+pub use footscan_geom::bernstein::basis as bernstein;
 
 /// 2-norm condition number of the degree-n Bernstein collocation matrix at n + 1 equispaced
 /// nodes: what a single network of that degree in one direction must solve.

@@ -9,37 +9,17 @@
 //!   sum B_i^(n-1)(t) d_i = (1 - t)^(n-1) p(s), p(s) = sum C(n-1, i) d_i s^i, s = t / (1 - t),
 //!   so the sign of I'(t) is the sign of a polynomial evaluated by Horner's rule in O(n);
 //!   a bracket is found next to a starting t and closed by Newton steps kept inside it.
+//!
+//! The Bernstein evaluations themselves (de Casteljau, the binomial table, the power form)
+//! are the shared ones of `footscan_geom::bernstein`; what is here is the detector's use of
+//! them: which polynomial, which root, and how it is searched.
 
-/// Largest window (n + 1 samples) the Bezier detectors accept.
-pub const MAX_N: usize = 48;
+pub use footscan_geom::bernstein::Binomials;
+use footscan_geom::bernstein::{de_casteljau, horner, to_power_form, MAX_TERMS};
 
-/// Binomial coefficients C(k, i) for k < MAX_N.
-pub struct Binomials {
-    rows: Vec<[f64; MAX_N]>,
-}
-
-impl Binomials {
-    pub fn new() -> Self {
-        let mut rows = vec![[0.0; MAX_N]; MAX_N];
-        for k in 0..MAX_N {
-            rows[k][0] = 1.0;
-            for i in 1..=k {
-                rows[k][i] = rows[k - 1][i - 1] + if i < k { rows[k - 1][i] } else { 0.0 };
-            }
-        }
-        Binomials { rows }
-    }
-    #[inline]
-    pub fn row(&self, k: usize) -> &[f64; MAX_N] {
-        &self.rows[k]
-    }
-}
-
-impl Default for Binomials {
-    fn default() -> Self {
-        Self::new()
-    }
-}
+/// Largest window (n + 1 samples) the Bezier detectors accept: the size of the shared
+/// Bernstein tables and stack buffers, so a window never allocates.
+pub const MAX_N: usize = MAX_TERMS;
 
 /// The paper's method: I'(t) by de Casteljau on the difference control points `d`
 /// (d_i = I_(i+1) - I_i, i < n), bisection on [0, 1] to |dt| < 1e-9. Without a sign change
@@ -50,16 +30,8 @@ pub fn bisect_literal(samples: &[f64]) -> f64 {
     for i in 0..n {
         d[i] = samples[i + 1] - samples[i];
     }
-    let dprime = |t: f64| -> f64 {
-        let mut b = [0.0f64; MAX_N];
-        b[..n].copy_from_slice(&d[..n]);
-        for k in (1..n).rev() {
-            for i in 0..k {
-                b[i] = (1.0 - t) * b[i] + t * b[i + 1];
-            }
-        }
-        b[0]
-    };
+    let d = &d[..n];
+    let dprime = |t: f64| -> f64 { de_casteljau(d, t) };
     let (mut a, mut b) = (0.0f64, 1.0f64);
     let fa = dprime(a);
     let fb = dprime(b);
@@ -79,30 +51,19 @@ pub fn bisect_literal(samples: &[f64]) -> f64 {
     0.5 * (a + b)
 }
 
-/// p(s) and p'(s) for p(s) = sum a_i s^i.
-#[inline(always)]
-fn horner(a: &[f64], s: f64) -> (f64, f64) {
-    let mut p = 0.0;
-    let mut dp = 0.0;
-    for &c in a.iter().rev() {
-        dp = dp * s + p;
-        p = p * s + c;
-    }
-    (p, dp)
-}
-
 /// Root t* of I'(t) (a maximum of I: + to - crossing) nearest `t0`, to about 1e-6 px.
 /// `samples` are the n + 1 window values; `binom` from [`Binomials`]. None if I'(t) has no
 /// + to - crossing in [0, 1].
 pub fn root_near(samples: &[f32], binom: &Binomials, t0: f64) -> Option<f64> {
     let n = samples.len() - 1;
     debug_assert!((2..MAX_N).contains(&n));
-    let c = binom.row(n - 1);
     let mut a = [0.0f64; MAX_N];
     for i in 0..n {
-        a[i] = c[i] * (samples[i + 1] - samples[i]) as f64;
+        a[i] = (samples[i + 1] - samples[i]) as f64;
     }
-    let a = &a[..n];
+    let a = &mut a[..n];
+    to_power_form(a, binom);
+    let a = &*a;
     // Fast path: Newton on p(s) from the starting point; a maximum has p' < 0 at the root.
     {
         let tc = t0.clamp(0.02, 0.98);

@@ -2,49 +2,30 @@
 //!
 //! b0 = (1 + 4t)(1 - t)^4, b1 = 10 t^2 (1 - t)^3, b2 = 10 t^3 (1 - t)^2, b3 = (5 - 4t) t^4:
 //! the quintic Bernstein basis with doubled end control points (b0 = B0 + B1, b3 = B4 + B5),
-//! so every b_i has zero derivative at t = 0 and t = 1.
+//! so every b_i has zero derivative at t = 0 and t = 1. The basis itself is
+//! `footscan_geom::bernstein::flat_end_quintic` (one Bernstein implementation for the detector,
+//! the calibration and this model); the interpolation matrices are the network's own.
 
 use super::ops::Scalar;
+use footscan_geom::bernstein::{flat_end_quintic, flat_end_quintic_d1, flat_end_quintic_d2};
 
-/// b0..b3 at `t`, generic so the operation counter can run the same code.
+/// b0..b3 at `t`, generic so the operation counter can run the same code: the shared
+/// [`flat_end_quintic`], under the name the network's equations use.
 #[inline(always)]
 pub fn basis<T: Scalar>(t: T) -> [T; 4] {
-    let one = T::from_f64(1.0);
-    let s = one - t;
-    let t2 = t * t;
-    let s2 = s * s;
-    let ten = T::from_f64(10.0);
-    let four = T::from_f64(4.0);
-    [
-        (one + four * t) * (s2 * s2),
-        ten * t2 * (s2 * s),
-        ten * (t2 * t) * s2,
-        (T::from_f64(5.0) - four * t) * (t2 * t2),
-    ]
+    flat_end_quintic(t)
 }
 
 /// First derivatives b0'..b3' at `t`.
 #[inline]
 pub fn basis_d1(t: f64) -> [f64; 4] {
-    let s = 1.0 - t;
-    [
-        -20.0 * t * s * s * s,
-        10.0 * t * s * s * (2.0 - 5.0 * t),
-        10.0 * t * t * s * (3.0 - 5.0 * t),
-        20.0 * t * t * t * s,
-    ]
+    flat_end_quintic_d1(t)
 }
 
 /// Second derivatives b0''..b3'' at `t`.
 #[inline]
 pub fn basis_d2(t: f64) -> [f64; 4] {
-    let s = 1.0 - t;
-    [
-        -20.0 * s * s * (1.0 - 4.0 * t),
-        10.0 * s * (2.0 - 16.0 * t + 20.0 * t * t),
-        10.0 * t * (6.0 - 24.0 * t + 20.0 * t * t),
-        20.0 * t * t * (3.0 - 4.0 * t),
-    ]
+    flat_end_quintic_d2(t)
 }
 
 /// The 4 x (k + 1) matrix E_k taking the k + 1 grid points of a segment side with period k

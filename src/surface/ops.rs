@@ -8,8 +8,10 @@
 use std::cell::Cell;
 use std::ops::{Add, Div, Mul, Sub};
 
+/// `From<f64>` lets the shared Bernstein basis (`footscan_geom::bernstein`) take its
+/// constants in either type, uncounted as [`Scalar::from_f64`] is.
 pub trait Scalar:
-    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self>
+    Copy + From<f64> + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self>
 {
     fn from_f64(v: f64) -> Self;
     fn to_f64(self) -> f64;
@@ -94,6 +96,13 @@ impl Div for Counted {
     fn div(self, o: Counted) -> Counted {
         bump(|c| c.div += 1);
         Counted(self.0 / o.0)
+    }
+}
+
+impl From<f64> for Counted {
+    /// A constant, not an operation: not counted.
+    fn from(v: f64) -> Self {
+        Counted(v)
     }
 }
 

@@ -4,6 +4,8 @@
 //! (only nalgebra and thiserror), so the scanner, the simulator and the last stages can all use
 //! it, and it sits at the bottom of the layer map in ARCHITECTURE.md.
 //!
+//! - [`bernstein`]: Bernstein polynomials in the shapes the detector, the calibration's depth
+//!   network and the plantar model evaluate them (one implementation, held together by tests).
 //! - [`plane`], [`polyline`], [`polygon`], [`bbox`]: planes, open and closed polylines, planar
 //!   polygons (area, containment, offsets), axis-aligned boxes.
 //! - [`mesh`]: indexed triangle meshes: STL (binary and ASCII), PLY and OBJ in and out,
@@ -25,6 +27,7 @@
 //! the tree is ours too, at the meshes' size (2,000-17,000 triangles) a small one.
 
 pub mod bbox;
+pub mod bernstein;
 pub mod export;
 pub mod mesh;
 pub mod nurbs;
