@@ -30,6 +30,24 @@ pub enum SimError {
     },
 }
 
+/// A target description's error is a parameter error of the scene it is in: same key, value
+/// and expectation, same message.
+impl From<footscan_targets::TargetError> for SimError {
+    fn from(e: footscan_targets::TargetError) -> Self {
+        match e {
+            footscan_targets::TargetError::InvalidParameter {
+                key,
+                value,
+                expected,
+            } => SimError::InvalidParameter {
+                key,
+                value,
+                expected,
+            },
+        }
+    }
+}
+
 impl SimError {
     pub(crate) fn invalid(key: &str, value: impl std::fmt::Display, expected: &str) -> Self {
         SimError::InvalidParameter {
@@ -195,26 +213,9 @@ pub struct Projector {
     pub tan_b: f64,
 }
 
-/// R = Rz(rz) * Ry(ry) * Rx(rx), angles in degrees.
-pub fn rotation_zyx_deg(t: [f64; 3]) -> [[f64; 3]; 3] {
-    let (sx, cx) = t[0].to_radians().sin_cos();
-    let (sy, cy) = t[1].to_radians().sin_cos();
-    let (sz, cz) = t[2].to_radians().sin_cos();
-    let rx = [[1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]];
-    let ry = [[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]];
-    let rz = [[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]];
-    matmul(&matmul(&rz, &ry), &rx)
-}
-
-fn matmul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let mut m = [[0.0; 3]; 3];
-    for (i, row) in m.iter_mut().enumerate() {
-        for (j, v) in row.iter_mut().enumerate() {
-            *v = (0..3).map(|k| a[i][k] * b[k][j]).sum();
-        }
-    }
-    m
-}
+/// R = Rz(rz) * Ry(ry) * Rx(rx), angles in degrees: the camera tilt is given in the world's
+/// one convention, shared with the calibration boards' poses.
+pub use footscan_geom::rotation::rotation_zyx_deg;
 
 impl Projector {
     pub fn new(o: &Optics) -> Self {

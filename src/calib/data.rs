@@ -2,7 +2,7 @@
 //! of the staircase pass. Acquisition produces these; the fits and the Bezier depth network
 //! read them.
 
-use footscan_sim::targets::StaircaseGeometry;
+use footscan_targets::StaircaseGeometry;
 
 /// The line on the plate at one height, averaged over repeated frames.
 #[derive(Clone, Debug, PartialEq)]

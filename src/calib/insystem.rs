@@ -35,7 +35,7 @@ use super::data::InsystemData;
 use super::lm;
 use super::stair::{self, Edge};
 use super::{CalibError, CameraModel};
-use footscan_sim::targets::Placement;
+use footscan_targets::Placement;
 use nalgebra::DMatrix;
 use std::collections::BTreeMap;
 

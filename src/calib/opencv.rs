@@ -12,7 +12,7 @@
 use super::{CalibError, Calibration, CameraModel};
 use crate::detect::{Detector, LinePeak};
 use footscan_hal::{Frame, Pixels, Timestamp};
-use footscan_sim::targets::Checkerboard;
+use footscan_targets::Checkerboard;
 use nalgebra::{Matrix3, Vector3};
 use opencv::calib3d;
 use opencv::core::{Mat, Point2f, Point3f, Size, TermCriteria, Vector, CV_64F};

@@ -2,7 +2,7 @@
 //! where the simulated operator puts them.
 
 use super::CalibError;
-use footscan_sim::targets::{BoardPose, Checkerboard, Placement, StaircaseGeometry};
+use footscan_targets::{BoardPose, Checkerboard, Placement, StaircaseGeometry};
 use serde::{Deserialize, Serialize};
 
 /// The calibration procedure. Defaults are the procedure for the default simulated scanner

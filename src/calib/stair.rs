@@ -341,10 +341,6 @@ pub fn identify_ends(
 /// A riser end is used from the lower of its two faces only: where the tilted laser plane
 /// meets both faces at one y the lower one is what the camera sees, so the lower face's end is
 /// always its own edge, while the upper face's end depends on the overlap.
-pub fn riser_usable(
-    g: &footscan_sim::targets::StaircaseGeometry,
-    step: usize,
-    other: usize,
-) -> bool {
+pub fn riser_usable(g: &footscan_targets::StaircaseGeometry, step: usize, other: usize) -> bool {
     step.abs_diff(other) == 1 && g.heights_mm[step] < g.heights_mm[other]
 }

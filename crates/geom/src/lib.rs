@@ -14,6 +14,7 @@
 //! - [`nurbs`]: B-spline and NURBS curves and tensor-product surfaces of any degree: evaluation
 //!   with derivatives, curvature, knot insertion and refinement, degree elevation,
 //!   interpolation, least-squares approximation, skinning.
+//! - [`rotation`]: the world's Euler-angle convention (camera tilt, calibration board poses).
 //! - [`export`]: curves and surfaces to IGES 5.3 and STEP AP214.
 //!
 //! Why written here rather than taken from a crate: curvo (NURBS) is on nalgebra 0.34 while the
@@ -34,6 +35,7 @@ pub mod nurbs;
 pub mod plane;
 pub mod polygon;
 pub mod polyline;
+pub mod rotation;
 
 /// A point in millimetres.
 pub type P3 = nalgebra::Point3<f64>;

@@ -1,6 +1,8 @@
 //! Checkerboard images for the OpenCV reference calibration: a printed board at a 3D pose above
 //! the glass, seen by the scanner's camera under a lamp, optionally with the laser line where
-//! the laser plane meets the board, and exact ground truth for the corners and the line.
+//! the laser plane meets the board, and exact ground truth for the corners and the line. The
+//! board and its pose ([`Checkerboard`], [`BoardPose`]) are described in `footscan_targets`,
+//! which calibration reads too; this file renders them.
 //!
 //! # Geometry
 //! Board coordinates (u, v) in mm, inner corner (i, j) at `(i * square, j * square)`; the
@@ -27,6 +29,7 @@
 use crate::optics::{rotation_zyx_deg, Optics, Projector, SimError};
 use crate::render::NoiseConfig;
 use footscan_hal::{PixelFormat, Pixels};
+use footscan_targets::{BoardPose, Checkerboard};
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use serde::{Deserialize, Serialize};
@@ -36,107 +39,12 @@ pub const WHITE: f64 = 0.9;
 /// Albedo of the black squares.
 pub const BLACK: f64 = 0.06;
 
-/// A printed checkerboard.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct Checkerboard {
-    /// Inner corners along u (OpenCV's pattern width).
-    pub inner_cols: u32,
-    /// Inner corners along v (pattern height).
-    pub inner_rows: u32,
-    pub square_mm: f64,
-    /// White border around the squares.
-    pub margin_mm: f64,
-}
-
-impl Default for Checkerboard {
-    fn default() -> Self {
-        Checkerboard {
-            inner_cols: 9,
-            inner_rows: 6,
-            square_mm: 12.0,
-            margin_mm: 8.0,
-        }
-    }
-}
-
-impl Checkerboard {
-    /// Board coordinates of every inner corner, row by row (v outer, u inner).
-    pub fn corners(&self) -> Vec<[f64; 2]> {
-        let s = self.square_mm;
-        (0..self.inner_rows)
-            .flat_map(|j| (0..self.inner_cols).map(move |i| [i as f64 * s, j as f64 * s]))
-            .collect()
-    }
-
-    /// Board extent `[u0, u1] x [v0, v1]` including the margin.
-    pub fn extent(&self) -> [f64; 4] {
-        let (s, m) = (self.square_mm, self.margin_mm);
-        [
-            -s - m,
-            self.inner_cols as f64 * s + m,
-            -s - m,
-            self.inner_rows as f64 * s + m,
-        ]
-    }
-
-    /// Albedo at board coordinates, None off the board.
-    pub fn albedo(&self, u: f64, v: f64) -> Option<f64> {
-        let [u0, u1, v0, v1] = self.extent();
-        if !(u >= u0 && u <= u1 && v >= v0 && v <= v1) {
-            return None;
-        }
-        let s = self.square_mm;
-        let (a, b) = ((u / s).floor(), (v / s).floor());
-        let in_squares = a >= -1.0
-            && a <= self.inner_cols as f64 - 1.0
-            && b >= -1.0
-            && b <= self.inner_rows as f64 - 1.0;
-        Some(if in_squares && (a + b).rem_euclid(2.0) == 0.0 {
-            BLACK
-        } else {
-            WHITE
-        })
-    }
-
-    pub fn validate(&self) -> Result<(), SimError> {
-        if self.inner_cols < 2 || self.inner_rows < 2 {
-            return Err(SimError::invalid(
-                "board.inner_cols x inner_rows",
-                format!("{}x{}", self.inner_cols, self.inner_rows),
-                "at least 2x2 inner corners",
-            ));
-        }
-        crate::optics::check_range("board.square_mm", self.square_mm, 1.0, 500.0)?;
-        crate::optics::check_range("board.margin_mm", self.margin_mm, 0.0, 500.0)
-    }
-}
-
-/// Where the board is: `P = origin + R (u, v, 0)` with `R = Rz Ry Rx` of `rotation_deg`.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct BoardPose {
-    pub origin_mm: [f64; 3],
-    pub rotation_deg: [f64; 3],
-}
-
-impl BoardPose {
-    /// World point of board coordinates (u, v).
-    pub fn world(&self, u: f64, v: f64) -> [f64; 3] {
-        let r = rotation_zyx_deg(self.rotation_deg);
-        let o = self.origin_mm;
-        [
-            o[0] + r[0][0] * u + r[0][1] * v,
-            o[1] + r[1][0] * u + r[1][1] * v,
-            o[2] + r[2][0] * u + r[2][1] * v,
-        ]
-    }
-
-    /// Unit normal of the board plane (board z axis) in the world.
-    pub fn normal(&self) -> [f64; 3] {
-        let r = rotation_zyx_deg(self.rotation_deg);
-        [r[0][2], r[1][2], r[2][2]]
-    }
+/// Albedo of the print at board coordinates: [`WHITE`] or [`BLACK`] by the board's pattern
+/// (`Checkerboard::is_black`), None off the board.
+pub fn board_albedo(board: &Checkerboard, u: f64, v: f64) -> Option<f64> {
+    board
+        .is_black(u, v)
+        .map(|black| if black { BLACK } else { WHITE })
 }
 
 /// Lighting of one shot.
@@ -250,7 +158,7 @@ impl BoardRenderer {
         for (r, lp) in line.iter().enumerate() {
             let Some(lp) = lp else { continue };
             let (u, v) = board_coords(pose, lp.point);
-            let a = n.peak_dn * board.albedo(u, v).unwrap_or(0.0);
+            let a = n.peak_dn * board_albedo(board, u, v).unwrap_or(0.0);
             add_gaussian(
                 &mut laser[r * w..(r + 1) * w],
                 lp.col,
@@ -354,7 +262,7 @@ impl BoardRenderer {
             if p[0].is_nan() {
                 0.0
             } else {
-                board.albedo(p[0], p[1]).unwrap_or(0.0)
+                board_albedo(board, p[0], p[1]).unwrap_or(0.0)
             }
         };
         let mut out = vec![0.0; w * h];
