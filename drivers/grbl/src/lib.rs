@@ -47,6 +47,7 @@ mod message;
 mod settings;
 mod slider;
 mod tracker;
+mod wait;
 
 pub use codes::{alarm_message, error_message};
 pub use message::{banner_version, parse_line, parse_status, Message, StatusReport};

@@ -6,11 +6,11 @@
 //! that aborts the cycle, moves, jogs, feed hold and resume, stop, status polling on absolute
 //! slots, settings. How a line is sent and its answer awaited is in `exchange.rs`.
 
-use crate::exchange::WaitPolicy;
 use crate::link::Link;
 use crate::message::{banner_version, StatusReport};
 use crate::settings::{BuildInfo, GrblSettings};
 use crate::tracker::{GrblStats, LineKind, Tracker};
+use crate::wait::WaitPolicy;
 use footscan_hal::{
     HalError, HalResult, Slider, SliderInfo, SliderSettings, SliderState, SliderStatus,
 };

@@ -1,8 +1,9 @@
 //! Machine state shared between the protocol thread and observers (position source, tests).
 
+use super::config::{EmulatorConfig, LaserWiring};
 use super::motion::{MoveKind, Spec, Timeline};
-use super::{EmulatorConfig, MachineState};
 use std::collections::BTreeMap;
+use std::sync::{Mutex, MutexGuard};
 
 /// GRBL's usable planner blocks (`BLOCK_BUFFER_SIZE - 1`).
 pub(crate) const PLANNER_BLOCKS: usize = 15;
@@ -87,7 +88,7 @@ pub(crate) struct Machine {
     pub rx_overflow: u64,
     /// Most non-realtime bytes ever waiting in the RX buffer at once.
     pub rx_peak: usize,
-    pub laser_wiring: super::LaserWiring,
+    pub laser_wiring: LaserWiring,
     /// When the laser changed state (time, on), oldest first; before the first, it is off
     /// unless wired to be always on.
     pub laser_changes: Vec<(f64, bool)>,
@@ -126,7 +127,7 @@ impl Machine {
 
     /// Whether the laser shone at `t`.
     pub fn laser_at(&self, t: f64) -> bool {
-        if self.laser_wiring == super::LaserWiring::Always {
+        if self.laser_wiring == LaserWiring::Always {
             return true;
         }
         self.laser_changes
@@ -290,5 +291,45 @@ impl Machine {
         consider(self.pending_alarm.map(|p| p.1));
         consider(self.hold.as_ref().map(|h| h.t_stop));
         t
+    }
+}
+
+/// GRBL machine state as reported in `<...|`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MachineState {
+    Idle,
+    Run,
+    /// `Hold:1` decelerating, `Hold:0` stopped and ready to resume.
+    Hold(u8),
+    Jog,
+    Alarm,
+    Home,
+    Check,
+}
+
+impl std::fmt::Display for MachineState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MachineState::Idle => write!(f, "Idle"),
+            MachineState::Run => write!(f, "Run"),
+            MachineState::Hold(n) => write!(f, "Hold:{n}"),
+            MachineState::Jog => write!(f, "Jog"),
+            MachineState::Alarm => write!(f, "Alarm"),
+            MachineState::Home => write!(f, "Home"),
+            MachineState::Check => write!(f, "Check"),
+        }
+    }
+}
+
+/// The machine and its configuration, shared by the emulator's handle (mod.rs) and the thread
+/// that serves the pty (server.rs).
+pub(crate) struct Shared {
+    pub machine: Mutex<Machine>,
+    pub config: EmulatorConfig,
+}
+
+impl Shared {
+    pub(super) fn lock(&self) -> MutexGuard<'_, Machine> {
+        self.machine.lock().unwrap_or_else(|e| e.into_inner())
     }
 }

@@ -49,6 +49,7 @@
 //! it coincides with the motor). Power-up and homing (which approaches 0 from +X) leave the
 //! play taken up on the −X side, so a homed machine at rest has physical = scale × machine.
 
+mod config;
 mod gcode;
 mod machine;
 mod motion;
@@ -56,148 +57,18 @@ mod pty;
 mod server;
 
 use crate::{LaserSource, PositionSource};
+pub use config::{EmulatorConfig, Fault, LaserWiring};
 use crossbeam_channel::Sender;
 use footscan_hal::Timestamp;
-use machine::Machine;
-use serde::{Deserialize, Serialize};
+pub use machine::MachineState;
+use machine::{Machine, Shared};
 use server::{Cmd, Server};
 use std::os::fd::OwnedFd;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 pub use motion::trapezoid_time;
-
-/// The power-up/reset banner line (printed after an empty line).
-pub(crate) const BANNER: &str = "\r\nGrbl 1.1h ['$' for help]";
-
-/// Emulated machine. Defaults: a 330 mm slider at 3000 mm/min and 500 mm/s² with homing.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields, default)]
-pub struct EmulatorConfig {
-    /// `$110`, mm/min.
-    pub max_rate_mm_min: f64,
-    /// `$120`, mm/s².
-    pub accel_mm_s2: f64,
-    /// `$130`, mm: soft limits are `[0, travel]`.
-    pub travel_mm: f64,
-    /// Physical position = scale × machine position (slider calibration error).
-    pub slider_scale: f64,
-    /// Play between motor and carriage, mm (see the module docs).
-    pub backlash_mm: f64,
-    /// `$22` (and `$20` soft limits with it).
-    pub homing_enabled: bool,
-    /// Simulated duration of `$H`.
-    pub homing_seconds: f64,
-    /// Delay between sampling a status report and sending it.
-    pub status_latency_us: u64,
-    /// Serial RX buffer, bytes (reported in `$I` as `[OPT:V,15,N]`).
-    pub rx_buffer: usize,
-    /// What switches the laser: `always` (wired to its own supply: always on, as before the
-    /// laser was switchable), `spindle` (M3/M4 on, M5 off) or `flood` (M8 on, M9 off).
-    pub laser: LaserWiring,
-}
-
-/// Where the simulated laser is wired.
-#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "lowercase")]
-pub enum LaserWiring {
-    #[default]
-    Always,
-    Spindle,
-    Flood,
-}
-
-impl LaserWiring {
-    fn on(self, spindle: bool, flood: bool) -> bool {
-        match self {
-            LaserWiring::Always => true,
-            LaserWiring::Spindle => spindle,
-            LaserWiring::Flood => flood,
-        }
-    }
-}
-
-impl Default for EmulatorConfig {
-    fn default() -> Self {
-        EmulatorConfig {
-            max_rate_mm_min: 3000.0,
-            accel_mm_s2: 500.0,
-            travel_mm: 330.0,
-            slider_scale: 1.0,
-            backlash_mm: 0.0,
-            homing_enabled: true,
-            homing_seconds: 0.3,
-            status_latency_us: 0,
-            rx_buffer: 128,
-            laser: LaserWiring::Always,
-        }
-    }
-}
-
-/// Faults a test can inject.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Fault {
-    /// Raise `ALARM:N`: motion stops dead, state `Alarm`. Codes 1 and 2 (hard/soft limit) are
-    /// critical: `[MSG:Reset to continue]` and nothing but `?` and reset is served until a
-    /// reset. Other codes abort through GRBL's reset path (banner, `'$H'|'$X' to unlock`).
-    Alarm(u8),
-    /// Stop answering (and reading) anything, realtime `?` included; `false` resumes and the
-    /// pending input is then processed in order.
-    Silence(bool),
-    /// Close the pty master: the client's port hangs up (EIO / POLLHUP).
-    Disconnect,
-    /// The next `$H` fails after `homing_seconds` with `ALARM:N` (8: pull-off did not clear
-    /// the switch, 9: no switch found), answered `ok` as GRBL does after the abort, then the
-    /// reset path: banner and `'$H'|'$X' to unlock`.
-    HomingFail(u8),
-    /// The next N `ok` answers are not sent (a UART that dropped them).
-    DropOk(u32),
-    /// The next N `ok` answers arrive as `0k` (a flipped bit).
-    CorruptOk(u32),
-    /// The next N status reports arrive corrupted (a digit of `MPos` replaced by line noise).
-    CorruptStatus(u32),
-    /// The next line is answered `error:N` without being executed.
-    RejectNext(u8),
-}
-
-/// GRBL machine state as reported in `<...|`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MachineState {
-    Idle,
-    Run,
-    /// `Hold:1` decelerating, `Hold:0` stopped and ready to resume.
-    Hold(u8),
-    Jog,
-    Alarm,
-    Home,
-    Check,
-}
-
-impl std::fmt::Display for MachineState {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            MachineState::Idle => write!(f, "Idle"),
-            MachineState::Run => write!(f, "Run"),
-            MachineState::Hold(n) => write!(f, "Hold:{n}"),
-            MachineState::Jog => write!(f, "Jog"),
-            MachineState::Alarm => write!(f, "Alarm"),
-            MachineState::Home => write!(f, "Home"),
-            MachineState::Check => write!(f, "Check"),
-        }
-    }
-}
-
-pub(crate) struct Shared {
-    pub machine: Mutex<Machine>,
-    pub config: EmulatorConfig,
-}
-
-impl Shared {
-    fn lock(&self) -> MutexGuard<'_, Machine> {
-        self.machine.lock().unwrap_or_else(|e| e.into_inner())
-    }
-}
 
 /// The emulator's output history as a [`LaserSource`] for the simulated camera.
 struct EmulatorLaser(Arc<Shared>);

@@ -1,14 +1,17 @@
 //! The protocol thread: serial I/O on the pty master, realtime bytes, line execution.
 
+use super::config::Fault;
 use super::gcode::{self, err, Action, Modal};
-use super::machine::{format_setting, Machine, PLANNER_BLOCKS};
+use super::machine::{format_setting, Machine, MachineState, Shared, PLANNER_BLOCKS};
 use super::motion::{MoveKind, Spec};
 use super::pty::{self, Pty};
-use super::{Fault, MachineState, Shared, BANNER};
 use crossbeam_channel::Receiver;
 use std::collections::VecDeque;
 use std::os::fd::OwnedFd;
 use std::sync::{Arc, MutexGuard};
+
+/// The power-up/reset banner line (printed after an empty line).
+pub(crate) const BANNER: &str = "\r\nGrbl 1.1h ['$' for help]";
 
 pub(crate) enum Cmd {
     Fault(Fault),

@@ -34,23 +34,18 @@ pub mod grid;
 pub mod last;
 pub mod outline;
 pub mod output;
+pub mod side;
 pub mod surface;
 pub mod synthetic;
 pub mod tps;
 
 pub use grid::HeightGrid;
 pub use outline::{outline_landmarks, OutlineLandmarks, Pt};
+pub use side::Side;
 
 use outline::{add, dist, dot, perp, scale, sub};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Side {
-    Left,
-    Right,
-}
 
 /// A scanned foot's landmarks (scan frame, mm), as the scanner's measurements give them.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

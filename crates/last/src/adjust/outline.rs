@@ -1,7 +1,7 @@
 //! Outlines: the landmark rules shared by foot and last bottom, the foot's sole envelope,
 //! arc-length correspondence between two outlines, and contour smoothing.
 
-use super::Side;
+use super::side::Side;
 use footscan_geom::polygon::convex_hull;
 use footscan_geom::P2;
 

@@ -4,8 +4,8 @@
 
 use super::{fair, surface, Filled, Piece};
 use crate::draw::{Canvas, View, BLACK, BLUE, GREEN, GREY, RED, WHITE};
-use crate::join::output::Tessellation;
 use crate::join::seam::{self, Deviation, SeamMetrics};
+use crate::join::tessellation::Tessellation;
 use crate::join::zebra;
 use footscan_geom::export::{iges, step, Header};
 use footscan_geom::mesh::{Format, TriMesh};

@@ -6,7 +6,7 @@
 //! end slices. The seam figures then say what the fill's slices carry across the seam,
 //! not what a skin through both sides would smooth over.
 
-use crate::join::output::Tessellation;
+use crate::join::tessellation::Tessellation;
 use footscan_geom::mesh::TriMesh;
 use footscan_geom::nurbs::fit::interpolate_with;
 use footscan_geom::nurbs::skin::interpolate_grid;

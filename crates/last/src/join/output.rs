@@ -3,11 +3,12 @@
 
 use super::gordon::Network;
 use super::seam::{self, Deviation, SeamMetrics};
+pub use super::tessellation::Tessellation;
 use super::{zebra, Joined, Timings};
 use footscan_geom::export::{iges, step, Header};
 use footscan_geom::mesh::{Format, TriMesh};
 use footscan_geom::nurbs::{NurbsCurve, NurbsSurface};
-use footscan_geom::{P3, V3};
+use footscan_geom::P3;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -48,14 +49,6 @@ pub fn quality(j: &Joined, samples: usize) -> Quality {
         guides_contribution_mm,
         network_mismatch_mm: g.network_mismatch,
     }
-}
-
-/// Triangles of the joined last with per-vertex normals and part (0 back, 1 patch, 2 toe).
-pub struct Tessellation {
-    pub vertices: Vec<P3>,
-    pub normals: Vec<V3>,
-    pub part: Vec<u8>,
-    pub triangles: Vec<[u32; 3]>,
 }
 
 /// Tessellate the three surfaces into one closed mesh: `nu` points around, rows about every

@@ -13,7 +13,7 @@
 // Index loops over sections and crossings read closer to the construction.
 #![allow(clippy::needless_range_loop)]
 
-use super::JoinError;
+use super::error::JoinError;
 use footscan_geom::mesh::TriMesh;
 use footscan_geom::plane::Plane;
 use footscan_geom::{P2, P3, V3};

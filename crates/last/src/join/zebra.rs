@@ -6,7 +6,7 @@
 //! (G1) seam without matching curvature puts a kink in them, and a curvature-continuous seam
 //! lets them run straight through.
 
-use super::output::Tessellation;
+use super::tessellation::Tessellation;
 use crate::draw::{Canvas, Colour, View, BLACK, WHITE};
 use footscan_geom::{P3, V3};
 use image::Rgb;

@@ -1,0 +1,45 @@
+//! Why a join failed: a file of its own because the join (mod.rs) and its steps (sections.rs,
+//! ...) all return it, and a step must not import the module that calls it.
+
+use footscan_geom::nurbs::NurbsError;
+
+/// Why a join failed. Every variant names the last, plane or section at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum JoinError {
+    #[error("{last} last: the {plane} misses it (no section); move the plane inside the last")]
+    PlaneMisses { last: String, plane: String },
+    #[error(
+        "{last} last: the {plane} cuts it into {loops} loops; a joining plane must cut the \
+         last in one closed loop (move it away from the ends and the top)"
+    )]
+    ManyLoops {
+        last: String,
+        plane: String,
+        loops: usize,
+    },
+    #[error(
+        "the lasts do not overlap in length: back last spans x {back_lo:.1}..{back_hi:.1} mm, \
+         toe last {toe_lo:.1}..{toe_hi:.1} mm; place them in one frame first"
+    )]
+    NoOverlap {
+        back_lo: f64,
+        back_hi: f64,
+        toe_lo: f64,
+        toe_hi: f64,
+    },
+    #[error(
+        "the toe plane ({toe}) is not ahead of the back plane ({back}) along the back plane's \
+         normal: the gap would be {gap:.1} mm; the toe part must start where the back part ends"
+    )]
+    PlanesOverlap { back: String, toe: String, gap: f64 },
+    #[error("section {section} cannot be aligned: {reason}")]
+    NotAligned { section: String, reason: String },
+    #[error("invalid parameter {name} = {value}: {valid}")]
+    Param {
+        name: &'static str,
+        value: String,
+        valid: &'static str,
+    },
+    #[error("surface construction failed: {0}")]
+    Nurbs(#[from] NurbsError),
+}
