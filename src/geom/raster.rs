@@ -1,6 +1,12 @@
 /// Heights on a regular (x, y) grid in world millimetres: what the plantar model evaluates to
 /// and what measurement works on. Cell (i, j) is centred at (x0 + i·cell, y0 + j·cell);
 /// NaN marks cells outside the footprint.
+///
+/// Index order: row-major by y, x fastest: cell (i, j) is `z[j * nx + i]` ([`Self::index`],
+/// [`Self::cell`] for the way back). This is an image's order (a row of the height-map PNG is
+/// one y), unlike [`crate::surface::PointGrid`], which keeps the scan's order (frame outer,
+/// `points[i * nv + j]`). Use [`Self::get`], [`Self::set`], [`Self::index`] and
+/// [`Self::cell`] rather than indexing `z` by hand, so the two orders are never confused.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HeightMap {
     pub x0: f64,
@@ -33,12 +39,25 @@ impl HeightMap {
         self.y0 + j as f64 * self.cell_mm
     }
 
+    /// Position of cell (i, j) in `z`: `j * nx + i`.
+    #[inline]
+    pub fn index(&self, i: usize, j: usize) -> usize {
+        j * self.nx + i
+    }
+
+    /// Cell (i, j) of position `k` in `z`: the inverse of [`Self::index`].
+    #[inline]
+    pub fn cell(&self, k: usize) -> (usize, usize) {
+        (k % self.nx, k / self.nx)
+    }
+
     pub fn get(&self, i: usize, j: usize) -> f64 {
-        self.z[j * self.nx + i]
+        self.z[self.index(i, j)]
     }
 
     pub fn set(&mut self, i: usize, j: usize, z: f64) {
-        self.z[j * self.nx + i] = z;
+        let k = self.index(i, j);
+        self.z[k] = z;
     }
 
     /// Nearest cell of a world point, if inside the map.

@@ -130,10 +130,8 @@ fn extreme(
 fn principal_axis(map: &HeightMap, r: &Region) -> [f64; 2] {
     let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
     for &k in &r.cells {
-        let (dx, dy) = (
-            map.x(k % map.nx) - r.centroid[0],
-            map.y(k / map.nx) - r.centroid[1],
-        );
+        let (i, j) = map.cell(k);
+        let (dx, dy) = (map.x(i) - r.centroid[0], map.y(j) - r.centroid[1]);
         sxx += dx * dx;
         sxy += dx * dy;
         syy += dy * dy;
@@ -326,7 +324,8 @@ fn arch_side(map: &HeightMap, body: &Region, c: [f64; 2], u: [f64; 2], extent: f
     let left = perp(u);
     let (mut l, mut r) = (0.0, 0.0);
     for &k in &body.cells {
-        let p = [map.x(k % map.nx), map.y(k / map.nx)];
+        let (i, j) = map.cell(k);
+        let p = [map.x(i), map.y(j)];
         let x = dot(sub(p, c), u);
         if (0.15 * extent..0.45 * extent).contains(&x) {
             if dot(sub(p, c), left) > 0.0 {
@@ -400,7 +399,7 @@ fn arch_height(
     let stride = ((0.2 / cell).round() as usize).max(1);
     let mut best: Option<(f64, [f64; 2])> = None;
     for &k in &body.cells {
-        let (i, j) = (k % map.nx, k / map.nx);
+        let (i, j) = map.cell(k);
         if i % stride != 0 || j % stride != 0 {
             continue;
         }
@@ -467,7 +466,8 @@ fn contact_thirds(
         if map.z[k] > CONTACT_MM {
             continue;
         }
-        let x = xl([map.x(k % map.nx), map.y(k / map.nx)]);
+        let (i, j) = map.cell(k);
+        let x = xl([map.x(i), map.y(j)]);
         if !(0.0..x_front).contains(&x) {
             continue;
         }

@@ -13,7 +13,7 @@ use footscan_geom::{P2, V2};
 /// One 4-connected region of valid cells.
 #[derive(Clone, Debug)]
 pub struct Region {
-    /// Cell indices `j * nx + i`.
+    /// Cell indices into the map's `z` (`HeightMap::index`; `HeightMap::cell` back to (i, j)).
     pub cells: Vec<usize>,
     /// Area in mm^2.
     pub area_mm2: f64,
@@ -40,7 +40,7 @@ pub fn regions(map: &HeightMap) -> Vec<Region> {
         stack.push(start);
         while let Some(k) = stack.pop() {
             cells.push(k);
-            let (i, j) = (k % nx, k / nx);
+            let (i, j) = map.cell(k);
             let mut visit = |n: usize| {
                 if valid[n] && label[n] == u32::MAX {
                     label[n] = id;
@@ -62,8 +62,9 @@ pub fn regions(map: &HeightMap) -> Vec<Region> {
         }
         let (mut sx, mut sy) = (0.0, 0.0);
         for &k in &cells {
-            sx += map.x(k % nx);
-            sy += map.y(k / nx);
+            let (i, j) = map.cell(k);
+            sx += map.x(i);
+            sy += map.y(j);
         }
         let n = cells.len() as f64;
         out.push(Region {
@@ -86,7 +87,7 @@ fn outer_outline(map: &HeightMap, label: &[u32], id: u32, cells: &[usize]) -> Ve
     let nx = map.nx;
     let (mut i0, mut i1, mut j0, mut j1) = (usize::MAX, 0, usize::MAX, 0);
     for &k in cells {
-        let (i, j) = (k % nx, k / nx);
+        let (i, j) = map.cell(k);
         i0 = i0.min(i);
         i1 = i1.max(i);
         j0 = j0.min(j);

@@ -3,6 +3,11 @@
 
 use crate::scandata::ScanGrid;
 
+/// Index order: u-major, v fastest: point (i, j) is `points[i * nv + j]` ([`Self::index`]).
+/// This is the scan's order (a frame's rows arrive together and `grid.bin` stores them so, see
+/// [`ScanGrid::point`]), which is why [`Self::from_scan`] copies without reordering; it is the
+/// transpose of [`crate::geom::HeightMap`]'s image order (`z[j * nx + i]`). Use [`Self::get`],
+/// [`Self::set`] and [`Self::index`] rather than indexing `points` by hand.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointGrid {
     /// Points along u (scan frames).
@@ -42,9 +47,21 @@ impl PointGrid {
         PointGrid::new(g.frames.len(), g.rows, g.points.clone())
     }
 
+    /// Position of point (i, j) in `points`: `i * nv + j`.
+    #[inline]
+    pub fn index(&self, i: usize, j: usize) -> usize {
+        i * self.nv + j
+    }
+
     #[inline]
     pub fn get(&self, i: usize, j: usize) -> [f64; 3] {
-        self.points[i * self.nv + j]
+        self.points[self.index(i, j)]
+    }
+
+    #[inline]
+    pub fn set(&mut self, i: usize, j: usize, p: [f64; 3]) {
+        let k = self.index(i, j);
+        self.points[k] = p;
     }
 
     #[inline]

@@ -709,8 +709,8 @@ mod tests {
     #[test]
     fn missing_points_drop_their_segments() {
         let mut g = wavy(10, 10);
-        g.points[4 * 10 + 4] = [f64::NAN; 3]; // inside segment (1, 1) only
-        g.points[3 * 10 + 5] = [f64::NAN; 3]; // on the shared edge of (0, 1) and (1, 1)
+        g.set(4, 4, [f64::NAN; 3]); // inside segment (1, 1) only
+        g.set(3, 5, [f64::NAN; 3]); // on the shared edge of (0, 1) and (1, 1)
         let n = BezierNetwork::build(&g).unwrap();
         assert_eq!(n.lattice(), (3, 3));
         assert_eq!(n.skipped(), 2);
