@@ -10,7 +10,8 @@
 //! - A caller late by more than one period gets the newest slot that has begun; the slots in
 //!   between are lost (sequence gap), as when a real camera's ring buffer overflows.
 //! - With [`NoiseConfig::drop_rate`](crate::render::NoiseConfig) > 0 a slot is lost with that
-//!   probability, decided by a hash of (camera seed, k): deterministic.
+//!   probability, decided by a hash of (camera seed, k): deterministic. Slots whose head
+//!   position lies in one of [`NoiseConfig::drop_x_mm`]'s ranges are lost too (a gap).
 //! - If the next slot is further away than `timeout`, `next_frame` sleeps for `timeout` and
 //!   returns [`HalError::Timeout`]; it never hangs.
 //! - Exposure is stored only (it does not change the image). Gain is passed to the renderer:
@@ -320,6 +321,13 @@ impl Camera for SimCamera {
             self.next_seq = k + 1;
             if self.slot_dropped(k) {
                 continue;
+            }
+            let drops = &self.renderer.noise().drop_x_mm;
+            if !drops.is_empty() {
+                let x = self.position.physical_x(tk);
+                if drops.iter().any(|r| r[0] <= x && x <= r[1]) {
+                    continue;
+                }
             }
             self.stream = Some(s);
             if let Some(scene) = self.scene.take() {

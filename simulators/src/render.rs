@@ -77,6 +77,9 @@ pub struct NoiseConfig {
     pub specular_spike_rate: f64,
     /// Probability that the camera drops a frame slot.
     pub drop_rate: f64,
+    /// Head positions (slider mm, [from, to]) over which the camera drops every frame: a
+    /// deterministic gap for tests of the scan's quality gate.
+    pub drop_x_mm: Vec<[f64; 2]>,
     /// Pixel format of rendered frames.
     pub format: PixelFormat,
     /// false = noise-free: exact pixel-integrated Gaussian plus ambient, rounded.
@@ -96,6 +99,7 @@ impl Default for NoiseConfig {
             glass_reflection: 0.0,
             specular_spike_rate: 0.0,
             drop_rate: 0.0,
+            drop_x_mm: Vec::new(),
             format: PixelFormat::Gray8,
             enabled: true,
         }
@@ -127,6 +131,9 @@ impl NoiseConfig {
         check_range("glass_reflection", self.glass_reflection, 0.0, 10.0)?;
         check_range("specular_spike_rate", self.specular_spike_rate, 0.0, 1e4)?;
         check_range("drop_rate", self.drop_rate, 0.0, 1.0)?;
+        for r in &self.drop_x_mm {
+            check_range("drop_x_mm", r[1] - r[0], 0.0, 1e4)?;
+        }
         Ok(())
     }
 }

@@ -20,6 +20,9 @@ pub struct ScanConfig {
     /// The real camera and slider; required by `backend = "hardware"`.
     #[serde(default)]
     pub hardware: Option<HardwareSection>,
+    /// The quality gate's thresholds (docs/method.md section 3.3).
+    #[serde(default)]
+    pub quality: super::quality::QualitySection,
     pub pipeline: PipelineSpec,
 }
 
@@ -353,6 +356,10 @@ impl LoadedConfig {
                 self.locate(&["camera", "fps"]).unwrap_or_default()
             ));
         }
+        self.config.quality.validate().map_err(|e| {
+            let key = e.split(['.', ' ']).nth(1).unwrap_or("bridge_mm");
+            format!("{e}{}", self.locate(&["quality", key]).unwrap_or_default())
+        })?;
         if s.background == ScanBackground::Ends {
             let switched = match (&self.config.scanner.backend, &self.config.hardware) {
                 (Backend::Sim, _) => {

@@ -5,6 +5,7 @@ pub mod calibrate;
 pub mod config;
 mod error;
 pub mod item;
+pub mod quality;
 mod registry;
 mod run;
 pub mod stages;
@@ -17,12 +18,14 @@ pub use config::{LoadedConfig, ScanConfig};
 pub use error::{
     DeviceError, DeviceFault, DeviceRole, FaultKind, ScanError, ScanFault, SetupError,
 };
+pub use quality::{Quality, QualitySection, ScanStatus};
 pub use registry::{params, registry, ScanContext};
 pub use run::{run_scan, CancelToken, ScanOptions, ScanProgress};
 pub use summary::{ScanSummary, TruthSource, TruthStats};
 
 use footscan_hal::{Camera, Slider};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
 use std::time::Duration;
 
 /// The camera and slider a scan drives, whatever backend they come from.
@@ -47,6 +50,7 @@ pub struct ScanPlan {
     pub laser: bool,
     /// A laser-off frame at rest before and after the move (`scan.background = "ends"`).
     pub laser_off_ends: bool,
+    pub quality: QualitySection,
 }
 
 impl ScanPlan {
@@ -72,6 +76,7 @@ impl ScanPlan {
                 }
             },
             laser_off_ends: s.background == config::ScanBackground::Ends,
+            quality: c.quality.clone(),
         }
     }
 
@@ -89,6 +94,10 @@ pub struct ScanCounters {
     stationary: AtomicU64,
     laser_off_frames: AtomicU64,
     laser_off_rows: AtomicU64,
+    /// What the accumulate stage found about gaps, lost rows and cuts (the quality gate's).
+    quality: Mutex<Option<Quality>>,
+    /// The side of the measured foot, from `measure.foot`.
+    foot_side: Mutex<Option<crate::measure::Side>>,
 }
 
 impl ScanCounters {
@@ -114,6 +123,18 @@ impl ScanCounters {
     pub fn add_laser_off(&self, rows_found: u64) {
         self.laser_off_frames.fetch_add(1, Ordering::Relaxed);
         self.laser_off_rows.fetch_add(rows_found, Ordering::Relaxed);
+    }
+    pub fn set_quality(&self, q: Quality) {
+        *self.quality.lock().unwrap() = Some(q);
+    }
+    pub fn quality(&self) -> Option<Quality> {
+        self.quality.lock().unwrap().clone()
+    }
+    pub fn set_foot_side(&self, s: crate::measure::Side) {
+        *self.foot_side.lock().unwrap() = Some(s);
+    }
+    pub fn foot_side(&self) -> Option<crate::measure::Side> {
+        *self.foot_side.lock().unwrap()
     }
     /// Laser-off frames and the rows found in them.
     pub fn laser_off(&self) -> (u64, u64) {

@@ -113,10 +113,14 @@ pub fn registry() -> Registry<Item, ScanContext> {
     );
     r.register(
         "accumulate",
-        "collects frames into the scan grid (frame x row)",
-        |p, _ctx: &ScanContext| {
+        "collects frames into the scan grid (frame x row), bridging small gaps of dropped frames ([quality] bridge_mm)",
+        |p, ctx: &ScanContext| {
             params::<NoParams>(p)?;
-            Ok(Node::stage(Accumulate::default()))
+            Ok(Node::stage(Accumulate::with_gate(
+                ctx.counters.clone(),
+                ctx.plan.step_mm,
+                ctx.plan.quality.bridge_mm,
+            )))
         },
     );
     r.register(
@@ -132,7 +136,9 @@ pub fn registry() -> Registry<Item, ScanContext> {
         "foot measurements of docs/method.md section 8 from the grid (and model): measurements.json, plantar.png (json, png, cell_mm, use_model, required)",
         |p, ctx: &ScanContext| {
             let p: MeasureParams = params(p)?;
-            Ok(Node::stage(MeasureStage::new(p, &ctx.out_dir)?))
+            Ok(Node::stage(
+                MeasureStage::new(p, &ctx.out_dir)?.with_counters(ctx.counters.clone()),
+            ))
         },
     );
     r.register(

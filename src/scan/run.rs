@@ -4,6 +4,7 @@
 use super::config::LoadedConfig;
 use super::error::ScanError;
 use super::item::Item;
+use super::quality::{judge, ScanStatus, SideCheck};
 use super::summary::{ScanSummary, StageReport};
 use super::{registry, ScanContext, ScanCounters, ScanPlan};
 use crate::pipeline::{BuildError, PipelineError, StageStats};
@@ -22,6 +23,9 @@ pub struct ScanOptions {
     pub cancel: CancelToken,
     /// Sees every frame and its detected line (footscand's live preview); never blocks.
     pub tap: Option<Arc<dyn super::stages::FrameTap>>,
+    /// The foot the operator says is on the glass; a measured foot of the other side makes
+    /// the verdict "side mismatch" (docs/method.md section 3.3).
+    pub side: Option<crate::measure::Side>,
 }
 
 impl ScanOptions {
@@ -31,6 +35,7 @@ impl ScanOptions {
             calibration: None,
             cancel: CancelToken::default(),
             tap: None,
+            side: None,
         }
     }
 }
@@ -119,7 +124,7 @@ pub fn run_scan(
             })
             .unwrap_or_else(|| ScanSummary::without_grid(report.cancelled));
         if report.cancelled {
-            summary.status = "cancelled".into();
+            summary.status = ScanStatus::Cancelled;
             summary.reason = Some("cancelled before the scan completed".into());
         }
         summary.stages = report.stages.iter().map(stage_report).collect();
@@ -138,8 +143,37 @@ pub fn run_scan(
         }
     };
     finish(&mut summary, &counters, started);
+    if summary.status == ScanStatus::Complete {
+        gate(&mut summary, &counters, &plan, opts.side);
+    }
     write_summary(&opts.out_dir, &summary)?;
     Ok(summary)
+}
+
+/// The quality gate on a scan that ran to its end: the verdict and its reason.
+fn gate(
+    s: &mut ScanSummary,
+    counters: &ScanCounters,
+    plan: &ScanPlan,
+    chosen: Option<crate::measure::Side>,
+) {
+    let Some(mut q) = counters.quality() else {
+        return; // no grid: nothing to judge
+    };
+    q.dropped_frames = s.dropped_frames;
+    let name = |side: crate::measure::Side| match side {
+        crate::measure::Side::Left => "left".to_string(),
+        crate::measure::Side::Right => "right".to_string(),
+    };
+    let measured = counters.foot_side();
+    q.side = measured.map(|d| SideCheck {
+        chosen: chosen.map(name),
+        detected: name(d),
+    });
+    let (status, reason) = judge(&mut q, &plan.quality, s.frames, measured.is_some());
+    s.status = status;
+    s.reason = reason;
+    s.quality = Some(q);
 }
 
 fn finish(s: &mut ScanSummary, counters: &ScanCounters, started: Instant) {

@@ -1,6 +1,7 @@
 //! The scan summary written as scan.json, with the error against ground truth where a
 //! simulator supplied it.
 
+use super::quality::{Quality, ScanStatus};
 use crate::scandata::ScanGrid;
 use serde::Serialize;
 
@@ -43,8 +44,10 @@ pub struct StageReport {
 
 #[derive(Clone, Debug, Serialize)]
 pub struct ScanSummary {
-    /// "complete", "failed" or "cancelled".
-    pub status: String,
+    /// "complete", "complete with warnings", "side mismatch", "rescan", "failed" or
+    /// "cancelled" (the quality gate's verdict, docs/method.md section 3.3).
+    pub status: ScanStatus,
+    /// Why, in an operator's words (the gate's issues, worst first, or the error).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
     pub frames: u64,
@@ -62,6 +65,9 @@ pub struct ScanSummary {
     /// found a line (false detections: should be 0).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub laser_off: Option<LaserOffStats>,
+    /// What the quality gate looked at (scans that produced a grid).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub quality: Option<Quality>,
 }
 
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
@@ -78,7 +84,7 @@ pub fn summarize(grid: &ScanGrid, truth: Option<&dyn TruthSource>) -> ScanSummar
         xs.fold(f64::NEG_INFINITY, f64::max),
     ];
     ScanSummary {
-        status: "complete".into(),
+        status: ScanStatus::Complete,
         reason: None,
         frames: grid.frames.len() as u64,
         dropped_frames: 0,
@@ -89,6 +95,7 @@ pub fn summarize(grid: &ScanGrid, truth: Option<&dyn TruthSource>) -> ScanSummar
         stages: Vec::new(),
         truth: truth.map(|t| compare(grid, t)),
         laser_off: None,
+        quality: None,
     }
 }
 
@@ -128,9 +135,9 @@ fn compare(grid: &ScanGrid, truth: &dyn TruthSource) -> TruthStats {
 }
 
 impl ScanSummary {
-    fn empty(status: &str) -> Self {
+    fn empty(status: ScanStatus) -> Self {
         ScanSummary {
-            status: status.into(),
+            status,
             reason: None,
             frames: 0,
             dropped_frames: 0,
@@ -141,18 +148,28 @@ impl ScanSummary {
             stages: Vec::new(),
             truth: None,
             laser_off: None,
+            quality: None,
         }
+    }
+
+    /// The verdict in one line: "complete with warnings: 35 frames dropped, ...".
+    pub fn verdict(&self) -> String {
+        super::quality::verdict(self.status, self.reason.as_deref())
     }
 
     /// A scan that ended without a grid (cancelled before any frame, or no summary stage).
     pub fn without_grid(cancelled: bool) -> Self {
-        Self::empty(if cancelled { "cancelled" } else { "complete" })
+        Self::empty(if cancelled {
+            ScanStatus::Cancelled
+        } else {
+            ScanStatus::Complete
+        })
     }
 
     pub fn failed(reason: &str) -> Self {
         ScanSummary {
             reason: Some(reason.to_string()),
-            ..Self::empty("failed")
+            ..Self::empty(ScanStatus::Failed)
         }
     }
 }

@@ -43,6 +43,10 @@ enum Command {
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
+        /// The foot on the glass, "left" or "right": checked against the scan (hallux and
+        /// first metatarsal on the medial side); a mismatch fails the command.
+        #[arg(long)]
+        side: Option<scan::SideArg>,
     },
     /// Write the simulated scanner's true calibration as a calibration TOML.
     SimCalibration {
@@ -107,7 +111,8 @@ fn run() -> Result<()> {
             out,
             calibration,
             quiet,
-        } => scan::run(config, out, calibration, quiet),
+            side,
+        } => scan::run(config, out, calibration, quiet, side),
         Command::SimCalibration { config, out } => {
             let cfg = LoadedConfig::load(&config)?;
             fscan::sim::true_calibration(&cfg.config).save(&out)?;

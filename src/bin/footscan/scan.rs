@@ -1,11 +1,27 @@
-//! `footscan scan`: a scan with a progress bar and a printed summary.
+//! `footscan scan`: a scan with a progress bar, a printed summary and the quality gate's
+//! verdict; a scan that must be redone (or whose side disagrees with `--side`) ends the
+//! command with an error, its files kept with the reason in scan.json.
 
-use anyhow::{Context, Result};
-use footscan::scan::{self, LoadedConfig, ScanOptions};
+use anyhow::{bail, Context, Result};
+use footscan::measure::Side;
+use footscan::scan::{self, LoadedConfig, ScanOptions, ScanStatus};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
-pub fn run(config: PathBuf, out: PathBuf, calibration: Option<PathBuf>, quiet: bool) -> Result<()> {
+/// `--side`.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum SideArg {
+    Left,
+    Right,
+}
+
+pub fn run(
+    config: PathBuf,
+    out: PathBuf,
+    calibration: Option<PathBuf>,
+    quiet: bool,
+    side: Option<SideArg>,
+) -> Result<()> {
     let cfg = LoadedConfig::load(&config)?;
     let bar = if quiet {
         ProgressBar::hidden()
@@ -21,6 +37,10 @@ pub fn run(config: PathBuf, out: PathBuf, calibration: Option<PathBuf>, quiet: b
     );
     let mut opts = ScanOptions::new(&out);
     opts.calibration = calibration;
+    opts.side = side.map(|s| match s {
+        SideArg::Left => Side::Left,
+        SideArg::Right => Side::Right,
+    });
     let cancel = opts.cancel.clone();
     // First Ctrl-C stops the slider and ends the scan cleanly; a second one exits at once.
     ctrlc::set_handler(move || {
@@ -49,19 +69,32 @@ pub fn run(config: PathBuf, out: PathBuf, calibration: Option<PathBuf>, quiet: b
         }
     })?;
     bar.finish_and_clear();
-    if summary.status != "complete" {
-        println!(
-            "scan {}: {} ({} frames; kept in {})",
-            summary.status,
-            summary.reason.as_deref().unwrap_or(""),
+    match summary.status {
+        ScanStatus::Cancelled | ScanStatus::Failed => {
+            println!(
+                "scan {}: {} ({} frames; kept in {})",
+                summary.status,
+                summary.reason.as_deref().unwrap_or(""),
+                summary.frames,
+                out.join("scan.json").display()
+            );
+            return Ok(());
+        }
+        ScanStatus::Rescan | ScanStatus::SideMismatch => bail!(
+            "scan {} ({} frames; the files and the reason are kept in {})",
+            summary.verdict(),
             summary.frames,
-            out.join("scan.json").display()
-        );
-        return Ok(());
+            out.display()
+        ),
+        ScanStatus::Complete | ScanStatus::CompleteWithWarnings => {}
     }
     println!(
-        "scan complete: {} frames ({} dropped), {} points in {:.1} s",
-        summary.frames, summary.dropped_frames, summary.points, summary.seconds
+        "scan {}: {} frames ({} dropped), {} points in {:.1} s",
+        summary.verdict(),
+        summary.frames,
+        summary.dropped_frames,
+        summary.points,
+        summary.seconds
     );
     if let Some(t) = &summary.truth {
         println!(

@@ -52,6 +52,7 @@ pub struct MeasureStage {
     required: bool,
     grid: Option<Arc<ScanGrid>>,
     model: Option<Arc<BezierNetwork>>,
+    counters: Option<Arc<crate::scan::ScanCounters>>,
 }
 
 impl MeasureStage {
@@ -68,7 +69,14 @@ impl MeasureStage {
             required: p.required,
             grid: None,
             model: None,
+            counters: None,
         })
+    }
+
+    /// Tell the quality gate the measured foot's side (checked against the operator's).
+    pub fn with_counters(mut self, counters: Arc<crate::scan::ScanCounters>) -> Self {
+        self.counters = Some(counters);
+        self
     }
 }
 
@@ -99,6 +107,9 @@ impl Stage<Item> for MeasureStage {
                 );
                 for w in &m.warnings {
                     tracing::warn!("{w}");
+                }
+                if let Some(c) = &self.counters {
+                    c.set_foot_side(m.side);
                 }
                 let _ = out.emit(Item::Foot(Arc::new(m)));
                 Ok(())

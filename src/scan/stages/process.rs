@@ -127,10 +127,23 @@ impl Stage<Item> for Triangulate {
     }
 }
 
-/// Collects frames into the scan grid and emits it once the scan ends.
+/// Collects frames into the scan grid and emits it once the scan ends, with the gaps of
+/// dropped frames bridged and the quality gate's facts handed to `counters`
+/// (docs/method.md section 3.3): every sink and model after it sees the bridged grid.
 #[derive(Default)]
 pub struct Accumulate {
     grid: Option<ScanGrid>,
+    gate: Option<(Arc<ScanCounters>, f64, f64)>,
+}
+
+impl Accumulate {
+    /// Bridge gaps up to `bridge_mm` at the nominal `step_mm` and record the facts.
+    pub fn with_gate(counters: Arc<ScanCounters>, step_mm: f64, bridge_mm: f64) -> Self {
+        Accumulate {
+            grid: None,
+            gate: Some((counters, step_mm, bridge_mm)),
+        }
+    }
 }
 
 impl Stage<Item> for Accumulate {
@@ -145,10 +158,22 @@ impl Stage<Item> for Accumulate {
     }
 
     fn finish(&mut self, out: &mut Emitter<Item>) -> Result<(), BoxError> {
-        let grid = self
+        let mut grid = self
             .grid
             .take()
             .ok_or("the scan produced no frames: nothing to accumulate")?;
+        if let Some((counters, step_mm, bridge_mm)) = &self.gate {
+            let mut q = crate::scan::quality::bridge_gaps(&mut grid, *step_mm, *bridge_mm);
+            crate::scan::quality::inspect(&grid, &mut q);
+            if q.bridged_frames > 0 {
+                tracing::info!(
+                    frames = q.bridged_frames,
+                    largest_gap_mm = q.largest_gap_mm,
+                    "gaps of dropped frames bridged"
+                );
+            }
+            counters.set_quality(q);
+        }
         let _ = out.emit(Item::Grid(Arc::new(grid)));
         Ok(())
     }

@@ -4,12 +4,26 @@
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
+/// A scan's state: running, or the scan's verdict ([`footscan::scan::ScanStatus`], the same
+/// strings, so records written before the quality gate keep loading).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
 pub enum Status {
+    #[serde(rename = "running")]
     Running,
+    #[serde(rename = "complete")]
     Complete,
+    /// Usable; the reason says what to look at (docs/method.md section 3.3).
+    #[serde(rename = "complete with warnings")]
+    CompleteWithWarnings,
+    /// The scan looks like the other foot: the operator confirms the side or rescans.
+    #[serde(rename = "side mismatch")]
+    SideMismatch,
+    /// The scan ran but cannot be used: scan again before the patient leaves.
+    #[serde(rename = "rescan")]
+    Rescan,
+    #[serde(rename = "failed")]
     Failed,
+    #[serde(rename = "cancelled")]
     Cancelled,
 }
 
@@ -18,6 +32,9 @@ impl Status {
         match self {
             Status::Running => "running",
             Status::Complete => "complete",
+            Status::CompleteWithWarnings => "complete with warnings",
+            Status::SideMismatch => "side mismatch",
+            Status::Rescan => "rescan",
             Status::Failed => "failed",
             Status::Cancelled => "cancelled",
         }
@@ -26,11 +43,24 @@ impl Status {
         [
             Status::Running,
             Status::Complete,
+            Status::CompleteWithWarnings,
+            Status::SideMismatch,
+            Status::Rescan,
             Status::Failed,
             Status::Cancelled,
         ]
         .into_iter()
         .find(|x| x.as_str() == s)
+    }
+    /// The scan's files are usable as they are.
+    pub fn is_usable(self) -> bool {
+        matches!(self, Status::Complete | Status::CompleteWithWarnings)
+    }
+}
+
+impl From<footscan::scan::ScanStatus> for Status {
+    fn from(s: footscan::scan::ScanStatus) -> Status {
+        Status::parse(s.as_str()).unwrap_or(Status::Failed)
     }
 }
 

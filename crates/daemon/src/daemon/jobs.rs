@@ -160,6 +160,12 @@ impl Daemon {
         opts.calibration = calibration;
         opts.cancel = cancel;
         opts.tap = Some(self.preview.clone());
+        // Checked against the measured foot: a mismatch is the verdict "side mismatch".
+        opts.side = match active.record.side.as_str() {
+            "left" => Some(footscan::measure::Side::Left),
+            "right" => Some(footscan::measure::Side::Right),
+            _ => None,
+        };
         let mut last_event: Option<Instant> = None;
         let on_progress = |p: &ScanProgress| {
             let prog = self.update_progress(&id, p, started);
@@ -179,7 +185,7 @@ impl Daemon {
         };
         let mut outcome = match result {
             Ok(Ok(s)) => Outcome {
-                status: Status::parse(&s.status).unwrap_or(Status::Failed),
+                status: s.status.into(),
                 reason: s.reason.clone(),
                 frames: s.frames,
                 points: s.points as u64,
@@ -207,7 +213,7 @@ impl Daemon {
         if outcome.status == Status::Cancelled {
             outcome.reason = cancel_reason.or(outcome.reason);
         }
-        if outcome.status != Status::Complete && outcome.frames == 0 {
+        if !outcome.status.is_usable() && outcome.frames == 0 {
             // scan.json has the counts of a failed scan; the progress has them otherwise.
             if let Some(p) = self.scan_progress() {
                 outcome.frames = p.frames;
@@ -244,7 +250,7 @@ impl Daemon {
             p.reason = reason.clone();
             p.fault = fault;
             p.frames = outcome.frames;
-            if status == Status::Complete {
+            if status.is_usable() {
                 p.points = outcome.points;
             }
             p.elapsed_s = (started.elapsed().as_secs_f64() * 1000.0).round() / 1000.0;
@@ -263,7 +269,7 @@ impl Daemon {
                 .map_or(String::new(), |r| format!(": {r}"))
         );
         self.emit(Event::Progress(progress));
-        if status == Status::Failed {
+        if matches!(status, Status::Failed | Status::Rescan) {
             self.emit(Event::Error {
                 id: id.clone(),
                 reason: reason.clone().unwrap_or_default(),

@@ -10,7 +10,9 @@ use std::time::{Duration, Instant};
 pub use serde_json::Value;
 
 /// The default simulated scanner with a short travel (60..200 mm at 1 mm a frame: ~140
-/// frames over the heel and arch, a few seconds), plus `faults` as [sim.faults] keys.
+/// frames over the heel and arch, a few seconds), plus `faults` as [sim.faults] keys. A
+/// partial scan by design: `quality.whole_foot = false`, so the quality gate notes the foot
+/// cut by the range instead of asking for a rescan (docs/method.md section 3.3).
 pub fn short_scanner_config(faults: &str) -> String {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/sim.toml");
     let text = std::fs::read_to_string(path).unwrap();
@@ -27,6 +29,11 @@ pub fn short_scanner_config(faults: &str) -> String {
         out.push('\n');
     }
     assert!(out.contains("start_mm = 60.0") && out.contains("end_mm = 200.0"));
+    out = out.replace(
+        "[pipeline]\n",
+        "[quality]\nwhole_foot = false\n\n[pipeline]\n",
+    );
+    assert!(out.contains("whole_foot = false"));
     if !faults.is_empty() {
         out = out.replace(
             "[sim.optics]",

@@ -8,7 +8,17 @@ const TOKEN_KEY = 'footscand.token';
 const PREVIEW_WIDTH = 480; // px asked of /api/preview.png (16..=1280)
 const PREVIEW_PERIOD_MS = 200; // about 5 frames a second while a scan runs
 const STATUS_PERIOD_MS = 2000;
-const TERMINAL = new Set(['complete', 'failed', 'cancelled']);
+const TERMINAL = new Set(['complete', 'complete with warnings', 'side mismatch', 'rescan', 'failed', 'cancelled']);
+// The quality gate's verdicts (docs/method.md section 3.3) as the operator should read them.
+const VERDICT = {
+  'complete with warnings': 'complete with warnings',
+  'side mismatch': 'side mismatch: confirm the side',
+  rescan: 'failed: rescan before the patient leaves',
+};
+/** A state as a CSS class name ("complete with warnings" -> st-complete-with-warnings). */
+function stClass(state) {
+  return 'st-' + String(state).replace(/[^a-z]+/g, '-');
+}
 
 const $ = (id) => document.getElementById(id);
 
@@ -131,7 +141,7 @@ function badge(ok, yes, no) {
 }
 
 function stateBadge(state) {
-  return el('span', { class: 'badge st-' + state, text: state });
+  return el('span', { class: 'badge ' + stClass(state), text: state });
 }
 
 function fmtInt(n) {
@@ -246,7 +256,7 @@ function onProgress(p) {
   let detail = parts.join(', ');
   if (current.reason) detail += ` — ${current.reason}`;
   $('progress-detail').textContent = detail;
-  bar.className = 'st-' + current.state;
+  bar.className = stClass(current.state);
 
   // The archive row of this scan counts along while it runs.
   const row = document.querySelector(`#scans tr[data-scan-id="${CSS.escape(current.id)}"]`);
@@ -623,7 +633,8 @@ async function loadResult(id) {
   }
   resultId = id;
   const names = new Set((rec.artifacts || []).map((a) => a.name));
-  $('result-id').textContent = `${rec.subject}, ${rec.side} foot, ${rec.status}`;
+  $('result-id').textContent = `${rec.subject}, ${rec.side} foot, ${VERDICT[rec.status] || rec.status}`;
+  $('result-id').className = stClass(rec.status);
   $('result').dataset.scanId = rec.id;
   $('result-empty').hidden = true;
 
@@ -670,7 +681,7 @@ async function loadResult(id) {
     $('measurements-note').textContent = rec.status === 'complete' ? 'No measurements for this scan.' : '';
   }
   if (rec.reason) {
-    warn.textContent = `Scan ${rec.status}: ${rec.reason}` + (warn.hidden ? '' : ' — ' + warn.textContent);
+    warn.textContent = `Scan ${VERDICT[rec.status] || rec.status}: ${rec.reason}` + (warn.hidden ? '' : ' — ' + warn.textContent);
     warn.hidden = false;
   }
 
