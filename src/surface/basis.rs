@@ -69,33 +69,7 @@ pub fn interpolation_matrix(k: usize) -> &'static [[f64; 4]] {
 mod tests {
     use super::*;
 
-    #[test]
-    fn basis_is_a_partition_of_unity_with_flat_ends() {
-        for k in 0..=20 {
-            let t = k as f64 / 20.0;
-            let b = basis(t);
-            assert!((b.iter().sum::<f64>() - 1.0).abs() < 1e-14);
-            // Derivatives against central differences.
-            let h = 1e-6;
-            let (bp, bm) = (basis(t + h), basis(t - h));
-            let d1 = basis_d1(t);
-            let (dp, dm) = (basis_d1(t + h), basis_d1(t - h));
-            let d2 = basis_d2(t);
-            for i in 0..4 {
-                assert!(
-                    (d1[i] - (bp[i] - bm[i]) / (2.0 * h)).abs() < 1e-7,
-                    "b{i}' at {t}"
-                );
-                assert!(
-                    (d2[i] - (dp[i] - dm[i]) / (2.0 * h)).abs() < 1e-6,
-                    "b{i}'' at {t}"
-                );
-            }
-        }
-        for t in [0.0, 1.0] {
-            assert!(basis_d1(t).iter().all(|d| *d == 0.0));
-        }
-    }
+    // The basis and its derivatives are tested where they live (footscan_geom::bernstein).
 
     #[test]
     fn interpolation_matrices_reproduce_the_nodes() {
