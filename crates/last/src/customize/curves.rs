@@ -1,7 +1,7 @@
 //! Algorithm I (fit each characteristic curve) and Algorithm II (move characteristic points
 //! with the least change of control points).
 
-use crate::customize::CustomizeError;
+use crate::customize::error::CustomizeError;
 use footscan_geom::nurbs::basis::{ders_basis_funs, find_span};
 use footscan_geom::nurbs::{fit, FitOptions, NurbsCurve};
 use footscan_geom::{P3, V3};

@@ -29,7 +29,7 @@
 //!   tape pulled around the foot (it bridges the arch and the gaps between toes);
 //! - side profile: the section by the plane y = 0.
 
-use crate::customize::CustomizeError;
+use crate::customize::error::CustomizeError;
 use footscan_geom::mesh::TriMesh;
 use footscan_geom::plane::Plane;
 use footscan_geom::polygon::convex_hull;

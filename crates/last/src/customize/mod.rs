@@ -6,9 +6,12 @@
 //! curves for customized shoe-last" (Ren, Wang, Liu, Luo, 2013).
 
 pub mod curves;
+mod error;
 pub mod measure;
 pub mod rules;
 pub mod shape;
+
+pub use error::CustomizeError;
 
 use curves::{fit_loop, least_change, param_of, secant, Constraint, FitRecord};
 use footscan_geom::mesh::{Bvh, Format, TriMesh, Units};
@@ -18,24 +21,6 @@ use measure::{find_frame, measure, FootFrame, Measures};
 use rules::{RuleSet, Shoe, Wearer};
 use serde::Serialize;
 use std::path::Path;
-
-#[derive(Debug, thiserror::Error)]
-pub enum CustomizeError {
-    #[error("{0}")]
-    Mesh(#[from] footscan_geom::mesh::MeshError),
-    #[error("{name}: not a foot: {why}")]
-    NotAFoot { name: String, why: String },
-    #[error("curve {curve}: {why}")]
-    Curve { curve: String, why: String },
-    #[error("curve {curve}: constraint {constraint} depends on the others (R R^T is singular); drop it or move it")]
-    RankDeficient { curve: String, constraint: String },
-    #[error("{why}")]
-    Infeasible { why: String },
-    #[error("{0}")]
-    Rules(String),
-    #[error("{path}: {why}")]
-    Output { path: String, why: String },
-}
 
 /// What the last is for.
 #[derive(Clone, Copy, Debug, Serialize)]
