@@ -18,6 +18,7 @@ pub mod last;
 pub mod mesh_scene;
 pub mod optics;
 pub mod render;
+pub mod surface;
 pub mod targets;
 
 use footscan_hal::Timestamp;

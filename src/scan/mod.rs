@@ -12,7 +12,7 @@ pub mod stages;
 pub mod summary;
 
 pub use crate::scandata::ScanGrid;
-pub use backend::{hardware, open_backend, sim, OpenBackend};
+pub use backend::{hardware, open_backend, sim, Devices, OpenBackend};
 pub use calibrate::calibrate_sim;
 pub use config::{LoadedConfig, ScanConfig};
 pub use error::{
@@ -23,16 +23,9 @@ pub use registry::{params, registry, ScanContext};
 pub use run::{run_scan, CancelToken, ScanOptions, ScanProgress};
 pub use summary::{ScanSummary, TruthSource, TruthStats};
 
-use footscan_hal::{Camera, Slider};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::Duration;
-
-/// The camera and slider a scan drives, whatever backend they come from.
-pub struct Devices {
-    pub camera: Box<dyn Camera>,
-    pub slider: Box<dyn Slider>,
-}
 
 /// The motion of one scan, derived from the config.
 #[derive(Clone, Debug)]

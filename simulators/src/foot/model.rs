@@ -2,7 +2,7 @@
 //! [`crate::foot`]).
 
 use crate::optics::{check_range, SimError};
-use crate::render::Surface;
+use crate::surface::Surface;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]

@@ -9,8 +9,8 @@
 //! (homing enabled, or an earlier alarm) is homed when `scan.home` is true; otherwise opening
 //! fails and says so, because a position that was never homed cannot label frames.
 
+use super::Devices;
 use crate::scan::config::{CameraSection, HardwareCamera, HardwareSlider, ScanConfig, ScanSection};
-use crate::scan::Devices;
 use footscan_grbl::{GrblConfig, GrblSlider};
 use footscan_hal::{HalError, Slider};
 use footscan_v4l2::{SourceFormat, V4l2Camera, V4l2Config};

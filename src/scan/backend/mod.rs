@@ -8,10 +8,17 @@ pub mod sim;
 use crate::calib::Calibration;
 use crate::scan::config::{Backend, LoadedConfig};
 use crate::scan::error::{DeviceRole, ScanError, ScanFault, SetupError};
-use crate::scan::{Devices, TruthSource};
+use crate::scan::summary::TruthSource;
+use footscan_hal::{Camera, Slider};
 use footscan_sim::foot::Foot;
 use std::path::Path;
 use std::sync::Arc;
+
+/// The camera and slider a scan drives, whatever backend they come from.
+pub struct Devices {
+    pub camera: Box<dyn Camera>,
+    pub slider: Box<dyn Slider>,
+}
 
 /// What a scan keeps open next to its devices: the simulator's emulator and ground truth, or
 /// nothing for hardware.

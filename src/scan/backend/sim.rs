@@ -1,9 +1,10 @@
 //! The simulator backend: the GRBL emulator on a pseudo-terminal reached through the real
 //! serial driver, and the simulated camera rendering the foot at the head's true position.
 
+use super::Devices;
 use crate::calib::{Calibration, CameraModel};
 use crate::scan::config::{ScanConfig, SceneKind, SimFaults};
-use crate::scan::{Devices, TruthSource};
+use crate::scan::summary::TruthSource;
 use footscan_grbl::{GrblConfig, GrblSlider, LaserOutput};
 use footscan_hal::{Camera, HalError, Slider};
 use footscan_sim::camera::{CameraFaults, SimCamera, TruthLog};
