@@ -399,7 +399,9 @@ pub fn judge(
     }
     for c in &q.cut {
         let foot_cut = c.contains("range");
-        let level = if foot_cut && !(measured_foot && cfg.whole_foot) {
+        // Only a measured foot must be whole: a plate, a last bottom or a calibration target
+        // may fill the range and the view.
+        let level = if !(measured_foot && cfg.whole_foot) {
             Level::Note
         } else {
             Level::Rescan
