@@ -9,6 +9,7 @@
 //! network's normal jumps across segment edges (docs/method.md section 7.4) never reach the
 //! bottom surface, and cells the network leaves out at the outline are kept.
 
+use crate::geom::HeightMap;
 use crate::measure::{rasterize_grid, MeasureError, Measurements, Side};
 use crate::scandata::ScanGrid;
 use footscan_last::adjust::last::{
@@ -72,15 +73,20 @@ pub fn foot_plantar(
             arch_point: m.arch_point,
             arch_height_mm: m.arch_height_mm,
         },
-        heights: HeightGrid {
-            x0: map.x0,
-            y0: map.y0,
-            cell_mm: map.cell_mm,
-            nx: map.nx,
-            ny: map.ny,
-            z: map.z,
-        },
+        heights: height_grid(map),
     })
+}
+
+/// The measurement's height map as the adjustment's grid (the same layout, z[j * nx + i]).
+fn height_grid(map: HeightMap) -> HeightGrid {
+    HeightGrid {
+        x0: map.x0,
+        y0: map.y0,
+        cell_mm: map.cell_mm,
+        nx: map.nx,
+        ny: map.ny,
+        z: map.z,
+    }
 }
 
 /// Reads a saved scan's grid.bin and measurements.json as the adjustment's foot.
@@ -171,14 +177,7 @@ impl LastSource {
                 why: e.to_string(),
             })?;
             let map = rasterize_grid(&grid, cell_mm)?;
-            let below = HeightGrid {
-                x0: map.x0,
-                y0: map.y0,
-                cell_mm: map.cell_mm,
-                nx: map.nx,
-                ny: map.ny,
-                z: map.z,
-            };
+            let below = height_grid(map);
             let source = format!("last scan {}", path.display());
             let bottom = scanned_bottom(&source, &below, opts.down_cos)?;
             Ok(LastSource::Scan {

@@ -430,7 +430,7 @@ impl BoxField {
         let yb = (y + r).min(self.y0 + self.ny as f64 * self.cell);
         let area = (xb - xa) * (yb - ya) / (self.cell * self.cell);
         if area <= 0.0 {
-            return self.at(x, y) * 0.0;
+            return V3::zeros();
         }
         (self.at(xb, yb) - self.at(xa, yb) - self.at(xb, ya) + self.at(xa, ya)) / area
     }
@@ -444,11 +444,11 @@ fn fade(s: f64) -> f64 {
 }
 
 /// The whole last carried into the foot frame and deformed so its bottom is the adjusted
-/// bottom: every vertex takes the rigid fit and eps scaling; the rest of the change (the
-/// thin-plate map and the new heights) is applied in full on the bottom and fades with the
-/// height above the original bottom over `fade_mm` (more when the bottom moves further, so
-/// the fade does not fold the mesh: at least four times the largest change). The result is checked
-/// as a valid closed solid.
+/// bottom (docs/method.md 9.1): every vertex takes the rigid fit; the rest of the change (eps,
+/// the thin-plate map and the new heights) is applied exactly on the bottom, box-averaged
+/// above it, and fades with the height above the original bottom over `fade_mm` (more when
+/// the bottom moves further: at least four times the largest change); folds left are
+/// repaired locally with the bottom pinned. The result is checked as a valid closed solid.
 pub fn deform_last(
     prep: &PreparedLast,
     adj: &Adjustment,
