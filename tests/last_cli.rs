@@ -30,6 +30,19 @@ fn lasts_dir() -> PathBuf {
     dir
 }
 
+/// Each of `files` is in `out`, not empty, and named in the command's output.
+fn assert_wrote(out: &Path, stdout: &str, files: &[&str]) {
+    for f in files {
+        let p = out.join(f);
+        assert!(
+            p.metadata().map(|m| m.len() > 0).unwrap_or(false),
+            "{} missing or empty",
+            p.display()
+        );
+        assert!(stdout.contains(f), "{f} not reported");
+    }
+}
+
 #[test]
 fn last_join_writes_the_joined_last_and_its_seam_figures() {
     let lasts = lasts_dir();
@@ -50,23 +63,19 @@ fn last_join_writes_the_joined_last_and_its_seam_figures() {
     let stdout = String::from_utf8_lossy(&o.stdout);
     println!("{stdout}{}", String::from_utf8_lossy(&o.stderr));
     assert!(o.status.success());
-    for f in [
-        "joined.igs",
-        "joined.step",
-        "joined.stl",
-        "seams.json",
-        "network.json",
-        "zebra.png",
-        "views.png",
-    ] {
-        let p = out.join(f);
-        assert!(
-            p.metadata().map(|m| m.len() > 0).unwrap_or(false),
-            "{} missing or empty",
-            p.display()
-        );
-        assert!(stdout.contains(f), "{f} not reported");
-    }
+    assert_wrote(
+        &out,
+        &stdout,
+        &[
+            "joined.igs",
+            "joined.step",
+            "joined.stl",
+            "seams.json",
+            "network.json",
+            "zebra.png",
+            "views.png",
+        ],
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("seams.json")).unwrap()).unwrap();
     assert_eq!(json["points_per_section"], 300);
@@ -363,22 +372,18 @@ fn last_join_by_the_blend_with_a_table_writes_what_the_gordon_join_writes() {
     let o = last_join(&["--method", "blend", "--blend", &blend], &out);
     assert!(o.status.success());
     let stdout = String::from_utf8_lossy(&o.stdout);
-    for f in [
-        "joined.igs",
-        "joined.step",
-        "joined.stl",
-        "seams.json",
-        "zebra.png",
-        "views.png",
-    ] {
-        let p = out.join(f);
-        assert!(
-            p.metadata().map(|m| m.len() > 0).unwrap_or(false),
-            "{} missing or empty",
-            p.display()
-        );
-        assert!(stdout.contains(f), "{f} not reported");
-    }
+    assert_wrote(
+        &out,
+        &stdout,
+        &[
+            "joined.igs",
+            "joined.step",
+            "joined.stl",
+            "seams.json",
+            "zebra.png",
+            "views.png",
+        ],
+    );
     let json: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("seams.json")).unwrap()).unwrap();
     assert_eq!(json["method"], "blend");
