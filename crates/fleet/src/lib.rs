@@ -1,0 +1,1 @@
+//! footscan fleet: scans from many scanners in one PostgreSQL.
