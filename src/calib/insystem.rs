@@ -31,7 +31,7 @@
 //! (eq. 22-24, by moving the lens) does not apply here: only F = f/eta is observable.
 
 use super::closed_form;
-use super::data::InsystemData;
+use super::data::{InsystemData, PlateObservation};
 use super::lm;
 use super::stair::{self, Edge};
 use super::{CalibError, CameraModel};
@@ -60,7 +60,8 @@ impl Default for InsystemOptions {
     }
 }
 
-/// Fitted parameters in order: the model's, then the block's pose.
+/// Fitted parameters in order: the model's, then the block's pose. The order is the layout of
+/// [`FitParams::to_vec`] and of [`InsystemFit::covariance`].
 pub const PARAMS: [&str; 13] = [
     "f_px",
     "cx",
@@ -77,9 +78,94 @@ pub const PARAMS: [&str; 13] = [
     "staircase.yaw_deg",
 ];
 const MODEL_PARAMS: usize = 10;
+/// Finite-difference steps of the solver, in [`PARAMS`] order.
 const STEPS: [f64; 13] = [
     1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-6, 1e-6, 1e-5, 1e-5, 1e-8, 1e-4, 1e-4, 1e-5,
 ];
+
+/// The unknowns of the in-system fit by name. The solver sees them as a vector in [`PARAMS`]
+/// order; everything else reads them by field.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FitParams {
+    pub f_px: f64,
+    pub cx: f64,
+    pub cy: f64,
+    pub d_mm: f64,
+    pub l_mm: f64,
+    pub k1: f64,
+    pub k2: f64,
+    pub laser_tilt_deg: [f64; 2],
+    pub slider_scale: f64,
+    /// The staircase block's pose (a nuisance parameter of the fit).
+    pub block: Placement,
+}
+
+impl FitParams {
+    /// From a vector in [`PARAMS`] order (the model's ten alone give a zero block pose).
+    pub fn from_slice(x: &[f64]) -> FitParams {
+        let at = |k: usize| x.get(k).copied().unwrap_or(0.0);
+        FitParams {
+            f_px: x[0],
+            cx: x[1],
+            cy: x[2],
+            d_mm: x[3],
+            l_mm: x[4],
+            k1: x[5],
+            k2: x[6],
+            laser_tilt_deg: [x[7], x[8]],
+            slider_scale: x[9],
+            block: Placement {
+                x_mm: at(10),
+                y_mm: at(11),
+                yaw_deg: at(12),
+            },
+        }
+    }
+
+    /// The vector in [`PARAMS`] order.
+    pub fn to_vec(&self) -> Vec<f64> {
+        vec![
+            self.f_px,
+            self.cx,
+            self.cy,
+            self.d_mm,
+            self.l_mm,
+            self.k1,
+            self.k2,
+            self.laser_tilt_deg[0],
+            self.laser_tilt_deg[1],
+            self.slider_scale,
+            self.block.x_mm,
+            self.block.y_mm,
+            self.block.yaw_deg,
+        ]
+    }
+
+    /// The camera model of an image of `width` x `height`: no tangential distortion and no
+    /// camera tilt (the untilted equivalent, see the module docs).
+    pub fn model(&self, width: u32, height: u32) -> CameraModel {
+        CameraModel {
+            width,
+            height,
+            f_px: self.f_px,
+            cx: self.cx,
+            cy: self.cy,
+            d_mm: self.d_mm,
+            l_mm: self.l_mm,
+            k1: self.k1,
+            k2: self.k2,
+            p1: 0.0,
+            p2: 0.0,
+            camera_tilt_deg: [0.0; 3],
+            laser_tilt_deg: self.laser_tilt_deg,
+            slider_scale: self.slider_scale,
+        }
+    }
+
+    fn pose(&self) -> [f64; 3] {
+        [self.block.x_mm, self.block.y_mm, self.block.yaw_deg]
+    }
+}
 
 /// The result of an in-system calibration.
 #[derive(Clone, Debug)]
@@ -135,25 +221,6 @@ const EDGE_SIGMA: f64 = 0.288_675_134_594_812_9;
 const EDGE_OUTLIER: f64 = 4.0;
 const ROW_OUTLIER: f64 = 6.0;
 
-fn model_of(x: &[f64], width: u32, height: u32) -> CameraModel {
-    CameraModel {
-        width,
-        height,
-        f_px: x[0],
-        cx: x[1],
-        cy: x[2],
-        d_mm: x[3],
-        l_mm: x[4],
-        k1: x[5],
-        k2: x[6],
-        p1: 0.0,
-        p2: 0.0,
-        camera_tilt_deg: [0.0; 3],
-        laser_tilt_deg: [x[7], x[8]],
-        slider_scale: x[9],
-    }
-}
-
 /// Calibrate from in-system data. Residual keys: `plate_<h>mm_rms_px` (column residual RMS per
 /// plate height), `staircase_rows_rms_px`, `staircase_edges_rms_px` (rows),
 /// `closed_form_cx_spread_px` and `closed_form_d_spread_mm` (spread of the per-row eq. 20-21
@@ -165,28 +232,81 @@ pub fn fit_insystem(
     opts: &InsystemOptions,
 ) -> Result<InsystemFit, CalibError> {
     let (w, h) = (data.width, data.height);
-    // Heights actually seen.
-    let usable: Vec<&super::data::PlateObservation> = data
-        .plates
-        .iter()
-        .filter(|p| p.col.iter().filter(|c| c.is_finite()).count() >= 16)
+    let plates = usable_plates(data)?;
+    // 1. The start: closed forms, the staircase's scale and pose.
+    let start = starting_point(data, &plates)?;
+    let start_model = start.params.model(w, h);
+    // 2. Observations and weights.
+    let noise = pooled_noise(&plates);
+    let (mut obs, mut edges) = observations(data, &plates, &start, &start_model, noise, opts);
+    // 3. The fit, then once more without the observations the model cannot explain.
+    let (sol, dropped) = solve_robust(&mut obs, &mut edges, &start.params, w, h, opts)?;
+    let fitted = FitParams::from_slice(&sol.x);
+    let model = fitted.model(w, h);
+    model
+        .validate()
+        .map_err(|e| CalibError::Implausible(format!("fitted model: {e}")))?;
+    // 4. Residuals by target and the paper's checks.
+    let mut residuals = residual_table(&obs, &edges, &sol, &plates, noise)?;
+    residuals.insert(
+        "closed_form_cx_spread_px".into(),
+        start.closed_form.cx_spread,
+    );
+    residuals.insert("closed_form_d_spread_mm".into(), start.closed_form.d_spread);
+    residuals.insert("parallel_x_rms_mm".into(), parallel_x(&plates, &model));
+    residuals.insert("parallel_y_rms_mm".into(), parallel_y(&edges, &model));
+    residuals.insert("fit_reduced_chi2".into(), sol.reduced_chi2);
+    residuals.insert("outliers_dropped".into(), dropped as f64);
+    // 5. Uncertainty (eq. 30-31).
+    let u = super::uncertainty::height_uncertainty(
+        &model,
+        &sol.covariance
+            .view((0, 0), (MODEL_PARAMS, MODEL_PARAMS))
+            .into_owned(),
+        &plates,
+        noise,
+        &|x| FitParams::from_slice(x).model(w, h),
+        &sol.x[..MODEL_PARAMS],
+        &STEPS[..MODEL_PARAMS],
+    );
+    residuals.insert("detection_noise_px".into(), noise);
+    residuals.insert("u_h_detection_mm".into(), u.detection_mm);
+    residuals.insert("u_h_model_mm".into(), u.model_mm);
+    residuals.insert("u_h_mm".into(), u.total_mm);
+    let sd = |k: usize| sol.covariance[(k, k)].max(0.0).sqrt();
+    let stddev = (0..MODEL_PARAMS)
+        .map(|k| (PARAMS[k].to_string(), sd(k)))
         .collect();
-    if let Some(p) = data
-        .plates
-        .iter()
-        .find(|p| !usable.iter().any(|u| std::ptr::eq(*u, *p)))
-    {
+    Ok(InsystemFit {
+        model,
+        stddev,
+        residuals,
+        block: fitted.block,
+        block_stddev: [sd(10), sd(11), sd(12)],
+        closed_form: start.closed_form,
+        start: start_model,
+        covariance: sol.covariance,
+        condition: sol.condition,
+        evaluations: sol.evaluations,
+        detection_noise_px: noise,
+    })
+}
+
+/// The plates whose line was seen (every one must be), at three distinct heights or more.
+fn usable_plates(data: &InsystemData) -> Result<Vec<PlateObservation>, CalibError> {
+    let seen = |p: &PlateObservation| p.col.iter().filter(|c| c.is_finite()).count();
+    if let Some(p) = data.plates.iter().find(|p| seen(p) < 16) {
         return Err(CalibError::NoUsableRows {
             target: format!("the plate at {} mm", p.height_mm),
             detail: format!(
                 "the line was found in {} rows over {} frames: check that the plate is in view \
                  and lit by the laser, and the detector threshold",
-                p.col.iter().filter(|c| c.is_finite()).count(),
+                seen(p),
                 p.frames
             ),
         });
     }
-    let mut distinct: Vec<f64> = usable.iter().map(|p| p.height_mm).collect();
+    let mut distinct: Vec<f64> = data.plates.iter().map(|p| p.height_mm).collect();
     distinct.sort_by(f64::total_cmp);
     distinct.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
     if distinct.len() < 3 {
@@ -196,9 +316,21 @@ pub fn fit_insystem(
             heights: format!("{distinct:?} mm"),
         });
     }
-    let plates: Vec<super::data::PlateObservation> = usable.into_iter().cloned().collect();
-    // 1. Closed forms.
-    let rows = closed_form::per_row(&plates);
+    Ok(data.plates.clone())
+}
+
+/// Where the fit starts, and the staircase pieces it was found from.
+struct Start {
+    closed_form: closed_form::Summary,
+    pieces: Vec<stair::Piece>,
+    params: FitParams,
+}
+
+/// Step 1: the per-row closed forms give c_x, D and F L; the block's known width gives F (and
+/// so L); its sides and risers give its pose.
+fn starting_point(data: &InsystemData, plates: &[PlateObservation]) -> Result<Start, CalibError> {
+    let (w, h) = (data.width, data.height);
+    let rows = closed_form::per_row(plates);
     let cf = closed_form::summarize(&rows).ok_or_else(|| CalibError::NoUsableRows {
         target: "the plate".into(),
         detail: "no row has the line at three heights".into(),
@@ -218,30 +350,47 @@ pub fn fit_insystem(
         });
     }
     let f0 = stair::scale(data, &pieces, cf.d_mm)?;
-    let cy0 = 0.5 * (h as f64 - 1.0);
-    let mut x0 = [
-        f0,
-        cf.cx,
-        cy0,
-        cf.d_mm,
-        cf.fl / f0,
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-        1.0,
-        0.0,
-        0.0,
-        0.0,
-    ];
-    let pose0 = stair::block_pose(data, &pieces, &model_of(&x0, w, h))?;
-    x0[10] = pose0.0;
-    x0[11] = pose0.1;
-    x0[12] = pose0.2;
-    let start = model_of(&x0, w, h);
-    // 2. Observations and weights.
-    let noise = pooled_noise(&plates);
-    let tri0 = start.triangulator();
+    let mut params = FitParams {
+        f_px: f0,
+        cx: cf.cx,
+        cy: 0.5 * (h as f64 - 1.0),
+        d_mm: cf.d_mm,
+        l_mm: cf.fl / f0,
+        k1: 0.0,
+        k2: 0.0,
+        laser_tilt_deg: [0.0; 2],
+        slider_scale: 1.0,
+        block: Placement {
+            x_mm: 0.0,
+            y_mm: 0.0,
+            yaw_deg: 0.0,
+        },
+    };
+    let pose = stair::block_pose(data, &pieces, &params.model(w, h))?;
+    params.block = Placement {
+        x_mm: pose.0,
+        y_mm: pose.1,
+        yaw_deg: pose.2,
+    };
+    Ok(Start {
+        closed_form: cf,
+        pieces,
+        params,
+    })
+}
+
+/// Step 2: every plate row, every `stair_row_stride`-th row of a staircase piece (away from its
+/// ends), each weighted by its column noise turned into height; and the ends of the pieces at
+/// the block's sides and risers.
+fn observations(
+    data: &InsystemData,
+    plates: &[PlateObservation],
+    start: &Start,
+    start_model: &CameraModel,
+    noise: f64,
+    opts: &InsystemOptions,
+) -> (Vec<RowObs>, Vec<EdgeObs>) {
+    let tri0 = start_model.triangulator();
     let slope = |x_mm: f64, row: f64, col: f64| -> Option<f64> {
         let a = tri0.point(x_mm, col - 0.5, row)?[2];
         let b = tri0.point(x_mm, col + 0.5, row)?[2];
@@ -249,7 +398,7 @@ pub fn fit_insystem(
     };
     let mut obs = Vec::new();
     for (k, p) in plates.iter().enumerate() {
-        let sigma = (pooled_noise(std::slice::from_ref(p)) / (p.frames as f64).sqrt()).max(0.003);
+        let sigma = plate_sigma(p);
         for (r, &c) in p.col.iter().enumerate() {
             if let (true, Some(g)) = (c.is_finite(), slope(0.0, r as f64, c)) {
                 obs.push(RowObs {
@@ -264,9 +413,8 @@ pub fn fit_insystem(
         }
     }
     let g_heights = &data.staircase.heights_mm;
-    let mut edges = Vec::new();
     let stride = opts.stair_row_stride.max(1);
-    for p in &pieces {
+    for p in &start.pieces {
         let f = &data.stair[p.frame];
         let hj = g_heights[p.step];
         let m = opts.end_margin_rows;
@@ -285,8 +433,16 @@ pub fn fit_insystem(
             r += stride;
         }
     }
-    for e in stair::identify_ends(data, &pieces, &start, pose0, 1.5) {
-        let p = &pieces[e.piece];
+    let pose = start.params.block;
+    let mut edges = Vec::new();
+    for e in stair::identify_ends(
+        data,
+        &start.pieces,
+        start_model,
+        (pose.x_mm, pose.y_mm, pose.yaw_deg),
+        1.5,
+    ) {
+        let p = &start.pieces[e.piece];
         let row = if e.first { p.first } else { p.last };
         edges.push(EdgeObs {
             x_mm: data.stair[p.frame].x_mm,
@@ -302,12 +458,25 @@ pub fn fit_insystem(
             },
         });
     }
-    // 3. The fit, then once more without the observations the model cannot explain (a
-    // detector glitch, an end next to something the identification missed).
+    (obs, edges)
+}
+
+/// Step 3: the Levenberg-Marquardt fit, then once more without the observations the model
+/// cannot explain (a detector glitch, an end next to something the identification missed).
+/// Returns the solution and how many observations were left out.
+fn solve_robust(
+    obs: &mut Vec<RowObs>,
+    edges: &mut Vec<EdgeObs>,
+    x0: &FitParams,
+    w: u32,
+    h: u32,
+    opts: &InsystemOptions,
+) -> Result<(lm::Solution, usize), CalibError> {
     let solve = |obs: &[RowObs], edges: &[EdgeObs], x0: &[f64]| {
         let residual = |x: &[f64], out: &mut Vec<f64>| {
             out.clear();
-            let m = model_of(x, w, h);
+            let p = FitParams::from_slice(x);
+            let m = p.model(w, h);
             let tri = m.triangulator();
             for o in obs {
                 out.push(match tri.point(o.x_mm, o.col, o.row) {
@@ -316,7 +485,7 @@ pub fn fit_insystem(
                 });
             }
             for e in edges {
-                out.push(match edge_row(&m, [x[10], x[11], x[12]], e) {
+                out.push(match edge_row(&m, p.pose(), e) {
                     Some(r) => (r - e.row) / EDGE_SIGMA,
                     None => 1e6,
                 });
@@ -327,7 +496,7 @@ pub fn fit_insystem(
             detail,
         })
     };
-    let mut sol = solve(&obs, &edges, &x0)?;
+    let sol = solve(obs, edges, &x0.to_vec())?;
     let (n_obs, n_edges) = (obs.len(), edges.len());
     let mut keep = sol.residuals.iter().map(|r| r.abs());
     let keep_obs: Vec<bool> = keep.by_ref().take(n_obs).map(|r| r < ROW_OUTLIER).collect();
@@ -342,112 +511,65 @@ pub fn fit_insystem(
             100.0 * dropped as f64 / (n_obs + n_edges) as f64
         )));
     }
-    if dropped > 0 {
-        let mut k = keep_obs.iter();
-        obs.retain(|_| *k.next().unwrap_or(&true));
-        let mut k = keep_edges.iter();
-        edges.retain(|_| *k.next().unwrap_or(&true));
-        sol = solve(&obs, &edges, &sol.x)?;
+    if dropped == 0 {
+        return Ok((sol, 0));
     }
-    let model = model_of(&sol.x, w, h);
-    model
-        .validate()
-        .map_err(|e| CalibError::Implausible(format!("fitted model: {e}")))?;
-    // Residuals by target, in px.
+    let mut k = keep_obs.iter();
+    obs.retain(|_| *k.next().unwrap_or(&true));
+    let mut k = keep_edges.iter();
+    edges.retain(|_| *k.next().unwrap_or(&true));
+    Ok((solve(obs, edges, &sol.x)?, dropped))
+}
+
+/// Step 4: residual RMS by target in px (rows for the ends); a plate far from the fitted model
+/// means the data are not those of a scanner.
+fn residual_table(
+    obs: &[RowObs],
+    edges: &[EdgeObs],
+    sol: &lm::Solution,
+    plates: &[PlateObservation],
+    noise: f64,
+) -> Result<BTreeMap<String, f64>, CalibError> {
     let mut residuals = BTreeMap::new();
     let mut per_plate = vec![(0.0, 0usize); plates.len()];
     let mut stair_rows = (0.0, 0usize);
     for (o, r) in obs.iter().zip(&sol.residuals) {
-        let px = r * noise_of(o, &plates, noise);
-        match o.plate {
-            Some(k) => {
-                per_plate[k].0 += px * px;
-                per_plate[k].1 += 1;
-            }
-            None => {
-                stair_rows.0 += px * px;
-                stair_rows.1 += 1;
-            }
-        }
+        let sigma = match o.plate {
+            Some(k) => plate_sigma(&plates[k]),
+            None => noise.max(0.01),
+        };
+        let px = r * sigma;
+        let acc = match o.plate {
+            Some(k) => &mut per_plate[k],
+            None => &mut stair_rows,
+        };
+        acc.0 += px * px;
+        acc.1 += 1;
     }
-    for (p, (s, n)) in plates.iter().zip(&per_plate) {
-        residuals.insert(
-            format!("plate_{}mm_rms_px", p.height_mm),
-            (s / (*n).max(1) as f64).sqrt(),
-        );
+    let rms_of = |(s, n): &(f64, usize)| (s / (*n).max(1) as f64).sqrt();
+    for (p, acc) in plates.iter().zip(&per_plate) {
+        residuals.insert(format!("plate_{}mm_rms_px", p.height_mm), rms_of(acc));
     }
-    residuals.insert(
-        "staircase_rows_rms_px".into(),
-        (stair_rows.0 / stair_rows.1.max(1) as f64).sqrt(),
-    );
-    let edge_res = &sol.residuals[obs.len()..];
+    residuals.insert("staircase_rows_rms_px".into(), rms_of(&stair_rows));
+    let edge_res = &sol.residuals[obs.len()..obs.len() + edges.len()];
     residuals.insert("staircase_edges_rms_px".into(), rms(edge_res) * EDGE_SIGMA);
-    let worst_plate = per_plate
-        .iter()
-        .map(|(s, n)| (s / (*n).max(1) as f64).sqrt())
-        .fold(0.0, f64::max);
+    let worst_plate = per_plate.iter().map(rms_of).fold(0.0, f64::max);
     if worst_plate > 1.0 {
         return Err(CalibError::Implausible(format!(
             "a plate's line is {worst_plate:.2} px RMS from the fitted model (expected a few \
              hundredths): the data do not fit a scanner; check the targets and the detector"
         )));
     }
-    residuals.insert("closed_form_cx_spread_px".into(), cf.cx_spread);
-    residuals.insert("closed_form_d_spread_mm".into(), cf.d_spread);
-    residuals.insert("parallel_x_rms_mm".into(), parallel_x(&plates, &model));
-    residuals.insert("parallel_y_rms_mm".into(), parallel_y(&edges, &model));
-    residuals.insert("fit_reduced_chi2".into(), sol.reduced_chi2);
-    residuals.insert("outliers_dropped".into(), dropped as f64);
-    // Uncertainty (eq. 30-31).
-    let u = super::uncertainty::height_uncertainty(
-        &model,
-        &sol.covariance
-            .view((0, 0), (MODEL_PARAMS, MODEL_PARAMS))
-            .into_owned(),
-        &plates,
-        noise,
-        &|x| model_of(x, w, h),
-        &sol.x[..MODEL_PARAMS],
-        &STEPS[..MODEL_PARAMS],
-    );
-    residuals.insert("detection_noise_px".into(), noise);
-    residuals.insert("u_h_detection_mm".into(), u.detection_mm);
-    residuals.insert("u_h_model_mm".into(), u.model_mm);
-    residuals.insert("u_h_mm".into(), u.total_mm);
-    let sd = |k: usize| sol.covariance[(k, k)].max(0.0).sqrt();
-    let stddev = (0..MODEL_PARAMS)
-        .map(|k| (PARAMS[k].to_string(), sd(k)))
-        .collect();
-    Ok(InsystemFit {
-        model,
-        stddev,
-        residuals,
-        block: Placement {
-            x_mm: sol.x[10],
-            y_mm: sol.x[11],
-            yaw_deg: sol.x[12],
-        },
-        block_stddev: [sd(10), sd(11), sd(12)],
-        closed_form: cf,
-        start,
-        covariance: sol.covariance,
-        condition: sol.condition,
-        evaluations: sol.evaluations,
-        detection_noise_px: noise,
-    })
+    Ok(residuals)
 }
 
-fn noise_of(o: &RowObs, plates: &[super::data::PlateObservation], noise: f64) -> f64 {
-    match o.plate {
-        Some(k) => (pooled_noise(std::slice::from_ref(&plates[k]))
-            / (plates[k].frames as f64).sqrt())
-        .max(0.003),
-        None => noise.max(0.01),
-    }
+/// A plate row's column noise: the single-frame spread over the frames averaged, floored.
+fn plate_sigma(p: &PlateObservation) -> f64 {
+    (pooled_noise(std::slice::from_ref(p)) / (p.frames as f64).sqrt()).max(0.003)
 }
 
 /// Single-frame detection noise: RMS over rows of the per-row spread of repeated frames.
-pub fn pooled_noise(plates: &[super::data::PlateObservation]) -> f64 {
+pub fn pooled_noise(plates: &[PlateObservation]) -> f64 {
     let v: Vec<f64> = plates
         .iter()
         .flat_map(|p| p.std.iter().copied())
@@ -490,7 +612,7 @@ fn edge_row(m: &CameraModel, pose: [f64; 3], e: &EdgeObs) -> Option<f64> {
 
 /// Eq. 18 as a check: per row, k = (c - c_x) h / F against s = c_0 - c should be a straight
 /// line; RMS of the departure (mm) over all rows, from the plate data.
-fn parallel_x(plates: &[super::data::PlateObservation], m: &CameraModel) -> f64 {
+fn parallel_x(plates: &[PlateObservation], m: &CameraModel) -> f64 {
     let Some(base) = plates
         .iter()
         .min_by(|a, b| a.height_mm.total_cmp(&b.height_mm))
