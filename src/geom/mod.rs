@@ -1,5 +1,5 @@
 //! Geometry shared by the model, measurement and last stages.
 
-mod raster;
+mod height_map;
 
-pub use raster::HeightMap;
+pub use height_map::HeightMap;

@@ -65,13 +65,13 @@
 mod fit;
 mod foot;
 mod outline;
-mod raster;
+mod rasterize;
 mod scanned;
 mod truth;
 
 pub use foot::{measure_foot, Measurements, Side};
 pub use outline::{line_crossings, regions, signed_area, simplify, Region};
-pub use raster::{grid_truncation, rasterize_grid};
+pub use rasterize::{grid_truncation, rasterize_grid};
 pub use scanned::{
     measure_grid, measure_scan_dir, scan_heightmap, write_measurements, MeasureOutput,
     DEFAULT_CELL_MM,

@@ -12,7 +12,7 @@
 //! method is judged on the same region.
 
 use super::bspline::{self, BSplineSurface};
-use super::grid::{PointGrid, Subsample};
+use super::point_grid::{PointGrid, Subsample};
 use super::network::BezierNetwork;
 use super::ops::{Counted, OpCount};
 use super::poly::PolySurface;

@@ -16,7 +16,7 @@ mod basis;
 pub mod bspline;
 pub mod compare;
 mod export;
-mod grid;
+mod point_grid;
 mod mesh;
 mod network;
 pub mod ops;
@@ -24,7 +24,7 @@ pub mod poly;
 
 pub use basis::{basis, basis_d1, basis_d2, interpolation_matrix};
 pub use export::{build_scan_model, model_scan, write_model, MeshFiles, ModelSummary};
-pub use grid::{PointGrid, Subsample};
+pub use point_grid::{PointGrid, Subsample};
 pub use mesh::Mesh;
 pub use network::{BezierNetwork, Continuity, Segment};
 

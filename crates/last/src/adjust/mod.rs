@@ -30,7 +30,7 @@
 //! 6. Deviation (bottom minus foot) before (rigid fit only) and after: heights over the
 //!    footprint, outline, landmarks.
 
-pub mod grid;
+pub mod height_grid;
 pub mod last;
 pub mod outline;
 pub mod output;
@@ -39,7 +39,7 @@ pub mod surface;
 pub mod synthetic;
 pub mod tps;
 
-pub use grid::HeightGrid;
+pub use height_grid::HeightGrid;
 pub use outline::{outline_landmarks, OutlineLandmarks, Pt};
 pub use side::Side;
 
