@@ -13,6 +13,21 @@ pub use ply::write_ply_points;
 use std::io::Write;
 use std::path::Path;
 
+/// What a file a scan writes into its directory (an artifact) may be called, in words for
+/// error messages. One rule for the stages that write the files and the archive that lists and
+/// serves them, so no stage can write a file the archive would hide.
+pub const ARTIFACT_NAME_RULE: &str = "1-64 characters of A-Z a-z 0-9 . _ - not starting with a dot";
+
+/// Whether `name` follows [`ARTIFACT_NAME_RULE`]: a plain file name (no separator, no `..`),
+/// not hidden, nothing a URL or a shell would have to quote.
+pub fn is_artifact_name(name: &str) -> bool {
+    (1..=64).contains(&name.len())
+        && !name.starts_with('.')
+        && name
+            .bytes()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, b'.' | b'_' | b'-'))
+}
+
 /// Write `bytes` to `path` so a reader sees the old file or the whole new one, never a part:
 /// a temporary file in the same directory, fsync, rename, then fsync of the directory.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {

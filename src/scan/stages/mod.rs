@@ -20,14 +20,48 @@ pub use tap::FrameTap;
 use crate::pipeline::BoxError;
 use std::path::{Path, PathBuf};
 
-/// The one check for a stage's output file (`key = "name"`): a plain, non-empty file name,
-/// which lands inside the scan directory `out_dir`.
+/// The one check for a stage's output file (`key = "name"`): an artifact name
+/// ([`crate::io::ARTIFACT_NAME_RULE`], the rule the archive lists and serves by), which lands
+/// inside the scan directory `out_dir`.
 pub fn out_file(out_dir: &Path, key: &str, f: &str) -> Result<PathBuf, BoxError> {
-    let p = Path::new(f);
-    if f.is_empty() || p.is_absolute() || p.components().count() != 1 || f.contains("..") {
-        return Err(
-            format!("{key} = {f:?}: must be a plain name inside the scan directory").into(),
-        );
+    if !crate::io::is_artifact_name(f) {
+        return Err(format!(
+            "{key} = {f:?}: an output file name must be {} (a plain name inside the scan \
+             directory, e.g. \"points.ply\")",
+            crate::io::ARTIFACT_NAME_RULE
+        )
+        .into());
     }
-    Ok(out_dir.join(p))
+    Ok(out_dir.join(f))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_names_follow_the_archive_rule() {
+        let dir = Path::new("/scan");
+        assert_eq!(
+            out_file(dir, "file", "points.ply").unwrap(),
+            Path::new("/scan/points.ply")
+        );
+        for bad in [
+            "",
+            ".",
+            "..",
+            "../x",
+            "a/b",
+            "/abs",
+            ".hidden",
+            "my scan.ply",
+        ] {
+            let e = out_file(dir, "file", bad).unwrap_err().to_string();
+            assert!(
+                e.contains("file = ") && e.contains("1-64 characters"),
+                "{bad:?}: {e}"
+            );
+        }
+        assert!(out_file(dir, "file", &"x".repeat(65)).is_err());
+    }
 }

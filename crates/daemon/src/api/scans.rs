@@ -151,8 +151,9 @@ pub async fn download(
     let id = parse_id(&id)?;
     if !valid_file_name(&name) {
         return Err(ApiError::bad_request(format!(
-            "file name {:?}: must be 1-64 characters of A-Z a-z 0-9 . _ - not starting with a dot",
-            name.chars().take(80).collect::<String>()
+            "file name {:?}: must be {}",
+            name.chars().take(80).collect::<String>(),
+            footscan::io::ARTIFACT_NAME_RULE
         )));
     }
     let d = st.daemon.clone();

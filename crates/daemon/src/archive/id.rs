@@ -125,15 +125,9 @@ fn compact_utc(secs: u64) -> String {
     )
 }
 
-/// A file name inside a scan directory: 1-64 chars of `[A-Za-z0-9._-]`, not starting with a
-/// dot (hidden and temporary files are not artifacts).
-pub fn valid_file_name(name: &str) -> bool {
-    (1..=64).contains(&name.len())
-        && !name.starts_with('.')
-        && name
-            .bytes()
-            .all(|c| c.is_ascii_alphanumeric() || matches!(c, b'.' | b'_' | b'-'))
-}
+/// A file name inside a scan directory: the rule the scan's stages write by
+/// ([`footscan::io::ARTIFACT_NAME_RULE`]).
+pub use footscan::io::is_artifact_name as valid_file_name;
 
 #[cfg(test)]
 mod tests {
