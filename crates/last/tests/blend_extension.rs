@@ -126,7 +126,8 @@ fn blend_of_a_smooth_tube_stays_on_it_and_the_morph_alone_is_linear() {
         Weight::Poly,
         Weight::Extension,
     ] {
-        let (fs, _) = blend_slices([&bo, &bp, &bq], [&to, &tp, &tq], gap, k, &|t| w.at(t));
+        let fronts = blend_slices([&bo, &bp, &bq], [&to, &tp, &tq], gap, k, &|t| w.at(t));
+        let fs = fronts.slices;
         assert_eq!(fs.len(), 4 * k + 1);
         let worst = fs
             .iter()

@@ -56,7 +56,7 @@ fn both_pairs_at_45_and_10_degrees_meet_the_seam_gates() {
         let (b, t) = pair(name);
         for angle in [45.0, 10.0] {
             let j = join::join(&b, &t, &params(angle)).unwrap();
-            let q = output::quality(&j, 200);
+            let q = output::quality(&j, 200).unwrap();
             println!(
                 "{name} {angle} deg: {} sections x {} guides; seams gap {:.1e}/{:.1e} mm, \
                  normal {:.1e}/{:.1e} deg, curvature {:.1e}/{:.1e}; kept parts rms {:.3}/{:.3} \

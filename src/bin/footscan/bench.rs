@@ -84,9 +84,11 @@ enum What {
         sigmas: Vec<f64>,
     },
     /// Last joining on the real last pairs: the Gordon join (45 and 10 deg) beside the blend
-    /// fill (linear, poly, fair) in one table of seam figures, fill fairness, fit of the kept
-    /// parts and time; then the Gordon join's parameter study (auxiliary sections, points per
-    /// section and rotation angle against time and seam quality).
+    /// fill (linear, poly, fair, the morph alone; the morph and poly also with their pieces
+    /// skinned apart) in one table of seam figures, the same seams against the original
+    /// lasts, fill fairness, fit of the kept parts and time; then the Gordon join's parameter
+    /// study (auxiliary sections, points per section and rotation angle against time and seam
+    /// quality).
     Join {
         /// Directory holding lasts/ (default: $FOOTSCAN_DATA or ../shared/data).
         #[arg(long)]
@@ -98,8 +100,10 @@ enum What {
         #[arg(long)]
         json: bool,
         /// Also write pictures into this directory: time_vs_points.png (the Gordon join's
-        /// time against points per section) and zebra_PAIR.png (the Gordon join at 45 deg
-        /// beside the polynomial blend, zebra stripes of the join region) for each pair.
+        /// time against points per section), zebra_PAIR.png (the Gordon join at 45 deg
+        /// beside the polynomial blend, zebra stripes of the join region) and
+        /// zebra_morph_PAIR.png (the morph alone, pieces skinned apart, beside the polynomial
+        /// blend) for each pair.
         #[arg(long)]
         out: Option<PathBuf>,
     },
@@ -252,8 +256,9 @@ pub fn run(args: Args) -> Result<()> {
             } else {
                 println!(
                     "joining methods on the same lasts and planes (seams: gap, normal jump, \
-                     relative curvature jump; fill: curvature variation; fit: kept parts against \
-                     their meshes, worse of the two; time: best of {repeats})"
+                     relative curvature jump between the pieces; /orig: the same seam against \
+                     the original last there; fill: curvature variation; fit: kept parts \
+                     against their meshes, worse of the two; time: best of {repeats})"
                 );
                 print!("{}", compare::table(&rows));
                 println!("\nGordon join parameter study (time: best of {repeats})");
@@ -284,6 +289,18 @@ pub fn run(args: Args) -> Result<()> {
                     compare::zebra_side_by_side_png(
                         &p,
                         [pick("gordon 45 deg"), pick("blend poly")],
+                        &caption,
+                    )?;
+                    eprintln!("wrote {}", p.display());
+                    let p = out.join(format!("zebra_morph_{slug}.png"));
+                    let caption = format!(
+                        "{}: the morph alone, pieces skinned apart (left), and the polynomial \
+                         blend, one skin (right)",
+                        pair.name
+                    );
+                    compare::zebra_side_by_side_png(
+                        &p,
+                        [pick("blend morph pieces"), pick("blend poly")],
                         &caption,
                     )?;
                     eprintln!("wrote {}", p.display());

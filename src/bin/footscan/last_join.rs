@@ -20,6 +20,13 @@ pub enum Method {
     Blend,
 }
 
+/// How the blend's slices become surfaces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SkinArg {
+    One,
+    Pieces,
+}
+
 #[derive(Parser)]
 pub struct JoinArgs {
     /// Last whose back part (heel to the back plane) is kept (STL, OBJ or PLY).
@@ -50,6 +57,11 @@ pub struct JoinArgs {
     /// b is linear between rows and constant beyond the first and last.
     #[arg(long, default_value = "poly")]
     blend: String,
+    /// Surfaces of --method blend: `one` (one skin through every slice split at the seams,
+    /// as the Gordon join splits its surface; the seams are interior) or `pieces` (back part,
+    /// fill and toe part skinned apart: the seams show what the fill's slices carry).
+    #[arg(long, value_enum, default_value_t = SkinArg::One)]
+    skin: SkinArg,
     /// Auxiliary sections on the back and toe sides, `B,T` (or one number for both; gordon).
     #[arg(long, default_value = "2,2")]
     aux: String,
@@ -161,6 +173,10 @@ pub fn run(a: JoinArgs) -> Result<()> {
             placement_back: placement,
             placement_toe: placement,
             blend,
+            skin: match a.skin {
+                SkinArg::One => blend::Skin::One,
+                SkinArg::Pieces => blend::Skin::Pieces,
+            },
             ..BlendParams::default()
         };
         return run_blend(&back, &toe, &p, &name, &a);
@@ -193,6 +209,7 @@ pub fn run(a: JoinArgs) -> Result<()> {
         t.total, t.place, t.sections, t.curves, t.gordon, t.split
     );
     print_seams(&[("back", &q.back_seam), ("toe", &q.toe_seam)]);
+    print_original(&[("back", &q.back_original), ("toe", &q.toe_original)]);
     print_deviation(&[("back", &q.back_deviation), ("toe", &q.toe_deviation)]);
     for f in &w.files {
         println!("wrote {}", f.display());
@@ -205,6 +222,21 @@ fn print_seams(s: &[(&str, &join::seam::SeamMetrics)]) {
         println!(
             "{s} seam: gap {:.1e} mm, normal jump {:.1e} deg, curvature jump {:.1e} (relative)",
             m.gap_max_mm, m.normal_max_deg, m.curvature_rel_max
+        );
+    }
+}
+
+/// The kept parts' ends against the original lasts at the planes.
+fn print_original(s: &[(&str, &join::seam::SeamMetrics)]) {
+    for (s, m) in s {
+        println!(
+            "{s} seam against the original {s} last: gap {:.1e} mm, normal {:.2} deg max, \
+             {:.2} mean, curvature jump {:.2} (relative) max, {:.2} mean",
+            m.gap_max_mm,
+            m.normal_max_deg,
+            m.normal_mean_deg,
+            m.curvature_rel_max,
+            m.curvature_rel_mean
         );
     }
 }
@@ -226,7 +258,7 @@ fn run_blend(
     a: &JoinArgs,
 ) -> Result<()> {
     let f = blend::fill(back, toe, p)?;
-    let q = blend::output::quality(&f, 400);
+    let q = blend::output::quality(&f, 400)?;
     let w = blend::output::write_as_join(&f, &q, &a.out)
         .with_context(|| format!("writing into {}", a.out.display()))?;
     let t = &f.timings;
@@ -261,6 +293,7 @@ fn run_blend(
         );
     }
     print_seams(&[("back", &q.back_seam), ("toe", &q.toe_seam)]);
+    print_original(&[("back", &q.back_original), ("toe", &q.toe_original)]);
     println!(
         "fill fairness: curvature variation {:.3e} 1/mm^2, curvature energy {:.3e}",
         q.fill_variation, q.fill_energy

@@ -100,6 +100,22 @@ impl Blend {
     }
 }
 
+/// How the slices become surfaces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Skin {
+    /// One cubic skin through every slice from heel to toe, split at the two boundary
+    /// slices (as the Gordon join splits its one surface): the seams are interior to a C2
+    /// surface, and what the fill's slices do at the seam shows as the kept parts' ends
+    /// bending away from the original lasts (measured against them, [`crate::join::reference`]).
+    #[default]
+    One,
+    /// Back part, fill and toe part each skinned through their own slices, cubic across with
+    /// the end derivatives the chords to the neighbour slices: the seam figures then measure
+    /// what the fill's slices carry across the seam (the morph's tangent break as the paper
+    /// shows it), with no second-derivative condition.
+    Pieces,
+}
+
 /// Parameters of a fill; `Default` takes the Gordon join's placement and planes.
 #[derive(Debug, Clone)]
 pub struct BlendParams {
@@ -125,6 +141,7 @@ pub struct BlendParams {
     pub blend: Blend,
     /// Points per slice while the fairing searches (every k-th point).
     pub fair_points: usize,
+    pub skin: Skin,
 }
 
 impl Default for BlendParams {
@@ -133,7 +150,7 @@ impl Default for BlendParams {
             back_plane: None,
             toe_plane: None,
             step_mm: 2.0,
-            part_step_mm: 5.0,
+            part_step_mm: 2.5,
             points: 240,
             angle_deg: 45.0,
             sole_fraction: 0.05,
@@ -142,6 +159,7 @@ impl Default for BlendParams {
             placement_toe: Placement::Ball,
             blend: Blend::Fixed(Weight::Poly),
             fair_points: 60,
+            skin: Skin::One,
         }
     }
 }
@@ -278,42 +296,68 @@ fn describe_normal(n: &V3) -> String {
     format!("({:.4}, {:.4}, {:.4})", n.x, n.y, n.z)
 }
 
+/// The slices of a fill from z = 0 to z = gap (both boundary slices included), the morph's
+/// weight b each was built with (0 for the boundary slices), and how many points came from
+/// curve extension.
+#[derive(Debug, Clone)]
+pub struct Fronts {
+    pub slices: Vec<(f64, Vec<P3>)>,
+    pub weights: Vec<f64>,
+    pub by_curve: usize,
+}
+
+/// Where across the gap the blending function is read for step `j` (0 at the boundary) of
+/// `k` steps of a front: the first step at t = 0, the last at t = 1/2 (the middle), so the
+/// first step is the discrete extension itself wherever b(0) = 0 (the slices R and S that
+/// the paper builds for G1 and G2) and the last step is the morph wherever b(1/2) = 1.
+pub fn step_position(j: usize, k: usize) -> f64 {
+    if k <= 1 {
+        0.0
+    } else {
+        0.5 * j as f64 / (k - 1) as f64
+    }
+}
+
 /// The blended fill between the back part's slices (`back`: ..., O, P, Q towards the gap,
 /// Q at z = 0, a step `d` apart) and the toe part's (`toe`: ..., O, P, Q towards the gap, Q at
-/// z = `gap`), gap = 2 k d. Returns the fill slices from z = 0 to z = gap (both boundary
-/// slices included) and how many points came from curve extension.
+/// z = `gap`), gap = 2 k d. Each front takes k steps of two slices (R at half a step, S at a
+/// whole step past its current boundary), both b(t) morph + (1 - b(t)) extension with t from
+/// [`step_position`] (1 - t on the toe side); the fronts meet in the middle, whose slice is
+/// the mean of the two sides' S.
 pub fn blend_slices(
     back: [&[P3]; 3],
     toe: [&[P3]; 3],
     gap: f64,
     k: usize,
     b: &dyn Fn(f64) -> f64,
-) -> (Vec<(f64, Vec<P3>)>, usize) {
+) -> Fronts {
     let d = gap / (2 * k) as f64;
     let (mut bo, mut bp, mut bq) = (back[0].to_vec(), back[1].to_vec(), back[2].to_vec());
     let (mut to, mut tp, mut tq) = (toe[0].to_vec(), toe[1].to_vec(), toe[2].to_vec());
     let (mut zb, mut zt) = (0.0, gap);
-    let mut left = vec![(zb, bq.clone())];
-    let mut right = vec![(zt, tq.clone())];
+    let mut left = vec![(zb, 0.0, bq.clone())];
+    let mut right = vec![(zt, 0.0, tq.clone())];
     let mut by_curve = 0;
     for it in 0..k {
         let eb = extend::extend(&bo, &bp, &bq, true);
         let et = extend::extend(&to, &tp, &tq, true);
         by_curve += eb.by_curve + et.by_curve;
-        let slice = |z: f64, e: &[P3]| {
+        let t = step_position(it, k);
+        let (wb, wt) = (b(t), b(1.0 - t));
+        let mixed = |z: f64, e: &[P3], w: f64| {
             let m = extend::morph(&bq, zb, &tq, zt, z);
-            extend::mix(&m, e, b(z / gap))
+            extend::mix(&m, e, w)
         };
-        let (rb, sb) = (slice(zb + 0.5 * d, &eb.r), slice(zb + d, &eb.s));
-        let (rt, st) = (slice(zt - 0.5 * d, &et.r), slice(zt - d, &et.s));
-        left.push((zb + 0.5 * d, rb));
-        right.push((zt - 0.5 * d, rt));
+        let (rb, sb) = (mixed(zb + 0.5 * d, &eb.r, wb), mixed(zb + d, &eb.s, wb));
+        let (rt, st) = (mixed(zt - 0.5 * d, &et.r, wt), mixed(zt - d, &et.s, wt));
+        left.push((zb + 0.5 * d, wb, rb));
+        right.push((zt - 0.5 * d, wt, rt));
         if it + 1 == k {
             // The fronts meet: the middle slice from both sides.
-            left.push((zb + d, extend::mix(&sb, &st, 0.5)));
+            left.push((zb + d, 0.5 * (wb + wt), extend::mix(&sb, &st, 0.5)));
         } else {
-            left.push((zb + d, sb.clone()));
-            right.push((zt - d, st.clone()));
+            left.push((zb + d, wb, sb.clone()));
+            right.push((zt - d, wt, st.clone()));
             (bo, bp, bq) = (bp, bq, sb);
             (to, tp, tq) = (tp, tq, st);
             zb += d;
@@ -322,7 +366,11 @@ pub fn blend_slices(
     }
     right.reverse();
     left.extend(right);
-    (left, by_curve)
+    Fronts {
+        weights: left.iter().map(|s| s.1).collect(),
+        slices: left.into_iter().map(|s| (s.0, s.2)).collect(),
+        by_curve,
+    }
 }
 
 /// Knots of the fairing's blend table (t across the gap).
@@ -453,14 +501,17 @@ pub fn fill(back: &TriMesh, toe: &TriMesh, p: &BlendParams) -> Result<Filled, Bl
             (Weight::Table(r.table.clone()), Some(r))
         }
     };
-    let (fill_slices, by_curve) = blend_slices(back3, toe3, gap, k, &|t| table.at(t));
+    let fronts = blend_slices(back3, toe3, gap, k, &|t| table.at(t));
+    let by_curve = fronts.by_curve;
+    let fill_slices = fronts.slices;
     let weights: Vec<(f64, f64)> = fill_slices
         .iter()
-        .map(|(z, _)| (z / gap, table.at(z / gap)))
+        .zip(&fronts.weights)
+        .map(|((z, _), w)| (z / gap, *w))
         .collect();
     let t_blend = t0.elapsed();
 
-    // Surfaces, each through its own slices.
+    // Every slice from heel to toe; the fill's boundary slices are the parts'.
     let mut slices: Vec<Slice> = Vec::new();
     for (s, pt) in pts.iter().enumerate().take(nb) {
         slices.push(Slice {
@@ -484,12 +535,19 @@ pub fn fill(back: &TriMesh, toe: &TriMesh, p: &BlendParams) -> Result<Filled, Bl
             points: pt.clone(),
         });
     }
-    let skin = |a: &[Vec<P3>], z: &[f64]| surface::skin_slices(a, &u, z);
-    let back_s = skin(&pts[..nb], &zs[..nb])?;
-    let fz: Vec<f64> = fill_slices.iter().map(|f| f.0).collect();
-    let fp: Vec<Vec<P3>> = fill_slices.into_iter().map(|f| f.1).collect();
-    let fill_s = skin(&fp, &fz)?;
-    let toe_s = skin(&pts[nb..], &zs[nb..])?;
+    let (back_s, fill_s, toe_s) = match p.skin {
+        Skin::One => surface::skin_split(&slices, &u, 0.0, gap)?,
+        Skin::Pieces => {
+            let skin = |a: &[Vec<P3>], z: &[f64]| surface::skin_slices(a, &u, z);
+            let fz: Vec<f64> = fill_slices.iter().map(|f| f.0).collect();
+            let fp: Vec<Vec<P3>> = fill_slices.into_iter().map(|f| f.1).collect();
+            (
+                skin(&pts[..nb], &zs[..nb])?,
+                skin(&fp, &fz)?,
+                skin(&pts[nb..], &zs[nb..])?,
+            )
+        }
+    };
     let t_surf = t0.elapsed();
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
     Ok(Filled {
@@ -544,7 +602,7 @@ impl FairGrid {
     /// The functional over the fill built with `b` and three kept slices either side.
     fn cost(&self, b: &dyn Fn(f64) -> f64, f: Functional) -> f64 {
         let (bk, t) = (&self.back, &self.toe);
-        let (fs, _) = blend_slices(
+        let fs = blend_slices(
             [&bk[1], &bk[2], &bk[3]],
             [&t[2], &t[1], &t[0]],
             self.gap,
@@ -552,16 +610,19 @@ impl FairGrid {
             b,
         );
         let mut grid: Vec<Vec<P3>> = bk[..3].to_vec();
-        grid.extend(fs.into_iter().map(|s| s.1));
+        grid.extend(fs.slices.into_iter().map(|s| s.1));
         grid.extend(t[1..].iter().cloned());
         let nl = grid.len();
         fair::grid_functional(&grid, 2, nl - 3, f)
     }
 }
 
-/// The fairing: b as a table at [`FAIR_KNOTS`], searched greedily from the morph alone (b =
-/// 1, as the fairing paper starts from the morphed mesh) for the least functional over the
-/// fill and the kept parts' three slices either side, on every k-th point of the slices.
+/// The fairing: b as a table at [`FAIR_KNOTS`], searched greedily from the morph alone in
+/// the gap (b = 1, as the fairing paper starts from the morphed mesh) for the least
+/// functional over the fill and the kept parts' three slices either side, on every k-th
+/// point of the slices. b stays 0 at both ends (t = 0 and 1): the first step of each front
+/// is then the discrete G1/G2 extension, where the paper claims continuity with the parts;
+/// the search shapes the rest of the gap.
 fn search(
     pts: &[Vec<P3>],
     nb: usize,
@@ -571,22 +632,30 @@ fn search(
     fair_points: usize,
 ) -> FairReport {
     let g = FairGrid::new(pts, nb, gap, k, fair_points);
-    let cost = |x: &[f64]| {
-        let rows: Vec<(f64, f64)> = FAIR_KNOTS.iter().copied().zip(x.iter().copied()).collect();
-        g.cost(&|tt| weight::table_at(&rows, tt), f)
+    let n = FAIR_KNOTS.len();
+    let rows = |x: &[f64]| -> Vec<(f64, f64)> {
+        FAIR_KNOTS
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| (t, if i == 0 || i == n - 1 { 0.0 } else { x[i - 1] }))
+            .collect()
     };
-    let start = vec![1.0; FAIR_KNOTS.len()];
-    let cost_morph = cost(&start);
+    let cost = |x: &[f64]| {
+        let r = rows(x);
+        g.cost(&|tt| weight::table_at(&r, tt), f)
+    };
+    let start = vec![1.0; n - 2];
+    let cost_morph = g.cost(&|_| 1.0, f);
     let (x, c, evals) = fair::greedy(start, 0.5, 1.0 / 64.0, &cost);
     FairReport {
         functional: match f {
             Functional::Variation => "curvature variation".into(),
             Functional::Energy => "curvature energy".into(),
         },
-        table: FAIR_KNOTS.iter().copied().zip(x).collect(),
+        table: rows(&x),
         cost: c,
         cost_morph,
-        evaluations: evals,
+        evaluations: evals + 1,
     }
 }
 
@@ -642,6 +711,8 @@ mod tests {
         let mut chosen = Vec::new();
         for f in [Functional::Variation, Functional::Energy] {
             let r = search(&pts, nb, gap, k, f, n);
+            // b stays 0 at the seams: the first step of each front is the extension.
+            assert_eq!((r.table[0].1, r.table[r.table.len() - 1].1), (0.0, 0.0));
             let table = Weight::Table(r.table.clone());
             // The report's cost is the functional of the table it reports.
             let own = grid.cost(&|t| table.at(t), f);

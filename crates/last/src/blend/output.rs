@@ -7,6 +7,7 @@ use crate::draw::{Canvas, View, BLACK, BLUE, GREEN, GREY, RED, WHITE};
 use crate::join::seam::{self, Deviation, SeamMetrics};
 use crate::join::tessellation::Tessellation;
 use crate::join::zebra;
+use crate::join::{reference, JoinError};
 use footscan_geom::export::{iges, step, Header};
 use footscan_geom::mesh::{Format, TriMesh};
 use footscan_geom::P3;
@@ -27,19 +28,32 @@ pub struct Quality {
     /// Kept parts against the meshes they came from.
     pub back_deviation: Deviation,
     pub toe_deviation: Deviation,
+    /// The kept parts' ends at the seams against the original lasts there, the join's
+    /// figure ([`crate::join::reference`]).
+    pub back_original: SeamMetrics,
+    pub toe_original: SeamMetrics,
 }
 
-/// Measure a fill (seams with `samples` points each).
-pub fn quality(f: &Filled, samples: usize) -> Quality {
+/// Measure a fill (seams with `samples` points each); fails only where the original lasts
+/// cannot be cut for the reference near the planes.
+pub fn quality(f: &Filled, samples: usize) -> Result<Quality, JoinError> {
+    let [back_original, toe_original] = reference::seams_against_originals(
+        (&f.back, &f.toe),
+        (&f.back_mesh, &f.toe_mesh),
+        (&f.back_plane, &f.toe_plane),
+        samples,
+    )?;
     let (fill_variation, fill_energy) = fair::surface_fairness(&f.fill, 96, 24);
-    Quality {
+    Ok(Quality {
         back_seam: seam::seam(&f.back, 1.0, &f.fill, 0.0, samples),
         toe_seam: seam::seam(&f.fill, 1.0, &f.toe, 0.0, samples),
         fill_variation,
         fill_energy,
         back_deviation: seam::deviation(&f.back, &f.back_mesh, 240, 120),
         toe_deviation: seam::deviation(&f.toe, &f.toe_mesh, 240, 80),
-    }
+        back_original,
+        toe_original,
+    })
 }
 
 /// The filled last as one closed mesh (back part 0, fill 1, toe part 2).

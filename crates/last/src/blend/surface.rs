@@ -1,17 +1,60 @@
 //! Surfaces through slices, and the closed mesh of a filled last.
 //!
-//! Each piece (back part, fill, toe part) is skinned through its own slices only: periodic
-//! cubic around the slices at the shared point parameters (one banded system for all of
-//! them), cubic across the slices with the end derivatives taken from the piece's own two
-//! end slices. The seam figures then say what the fill's slices carry across the seam,
-//! not what a skin through both sides would smooth over.
+//! By default ([`skin_split`]) one skin runs through every slice from heel to toe (periodic
+//! cubic around at the shared point parameters, cubic across) and is split at the two
+//! boundary slices, as the Gordon join splits its one surface: the seams are interior, so
+//! curvature carries across them; what the fill's slices do at a seam then shows as the
+//! kept part's end bending away from its original last, which is measured against that
+//! last ([`crate::join::reference`]). Or ([`skin_slices`]) each piece is skinned through its
+//! own slices only, with the end derivatives taken from the piece's own two end slices; the
+//! seam figures then say what the fill's slices carry across the seam, not what a skin
+//! through both sides would smooth over.
 
+use super::Slice;
+use crate::join::gordon::split_v;
 use crate::join::tessellation::Tessellation;
 use footscan_geom::mesh::TriMesh;
 use footscan_geom::nurbs::fit::interpolate_with;
 use footscan_geom::nurbs::skin::interpolate_grid;
 use footscan_geom::nurbs::{NurbsError, NurbsSurface};
 use footscan_geom::{P3, V3};
+
+/// One skin through all `slices` (z increasing) at the point parameters `u`, v in
+/// proportion to z, split at the slices at `z_back` and `z_toe` into the back part, the fill
+/// and the toe part, each on [0, 1] x [0, 1].
+pub fn skin_split(
+    slices: &[Slice],
+    u: &[f64],
+    z_back: f64,
+    z_toe: f64,
+) -> Result<(NurbsSurface, NurbsSurface, NurbsSurface), NurbsError> {
+    let nl = slices.len();
+    let nk = u.len();
+    let (z0, z1) = (slices[0].z, slices[nl - 1].z);
+    let v: Vec<f64> = slices.iter().map(|s| (s.z - z0) / (z1 - z0)).collect();
+    let at = |z: f64| {
+        v.iter()
+            .zip(slices)
+            .find(|(_, s)| (s.z - z).abs() < 1e-9)
+            .map(|(v, _)| *v)
+            .ok_or_else(|| NurbsError::Invalid {
+                what: "slice skin split",
+                reason: format!("no slice at z = {z} mm"),
+            })
+    };
+    let (vb, vt) = (at(z_back)?, at(z_toe)?);
+    let mut grid = Vec::with_capacity(nk * nl);
+    for k in 0..nk {
+        for s in slices {
+            grid.push(s.points[k]);
+        }
+    }
+    let all = interpolate_grid(&grid, u, &v, 3, 3, true)?;
+    let (back, rest) = split_v(&all, vb)?;
+    let (fill, toe) = split_v(&rest, vt)?;
+    let unit = |s: NurbsSurface| s.reparametrized((0.0, 1.0), (0.0, 1.0));
+    Ok((unit(back), unit(fill), unit(toe)))
+}
 
 /// Skin the slices `slices[l]` (at positions `z[l]` along the slice normal, increasing)
 /// through their points at parameters `u` (periodic, period 1). v runs over [0, 1] in

@@ -6,47 +6,59 @@
 //! zebra stripes in one picture, and the Gordon join's time against points per section.
 
 use super::output::{self as jout, Tessellation};
+use super::reference;
 use super::seam::{Deviation, SeamMetrics};
 use super::study::{self, Pair};
 use super::{join, zebra, JoinParams};
 use crate::blend::fair::{self, Functional};
 use crate::blend::weight::Weight;
-use crate::blend::{self, Blend, BlendError, BlendParams};
+use crate::blend::{self, Blend, BlendError, BlendParams, Skin};
 use crate::draw::{Canvas, View, BLACK, BLUE, GREEN, GREY, RED, WHITE};
+use footscan_geom::mesh::TriMesh;
 use footscan_geom::nurbs::NurbsSurface;
+use footscan_geom::plane::Plane;
 use footscan_geom::P3;
 use image::Rgb;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
 
+/// Half width of the band about each plane whose facet angles give the floor, mm.
+pub const FACET_BAND_MM: f64 = 2.5;
+
 /// One joining method with its settings.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Method {
     /// The Gordon join at the paper's settings with this bundle angle.
     Gordon { angle_deg: f64 },
-    /// The blend fill with this blending function, at its defaults.
-    Blend(Blend),
+    /// The blend fill with this blending function and skin, at its defaults.
+    Blend(Blend, Skin),
 }
 
 impl Method {
     pub fn name(&self) -> String {
         match self {
             Method::Gordon { angle_deg } => format!("gordon {angle_deg:.0} deg"),
-            Method::Blend(b) => format!("blend {}", b.name()),
+            Method::Blend(b, Skin::One) => format!("blend {}", b.name()),
+            Method::Blend(b, Skin::Pieces) => format!("blend {} pieces", b.name()),
         }
     }
 }
 
 /// The methods of the comparison: the Gordon join at the paper's 45 deg and at 10 deg, the
-/// blend with the linear and polynomial functions and faired.
+/// blend with the linear and polynomial functions and faired, the morph alone, and the
+/// morph and the polynomial blend with each piece skinned apart (the seams then show what
+/// the fill's slices carry: the morph's tangent break as the paper shows it).
 pub fn methods() -> Vec<Method> {
     vec![
         Method::Gordon { angle_deg: 45.0 },
         Method::Gordon { angle_deg: 10.0 },
-        Method::Blend(Blend::Fixed(Weight::Linear)),
-        Method::Blend(Blend::Fixed(Weight::Poly)),
-        Method::Blend(Blend::Fair(Functional::Variation)),
+        Method::Blend(Blend::Fixed(Weight::Linear), Skin::One),
+        Method::Blend(Blend::Fixed(Weight::Poly), Skin::One),
+        Method::Blend(Blend::Fair(Functional::Variation), Skin::One),
+        Method::Blend(Blend::Fixed(Weight::Morph), Skin::One),
+        Method::Blend(Blend::Fixed(Weight::Poly), Skin::Pieces),
+        Method::Blend(Blend::Fixed(Weight::Morph), Skin::Pieces),
     ]
 }
 
@@ -57,6 +69,7 @@ pub struct Seam {
     pub normal_max_deg: f64,
     pub normal_mean_deg: f64,
     pub curvature_rel_max: f64,
+    pub curvature_rel_mean: f64,
 }
 
 impl From<&SeamMetrics> for Seam {
@@ -66,6 +79,7 @@ impl From<&SeamMetrics> for Seam {
             normal_max_deg: m.normal_max_deg,
             normal_mean_deg: m.normal_mean_deg,
             curvature_rel_max: m.curvature_rel_max,
+            curvature_rel_mean: m.curvature_rel_mean,
         }
     }
 }
@@ -79,6 +93,14 @@ pub struct Row {
     pub time_ms: f64,
     pub back_seam: Seam,
     pub toe_seam: Seam,
+    /// The kept parts' ends against the original lasts at the planes
+    /// ([`super::reference`]).
+    pub back_original: Seam,
+    pub toe_original: Seam,
+    /// The original lasts' own facet angles across the planes, deg (max, mean): the floor of
+    /// the figures against them ([`super::reference::facet_angles`]).
+    pub back_facets_deg: (f64, f64),
+    pub toe_facets_deg: (f64, f64),
     /// Integral of the squared principal-curvature variation over the piece between the
     /// seams (the Gordon join's patch, the blend's fill), 1/mm^2.
     pub fill_variation: f64,
@@ -124,17 +146,21 @@ pub fn run(
     for pair in pairs {
         for m in methods {
             let row_of = |time_ms: f64,
-                          b: &SeamMetrics,
-                          t: &SeamMetrics,
+                          s: [&SeamMetrics; 4],
                           var: f64,
-                          d: [&Deviation; 2]|
+                          d: [&Deviation; 2],
+                          o: [(&TriMesh, &Plane); 2]|
              -> Row {
                 Row {
+                    back_facets_deg: reference::facet_angles(o[0].0, o[0].1, FACET_BAND_MM),
+                    toe_facets_deg: reference::facet_angles(o[1].0, o[1].1, FACET_BAND_MM),
                     pair: pair.name.clone(),
                     method: m.name(),
                     time_ms,
-                    back_seam: b.into(),
-                    toe_seam: t.into(),
+                    back_seam: s[0].into(),
+                    toe_seam: s[1].into(),
+                    back_original: s[2].into(),
+                    toe_original: s[3].into(),
                     fill_variation: var,
                     fit_rms_mm: d[0].rms_mm.max(d[1].rms_mm),
                     fit_max_mm: d[0].max_mm.max(d[1].max_mm),
@@ -152,14 +178,14 @@ pub fn run(
                         Ok(t.elapsed().as_secs_f64() * 1e3)
                     })?;
                     let j = join(&pair.back, &pair.toe, &p)?;
-                    let q = jout::quality(&j, 400);
+                    let q = jout::quality(&j, 400)?;
                     let (var, _) = fair::surface_fairness(&j.patch, 96, 24);
                     rows.push(row_of(
                         time,
-                        &q.back_seam,
-                        &q.toe_seam,
+                        [&q.back_seam, &q.toe_seam, &q.back_original, &q.toe_original],
                         var,
                         [&q.back_deviation, &q.toe_deviation],
+                        [(&j.back_mesh, &j.back_plane), (&j.toe_mesh, &j.toe_plane)],
                     ));
                     if pictures {
                         pics.push(Picture {
@@ -171,9 +197,10 @@ pub fn run(
                         });
                     }
                 }
-                Method::Blend(b) => {
+                Method::Blend(b, skin) => {
                     let p = BlendParams {
                         blend: b.clone(),
+                        skin: *skin,
                         ..BlendParams::default()
                     };
                     let time = best_of(&mut || {
@@ -182,13 +209,13 @@ pub fn run(
                         Ok(t.elapsed().as_secs_f64() * 1e3)
                     })?;
                     let f = blend::fill(&pair.back, &pair.toe, &p)?;
-                    let q = blend::output::quality(&f, 400);
+                    let q = blend::output::quality(&f, 400)?;
                     rows.push(row_of(
                         time,
-                        &q.back_seam,
-                        &q.toe_seam,
+                        [&q.back_seam, &q.toe_seam, &q.back_original, &q.toe_original],
                         q.fill_variation,
                         [&q.back_deviation, &q.toe_deviation],
+                        [(&f.back_mesh, &f.back_plane), (&f.toe_mesh, &f.toe_plane)],
                     ));
                     if pictures {
                         pics.push(Picture {
@@ -210,49 +237,81 @@ pub fn run(
 }
 
 /// The rows as one plain-text table: per seam the gap, the normal jump (max/mean) and the
-/// relative curvature jump; the fill's curvature variation; the kept parts' fit; time.
+/// relative curvature jump (max), then the same seam against the original last (normal
+/// max/mean, relative curvature jump mean); the fill's curvature variation; the kept parts'
+/// fit; time.
 pub fn table(rows: &[Row]) -> String {
-    let mut s = format!(
-        "{:<24} {:<16} {:>8} | {:>8} {:>13} {:>8} | {:>8} {:>13} {:>8} | {:>9} | {:>7} {:>7}\n",
+    let head = |a: [&str; 16]| {
+        format!(
+            "{:<24} {:<22} {:>6} | {:>7} {:>11} {:>7} | {:>7} {:>11} {:>7} | {:>11} {:>5} | {:>11} {:>5} | {:>9} | {:>5} {:>5}\n",
+            a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15]
+        )
+    };
+    let mut s = head([
         "pair",
         "method",
-        "time ms",
+        "ms",
         "back gap",
         "normal deg",
-        "curv rel",
+        "curv",
         "toe gap",
         "normal deg",
-        "curv rel",
+        "curv",
+        "back/orig",
+        "curv",
+        "toe/orig",
+        "curv",
         "fill var",
-        "fit rms",
-        "fit max"
-    );
-    s.push_str(&format!(
-        "{:<24} {:<16} {:>8} | {:>8} {:>13} {:>8} | {:>8} {:>13} {:>8} | {:>9} | {:>7} {:>7}\n",
-        "", "", "", "mm", "max/mean", "max", "mm", "max/mean", "max", "1/mm^2", "mm", "mm"
-    ));
-    let nm = |s: &Seam| {
-        if s.normal_max_deg < 1e-3 {
-            format!("{:.0e}/{:.0e}", s.normal_max_deg, s.normal_mean_deg)
+        "fit",
+        "fit",
+    ]);
+    s.push_str(&head([
+        "", "", "", "mm", "max/mean", "max", "mm", "max/mean", "max", "deg", "mean", "deg", "mean",
+        "1/mm^2", "rms", "max",
+    ]));
+    let nm = |max: f64, mean: f64| {
+        if max < 1e-3 {
+            format!("{max:.0e}/{mean:.0e}")
         } else {
-            format!("{:.2}/{:.2}", s.normal_max_deg, s.normal_mean_deg)
+            format!("{max:.2}/{mean:.2}")
         }
     };
     for r in rows {
         s.push_str(&format!(
-            "{:<24} {:<16} {:>8.1} | {:>8.1e} {:>13} {:>8.1e} | {:>8.1e} {:>13} {:>8.1e} | {:>9.3e} | {:>7.3} {:>7.3}\n",
+            "{:<24} {:<22} {:>6.1} | {:>7.0e} {:>11} {:>7.0e} | {:>7.0e} {:>11} {:>7.0e} | {:>11} {:>5.2} | {:>11} {:>5.2} | {:>9.3e} | {:>5.3} {:>5.3}\n",
             r.pair,
             r.method,
             r.time_ms,
             r.back_seam.gap_mm,
-            nm(&r.back_seam),
+            nm(r.back_seam.normal_max_deg, r.back_seam.normal_mean_deg),
             r.back_seam.curvature_rel_max,
             r.toe_seam.gap_mm,
-            nm(&r.toe_seam),
+            nm(r.toe_seam.normal_max_deg, r.toe_seam.normal_mean_deg),
             r.toe_seam.curvature_rel_max,
+            nm(r.back_original.normal_max_deg, r.back_original.normal_mean_deg),
+            r.back_original.curvature_rel_mean,
+            nm(r.toe_original.normal_max_deg, r.toe_original.normal_mean_deg),
+            r.toe_original.curvature_rel_mean,
             r.fill_variation,
             r.fit_rms_mm,
             r.fit_max_mm
+        ));
+    }
+    let mut seen: Vec<&str> = Vec::new();
+    for r in rows {
+        if seen.contains(&r.pair.as_str()) {
+            continue;
+        }
+        seen.push(&r.pair);
+        s.push_str(&format!(
+            "{}: the original lasts' facets meet at {:.1}/{:.1} deg (max/mean) within {} mm of \
+             the back plane, {:.1}/{:.1} deg at the toe plane\n",
+            r.pair,
+            r.back_facets_deg.0,
+            r.back_facets_deg.1,
+            FACET_BAND_MM,
+            r.toe_facets_deg.0,
+            r.toe_facets_deg.1
         ));
     }
     s

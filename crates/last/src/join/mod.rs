@@ -22,6 +22,7 @@ pub mod error;
 pub mod gordon;
 pub mod guides;
 pub mod output;
+pub mod reference;
 pub mod seam;
 pub mod sections;
 pub mod study;

@@ -4,7 +4,7 @@
 use super::gordon::Network;
 use super::seam::{self, Deviation, SeamMetrics};
 pub use super::tessellation::Tessellation;
-use super::{zebra, Joined, Timings};
+use super::{reference, zebra, JoinError, Joined, Timings};
 use footscan_geom::export::{iges, step, Header};
 use footscan_geom::mesh::{Format, TriMesh};
 use footscan_geom::nurbs::{NurbsCurve, NurbsSurface};
@@ -21,14 +21,26 @@ pub struct Quality {
     /// Kept parts against the meshes they came from.
     pub back_deviation: Deviation,
     pub toe_deviation: Deviation,
+    /// The joined surface at each seam against the original last there
+    /// ([`super::reference`]): the same figures, the kept part's end against the last it came
+    /// from.
+    pub back_original: SeamMetrics,
+    pub toe_original: SeamMetrics,
     /// Largest |S_guides - T| over the surface, mm: what the guides add to the section skin.
     pub guides_contribution_mm: f64,
     /// Largest distance between sections and guides at their common parameters, mm.
     pub network_mismatch_mm: f64,
 }
 
-/// Measure a joined last (seams with `samples` points each).
-pub fn quality(j: &Joined, samples: usize) -> Quality {
+/// Measure a joined last (seams with `samples` points each); fails only where the original
+/// lasts cannot be cut for the reference near the planes.
+pub fn quality(j: &Joined, samples: usize) -> Result<Quality, JoinError> {
+    let [back_original, toe_original] = reference::seams_against_originals(
+        (&j.back, &j.toe),
+        (&j.back_mesh, &j.toe_mesh),
+        (&j.back_plane, &j.toe_plane),
+        samples,
+    )?;
     let back_seam = seam::seam(&j.back, 1.0, &j.patch, 0.0, samples);
     let toe_seam = seam::seam(&j.patch, 1.0, &j.toe, 0.0, samples);
     let back_deviation = seam::deviation(&j.back, &j.back_mesh, 240, 120);
@@ -41,14 +53,16 @@ pub fn quality(j: &Joined, samples: usize) -> Quality {
         .zip(&g.tensor.points)
         .map(|(a, b)| (a - b).norm())
         .fold(0.0, f64::max);
-    Quality {
+    Ok(Quality {
         back_seam,
         toe_seam,
         back_deviation,
         toe_deviation,
+        back_original,
+        toe_original,
         guides_contribution_mm,
         network_mismatch_mm: g.network_mismatch,
-    }
+    })
 }
 
 /// Tessellate the three surfaces into one closed mesh: `nu` points around, rows about every
@@ -238,7 +252,7 @@ pub fn write(j: &Joined, dir: &Path, name: &str) -> std::io::Result<Written> {
     mesh.write(&p, Format::StlBinary)
         .map_err(|e| std::io::Error::other(e.to_string()))?;
     files.push(p);
-    let quality = quality(j, 400);
+    let quality = quality(j, 400).map_err(|e| std::io::Error::other(e.to_string()))?;
     let plane6 = |p: &footscan_geom::plane::Plane| {
         [
             p.origin.x, p.origin.y, p.origin.z, p.normal.x, p.normal.y, p.normal.z,

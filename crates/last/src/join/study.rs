@@ -111,7 +111,7 @@ pub fn run(pairs: &[Pair], cases: &[Case], repeats: usize) -> Result<Vec<Row>, J
                 }
             }
             let j = fastest.unwrap();
-            let q = output::quality(&j, 200);
+            let q = output::quality(&j, 200)?;
             let (s, d) = (
                 [q.back_seam, q.toe_seam],
                 [q.back_deviation, q.toe_deviation],
