@@ -399,7 +399,8 @@ fn last_join_by_the_blend_with_a_table_writes_what_the_gordon_join_writes() {
         assert!(s["normal_max_deg"].as_f64().unwrap().is_finite(), "{s}");
         assert!(s["curvature_rel_max"].as_f64().unwrap().is_finite(), "{s}");
     }
-    // The fill used the table: b at every fill slice is the table's, linear between rows.
+    // The fill used the table: b at every fill slice is the table's (linear between rows)
+    // where it was read, from 0 at the boundary step to 1/2 at the middle step of each front.
     let at = |t: f64| {
         let rows = [(0.0, 0.0), (0.25, 0.2), (0.5, 1.0), (0.75, 0.2), (1.0, 0.0)];
         let i = rows.iter().position(|r| r.0 >= t).unwrap().max(1);
@@ -409,9 +410,14 @@ fn last_join_by_the_blend_with_a_table_writes_what_the_gordon_join_writes() {
     let w = json["weights"].as_array().unwrap();
     assert!(w.len() >= 9, "{w:?}");
     for r in w {
-        let (t, b) = (r[0].as_f64().unwrap(), r[1].as_f64().unwrap());
-        assert!((b - at(t)).abs() < 1e-9, "b({t}) = {b}, table {}", at(t));
+        let (tb, b) = (r[1].as_f64().unwrap(), r[2].as_f64().unwrap());
+        assert!((b - at(tb)).abs() < 1e-9, "b({tb}) = {b}, table {}", at(tb));
     }
+    // The first step of each front is the extension itself (the table's b(0) = b(1) = 0).
+    assert_eq!(
+        (w[1][2].as_f64(), w[w.len() - 2][2].as_f64()),
+        (Some(0.0), Some(0.0))
+    );
 }
 
 #[test]

@@ -214,9 +214,10 @@ pub struct Filled {
     pub slices: Vec<Slice>,
     /// The common parameters of the slice points.
     pub u: Vec<f64>,
-    /// The blend's name and its b at each fill slice (t across the gap, b).
+    /// The blend's name and its b at each fill slice: the slice's position across the gap,
+    /// the position b was read at ([`step_position`]) and b.
     pub blend: String,
-    pub weights: Vec<(f64, f64)>,
+    pub weights: Vec<[f64; 3]>,
     pub fair: Option<FairReport>,
     /// Gap between the planes, the slice step used, and the index shift the morph's
     /// correspondence put on the toe slices.
@@ -296,13 +297,14 @@ fn describe_normal(n: &V3) -> String {
     format!("({:.4}, {:.4}, {:.4})", n.x, n.y, n.z)
 }
 
-/// The slices of a fill from z = 0 to z = gap (both boundary slices included), the morph's
-/// weight b each was built with (0 for the boundary slices), and how many points came from
-/// curve extension.
+/// The slices of a fill from z = 0 to z = gap (both boundary slices included), for each the
+/// position t where b was read and the morph's weight b(t) it was built with (the boundary
+/// slices are the parts' own: t = 0 and 1, b(0) and b(1) reported only), and how many points
+/// came from curve extension.
 #[derive(Debug, Clone)]
 pub struct Fronts {
     pub slices: Vec<(f64, Vec<P3>)>,
-    pub weights: Vec<f64>,
+    pub weights: Vec<(f64, f64)>,
     pub by_curve: usize,
 }
 
@@ -335,8 +337,8 @@ pub fn blend_slices(
     let (mut bo, mut bp, mut bq) = (back[0].to_vec(), back[1].to_vec(), back[2].to_vec());
     let (mut to, mut tp, mut tq) = (toe[0].to_vec(), toe[1].to_vec(), toe[2].to_vec());
     let (mut zb, mut zt) = (0.0, gap);
-    let mut left = vec![(zb, 0.0, bq.clone())];
-    let mut right = vec![(zt, 0.0, tq.clone())];
+    let mut left = vec![(zb, (0.0, b(0.0)), bq.clone())];
+    let mut right = vec![(zt, (1.0, b(1.0)), tq.clone())];
     let mut by_curve = 0;
     for it in 0..k {
         let eb = extend::extend(&bo, &bp, &bq, true);
@@ -350,14 +352,15 @@ pub fn blend_slices(
         };
         let (rb, sb) = (mixed(zb + 0.5 * d, &eb.r, wb), mixed(zb + d, &eb.s, wb));
         let (rt, st) = (mixed(zt - 0.5 * d, &et.r, wt), mixed(zt - d, &et.s, wt));
-        left.push((zb + 0.5 * d, wb, rb));
-        right.push((zt - 0.5 * d, wt, rt));
+        left.push((zb + 0.5 * d, (t, wb), rb));
+        right.push((zt - 0.5 * d, (1.0 - t, wt), rt));
         if it + 1 == k {
-            // The fronts meet: the middle slice from both sides.
-            left.push((zb + d, 0.5 * (wb + wt), extend::mix(&sb, &st, 0.5)));
+            // The fronts meet: the middle slice from both sides (t = 1/2 on both when k > 1).
+            let mid = (0.5 * (t + 1.0 - t), 0.5 * (wb + wt));
+            left.push((zb + d, mid, extend::mix(&sb, &st, 0.5)));
         } else {
-            left.push((zb + d, wb, sb.clone()));
-            right.push((zt - d, wt, st.clone()));
+            left.push((zb + d, (t, wb), sb.clone()));
+            right.push((zt - d, (1.0 - t, wt), st.clone()));
             (bo, bp, bq) = (bp, bq, sb);
             (to, tp, tq) = (tp, tq, st);
             zb += d;
@@ -504,10 +507,10 @@ pub fn fill(back: &TriMesh, toe: &TriMesh, p: &BlendParams) -> Result<Filled, Bl
     let fronts = blend_slices(back3, toe3, gap, k, &|t| table.at(t));
     let by_curve = fronts.by_curve;
     let fill_slices = fronts.slices;
-    let weights: Vec<(f64, f64)> = fill_slices
+    let weights: Vec<[f64; 3]> = fill_slices
         .iter()
         .zip(&fronts.weights)
-        .map(|((z, _), w)| (z / gap, *w))
+        .map(|((z, _), w)| [z / gap, w.0, w.1])
         .collect();
     let t_blend = t0.elapsed();
 

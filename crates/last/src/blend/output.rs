@@ -102,7 +102,8 @@ struct Report<'a> {
     points_per_slice: usize,
     morph_shift: usize,
     points_by_curve_extension: usize,
-    weights: &'a [(f64, f64)],
+    /// Per fill slice: its position across the gap, where b was read, b.
+    weights: &'a [[f64; 3]],
     fair: &'a Option<super::FairReport>,
     quality: &'a Quality,
     timings_ms: super::Timings,
@@ -256,7 +257,7 @@ pub fn slices_png(path: &Path, f: &Filled) -> std::io::Result<()> {
     let view = View::fit([0.0, 1.0, 0.0, 1.0], 100.0, 950.0, 400.0, 240.0);
     c.line(&view, (0.0, 0.0), (1.0, 0.0), GREY, 1);
     c.line(&view, (0.0, 0.0), (0.0, 1.0), GREY, 1);
-    let pts: Vec<(f64, f64)> = f.weights.clone();
+    let pts: Vec<(f64, f64)> = f.weights.iter().map(|w| (w[0], w[2])).collect();
     for w2 in pts.windows(2) {
         c.line(&view, w2[0], w2[1], BLUE, 2);
     }
