@@ -24,6 +24,8 @@ pub mod testing;
 pub use connect::connect;
 pub use error::FleetError;
 pub use migrate::{migrate, SchemaState, SCHEMA_VERSION};
+/// The client type, re-exported so users need not name `postgres` themselves.
+pub use postgres::Client;
 pub use push::{push, LocalFile, PushOutcome, ScanUpload};
 pub use query::{fetch, list, show, Filter, ScanRow};
 pub use settings::{Settings, Tls};

@@ -111,6 +111,8 @@ pub fn migrate(client: &mut Client, target: Option<i32>) -> Result<SchemaState, 
     let target = target.unwrap_or(SCHEMA_VERSION).min(SCHEMA_VERSION);
     let mut tx = client.transaction()?;
     tx.execute("SELECT pg_advisory_xact_lock($1)", &[&LOCK_KEY])?;
+    // Quietly: "already exists, skipping" on every connection is noise in the daemon's log.
+    tx.batch_execute("SET LOCAL client_min_messages = warning")?;
     tx.batch_execute(HISTORY)?;
     let rows = tx.query(
         "SELECT version, compatible_from, software FROM fleet_migrations ORDER BY version",

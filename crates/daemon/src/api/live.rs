@@ -94,6 +94,7 @@ pub async fn status(State(st): State<AppState>) -> Json<Value> {
         "scan": scan,
         "calibrating": d.calibrating(),
         "archive": { "notices": d.archive.notices() },
+        "fleet": d.fleet_status(),
     }))
 }
 

@@ -82,6 +82,11 @@ impl Index {
         Ok(Index { conn })
     }
 
+    /// The connection, for the other tables of the index file (archive/outbox.rs).
+    pub(super) fn conn(&self) -> &Connection {
+        &self.conn
+    }
+
     /// The running scan's counts so far (recovery keeps them if the scan never ends).
     pub fn note_progress(&self, id: &str, frames: u64, points: u64) -> rusqlite::Result<()> {
         self.conn.execute(

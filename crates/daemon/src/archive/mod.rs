@@ -12,9 +12,11 @@
 
 mod id;
 mod index;
+mod outbox;
 mod record;
 
 pub use id::{valid_file_name, IdError, ScanId};
+pub use outbox::{OutboxCounts, OutboxEntry};
 pub use record::{ArchiveError, NewScan, Outcome, Record, Status};
 
 use index::Index;

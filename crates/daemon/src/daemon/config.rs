@@ -14,6 +14,8 @@ pub const TOKEN_ENV: &str = "FOOTSCAND_TOKEN";
 #[serde(deny_unknown_fields)]
 struct File {
     daemon: DaemonSection,
+    /// Optional: push every ended scan to a central PostgreSQL (crates/fleet).
+    fleet: Option<footscan_fleet::settings::Section>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -57,6 +59,8 @@ pub struct DaemonConfig {
     pub max_connections: usize,
     /// Open connections from one client address at most.
     pub max_connections_per_client: usize,
+    /// The fleet database scans are pushed to (`[fleet]`, when present and enabled).
+    pub fleet: Option<footscan_fleet::Settings>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -104,7 +108,10 @@ impl DaemonConfig {
                 None => e.message().trim_end().to_string(),
             })
         })?;
-        let d = f.daemon;
+        let File {
+            daemon: d,
+            fleet: fleet_section,
+        } = f;
         let bind_text = bind
             .map(str::to_string)
             .or(d.bind)
@@ -170,6 +177,18 @@ impl DaemonConfig {
             }
         }
         let base = path.parent().unwrap_or(Path::new("."));
+        let fleet = match &fleet_section {
+            Some(sec) => Some(
+                footscan_fleet::Settings::resolve(
+                    sec,
+                    base,
+                    std::env::var(footscan_fleet::settings::PASSWORD_ENV).ok(),
+                )
+                .map_err(|e| invalid(format!("[fleet]: {e}")))?,
+            )
+            .filter(|s| s.enabled),
+            None => None,
+        };
         let rel = |p: PathBuf| if p.is_absolute() { p } else { base.join(p) };
         Ok(DaemonConfig {
             path: path.to_owned(),
@@ -186,6 +205,7 @@ impl DaemonConfig {
             body_timeout,
             max_connections,
             max_connections_per_client,
+            fleet,
         })
     }
 }

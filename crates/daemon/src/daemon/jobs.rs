@@ -220,7 +220,10 @@ impl Daemon {
             }
         }
         let (status, reason) = match self.archive.finish(active, outcome.clone()) {
-            Ok(r) => (r.status, r.reason),
+            Ok(r) => {
+                self.fleet_enqueue(&r.id);
+                (r.status, r.reason)
+            }
             Err(e) => {
                 // The files stay in .tmp-<id>; the next start recovers them as interrupted.
                 tracing::error!("scan {id}: archiving failed: {e}");

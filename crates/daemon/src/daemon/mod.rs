@@ -3,11 +3,13 @@
 //! channel of events, and the live preview. The HTTP layer (`crate::api`) is a thin shell.
 
 pub mod config;
+mod fleet;
 mod jobs;
 pub mod preflight;
 pub mod preview;
 
 pub use config::{DaemonConfig, DaemonConfigError};
+pub use fleet::FleetStatus;
 pub use preview::Preview;
 
 use crate::archive::{Archive, ArchiveError, Status};
@@ -149,6 +151,8 @@ pub struct Daemon {
     state: Mutex<State>,
     started: Instant,
     launcher: jobs::Launcher,
+    /// The fleet pusher, when [fleet] is on.
+    fleet: Option<fleet::Fleet>,
 }
 
 impl Daemon {
@@ -202,6 +206,12 @@ impl Daemon {
                 fault: None,
             }
         });
+        let fleet = config
+            .fleet
+            .clone()
+            .map(|s| fleet::Fleet::start(s, archive.clone()))
+            .transpose()
+            .map_err(|e| DaemonError::Setup(format!("cannot start the fleet pusher: {e}")))?;
         let (events, _) = broadcast::channel(256);
         Ok(Arc::new(Daemon {
             config,
@@ -217,6 +227,7 @@ impl Daemon {
             started: Instant::now(),
             launcher: jobs::Launcher::new()
                 .map_err(|e| DaemonError::Setup(format!("cannot start the job launcher: {e}")))?,
+            fleet,
         }))
     }
 

@@ -185,6 +185,7 @@ async function refreshStatus() {
   $('backend').textContent = 'backend: ' + s.backend;
   renderDevices(s.devices || {});
   renderCalibration(s.calibration, s.calibrating);
+  renderFleet(s.fleet);
   if (s.scan) onProgress(s.scan);
   else {
     $('st-scan').textContent = 'none';
@@ -209,6 +210,22 @@ function renderDevices(d) {
     const x = typeof sl.x_mm === 'number' ? `, x ${sl.x_mm.toFixed(2)} mm` : '';
     slDd.append(badge(sl.connected, 'connected', 'disconnected'), ' ', `${sl.name} — ${sl.state}${x}`);
   } else slDd.textContent = 'unknown';
+}
+
+/** The fleet line: backlog, last push, last error (shown only when [fleet] is on). */
+function renderFleet(f) {
+  const dd = $('st-fleet');
+  $('st-fleet-dt').hidden = dd.hidden = !f;
+  if (!f) return;
+  dd.replaceChildren(
+    badge(f.state !== 'retrying', f.state, f.state), ' ',
+    el('span', { title: f.target }, `${f.scanner} (${f.clinic}): ${fmtInt(f.backlog)} waiting, ${fmtInt(f.pushed)} pushed`),
+  );
+  if (f.rejected) dd.append(`, ${fmtInt(f.rejected)} rejected`);
+  if (f.last_push) dd.append(el('br'), `last push ${fmtTime(f.last_push)}`);
+  if (f.last_error && (f.state === 'retrying' || f.rejected)) {
+    dd.append(el('br'), `last error ${fmtTime(f.last_error_at)}: ${f.last_error}`);
+  }
 }
 
 function renderCalibration(cal, calib) {
