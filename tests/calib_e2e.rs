@@ -41,7 +41,7 @@ fn calibrate_through_the_devices_then_scan_with_the_file() {
         ..CalibrationPlan::default()
     };
     let mut steps = Vec::new();
-    let out = run::calibrate_sim(
+    let out = run::calibrate_unattended(
         &cfg.config,
         Method::Insystem,
         &plan,
@@ -49,7 +49,7 @@ fn calibrate_through_the_devices_then_scan_with_the_file() {
     )
     .unwrap();
     assert!(
-        steps.iter().any(|s| s.0 == "staircase"),
+        steps.iter().any(|s| s.0 == "staircase gauge"),
         "progress reported"
     );
     let truth = footscan::scan::sim::true_calibration(&cfg.config).model;

@@ -125,7 +125,7 @@ mod with_opencv {
 #[test]
 fn without_the_feature_opencv_says_so() {
     let cfg = sim_config();
-    let e = run::calibrate_sim(
+    let e = run::calibrate_unattended(
         &cfg.config,
         Method::Opencv,
         &CalibrationPlan::default(),
@@ -144,7 +144,8 @@ fn in_system_methods_refuse_a_plan_with_too_few_heights_before_acquiring() {
         ..CalibrationPlan::default()
     };
     let t = std::time::Instant::now();
-    let e = run::calibrate_sim(&cfg.config, Method::Bezier, &plan, &mut |_, _, _| {}).unwrap_err();
+    let e = run::calibrate_unattended(&cfg.config, Method::Bezier, &plan, &mut |_, _, _| {})
+        .unwrap_err();
     assert!(matches!(e, CalibError::TooFewHeights { got: 2, .. }), "{e}");
     assert!(t.elapsed().as_secs_f64() < 1.0, "failed fast");
 }

@@ -300,7 +300,8 @@ pub fn run(
     }
     if wants(Method::Opencv) {
         let t = Instant::now();
-        let r = run::calibrate_sim(cfg, Method::Opencv, plan, progress).map(|o| o.calibration);
+        let r =
+            run::calibrate_unattended(cfg, Method::Opencv, plan, progress).map(|o| o.calibration);
         outcomes.push((Method::Opencv, r, t.elapsed().as_secs_f64()));
     }
     let mut rows = Vec::new();

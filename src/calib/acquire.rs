@@ -8,14 +8,13 @@
 //! tests and benchmarks whose point is the mathematics.
 
 pub use super::data::{InsystemData, PlateObservation, StairFrame};
-use super::plan::CalibrationPlan;
 use super::CalibError;
-use crate::detect::{Detector, LinePeak};
 use footscan_hal::{Camera, Frame, Slider, Timestamp};
 use footscan_sim::camera::SceneHandle;
 use footscan_sim::optics::Optics;
 use footscan_sim::render::{NoiseConfig, Renderer, Scene};
 use footscan_sim::targets::Staircase;
+use footscan_targets::Placement;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -45,24 +44,52 @@ pub trait Operator: Send {
     fn place(&mut self, target: &Target) -> Result<(), CalibError>;
 }
 
-/// A person at the scanner: prints what to do and waits for Enter.
-pub struct ConsoleOperator;
+/// A person at the scanner places the targets with their own hands: nothing to do here (the
+/// guided procedure's [`Guide`](super::guided::Guide) tells them what to place and waits).
+pub struct Person;
 
-impl Operator for ConsoleOperator {
-    fn place(&mut self, target: &Target) -> Result<(), CalibError> {
-        eprintln!("Put {target} on the glass, then press Enter.");
-        let mut line = String::new();
-        std::io::stdin()
-            .read_line(&mut line)
-            .map_err(|e| CalibError::Plan(format!("waiting for the operator: {e}")))?;
+impl Operator for Person {
+    fn place(&mut self, _target: &Target) -> Result<(), CalibError> {
         Ok(())
     }
 }
 
-/// The simulator's operator: swaps the scene the simulated camera renders.
+/// What the simulator's operator may put on the glass instead of what was asked.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Mistake {
+    /// The plate on spacers of another height.
+    Plate { height_mm: f64 },
+    /// The staircase placed elsewhere.
+    StaircaseAt(Placement),
+    /// Nothing at all.
+    Nothing,
+    /// The staircase left on the glass.
+    Staircase,
+}
+
+/// Mistakes the simulator's operator will make: the first time it is asked for a target it
+/// puts the paired mistake there instead (once each, in order). Shared, so a test can add
+/// mistakes to an opened rig.
+#[derive(Clone, Default)]
+pub struct Mistakes(Arc<std::sync::Mutex<Vec<(Target, Mistake)>>>);
+
+impl Mistakes {
+    pub fn push(&self, asked: Target, placed: Mistake) {
+        self.0.lock().unwrap().push((asked, placed));
+    }
+    fn take(&self, asked: &Target) -> Option<Mistake> {
+        let mut v = self.0.lock().unwrap();
+        let k = v.iter().position(|(t, _)| t == asked)?;
+        Some(v.remove(k).1)
+    }
+}
+
+/// The simulator's operator: swaps the scene the simulated camera renders (making the
+/// mistakes it was given).
 pub struct SimOperator {
     handle: SceneHandle,
     staircase: Arc<Staircase>,
+    pub mistakes: Mistakes,
 }
 
 impl SimOperator {
@@ -70,13 +97,24 @@ impl SimOperator {
         SimOperator {
             handle,
             staircase: Arc::new(staircase),
+            mistakes: Mistakes::default(),
         }
     }
 }
 
 impl Operator for SimOperator {
     fn place(&mut self, target: &Target) -> Result<(), CalibError> {
-        self.handle.set(scene_of(target, &self.staircase));
+        let scene = match self.mistakes.take(target) {
+            None => scene_of(target, &self.staircase),
+            Some(Mistake::Plate { height_mm }) => Scene::Plate { height_mm },
+            Some(Mistake::Nothing) => Scene::Empty,
+            Some(Mistake::Staircase) => Scene::Surface(self.staircase.clone()),
+            Some(Mistake::StaircaseAt(p)) => Scene::Surface(Arc::new(
+                Staircase::new(self.staircase.geometry().clone(), p)
+                    .map_err(|e| CalibError::Sim(e.to_string()))?,
+            )),
+        };
+        self.handle.set(scene);
         Ok(())
     }
 }
@@ -102,6 +140,15 @@ pub trait CalibrationRig {
         n: usize,
         sink: &mut dyn FnMut(&Frame),
     ) -> Result<f64, CalibError>;
+    /// Check the moves to `positions` (controller mm) against the controller's limits before
+    /// anything moves.
+    fn check_moves(&mut self, _positions: &[f64]) -> Result<(), CalibError> {
+        Ok(())
+    }
+    /// Bring the devices back after a fault ended a step, so the step can be repeated.
+    fn recover(&mut self) -> Result<(), CalibError> {
+        Ok(())
+    }
 }
 
 /// A camera, a slider and an operator: the scanner itself.
@@ -112,7 +159,12 @@ pub struct DeviceRig {
     pub feed_mm_min: f64,
     pub move_timeout: Duration,
     pub frame_timeout: Duration,
+    /// The controller switches the laser: on while frames are taken, off after.
+    pub laser: bool,
+    /// Home after a fault (the controller has a homing cycle, `$22=1`).
+    pub home_to_recover: bool,
     started: bool,
+    laser_on: bool,
 }
 
 impl DeviceRig {
@@ -130,13 +182,33 @@ impl DeviceRig {
             feed_mm_min,
             move_timeout: Duration::from_secs(60),
             frame_timeout: Duration::from_secs_f64((10.0 / fps).max(1.0)),
+            laser: false,
+            home_to_recover: false,
             started: false,
+            laser_on: false,
+        }
+    }
+}
+
+impl DeviceRig {
+    /// A slider error as the operator should read it: a controller in alarm (which answers
+    /// no line, so the move itself only timed out) is reported as its alarm, named.
+    fn named_slider_fault(&mut self, e: footscan_hal::HalError) -> footscan_hal::HalError {
+        if matches!(e, footscan_hal::HalError::Alarm { .. }) {
+            return e;
+        }
+        match self.slider.wait_idle(Duration::from_secs(1)) {
+            Err(a @ footscan_hal::HalError::Alarm { .. }) => a,
+            _ => e,
         }
     }
 }
 
 impl Drop for DeviceRig {
     fn drop(&mut self) {
+        if self.laser_on {
+            let _ = self.slider.laser(false);
+        }
         let _ = self.camera.stop();
     }
 }
@@ -152,8 +224,19 @@ impl CalibrationRig for DeviceRig {
         n: usize,
         sink: &mut dyn FnMut(&Frame),
     ) -> Result<f64, CalibError> {
-        self.slider.move_to(x_mm, self.feed_mm_min)?;
-        let st = self.slider.wait_idle(self.move_timeout)?;
+        let mut st = match self
+            .slider
+            .move_to(x_mm, self.feed_mm_min)
+            .and_then(|()| self.slider.wait_idle(self.move_timeout))
+        {
+            Ok(st) => st,
+            Err(e) => return Err(self.named_slider_fault(e).into()),
+        };
+        if self.laser && !self.laser_on {
+            self.slider.laser(true)?;
+            self.laser_on = true;
+            st = self.slider.status()?;
+        }
         if !self.started {
             self.camera.start()?;
             self.started = true;
@@ -179,6 +262,24 @@ impl CalibrationRig for DeviceRig {
             got += 1;
         }
         Ok(st.x_mm)
+    }
+
+    fn check_moves(&mut self, positions: &[f64]) -> Result<(), CalibError> {
+        let settings = self.slider.settings()?;
+        self.home_to_recover = settings.get(&22).is_some_and(|&v| v != 0.0);
+        super::guided::check_controller(&settings, positions, self.feed_mm_min)
+    }
+
+    /// Reconnect the slider (a soft reset clears what the fault left) and home it when the
+    /// controller has homing: after an alarm the position is not to be trusted. Without
+    /// homing an alarm-locked controller stays locked, and the next move says so.
+    fn recover(&mut self) -> Result<(), CalibError> {
+        self.laser_on = false;
+        self.slider.connect()?;
+        if self.home_to_recover {
+            self.slider.home(self.move_timeout)?;
+        }
+        Ok(())
     }
 }
 
@@ -243,70 +344,6 @@ impl CalibrationRig for RenderRig {
 
 /// Progress callback: (what, done, total).
 pub type Progress<'a> = &'a mut dyn FnMut(&str, usize, usize);
-
-/// Acquire the plate at every height of the plan and the staircase pass.
-pub fn acquire_insystem(
-    rig: &mut dyn CalibrationRig,
-    plan: &CalibrationPlan,
-    detector: &mut dyn Detector,
-    progress: Progress,
-) -> Result<InsystemData, CalibError> {
-    plan.validate()?;
-    let stair_x = plan.stair_positions();
-    let total = plan.plate_heights_mm.len() + stair_x.len();
-    let mut done = 0;
-    let mut size = (0u32, 0u32);
-    let mut lines: Vec<LinePeak> = Vec::new();
-    let mut plates = Vec::new();
-    for &h in &plan.plate_heights_mm {
-        progress(&format!("plate at {h} mm"), done, total);
-        rig.place(&Target::Plate { height_mm: h })?;
-        let mut per_frame: Vec<Vec<f64>> = Vec::new();
-        rig.capture(plan.plate_x_mm, plan.frames_per_height, &mut |f| {
-            size = (f.width, f.height);
-            lines.clear();
-            lines.resize(f.height as usize, LinePeak::NONE);
-            detector.detect(f, &mut lines);
-            per_frame.push(lines.iter().map(valid_col).collect());
-        })?;
-        plates.push(average_frames(h, &per_frame));
-        done += 1;
-    }
-    progress("staircase", done, total);
-    rig.place(&Target::Staircase)?;
-    let mut stair = Vec::new();
-    for &x in &stair_x {
-        let mut col = Vec::new();
-        let reported = rig.capture(x, 1, &mut |f| {
-            lines.clear();
-            lines.resize(f.height as usize, LinePeak::NONE);
-            detector.detect(f, &mut lines);
-            col = lines.iter().map(valid_col).collect();
-        })?;
-        stair.push(StairFrame {
-            x_mm: reported,
-            col,
-        });
-        done += 1;
-        progress("staircase", done, total);
-    }
-    rig.place(&Target::Empty)?;
-    Ok(InsystemData {
-        width: size.0,
-        height: size.1,
-        plates,
-        stair,
-        staircase: plan.staircase.clone(),
-    })
-}
-
-fn valid_col(l: &LinePeak) -> f64 {
-    if l.is_valid() {
-        l.col
-    } else {
-        f64::NAN
-    }
-}
 
 /// Per-row mean and standard deviation over frames.
 pub fn average_frames(height_mm: f64, frames: &[Vec<f64>]) -> PlateObservation {

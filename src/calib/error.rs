@@ -22,6 +22,10 @@ pub enum CalibError {
     Plan(String),
     #[error("camera or slider: {0}")]
     Device(#[from] footscan_hal::HalError),
+    /// The scanner's devices could not be opened (the message names the device and what to
+    /// try).
+    #[error("opening the scanner: {0}")]
+    Open(String),
     #[error("simulator: {0}")]
     Sim(String),
     #[error("OpenCV reference calibration: {0}")]
@@ -33,4 +37,14 @@ pub enum CalibError {
     OpenCvDisabled,
     #[error("cancelled")]
     Cancelled,
+    /// The guided procedure stopped at a step (the operator aborted, or a check kept failing).
+    #[error("calibration aborted at step {step} ({title}): {reason}")]
+    Aborted {
+        step: usize,
+        title: String,
+        reason: String,
+    },
+    /// The fit is worse than the configured limits allow; nothing was written.
+    #[error("the calibration exceeds its limits and was not written: {0}")]
+    Limits(String),
 }

@@ -20,6 +20,7 @@ mod data;
 mod error;
 mod file;
 mod gauge;
+pub mod guided;
 pub mod insystem;
 pub mod lm;
 mod model;

@@ -31,8 +31,100 @@ pub struct CalibrationPlan {
     pub bezier_smooth_degree: usize,
     /// The checkerboard of the OpenCV reference.
     pub board: Checkerboard,
+    /// The empty-platform glass pass that ends the guided procedure: slider positions
+    /// (controller mm) and frames at each. Only checked (nothing may stand on the glass).
+    pub glass_positions_mm: Vec<f64>,
+    pub glass_frames: usize,
+    /// The shop's stated uncertainty of its spacer and staircase dimensions (mm): recorded
+    /// with every calibration, and the floor of any daily-check tolerance.
+    pub gauge_tolerance_mm: f64,
+    /// What each guided step must see before the procedure moves on.
+    pub checks: StepChecks,
+    /// The scanner's design values: the model the step checks use when no earlier
+    /// calibration exists.
+    pub nominal: NominalOptics,
     /// Where the simulated operator puts the targets (unknown to the calibration).
     pub sim: SimPlacements,
+}
+
+/// Tolerances of the guided steps' checks. Heights are measured relative to the first plate
+/// (so an offset of the check model cancels); the allowance grows with the height difference
+/// because the check model's scale may be a few percent off (design values).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct StepChecks {
+    /// A plate or step may be this far from its stated height (mm) ...
+    pub height_mm: f64,
+    /// ... plus this fraction of its height above the first plate.
+    pub height_rel: f64,
+    /// The first plate against the check model's absolute heights when that model is the
+    /// nominal design (mm); with an earlier calibration `height_mm` applies.
+    pub nominal_offset_mm: f64,
+    /// A plate's line must be found in at least this fraction of the image rows ...
+    pub min_rows_fraction: f64,
+    /// ... and its heights spread (5th to 95th percentile) by no more than this (mm).
+    pub flat_mm: f64,
+    /// The staircase's width may be seen this much narrower than stated before the block is
+    /// called partly out of the field (mm).
+    pub width_mm: f64,
+    /// On the empty platform a line this far above the glass is an object (mm).
+    pub empty_mm: f64,
+}
+
+impl Default for StepChecks {
+    fn default() -> Self {
+        StepChecks {
+            height_mm: 0.8,
+            height_rel: 0.04,
+            nominal_offset_mm: 10.0,
+            min_rows_fraction: 0.5,
+            flat_mm: 1.0,
+            width_mm: 4.0,
+            empty_mm: 2.0,
+        }
+    }
+}
+
+/// Design values of the optics (the untilted model, no distortion, principal point at the
+/// image centre): what the checks triangulate with before the scanner has a calibration.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct NominalOptics {
+    pub f_px: f64,
+    pub d_mm: f64,
+    pub l_mm: f64,
+}
+
+impl Default for NominalOptics {
+    fn default() -> Self {
+        NominalOptics {
+            f_px: 2000.0,
+            d_mm: 250.0,
+            l_mm: 70.0,
+        }
+    }
+}
+
+impl NominalOptics {
+    /// The design model for a `width` x `height` camera.
+    pub fn model(&self, width: u32, height: u32) -> super::CameraModel {
+        super::CameraModel {
+            width,
+            height,
+            f_px: self.f_px,
+            cx: 0.5 * (width as f64 - 1.0),
+            cy: 0.5 * (height as f64 - 1.0),
+            d_mm: self.d_mm,
+            l_mm: self.l_mm,
+            k1: 0.0,
+            k2: 0.0,
+            p1: 0.0,
+            p2: 0.0,
+            camera_tilt_deg: [0.0; 3],
+            laser_tilt_deg: [0.0; 2],
+            slider_scale: 1.0,
+        }
+    }
 }
 
 /// Placements used only by the simulator backend.
@@ -73,6 +165,11 @@ impl Default for CalibrationPlan {
             bezier_degree_v: 4,
             bezier_smooth_degree: 8,
             board: Checkerboard::default(),
+            glass_positions_mm: vec![40.0, 100.0, 160.0],
+            glass_frames: 2,
+            gauge_tolerance_mm: 0.005,
+            checks: StepChecks::default(),
+            nominal: NominalOptics::default(),
             sim: SimPlacements::default(),
         }
     }
@@ -191,7 +288,42 @@ impl CalibrationPlan {
         self.board
             .validate()
             .map_err(|e| CalibError::Plan(e.to_string()))?;
+        if self.glass_frames == 0 && !self.glass_positions_mm.is_empty() {
+            return bad("glass_frames = 0: at least 1 per glass position".into());
+        }
+        if !(self.gauge_tolerance_mm >= 0.0 && self.gauge_tolerance_mm < 1.0) {
+            return bad(format!(
+                "gauge_tolerance_mm = {}: valid is [0, 1) mm",
+                self.gauge_tolerance_mm
+            ));
+        }
+        let c = &self.checks;
+        for (k, v, lo, hi) in [
+            ("checks.height_mm", c.height_mm, 0.01, 20.0),
+            ("checks.height_rel", c.height_rel, 0.0, 0.5),
+            ("checks.nominal_offset_mm", c.nominal_offset_mm, 0.01, 100.0),
+            ("checks.min_rows_fraction", c.min_rows_fraction, 0.0, 1.0),
+            ("checks.flat_mm", c.flat_mm, 0.01, 50.0),
+            ("checks.width_mm", c.width_mm, 0.0, 1000.0),
+            ("checks.empty_mm", c.empty_mm, 0.01, 100.0),
+            ("nominal.f_px", self.nominal.f_px, 10.0, 1e6),
+            ("nominal.d_mm", self.nominal.d_mm, 1.0, 1e4),
+            ("nominal.l_mm", self.nominal.l_mm, 1.0, 1e4),
+        ] {
+            if !(v.is_finite() && (lo..=hi).contains(&v)) {
+                return bad(format!("{k} = {v}: valid is [{lo}, {hi}]"));
+            }
+        }
         Ok(())
+    }
+
+    /// Every slider position the guided procedure moves to (plate, staircase pass, glass
+    /// pass), controller mm.
+    pub fn all_positions(&self) -> Vec<f64> {
+        let mut p = vec![self.plate_x_mm];
+        p.extend(self.stair_positions());
+        p.extend(&self.glass_positions_mm);
+        p
     }
 
     /// What the in-system methods need from the plan, checked before anything is acquired.

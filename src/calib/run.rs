@@ -2,7 +2,7 @@
 //! acquisition through a rig, the fit of the chosen method and the checks before saving.
 //! Opening the devices is the orchestrator's job (`scan::calibrate`).
 
-use super::acquire::{self, CalibrationRig, InsystemData};
+use super::acquire::InsystemData;
 use super::bezier_depth::BezierDepth;
 use super::insystem::{fit_insystem, InsystemFit, InsystemOptions};
 use super::{CalibError, Calibration, CalibrationPlan};
@@ -57,16 +57,8 @@ pub struct Outcome {
     pub calibration: Calibration,
     /// The in-system fit (methods insystem and bezier).
     pub insystem: Option<InsystemFit>,
-}
-
-/// Acquire the in-system data through `rig` with the calibration detector.
-pub fn acquire_insystem(
-    rig: &mut dyn CalibrationRig,
-    plan: &CalibrationPlan,
-    progress: acquire::Progress,
-) -> Result<InsystemData, CalibError> {
-    let mut det = detector(DETECTOR)?;
-    acquire::acquire_insystem(rig, plan, det.as_mut(), progress)
+    /// What each step of the guided procedure saw (in-system methods).
+    pub steps: Vec<super::guided::StepRecord>,
 }
 
 /// Fit `method` (insystem or bezier) to in-system data.
@@ -112,6 +104,7 @@ pub fn from_insystem(
     Ok(Outcome {
         calibration,
         insystem: Some(fit),
+        steps: Vec::new(),
     })
 }
 
@@ -133,4 +126,36 @@ pub fn check_before_saving(c: &Calibration) -> Result<(), CalibError> {
         )));
     }
     Ok(())
+}
+
+/// The configured limits a calibration must meet before it is written: every fit residual
+/// `*_rms_px` within `max_residual_px`, the height uncertainty `u_h_mm` within `max_u_h_mm`.
+/// The error names each limit exceeded and by how much.
+pub fn check_limits(
+    c: &Calibration,
+    max_residual_px: f64,
+    max_u_h_mm: f64,
+) -> Result<(), CalibError> {
+    let mut over = Vec::new();
+    for (k, &v) in &c.residuals {
+        if k.ends_with("_rms_px") && (v.is_nan() || v > max_residual_px) {
+            over.push(format!(
+                "{k} = {v:.4} px exceeds calibration.max_residual_px = {max_residual_px} px by {:.4} px",
+                v - max_residual_px
+            ));
+        }
+    }
+    if let Some(&u) = c.residuals.get("u_h_mm") {
+        if u.is_nan() || u > max_u_h_mm {
+            over.push(format!(
+                "the height uncertainty u_h_mm = {u:.4} mm exceeds calibration.max_u_h_mm = {max_u_h_mm} mm by {:.4} mm",
+                u - max_u_h_mm
+            ));
+        }
+    }
+    if over.is_empty() {
+        Ok(())
+    } else {
+        Err(CalibError::Limits(over.join("; ")))
+    }
 }

@@ -1,16 +1,20 @@
-//! A calibration from end to end on the simulated scanner: open its devices (the same
-//! [`open_sim_devices`] a scan uses) or render its frames directly, acquire, fit with the chosen
-//! method, and produce the [`Calibration`](crate::calib::Calibration) a scan loads. The fits
-//! themselves live in [`crate::calib`]; their pieces are re-exported here so one module names
-//! the whole procedure.
+//! A calibration from end to end on any backend: open the scanner's devices through the
+//! same backend code a scan uses ([`open_rig`]: the simulator's GRBL emulator and camera with
+//! its scene-swapping operator, or the V4L2 camera and GRBL slider with a person placing the
+//! targets), run the guided procedure ([`crate::calib::guided`]) with whoever confirms the
+//! steps, fit with the chosen method, and produce the [`Calibration`] a scan loads. The fits
+//! live in [`crate::calib`]; their pieces are re-exported here so one module names the whole
+//! procedure. The OpenCV checkerboard reference stays a simulator-only comparison.
 
 use super::backend::sim::{open_sim_devices, SimDevices, SimOpenError};
-use super::ScanConfig;
-use crate::calib::acquire::{self, DeviceRig, RenderRig, SimOperator};
+use super::config::Backend;
+use super::{LoadedConfig, ScanConfig};
+use crate::calib::acquire::{self, DeviceRig, Mistakes, Operator, Person, RenderRig, SimOperator};
+use crate::calib::guided::{acquire_guided, AutoGuide, Guide, GuidedRun};
 pub use crate::calib::run::{
-    acquire_insystem, check_before_saving, detector, from_insystem, Method, Outcome, DETECTOR,
+    check_before_saving, check_limits, detector, from_insystem, Method, Outcome, DETECTOR,
 };
-use crate::calib::{CalibError, CalibrationPlan};
+use crate::calib::{CalibError, Calibration, CalibrationPlan, CameraModel};
 use footscan_sim::grbl::GrblEmulator;
 use footscan_sim::render::Scene;
 use footscan_sim::targets::Staircase;
@@ -30,32 +34,58 @@ impl From<SimOpenError> for CalibError {
     }
 }
 
-/// The simulator as a calibration rig: the GRBL emulator behind the real serial driver, the
-/// simulated camera, and an operator who swaps the scene. Keeps the emulator alive.
-pub struct SimRig {
-    pub rig: DeviceRig,
-    _emulator: Arc<GrblEmulator>,
+/// What the simulator backend adds to a rig: the emulator (kept alive; a test may inject
+/// faults) and the mistakes its operator will make.
+pub struct SimParts {
+    pub emulator: Arc<GrblEmulator>,
+    pub mistakes: Mistakes,
 }
 
-/// Open the simulated scanner of `cfg` as a calibration rig.
-pub fn open_sim_rig(cfg: &ScanConfig, plan: &CalibrationPlan) -> Result<SimRig, CalibError> {
-    let SimDevices {
-        emulator,
-        slider,
-        camera,
-    } = open_sim_devices(cfg, Scene::Empty)?;
-    let staircase = Staircase::new(plan.staircase.clone(), plan.sim.staircase)
-        .map_err(|e| CalibError::Sim(e.to_string()))?;
-    let operator = SimOperator::new(camera.scene_handle(), staircase);
-    Ok(SimRig {
-        rig: DeviceRig::new(
-            Box::new(camera),
-            Box::new(slider),
-            Box::new(operator),
-            cfg.scan.approach_feed_mm_min,
-        ),
-        _emulator: emulator,
-    })
+/// The scanner as a calibration rig, whatever its backend.
+pub struct OpenRig {
+    pub rig: DeviceRig,
+    /// Set on the simulator backend.
+    pub sim: Option<SimParts>,
+}
+
+/// Open the scanner of `cfg` as a calibration rig: the devices come from the same backend
+/// code as a scan's (`open_sim_devices`, `hardware::open`); on hardware a person places the
+/// targets, in the simulator its operator swaps the scene.
+pub fn open_rig(cfg: &ScanConfig, plan: &CalibrationPlan) -> Result<OpenRig, CalibError> {
+    let (camera, slider, operator, sim): (_, _, Box<dyn Operator>, _) = match cfg.scanner.backend {
+        Backend::Sim => {
+            let SimDevices {
+                emulator,
+                slider,
+                camera,
+            } = open_sim_devices(cfg, Scene::Empty)?;
+            let staircase = Staircase::new(plan.staircase.clone(), plan.sim.staircase)
+                .map_err(|e| CalibError::Sim(e.to_string()))?;
+            let operator = SimOperator::new(camera.scene_handle(), staircase);
+            let mistakes = operator.mistakes.clone();
+            (
+                Box::new(camera) as Box<dyn footscan_hal::Camera>,
+                Box::new(slider) as Box<dyn footscan_hal::Slider>,
+                Box::new(operator),
+                Some(SimParts { emulator, mistakes }),
+            )
+        }
+        Backend::Hardware => {
+            let d = super::hardware::open(cfg).map_err(|e| CalibError::Open(e.to_string()))?;
+            (d.camera, d.slider, Box::new(Person), None)
+        }
+    };
+    let mut rig = DeviceRig::new(camera, slider, operator, cfg.scan.approach_feed_mm_min);
+    rig.laser = super::ScanPlan::from_config(cfg).laser;
+    Ok(OpenRig { rig, sim })
+}
+
+/// Open the simulated scanner of `cfg` as a calibration rig (a config whose backend is not
+/// the simulator is opened as the simulator all the same: for benchmarks).
+pub fn open_sim_rig(cfg: &ScanConfig, plan: &CalibrationPlan) -> Result<OpenRig, CalibError> {
+    let mut c = cfg.clone();
+    c.scanner.backend = Backend::Sim;
+    open_rig(&c, plan)
 }
 
 /// A rig that renders the simulated scanner's frames directly (no real-time devices).
@@ -71,26 +101,108 @@ pub fn render_rig(cfg: &ScanConfig, plan: &CalibrationPlan) -> Result<RenderRig,
     )
 }
 
-/// Calibrate the simulated scanner of `cfg` with `method`, acquiring through its devices
-/// (insystem, bezier) or from rendered board shots (opencv).
-pub fn calibrate_sim(
+/// The scanner's current calibration (`scanner.calibration`), the model the guided steps
+/// check with; None when none is configured (the checks then use the plan's nominal design).
+pub fn prior_calibration(cfg: &LoadedConfig) -> Result<Option<Calibration>, CalibError> {
+    match cfg.calibration_path() {
+        Some(p) => Calibration::load(&p)
+            .map(Some)
+            .map_err(|e| CalibError::Plan(format!("the current calibration: {e}"))),
+        None => Ok(None),
+    }
+}
+
+/// Acquire the in-system data through `rig` with the guided procedure, every step confirmed
+/// and kept by `guide`, using the calibration detector.
+pub fn acquire_with(
+    rig: &mut dyn acquire::CalibrationRig,
+    plan: &CalibrationPlan,
+    prior: Option<&CameraModel>,
+    guide: &mut dyn Guide,
+) -> Result<crate::calib::guided::GuidedData, CalibError> {
+    let mut det = detector(DETECTOR)?;
+    acquire_guided(
+        rig,
+        &mut GuidedRun {
+            plan,
+            prior,
+            detector: det.as_mut(),
+        },
+        guide,
+    )
+}
+
+/// The guided procedure through `rig`, then the fit of `method` (insystem or bezier).
+pub fn calibrate_with(
+    rig: &mut dyn acquire::CalibrationRig,
+    method: Method,
+    plan: &CalibrationPlan,
+    prior: Option<&CameraModel>,
+    guide: &mut dyn Guide,
+) -> Result<Outcome, CalibError> {
+    let guided = acquire_with(rig, plan, prior, guide)?;
+    let mut out = from_insystem(&guided.data, method, plan)?;
+    out.steps = guided.steps;
+    Ok(out)
+}
+
+/// Acquire the in-system data through `rig` with nobody to ask: every step confirmed, a step
+/// whose check fails aborts with its message. `progress(step title, done, total)`.
+pub fn acquire_insystem(
+    rig: &mut dyn acquire::CalibrationRig,
+    plan: &CalibrationPlan,
+    progress: acquire::Progress,
+) -> Result<acquire::InsystemData, CalibError> {
+    let mut guide = AutoGuide::new(1);
+    guide.on_event = Some(progress);
+    Ok(acquire_with(rig, plan, None, &mut guide)?.data)
+}
+
+/// Calibrate the scanner of `cfg` with `method`: open its devices ([`open_rig`], any backend),
+/// run the guided procedure with `guide`, fit. `prior` is the current calibration (the check
+/// model). Method opencv renders board shots and runs on the simulator only.
+pub fn calibrate(
     cfg: &ScanConfig,
     method: Method,
     plan: &CalibrationPlan,
-    progress: acquire::Progress,
+    prior: Option<&CameraModel>,
+    guide: &mut dyn Guide,
 ) -> Result<Outcome, CalibError> {
     plan.validate()?;
     match method {
         Method::Insystem | Method::Bezier => {
             plan.check_insystem()?;
-            let mut sim = open_sim_rig(cfg, plan)?;
-            let data = acquire_insystem(&mut sim.rig, plan, progress)?;
-            drop(sim);
-            progress("fitting", 1, 1);
-            from_insystem(&data, method, plan)
+            let mut open = open_rig(cfg, plan)?;
+            calibrate_with(&mut open.rig, method, plan, prior, guide)
         }
-        Method::Opencv => opencv_sim(cfg, plan, progress),
+        Method::Opencv => {
+            if cfg.scanner.backend != Backend::Sim {
+                return Err(CalibError::Plan(
+                    "method opencv is the simulator's checkerboard reference; calibrate a \
+                     hardware scanner with insystem or bezier"
+                        .into(),
+                ));
+            }
+            opencv_sim(cfg, plan, &mut |_, _, _| {})
+        }
     }
+}
+
+/// [`calibrate`] with nobody to ask (every step confirmed; a failing check aborts), reporting
+/// `progress(step title, done, total)`.
+pub fn calibrate_unattended(
+    cfg: &ScanConfig,
+    method: Method,
+    plan: &CalibrationPlan,
+    progress: acquire::Progress,
+) -> Result<Outcome, CalibError> {
+    if method == Method::Opencv {
+        plan.validate()?;
+        return opencv_sim(cfg, plan, progress);
+    }
+    let mut guide = AutoGuide::new(1);
+    guide.on_event = Some(progress);
+    calibrate(cfg, method, plan, None, &mut guide)
 }
 
 #[cfg(feature = "opencv")]
@@ -107,6 +219,7 @@ fn opencv_sim(
     Ok(Outcome {
         calibration,
         insystem: None,
+        steps: Vec::new(),
     })
 }
 

@@ -23,7 +23,57 @@ pub struct ScanConfig {
     /// The quality gate's thresholds (docs/method.md section 3.3).
     #[serde(default)]
     pub quality: super::quality::QualitySection,
+    /// Limits a new calibration must meet and the daily check's tolerance.
+    #[serde(default)]
+    pub calibration: CalibrationSection,
     pub pipeline: PipelineSpec,
+}
+
+/// `[calibration]`: when a calibration is refused, and the daily check (`footscan verify`).
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct CalibrationSection {
+    /// Refuse a calibration any of whose fit residuals (`*_rms_px`) exceeds this (px).
+    pub max_residual_px: f64,
+    /// Refuse a calibration whose height uncertainty `u_h_mm` (eq. 30) exceeds this (mm).
+    pub max_u_h_mm: f64,
+    /// The daily check fails when a staircase step's mean height error or the block's width
+    /// error exceeds this (mm).
+    pub verify_tolerance_mm: f64,
+    /// The status warns when the last passing daily check is older than this (hours).
+    pub verify_max_age_h: f64,
+    /// Slider step of the daily check's staircase pass (mm).
+    pub verify_step_mm: f64,
+}
+
+impl Default for CalibrationSection {
+    fn default() -> Self {
+        CalibrationSection {
+            max_residual_px: 0.5,
+            max_u_h_mm: 0.05,
+            verify_tolerance_mm: 0.05,
+            verify_max_age_h: 26.0,
+            verify_step_mm: 1.0,
+        }
+    }
+}
+
+impl CalibrationSection {
+    /// Each value in its range; the error names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        for (k, v, lo, hi) in [
+            ("max_residual_px", self.max_residual_px, 1e-4, 100.0),
+            ("max_u_h_mm", self.max_u_h_mm, 1e-4, 100.0),
+            ("verify_tolerance_mm", self.verify_tolerance_mm, 1e-4, 10.0),
+            ("verify_max_age_h", self.verify_max_age_h, 0.01, 1e5),
+            ("verify_step_mm", self.verify_step_mm, 0.05, 50.0),
+        ] {
+            if !(v.is_finite() && (lo..=hi).contains(&v)) {
+                return Err(format!("calibration.{k} = {v}: valid is [{lo}, {hi}]"));
+            }
+        }
+        Ok(())
+    }
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
@@ -356,6 +406,17 @@ impl LoadedConfig {
                 self.locate(&["camera", "fps"]).unwrap_or_default()
             ));
         }
+        self.config.calibration.validate().map_err(|e| {
+            let key = e
+                .split(" =")
+                .next()
+                .unwrap_or("")
+                .trim_start_matches("calibration.");
+            format!(
+                "{e}{}",
+                self.locate(&["calibration", key]).unwrap_or_default()
+            )
+        })?;
         self.config.quality.validate().map_err(|e| {
             let key = e.split(['.', ' ']).nth(1).unwrap_or("bridge_mm");
             format!("{e}{}", self.locate(&["quality", key]).unwrap_or_default())

@@ -13,7 +13,7 @@ pub mod summary;
 
 pub use crate::scandata::ScanGrid;
 pub use backend::{hardware, open_backend, sim, Devices, OpenBackend};
-pub use calibrate::calibrate_sim;
+pub use calibrate::{calibrate, calibrate_unattended};
 pub use config::{LoadedConfig, ScanConfig};
 pub use error::{
     DeviceError, DeviceFault, DeviceRole, FaultKind, ScanError, ScanFault, SetupError,

@@ -350,7 +350,7 @@ impl Daemon {
         tracing::info!("calibration {} ({}) started", job.id, job.method);
         let plan = CalibrationPlan::default();
         let result = std::panic::catch_unwind(AssertUnwindSafe(|| {
-            footscan::scan::calibrate_sim(&self.scanner.config, method, &plan, &mut |_, _, _| {})
+            footscan::scan::calibrate_unattended(&self.scanner.config, method, &plan, &mut |_, _, _| {})
         }));
         let saved = match result {
             Ok(Ok(outcome)) => self.store_calibration(&job.id, &outcome.calibration),
