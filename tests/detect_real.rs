@@ -40,9 +40,9 @@ fn default_detector_on_real_flat_boards_and_laser_off_frames() {
             r.region,
             r.resid_px
         );
-        // Rows found where the line is visible (target 98 %): at least 96 % (96.3 % on the
-        // charuco board, ambiguous rows), and with the laser-off frame subtracted at least 97 %.
-        let floor = if r.background { 97.0 } else { 96.0 };
+        // Rows found where the line is visible: the 98 % target (worst 98.2 %, with the
+        // line's continuity deciding ambiguous rows).
+        let floor = 98.0;
         assert!(
             r.found_pct >= floor,
             "{} {}: {:.1} % of visible rows",

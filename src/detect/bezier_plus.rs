@@ -26,7 +26,9 @@
 //!    3.5 rows = 0.44 mm at the glass (rows are (D + h) / F = 0.125 mm apart at h = 0).
 
 use super::bernstein::{root_near, Binomials, MAX_N};
-use super::coarse::{block_max, coarse_row, prefetch_ahead, CoarseConfig, CoarseScratch, Peak, Px};
+use super::coarse::{
+    block_max, prefetch_ahead, CoarseConfig, CoarseScratch, Near, Peak, Px, NEAR_ROWS,
+};
 use super::estimators::{accepted, binomials};
 use super::{Detector, LinePeak, Reject};
 use footscan_hal::{Frame, Pixels};
@@ -239,7 +241,14 @@ impl BezierPlus {
             let thr = scratch.threshold(&cfg, r, row);
             let blocks = scratch.for_width(w);
             block_max(row, blocks);
-            out[r] = match coarse_row(row, blocks, &cfg, thr) {
+            let near = (1..=NEAR_ROWS.min(r))
+                .map(|k| self.raw[r - k])
+                .find(|c| c.is_finite())
+                .map(|col| Near {
+                    col,
+                    width: if width.is_finite() { width as f32 } else { 3.0 },
+                });
+            out[r] = match scratch.row_near(row, &cfg, thr, near) {
                 Err((why, v)) => {
                     self.raw[r] = f64::NAN;
                     LinePeak::rejected(why, v)

@@ -191,6 +191,8 @@ pub const BLOCK: usize = 64;
 #[derive(Default, Debug, Clone)]
 pub struct CoarseScratch<T> {
     blocks: Vec<T>,
+    /// Block maxima of a window of the row ([`coarse_row_near`]).
+    window_blocks: Vec<T>,
     auto_thr: f32,
 }
 
@@ -248,8 +250,28 @@ impl<T: Px> CoarseScratch<T> {
         let nb = w.div_ceil(BLOCK);
         if self.blocks.len() != nb {
             self.blocks.resize(nb, T::default());
+            self.window_blocks.resize(nb, T::default());
         }
         &mut self.blocks
+    }
+
+    /// The coarse search of row `r` (its block maxima already in [`Self::for_width`]'s buffer)
+    /// with the line's continuity as the tie-breaker ([`coarse_row_near`]).
+    pub fn row_near(
+        &mut self,
+        row: &[T],
+        cfg: &CoarseConfig,
+        thr: f32,
+        near: Option<Near>,
+    ) -> Result<Peak, (Reject, f32)> {
+        let first = coarse_row(row, &self.blocks, cfg, thr);
+        match (first, near) {
+            (Err((Reject::Ambiguous, v)), Some(n)) => {
+                coarse_row_near(row, &mut self.window_blocks, cfg, thr, n)
+                    .ok_or((Reject::Ambiguous, v))
+            }
+            (r, _) => r,
+        }
     }
 }
 
@@ -614,6 +636,103 @@ pub fn coarse_row<T: Px>(
     })
 }
 
+/// Where the line was in the rows just before: the tie-breaker of an ambiguous row.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Near {
+    /// Column of the line in the nearest preceding row that held it (at most
+    /// [`NEAR_ROWS`] rows back).
+    pub col: f64,
+    /// The line's width there (px).
+    pub width: f32,
+}
+
+/// How many rows back a line still counts as the neighbour of an ambiguous row.
+pub const NEAR_ROWS: usize = 2;
+
+/// An ambiguous row (a second peak of at least [`CoarseConfig::ambiguity`] of the line's) read
+/// again in a window around the line's column in the rows just above, `near.col` +- max(3
+/// widths, 8 px): a specular spot or a board edge beside the line does not make a row lose a
+/// line that continues its neighbours'. Inside the window the coarse search applies again
+/// (threshold, saturation, a run that must not reach the window's ends); a second peak still
+/// inside the window is either part of the line, when it lies within max(2 widths, 4 px) of
+/// the line's run (a line split in two by dark print or a scratch: the run then spans both),
+/// or makes the row ambiguous as before. The peak found must lie within max(width, 3 px) of
+/// `near.col`. None when any of this fails: the row stays ambiguous. `blocks` is scratch of
+/// the row's block count or more.
+pub fn coarse_row_near<T: Px>(
+    row: &[T],
+    blocks: &mut [T],
+    cfg: &CoarseConfig,
+    thr: f32,
+    near: Near,
+) -> Option<Peak> {
+    let w = row.len();
+    if !near.col.is_finite() || near.col < 0.0 || near.col >= w as f64 {
+        return None;
+    }
+    let width = near.width.max(1.0) as f64;
+    let reach = (3.0 * width).max(8.0);
+    let a = (near.col - reach).floor().max(0.0) as usize;
+    let z = ((near.col + reach).ceil() as usize).min(w - 1);
+    let sub = &row[a..=z];
+    let nb = sub.len().div_ceil(BLOCK);
+    block_max(sub, &mut blocks[..nb]);
+    let single = CoarseConfig {
+        ambiguity: 2.0,
+        ..*cfg
+    };
+    let mut pk = coarse_row(sub, &blocks[..nb], &single, thr).ok()?;
+    // The highest other peak in the window, beyond the line's own flanks.
+    let gap = (pk.width as usize + 1).max(2);
+    let (fl, fh) = (pk.lo.saturating_sub(gap), (pk.hi + gap).min(sub.len() - 1));
+    let (mut v2, mut at2) = (0.0f32, 0usize);
+    for (i, v) in sub.iter().enumerate() {
+        if (i < fl || i > fh) && v.f() > v2 {
+            (v2, at2) = (v.f(), i);
+        }
+    }
+    let rel = ((v2 - pk.bg) / (pk.peak - pk.bg).max(1.0)).max(0.0);
+    if v2 > thr && rel >= cfg.ambiguity {
+        let merge = (2.0 * width).max(4.0) as usize;
+        let close = if at2 < pk.lo {
+            pk.lo - at2 <= merge
+        } else {
+            at2 - pk.hi <= merge
+        };
+        if !close {
+            return None;
+        }
+        // One line in two pieces: the run spans both (and what lies between).
+        let (mut lo, mut hi) = (pk.lo.min(at2), pk.hi.max(at2));
+        while lo > 0 && sub[lo - 1].f() > thr {
+            lo -= 1;
+        }
+        while hi + 1 < sub.len() && sub[hi + 1].f() > thr {
+            hi += 1;
+        }
+        if lo == 0 || hi + 1 == sub.len() {
+            return None;
+        }
+        pk.lo = lo;
+        pk.hi = hi;
+        pk.width = pk.width.max((hi - lo + 1) as f32 * 0.5);
+    }
+    pk.second = rel;
+    if ((a + pk.m) as f64 - near.col).abs() > width.max(3.0) {
+        return None;
+    }
+    pk.m += a;
+    pk.top_lo += a;
+    pk.top_hi += a;
+    pk.lo += a;
+    pk.hi += a;
+    for s in &mut pk.spikes[..pk.spike_count as usize] {
+        s.0 += a as u32;
+        s.1 += a as u32;
+    }
+    Some(pk)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -678,6 +797,31 @@ mod tests {
         row[170..173].fill(255);
         let p = run(&row, &CoarseConfig::default()).unwrap();
         assert_eq!(p.m, 150);
+    }
+
+    #[test]
+    fn an_ambiguous_row_keeps_the_line_that_continues_its_neighbours() {
+        let cfg = CoarseConfig::default();
+        // The line at 150.3 and a reflection of 0.9 of its height at 40.
+        let mut row = line(300, 150.3, 1.6, 180.0);
+        for (i, v) in line(300, 40.0, 2.0, 162.0).into_iter().enumerate() {
+            row[i] = row[i].max(v);
+        }
+        let mut s = CoarseScratch::default();
+        let thr = s.threshold(&cfg, 0, &row);
+        block_max(&row, s.for_width(row.len()));
+        assert_eq!(
+            s.row_near(&row, &cfg, thr, None).unwrap_err().0,
+            Reject::Ambiguous
+        );
+        let near = |col| Some(Near { col, width: 3.8 });
+        let p = s.row_near(&row, &cfg, thr, near(150.8)).unwrap();
+        assert_eq!((p.m, p.lo > 140, p.hi < 160), (150, true, true));
+        // The weaker peak is taken too when it is the one that continues the line.
+        let q = s.row_near(&row, &cfg, thr, near(40.5)).unwrap();
+        assert_eq!(q.m, 40);
+        // A neighbour far from both peaks decides nothing.
+        assert!(s.row_near(&row, &cfg, thr, near(100.0)).is_err());
     }
 
     #[test]

@@ -2,7 +2,9 @@
 //! written, and the baselines of docs/method.md section 4.4.
 
 use super::bernstein::{bisect_literal, Binomials, MAX_N};
-use super::coarse::{block_max, coarse_row, prefetch_ahead, CoarseConfig, CoarseScratch, Peak, Px};
+use super::coarse::{
+    block_max, prefetch_ahead, CoarseConfig, CoarseScratch, Near, Peak, Px, NEAR_ROWS,
+};
 use super::{Detector, LinePeak, Reject};
 use footscan_hal::{Frame, Pixels};
 
@@ -42,12 +44,19 @@ fn run_rows<T: Px, E: Estimate>(
     out: &mut [LinePeak],
 ) {
     scratch.for_width(w);
-    for (r, (row, o)) in px.chunks_exact(w).zip(out.iter_mut()).enumerate() {
+    for (r, row) in px.chunks_exact(w).enumerate() {
         prefetch_ahead(px, r, w);
         let thr = scratch.threshold(cfg, r, row);
         let blocks = scratch.for_width(w);
         block_max(row, blocks);
-        *o = match coarse_row(row, blocks, cfg, thr) {
+        let near = (1..=NEAR_ROWS.min(r))
+            .map(|k| &out[r - k])
+            .find(|p| p.is_valid())
+            .map(|p| Near {
+                col: p.col,
+                width: p.width,
+            });
+        out[r] = match scratch.row_near(row, cfg, thr, near) {
             Err((r, v)) => LinePeak::rejected(r, v),
             Ok(pk) => match est.estimate(row, &pk, cfg) {
                 Ok(col) => accepted(col, &pk, T::FULL as f32),
