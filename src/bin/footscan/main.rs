@@ -3,6 +3,7 @@
 mod bench;
 mod calibrate;
 mod detect;
+mod fleet;
 mod last;
 mod last_customize;
 mod last_join;
@@ -71,6 +72,8 @@ enum Command {
     Last(last::Args),
     /// The simulator's objects as files with their truth (see `footscan sim --help`).
     Sim(sim::Args),
+    /// The fleet database the daemons push scans to: migrate, list, show, fetch.
+    Fleet(fleet::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -132,5 +135,6 @@ fn run() -> Result<()> {
         Command::Detect(args) => detect::run(args),
         Command::Last(args) => last::run(args),
         Command::Sim(args) => sim::run(args),
+        Command::Fleet(args) => fleet::run(args),
     }
 }
