@@ -10,6 +10,9 @@ packages+=(chromium fonts-dejavu-core)
 packages+=(curl)
 # The geometry export tests read IGES/STEP back with OpenCASCADE in a Python venv (below).
 packages+=(python3-venv)
+# The fleet tests (crates/fleet, crates/daemon/tests/daemon_fleet.rs, tests/fleet_cli.rs) start
+# a PostgreSQL server of their own (initdb + pg_ctl); footscan-fleet's TLS links OpenSSL.
+packages+=(postgresql libssl-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
