@@ -411,6 +411,8 @@ fn scanners_run(
     bounces: usize,
     fleet: bool,
 ) -> Vec<f64> {
+    // The schema first, so the test's own queries do not race the daemons' migration.
+    footscan_fleet::migrate(&mut pg.fleet_client(), None).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let daemons: Vec<(String, PathBuf, Footscand)> = (0..n_daemons)
         .map(|i| {
@@ -516,6 +518,8 @@ fn study_three_scanners_twenty_scans_each() {
 #[ignore = "study: run with --ignored --nocapture"]
 fn study_drain_a_backlog_of_100_scans() {
     let pg = PgServer::start();
+    // The schema first, so the test's own queries do not race the daemon's migration.
+    footscan_fleet::migrate(&mut pg.fleet_client(), None).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     // One real short scan for the sizes of its files.
     let probe = tmp.path().join("probe");
