@@ -30,6 +30,7 @@ pub mod plan;
 pub mod run;
 pub mod stair;
 pub mod uncertainty;
+pub mod verify;
 
 pub use error::CalibError;
 pub use file::{Calibration, CalibrationError};

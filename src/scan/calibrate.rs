@@ -10,10 +10,14 @@ use super::backend::sim::{open_sim_devices, SimDevices, SimOpenError};
 use super::config::Backend;
 use super::{LoadedConfig, ScanConfig};
 use crate::calib::acquire::{self, DeviceRig, Mistakes, Operator, Person, RenderRig, SimOperator};
-use crate::calib::guided::{acquire_guided, AutoGuide, Guide, GuidedRun};
+use crate::calib::guided::{
+    acquire_guided, run_steps, staircase_instruction, AutoGuide, Guide, GuidedRun, Step, StepData,
+    StepKind,
+};
 pub use crate::calib::run::{
     check_before_saving, check_limits, detector, from_insystem, Method, Outcome, DETECTOR,
 };
+use crate::calib::verify::CheckReport;
 use crate::calib::{CalibError, Calibration, CalibrationPlan, CameraModel};
 use footscan_sim::grbl::GrblEmulator;
 use footscan_sim::render::Scene;
@@ -186,6 +190,78 @@ pub fn calibrate(
             opencv_sim(cfg, plan, &mut |_, _, _| {})
         }
     }
+}
+
+/// The daily check's one step: the staircase pass of `plan` at `step_mm`.
+pub fn verify_steps(plan: &CalibrationPlan, step_mm: f64) -> Vec<Step> {
+    let n = ((plan.stair_end_mm - plan.stair_start_mm) / step_mm).floor() as usize;
+    vec![Step {
+        index: 0,
+        of: 1,
+        kind: StepKind::Staircase,
+        title: "staircase gauge (daily check)".into(),
+        instruction: staircase_instruction(&plan.staircase, plan.stair_start_mm, plan.stair_end_mm),
+        positions_mm: (0..=n)
+            .map(|i| plan.stair_start_mm + i as f64 * step_mm)
+            .collect(),
+        frames_per_position: 1,
+    }]
+}
+
+/// The daily check through `rig`: the staircase pass (checked like a calibration step, with
+/// `cal` as the check model), measured with `cal` against the gauge of `plan`.
+pub fn verify_with(
+    rig: &mut dyn acquire::CalibrationRig,
+    cal: &Calibration,
+    plan: &CalibrationPlan,
+    section: &super::config::CalibrationSection,
+    guide: &mut dyn Guide,
+) -> Result<CheckReport, CalibError> {
+    plan.validate()?;
+    // The pass's own check only asks whether the gauge is there and whole: it must not fail
+    // on the calibration error the daily check is there to measure. Heights are given up to
+    // just under half the closest spacing of two steps.
+    let mut hs = plan.staircase.heights_mm.clone();
+    hs.sort_by(f64::total_cmp);
+    let gap = hs
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(f64::INFINITY, f64::min);
+    let mut plan = plan.clone();
+    plan.checks.height_mm = (0.45 * gap).clamp(plan.checks.height_mm, 5.0);
+    plan.checks.height_rel = 0.0;
+    let plan = &plan;
+    let steps = verify_steps(plan, section.verify_step_mm);
+    let mut det = detector(DETECTOR)?;
+    let mut run = GuidedRun {
+        plan,
+        prior: Some(&cal.model),
+        detector: det.as_mut(),
+    };
+    let mut check = None;
+    let (kept, _, _) = run_steps(rig, &steps, &mut run, &mut check, guide)?;
+    let frames = match kept.into_iter().next() {
+        Some(StepData::Frames(f)) => f,
+        _ => unreachable!("the staircase step keeps frames"),
+    };
+    Ok(crate::calib::verify::check(
+        &frames,
+        &plan.staircase,
+        cal,
+        section.verify_tolerance_mm,
+        section.verify_width_tolerance_mm,
+    ))
+}
+
+/// The daily check of the scanner of `cfg` (any backend) with calibration `cal`.
+pub fn verify(
+    cfg: &ScanConfig,
+    cal: &Calibration,
+    plan: &CalibrationPlan,
+    guide: &mut dyn Guide,
+) -> Result<CheckReport, CalibError> {
+    let mut open = open_rig(cfg, plan)?;
+    verify_with(&mut open.rig, cal, plan, &cfg.calibration, guide)
 }
 
 /// [`calibrate`] with nobody to ask (every step confirmed; a failing check aborts), reporting

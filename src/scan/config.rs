@@ -37,9 +37,11 @@ pub struct CalibrationSection {
     pub max_residual_px: f64,
     /// Refuse a calibration whose height uncertainty `u_h_mm` (eq. 30) exceeds this (mm).
     pub max_u_h_mm: f64,
-    /// The daily check fails when a staircase step's mean height error or the block's width
-    /// error exceeds this (mm).
+    /// The daily check fails when a staircase step's height error exceeds this (mm) ...
     pub verify_tolerance_mm: f64,
+    /// ... or the block's measured width is further than this from its stated width (mm;
+    /// coarser: the width is measured to about a row at each side).
+    pub verify_width_tolerance_mm: f64,
     /// The status warns when the last passing daily check is older than this (hours).
     pub verify_max_age_h: f64,
     /// Slider step of the daily check's staircase pass (mm).
@@ -52,6 +54,7 @@ impl Default for CalibrationSection {
             max_residual_px: 0.5,
             max_u_h_mm: 0.05,
             verify_tolerance_mm: 0.05,
+            verify_width_tolerance_mm: 0.5,
             verify_max_age_h: 26.0,
             verify_step_mm: 1.0,
         }
@@ -65,6 +68,12 @@ impl CalibrationSection {
             ("max_residual_px", self.max_residual_px, 1e-4, 100.0),
             ("max_u_h_mm", self.max_u_h_mm, 1e-4, 100.0),
             ("verify_tolerance_mm", self.verify_tolerance_mm, 1e-4, 10.0),
+            (
+                "verify_width_tolerance_mm",
+                self.verify_width_tolerance_mm,
+                1e-4,
+                50.0,
+            ),
             ("verify_max_age_h", self.verify_max_age_h, 0.01, 1e5),
             ("verify_step_mm", self.verify_step_mm, 0.05, 50.0),
         ] {

@@ -11,6 +11,7 @@ mod measure;
 mod model;
 mod scan;
 mod sim;
+mod verify;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -64,6 +65,8 @@ enum Command {
     Measure(measure::Args),
     /// Calibrate the scanner (insystem, bezier or the OpenCV reference) into a calibration TOML.
     Calibrate(calibrate::Args),
+    /// The daily check: the staircase gauge measured with the current calibration, pass/fail.
+    Verify(verify::Args),
     /// Measure speed and accuracy (see `footscan bench --help`).
     Bench(bench::Args),
     /// Run a laser-line detector on recorded frames and write one CSV line per image row.
@@ -131,6 +134,7 @@ fn run() -> Result<()> {
         Command::Model(args) => model::run(args),
         Command::Measure(args) => measure::run(args),
         Command::Calibrate(args) => calibrate::run(args),
+        Command::Verify(args) => verify::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Detect(args) => detect::run(args),
         Command::Last(args) => last::run(args),
