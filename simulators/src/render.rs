@@ -42,6 +42,17 @@
 //!
 //! Noise is a deterministic function of (seed, frame index): frame k is identical however it is
 //! reached.
+//!
+//! # Colour
+//! With [`NoiseConfig::colour`] the camera is a colour camera under coloured room light: the
+//! frame above is the laser's own channel (its response 1: red for a red laser); each pixel's
+//! ambient part becomes `ambient_dn * ambient_rgb` and the rest, laser light with its noise,
+//! `laser_rgb` times itself; the two other channels get independent read noise; then the pixel
+//! is reduced to the camera's channel ([`footscan_hal::Channel`], the V4L2 driver's function).
+//! The laser channel's noise is carried into the others in proportion to `laser_rgb` (small for
+//! a laser): a simplification that keeps one rendered frame per colour frame. `texture` makes
+//! the lit scene blotchy (a fixed pattern per camera pixel, the same in every channel): room
+//! light on a textured scene, which a threshold must not take for the line.
 
 use crate::foot::Foot;
 use crate::optics::{check_range, Optics, Projector, SimError};
@@ -85,6 +96,64 @@ pub struct NoiseConfig {
     pub format: PixelFormat,
     /// false = noise-free: exact pixel-integrated Gaussian plus ambient, rounded.
     pub enabled: bool,
+    /// A colour camera: the frame is rendered in colour and reduced to one channel as the V4L2
+    /// driver reduces a colour format ([`ColourCamera`]); None: a monochrome camera.
+    pub colour: Option<ColourCamera>,
+}
+
+/// A colour camera under coloured room light (see the module doc, "Colour").
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ColourCamera {
+    /// The laser's response in R, G, B relative to its channel's (a red laser on a Bayer
+    /// sensor: about [1, 0.06, 0.03]).
+    pub laser_rgb: [f64; 3],
+    /// The ambient light off the scene in R, G, B relative to `ambient_dn` (room light on
+    /// skin: about [1, 0.85, 0.75]; white paper under daylight: [1, 1, 1]).
+    pub ambient_rgb: [f64; 3],
+    /// The channel the camera delivers (the driver's `channel`).
+    pub channel: footscan_hal::Channel,
+    /// Texture of the lit scene: the ambient light varies by +- this fraction over blotches of
+    /// 6 to 24 px (skin, a sock's weave, the room behind the glass); 0 = uniform light.
+    #[serde(default)]
+    pub texture: f64,
+}
+
+impl ColourCamera {
+    /// A red laser under warm room light on skin, reduced to R - (G + B) / 2.
+    pub fn red_laser() -> Self {
+        ColourCamera {
+            laser_rgb: [1.0, 0.06, 0.03],
+            ambient_rgb: [1.0, 0.85, 0.75],
+            channel: footscan_hal::Channel::RedMinusOthers,
+            texture: 0.0,
+        }
+    }
+}
+
+/// A fixed blotchy pattern in [-1, 1] (value noise on 24 px and 6 px grids, bilinear).
+fn texture_pattern(w: usize, h: usize, seed: u64) -> Vec<f32> {
+    let grid = |cell: usize, stream: u64| {
+        let (gw, gh) = (w / cell + 2, h / cell + 2);
+        let v: Vec<f32> = (0..gw * gh)
+            .map(|i| (mix(seed, i as u64, stream) >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0)
+            .collect();
+        move |x: usize, y: usize| {
+            let (fx, fy) = (x as f32 / cell as f32, y as f32 / cell as f32);
+            let (i, j) = (fx as usize, fy as usize);
+            let (tx, ty) = (fx - i as f32, fy - j as f32);
+            let at = |a: usize, b: usize| v[b * gw + a];
+            (at(i, j) * (1.0 - tx) + at(i + 1, j) * tx) * (1.0 - ty)
+                + (at(i, j + 1) * (1.0 - tx) + at(i + 1, j + 1) * tx) * ty
+        }
+    };
+    let (coarse, fine) = (grid(24, 0x7E47_0001), grid(6, 0x7E47_0002));
+    (0..w * h)
+        .map(|k| {
+            let (x, y) = (k % w, k / w);
+            (0.7 * coarse(x, y) + 0.5 * fine(x, y)).clamp(-1.0, 1.0)
+        })
+        .collect()
 }
 
 impl Default for NoiseConfig {
@@ -103,6 +172,7 @@ impl Default for NoiseConfig {
             drop_x_mm: Vec::new(),
             format: PixelFormat::Gray8,
             enabled: true,
+            colour: None,
         }
     }
 }
@@ -132,8 +202,21 @@ impl NoiseConfig {
         check_range("glass_reflection", self.glass_reflection, 0.0, 10.0)?;
         check_range("specular_spike_rate", self.specular_spike_rate, 0.0, 1e4)?;
         check_range("drop_rate", self.drop_rate, 0.0, 1.0)?;
+        if let Some(c) = &self.colour {
+            check_range("colour.texture", c.texture, 0.0, 1.0)?;
+        }
         for r in &self.drop_x_mm {
             check_range("drop_x_mm", r[1] - r[0], 0.0, 1e4)?;
+        }
+        if let Some(c) = &self.colour {
+            for (k, v) in c.laser_rgb.iter().chain(&c.ambient_rgb).enumerate() {
+                let key = if k < 3 {
+                    "colour.laser_rgb"
+                } else {
+                    "colour.ambient_rgb"
+                };
+                check_range(key, *v, 0.0, 10.0)?;
+            }
         }
         Ok(())
     }
@@ -287,6 +370,8 @@ pub struct Renderer {
     glass: Vec<Option<f64>>,
     /// Expected signal of the pixels of one row segment.
     signal: Vec<f32>,
+    /// [`ColourCamera::texture`]'s pattern (empty without texture).
+    texture: Vec<f32>,
 }
 
 impl Renderer {
@@ -322,6 +407,12 @@ impl Renderer {
             })
             .collect();
         let surface = scene.surface();
+        let texture = match &noise.colour {
+            Some(c) if c.texture > 0.0 => {
+                texture_pattern(optics.width as usize, optics.height as usize, seed)
+            }
+            _ => Vec::new(),
+        };
         let mut r = Renderer {
             optics,
             proj,
@@ -335,6 +426,7 @@ impl Renderer {
             bg16: Vec::new(),
             glass,
             signal: Vec::new(),
+            texture,
         };
         r.build_background();
         Ok(r)
@@ -484,6 +576,7 @@ impl Renderer {
                     self.draw_lines(buf, truth, &mut rng, |v| v as u8);
                     self.draw_spikes(buf, truth, &mut rng, u8::MAX);
                 }
+                self.reduce_colour(buf, &mut bg_rng, |v| v as u8);
             }
             Pixels::Gray16(buf) => {
                 fill_background(buf, &self.bg16, &mut bg_rng);
@@ -491,7 +584,56 @@ impl Renderer {
                     self.draw_lines(buf, truth, &mut rng, |v| v as u16);
                     self.draw_spikes(buf, truth, &mut rng, u16::MAX);
                 }
+                self.reduce_colour(buf, &mut bg_rng, |v| v as u16);
             }
+        }
+    }
+
+    /// A colour camera ([`NoiseConfig::colour`]): each pixel of the laser's channel, rendered
+    /// above, becomes R, G, B (ambient times `ambient_rgb`, the rest, laser light, times
+    /// `laser_rgb`; the two other channels get read noise of their own) and is reduced to the
+    /// camera's channel in place, by the same function as the V4L2 driver's.
+    fn reduce_colour<T: Copy + Into<u32>>(
+        &self,
+        buf: &mut [T],
+        rng: &mut WyRand,
+        cast: impl Fn(u32) -> T,
+    ) {
+        let Some(c) = &self.noise.colour else {
+            return;
+        };
+        let (scale, max) = (self.scale(), self.max_value());
+        let amb = self.noise.ambient_dn * self.gain * scale;
+        let read = if self.noise.enabled {
+            self.noise.read_noise_dn * scale
+        } else {
+            0.0
+        };
+        let normal = &self.normal;
+        let mut other = |k: usize, lit: f64, v: f64, laser: f64| -> u32 {
+            let z = if read > 0.0 {
+                read * normal[(rng.next() & 0xFFFF) as usize] as f64
+            } else {
+                0.0
+            };
+            (amb * lit * c.ambient_rgb[k] + (v - amb) * laser + z)
+                .round()
+                .clamp(0.0, max) as u32
+        };
+        for (i, p) in buf.iter_mut().enumerate() {
+            let v = (*p).into() as f64;
+            // The scene's texture scales the light it reflects in every channel alike.
+            let lit = match self.texture.get(i) {
+                Some(&t) => 1.0 + c.texture * t as f64,
+                None => 1.0,
+            };
+            // The rendered channel is the laser's own (response 1): its noise stays as drawn.
+            let r = (amb * lit * c.ambient_rgb[0] + (v - amb) * c.laser_rgb[0])
+                .round()
+                .clamp(0.0, max) as u32;
+            let g = other(1, lit, v, c.laser_rgb[1]);
+            let b = other(2, lit, v, c.laser_rgb[2]);
+            *p = cast(c.channel.of(r, g, b));
         }
     }
 
