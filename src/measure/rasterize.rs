@@ -20,6 +20,10 @@ use crate::scandata::ScanGrid;
 
 /// Missing rows bridged inside a run (a detector may drop a row or two in the sole).
 const MAX_GAP_ROWS: usize = 2;
+/// Fewer rows than this are a detector's stray (a reflection, a blotch of lit texture taken
+/// for the line), not a piece of sole: one such row far off the glass triangulates metres
+/// away and would stretch the map over the whole room.
+const MIN_RUN_ROWS: usize = 3;
 
 #[derive(Clone, Debug)]
 struct Run {
@@ -207,11 +211,14 @@ fn frames_of(grid: &ScanGrid) -> Result<Vec<Frame>, MeasureError> {
             } else if !cur.is_empty() {
                 gap += 1;
                 if gap > MAX_GAP_ROWS {
-                    runs.push(make_run(std::mem::take(&mut cur), pitch));
+                    let run = std::mem::take(&mut cur);
+                    if run.len() >= MIN_RUN_ROWS {
+                        runs.push(make_run(run, pitch));
+                    }
                 }
             }
         }
-        if !cur.is_empty() {
+        if cur.len() >= MIN_RUN_ROWS {
             runs.push(make_run(cur, pitch));
         }
         runs.sort_by(|a, b| a.lo.total_cmp(&b.lo));
@@ -565,6 +572,30 @@ mod tests {
             });
         }
         g
+    }
+
+    #[test]
+    fn a_stray_row_far_off_the_glass_is_not_a_piece_of_sole() {
+        let disc = |x: f64, y: f64| ((x - 40.0).powi(2) + y * y <= 400.0).then_some(1.0);
+        let clean = rasterize_grid(&grid(disc, (15.0, 65.0), 400), 0.5).unwrap();
+        // The same disc with one stray row in the frame at x = 40, triangulated 1.8 m away.
+        let stray = |x: f64, y: f64| {
+            if (x - 40.13).abs() < 1e-9 && (y + 24.963).abs() < 1e-6 {
+                Some(7397.0)
+            } else {
+                disc(x, y)
+            }
+        };
+        let g = grid(stray, (15.0, 65.0), 400);
+        assert_eq!(
+            g.valid_count(),
+            grid(disc, (15.0, 65.0), 400).valid_count() + 1
+        );
+        let map = rasterize_grid(&g, 0.5).unwrap();
+        assert_eq!(
+            (map.nx, map.ny, map.x0, map.y0),
+            (clean.nx, clean.ny, clean.x0, clean.y0)
+        );
     }
 
     #[test]
