@@ -99,11 +99,12 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
     }
     for d in &c.curves.deform {
         println!(
-            "deform {:16} type {} {} constraints, largest control move {:.2} mm, length {:.2} mm{}",
+            "deform {:16} type {} {:3} nodes, largest control move {:5.2} mm, off the last {:.3} mm, length {:.2} mm{}",
             d.curve,
             d.curve_type,
             d.constraints,
             d.max_control_move_mm,
+            d.max_dev_from_last_mm,
             d.length_mm,
             d.target_mm
                 .map(|t| format!(" (target {t:.2})"))

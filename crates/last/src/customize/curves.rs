@@ -101,30 +101,35 @@ pub fn least_change(
             r[(k, (span - p + j) % nu)] += v;
         }
     }
-    // Rank check: incremental, to name the offending constraint.
+    // Rank check: a Cholesky factor whose pivots stay clear of zero; only when it fails is
+    // the set searched (incrementally) for the constraint that depends on the ones before.
     let rrt = &r * r.transpose();
     let scale = (0..m)
         .map(|i| rrt[(i, i)])
         .fold(0.0f64, f64::max)
         .max(1e-300);
-    for k in 1..=m {
-        let sub = rrt.view((0, 0), (k, k)).clone_owned();
-        let sv = sub.singular_values();
-        let smin = sv.iter().cloned().fold(f64::MAX, f64::min);
-        if smin <= 1e-10 * scale {
-            return Err(CustomizeError::RankDeficient {
-                curve: curve_name.into(),
-                constraint: cons[k - 1].name.into(),
-            });
-        }
-    }
     let dp = DMatrix::from_fn(m, 3, |i, j| cons[i].delta[j]);
-    let chol = rrt
-        .cholesky()
-        .ok_or_else(|| CustomizeError::RankDeficient {
+    let chol = rrt.clone().cholesky().filter(|ch| {
+        let l = ch.l_dirty();
+        (0..m).all(|i| l[(i, i)] * l[(i, i)] > 1e-10 * scale)
+    });
+    let Some(chol) = chol else {
+        for k in 1..=m {
+            let sub = rrt.view((0, 0), (k, k)).clone_owned();
+            let sv = sub.singular_values();
+            let smin = sv.iter().cloned().fold(f64::MAX, f64::min);
+            if smin <= 1e-10 * scale {
+                return Err(CustomizeError::RankDeficient {
+                    curve: curve_name.into(),
+                    constraint: cons[k - 1].name.into(),
+                });
+            }
+        }
+        return Err(CustomizeError::RankDeficient {
             curve: curve_name.into(),
             constraint: "(the set as a whole)".into(),
-        })?;
+        });
+    };
     let delta = r.transpose() * chol.solve(&dp);
     let mut out = c.clone();
     for i in 0..n {

@@ -46,6 +46,11 @@ pub const INSTEP_X: f64 = 0.55;
 pub const ANKLE_Z: f64 = 0.16;
 /// Station of the ankle girth (across the axis, through the ankle's front fold).
 pub const ANKLE_X: f64 = 0.30;
+/// Top of the last above the glass, as a fraction of the foot length: above the instep of
+/// real feet (0.26-0.32 L on the feet in the benchmark), below where a leg stub starts to
+/// matter. Girths are measured below it on the foot and on the last alike (a tape on the
+/// last cannot go higher than the last).
+pub const TOP_Z: f64 = 0.35;
 /// Fraction of the way from MT1 to MT5 where the axis crosses the ball line.
 pub const MT2_FRACTION: f64 = 0.46;
 
@@ -205,10 +210,30 @@ fn cut(m: &TriMesh, plane: &Plane) -> Vec<Loop3> {
         .collect()
 }
 
-/// Convex hull of all loop points in the plane, as a closed 3D loop (counterclockwise about
-/// the plane normal), and its perimeter.
-pub fn hull_loop(loops: &[Loop3], plane: &Plane) -> (Loop3, f64) {
-    let pts: Vec<P2> = loops.iter().flatten().map(|p| plane.to_local(p)).collect();
+/// The part of closed loops at or below height `top`, with the crossing points.
+fn clip_below(loops: &[Loop3], top: f64) -> Vec<P3> {
+    let mut out = Vec::new();
+    for l in loops {
+        for (i, p) in l.iter().enumerate() {
+            let q = l[(i + 1) % l.len()];
+            if p.z <= top {
+                out.push(*p);
+            }
+            if (p.z - top) * (q.z - top) < 0.0 {
+                out.push(p + (q - p) * ((top - p.z) / (q.z - p.z)));
+            }
+        }
+    }
+    out
+}
+
+/// Convex hull of all loop points below `top` in the plane, as a closed 3D loop
+/// (counterclockwise about the plane normal), and its perimeter.
+pub fn hull_loop(loops: &[Loop3], plane: &Plane, top: f64) -> (Loop3, f64) {
+    let pts: Vec<P2> = clip_below(loops, top)
+        .iter()
+        .map(|p| plane.to_local(p))
+        .collect();
     if pts.len() < 3 {
         return (Vec::new(), 0.0);
     }
@@ -222,20 +247,29 @@ fn outline_loops(m: &TriMesh, zmin: f64) -> Vec<Loop3> {
 }
 
 /// Estimate the foot frame of a world mesh (z up): see the module documentation.
+///
+/// Scans of real feet are not all taken standing: a foot scanned hanging ("T-pose", as the
+/// FIND template) rests on nothing, its toes or its heel tens of millimetres above the
+/// forefoot's lowest point. So the glass is the plane the foot would stand on (the support
+/// line under the arch in the side view, see [`support_pitch`]), not the lowest point; the
+/// heel end is where a leg stub stands (or the narrower end when the mesh has none); the
+/// side is where the toes reach furthest (the hallux is medial), not the 1.5 mm outline's
+/// toe tip (raised toes never reach that outline).
 pub fn find_frame(world: &TriMesh, name: &str) -> Result<FootFrame, CustomizeError> {
     let bb = world.bbox();
     let zmin = bb.min.z;
+    let height = bb.max.z - zmin;
     // Principal direction of the lower part in plan.
     let low: Vec<P3> = world
         .vertices
         .iter()
-        .filter(|p| p.z < zmin + 30.0)
+        .filter(|p| p.z < zmin + 0.4 * height.max(30.0))
         .copied()
         .collect();
     if low.len() < 10 {
         return Err(CustomizeError::NotAFoot {
             name: name.into(),
-            why: "fewer than 10 vertices within 30 mm of the lowest point".into(),
+            why: "fewer than 10 vertices in the lower part of the mesh".into(),
         });
     }
     let c = low.iter().fold(V3::zeros(), |s, p| s + p.coords) / low.len() as f64;
@@ -248,7 +282,6 @@ pub fn find_frame(world: &TriMesh, name: &str) -> Result<FootFrame, CustomizeErr
     }
     let ang = 0.5 * (2.0 * sxy).atan2(sxx - syy);
     let mut ex = V3::new(ang.cos(), ang.sin(), 0.0);
-    // Front = the wider end (the ball is wider than the heel).
     let proj: Vec<(f64, f64)> = low
         .iter()
         .map(|p| {
@@ -259,15 +292,30 @@ pub fn find_frame(world: &TriMesh, name: &str) -> Result<FootFrame, CustomizeErr
     let (smin, smax) = proj
         .iter()
         .fold((f64::MAX, f64::MIN), |(a, b), q| (a.min(q.0), b.max(q.0)));
-    let breadth = |a: f64, b: f64| {
-        let (lo, hi) = proj
-            .iter()
-            .filter(|q| q.0 >= a && q.0 <= b)
-            .fold((f64::MAX, f64::MIN), |(l, h), q| (l.min(q.1), h.max(q.1)));
-        hi - lo
-    };
     let span = smax - smin;
-    if breadth(smin, smin + 0.35 * span) > breadth(smax - 0.35 * span, smax) {
+    // Heel end: under the leg when the mesh has one (taller than a third of its length: the
+    // top's centroid is over the heel), else the narrower end (the ball is wider than the
+    // heel).
+    let top: Vec<f64> = world
+        .vertices
+        .iter()
+        .filter(|p| p.z > zmin + 0.7 * height)
+        .map(|p| (p.coords - c).dot(&ex))
+        .collect();
+    let heel_first = if height > span / 3.0 && !top.is_empty() {
+        let t = top.iter().sum::<f64>() / top.len() as f64;
+        t < 0.5 * (smin + smax)
+    } else {
+        let breadth = |a: f64, b: f64| {
+            let (lo, hi) = proj
+                .iter()
+                .filter(|q| q.0 >= a && q.0 <= b)
+                .fold((f64::MAX, f64::MIN), |(l, h), q| (l.min(q.1), h.max(q.1)));
+            hi - lo
+        };
+        breadth(smin, smin + 0.35 * span) <= breadth(smax - 0.35 * span, smax)
+    };
+    if !heel_first {
         ex = -ex;
     }
     let mut frame = FootFrame {
@@ -276,26 +324,21 @@ pub fn find_frame(world: &TriMesh, name: &str) -> Result<FootFrame, CustomizeErr
         ey: V3::z().cross(&ex).into(),
         side: Side::Right,
     };
-    // Side from the toe tip, then refine the axis through the heel centre and the MT2 point.
+    let no_plan = || CustomizeError::NotAFoot {
+        name: name.into(),
+        why: "no plan outline at the ball or heel".into(),
+    };
+    // Level on the support line, decide the side, then refine the axis through the heel
+    // centre and the MT2 point.
     for it in 0..6 {
+        level(world, &mut frame);
         let mut m = world.clone();
         m.transform(&frame.world_to_frame());
-        let ol = outline_loops(&m, 0.0);
-        let pts: Vec<&P3> = ol.iter().flatten().collect();
-        let (Some(o), Some(a)) = (
-            pts.iter().min_by(|p, q| p.x.total_cmp(&q.x)),
-            pts.iter().max_by(|p, q| p.x.total_cmp(&q.x)),
-        ) else {
-            return Err(CustomizeError::NotAFoot {
-                name: name.into(),
-                why: "no sole outline 1.5 mm above the lowest point".into(),
-            });
-        };
-        let (o, a) = (**o, **a);
-        if it == 0 {
-            frame.side = if a.y >= 0.0 { Side::Right } else { Side::Left };
-        }
+        let (o, a) = plan_ends(&m);
         let l = a.x - o.x;
+        if it == 0 {
+            frame.side = toe_side(&m, o.x, l);
+        }
         let plan = PlanProfile::new(&m, PLAN_STEP);
         let s = frame.medial_sign();
         let (Some(b), Some(cc), Some((hl, hm))) = (
@@ -303,36 +346,150 @@ pub fn find_frame(world: &TriMesh, name: &str) -> Result<FootFrame, CustomizeErr
             plan.extreme(o.x + 0.55 * l, o.x + 0.85 * l, -s),
             plan.widest(o.x, o.x + 0.25 * l),
         ) else {
-            return Err(CustomizeError::NotAFoot {
-                name: name.into(),
-                why: "no plan outline at the ball or heel".into(),
-            });
+            return Err(no_plan());
         };
         let hc = P3::new(0.5 * (hl.x + hm.x), 0.5 * (hl.y + hm.y), 0.0);
         let t = b + (cc - b) * MT2_FRACTION;
         let dir = V3::new(t.x - hc.x, t.y - hc.y, 0.0).normalize();
-        // Back to world.
+        // Back to world: the new axis in plan (its pitch is found again by `level`).
         let inv = frame.world_to_frame().inverse();
         let dir_w = inv * dir;
-        let hc_w = inv * hc;
         let ex = V3::new(dir_w.x, dir_w.y, 0.0).normalize();
-        let ey = V3::z().cross(&ex);
-        // Origin: the heel point on the axis line, on the glass.
-        let o_w = inv * o;
-        let along = (o_w - hc_w).dot(&ex);
-        let org = hc_w + ex * along;
-        frame.origin = [org.x, org.y, zmin];
+        let hc_w = inv * hc;
+        frame.origin = [hc_w.x, hc_w.y, hc_w.z];
         frame.ex = ex.into();
-        frame.ey = ey.into();
+        frame.ey = V3::z().cross(&ex).into();
     }
-    // Final origin: rearmost outline point in the final frame.
+    level(world, &mut frame);
+    // Final origin: the heel point (pternion) on the axis, on the glass.
     let mut m = world.clone();
     m.transform(&frame.world_to_frame());
-    let ol = outline_loops(&m, 0.0);
-    let ox = ol.iter().flatten().map(|p| p.x).fold(f64::MAX, f64::min);
-    let o = V3::from(frame.origin) + V3::from(frame.ex) * ox;
-    frame.origin = o.into();
+    let (o, _) = plan_ends(&m);
+    let org = frame.world_to_frame().inverse() * P3::new(o.x, 0.0, 0.0);
+    frame.origin = org.into();
     Ok(frame)
+}
+
+/// Heights (as fractions of the heel-to-toe extent) below which the heel point is sought:
+/// the heel's back bulge, not a leg stub leaning back above it.
+pub const HEEL_POINT_Z: f64 = 0.15;
+
+/// The heel point (pternion: the rearmost point of the foot below [`HEEL_POINT_Z`] of its
+/// extent) and the toe tip (acropodion: the foremost point), in plan, of a mesh in its frame.
+/// Foot length is their distance along the axis (the paper's OP' = OA on a pressed foot,
+/// where both lie on the 1.5 mm outline; a foot scanned unloaded has its toes or heel above
+/// that outline, and its length is still heel to toe).
+pub fn plan_ends(m: &TriMesh) -> (P3, P3) {
+    let bb = m.bbox();
+    let a = *m
+        .vertices
+        .iter()
+        .max_by(|p, q| p.x.total_cmp(&q.x))
+        .unwrap_or(&P3::origin());
+    let zcap = bb.min.z.max(0.0) + HEEL_POINT_Z * (bb.max.x - bb.min.x);
+    let o = m
+        .vertices
+        .iter()
+        .filter(|p| p.z <= zcap)
+        .min_by(|p, q| p.x.total_cmp(&q.x))
+        .copied()
+        .unwrap_or(a);
+    (o, a)
+}
+
+/// Which side is medial: the toes reach furthest on the hallux's side. Splits the front
+/// (x > 0.8 L) at the middle of the ball breadth and compares how far forward each half goes.
+fn toe_side(m: &TriMesh, x0: f64, l: f64) -> Side {
+    let plan = PlanProfile::new(m, PLAN_STEP);
+    let r = plan.range(x0 + 0.6 * l, x0 + 0.8 * l);
+    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+    for k in r {
+        if let (Some(a), Some(b)) = (plan.lo[k], plan.hi[k]) {
+            lo = lo.min(a.y);
+            hi = hi.max(b.y);
+        }
+    }
+    let mid = 0.5 * (lo + hi);
+    let (mut xp, mut xn) = (f64::MIN, f64::MIN);
+    for p in &m.vertices {
+        if p.x > x0 + 0.8 * l {
+            if p.y > mid {
+                xp = xp.max(p.x);
+            } else {
+                xn = xn.max(p.x);
+            }
+        }
+    }
+    if xp >= xn {
+        Side::Right
+    } else {
+        Side::Left
+    }
+}
+
+/// Pitch the frame about its y axis so that its x axis lies along the support line (see
+/// [`support_pitch`]) and its origin on it.
+fn level(world: &TriMesh, frame: &mut FootFrame) {
+    let mut m = world.clone();
+    m.transform(&frame.world_to_frame());
+    let (slope, z0) = support_pitch(&m);
+    let inv = frame.world_to_frame().inverse();
+    let ex = (inv * V3::new(1.0, 0.0, slope)).normalize();
+    let ey = inv * V3::y();
+    let o = inv * P3::new(0.0, 0.0, z0);
+    frame.ex = ex.into();
+    frame.ey = ey.into();
+    frame.origin = o.into();
+}
+
+/// The line the foot stands on, in the side view (x, z) of a mesh in a provisional frame:
+/// the edge of the lower convex hull that passes under the arch (x at 45 % of the extent),
+/// as (slope dz/dx, z at x = 0). Every point of the foot lies on or above it; a standing foot
+/// gives the glass itself (heel and forefoot both on it), a hanging one the plane it would
+/// rest on.
+pub fn support_pitch(m: &TriMesh) -> (f64, f64) {
+    let mut pts: Vec<(f64, f64)> = m.vertices.iter().map(|p| (p.x, p.z)).collect();
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    // Andrew's monotone chain, lower hull.
+    let mut h: Vec<(f64, f64)> = Vec::new();
+    for p in pts {
+        while h.len() >= 2 {
+            let (a, b) = (h[h.len() - 2], h[h.len() - 1]);
+            if (b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0) <= 0.0 {
+                h.pop();
+            } else {
+                break;
+            }
+        }
+        h.push(p);
+    }
+    if h.len() < 2 {
+        return (0.0, 0.0);
+    }
+    let (x0, x1) = (h[0].0, h[h.len() - 1].0);
+    let xm = x0 + 0.45 * (x1 - x0);
+    let w = h
+        .windows(2)
+        .find(|w| w[0].0 <= xm && xm <= w[1].0)
+        .unwrap_or(&h[0..2]);
+    let (a, b) = (w[0], w[1]);
+    let slope = if b.0 > a.0 {
+        (b.1 - a.1) / (b.0 - a.0)
+    } else {
+        0.0
+    };
+    (slope, a.1 - slope * a.0)
+}
+
+impl Measures {
+    /// Where the sole outline starts: its rearmost x.
+    pub fn sole_from(&self) -> f64 {
+        self.outline
+            .iter()
+            .flatten()
+            .map(|p| p.x)
+            .fold(f64::MAX, f64::min)
+    }
 }
 
 /// Measures of a mesh already in the foot frame. `l_ref`: the foot length that places the
@@ -343,10 +500,25 @@ pub fn measure(m: &TriMesh, l_ref: Option<f64>, medial: f64) -> Result<Measures,
     if pts.is_empty() {
         return Err("no sole outline 1.5 mm above the lowest point".into());
     }
-    let o = *pts.iter().min_by(|p, q| p.x.total_cmp(&q.x)).unwrap();
-    let a = *pts.iter().max_by(|p, q| p.x.total_cmp(&q.x)).unwrap();
+    // The foot: heel point to toe tip in plan; the last: its bottom, the 1.5 mm outline (the
+    // last's bottom is flat, see shape::Sections, and the heel allowance is cut from it).
+    let (o, a) = if l_ref.is_none() {
+        plan_ends(m)
+    } else {
+        (
+            *pts.iter().min_by(|p, q| p.x.total_cmp(&q.x)).unwrap(),
+            *pts.iter().max_by(|p, q| p.x.total_cmp(&q.x)).unwrap(),
+        )
+    };
     let length = a.x - o.x;
     let l = l_ref.unwrap_or(length);
+    // The foot's girths below the last's top (where a tape round the last can go); the
+    // last's all round (its top is the last's own).
+    let top = if l_ref.is_none() {
+        TOP_Z * l
+    } else {
+        f64::INFINITY
+    };
     let plan = PlanProfile::new(m, PLAN_STEP);
     let s = medial;
     let b = plan
@@ -363,12 +535,7 @@ pub fn measure(m: &TriMesh, l_ref: Option<f64>, medial: f64) -> Result<Measures,
     let e = plan
         .narrowest(heel_centre.x, c.x, -s)
         .ok_or("no waist region")?;
-    let p = pts
-        .iter()
-        .filter(|q| q.x >= 0.85 * l)
-        .max_by(|u, v| (s * u.y).total_cmp(&(s * v.y)))
-        .copied()
-        .unwrap_or(a);
+    let p = plan.extreme(0.85 * l, l + 1.0, s).unwrap_or(a);
     let (heel_m, heel_l) = if s > 0.0 { (hhi, hlo) } else { (hlo, hhi) };
     // Girths.
     let ball_plane = Plane::with_axis(
@@ -377,28 +544,34 @@ pub fn measure(m: &TriMesh, l_ref: Option<f64>, medial: f64) -> Result<Measures,
         V3::new(c.x - b.x, c.y - b.y, 0.0),
     )
     .ok_or("MT1 and MT5 coincide")?;
-    let (ball, ball_girth) = hull_loop(&cut(m, &ball_plane), &ball_plane);
+    let (ball, ball_girth) = hull_loop(&cut(m, &ball_plane), &ball_plane, top);
     let xi = INSTEP_X * l;
     let instep_plane = Plane::with_axis(P3::new(xi, 0.0, 0.0), V3::x(), V3::y()).unwrap();
     let instep_loops = cut(m, &instep_plane);
-    let (instep, instep_girth) = hull_loop(&instep_loops, &instep_plane);
-    let instep_top = instep_loops
-        .iter()
-        .flatten()
+    let (instep, instep_girth) = hull_loop(&instep_loops, &instep_plane, top);
+    let instep_top = clip_below(&instep_loops, top)
+        .into_iter()
         .max_by(|u, v| u.z.total_cmp(&v.z))
-        .copied()
         .ok_or("no section at the instep station")?;
-    let heel_g = P3::new(0.0, 0.0, 0.0);
-    let dir = V3::new(instep_top.x, 0.0, instep_top.z);
+    // The long-heel girth goes round the heel at its bottom: the plane passes through the
+    // rearmost point of the sole outline (the paper's O; on the last its own heel point,
+    // which the heel allowance puts behind the foot's), on the glass.
+    let heel_g = pts
+        .iter()
+        .min_by(|p, q| p.x.total_cmp(&q.x))
+        .map(|p| P3::new(p.x, 0.0, 0.0))
+        .unwrap();
+    let dir = V3::new(instep_top.x - heel_g.x, 0.0, instep_top.z);
     let lh_plane = Plane::with_axis(heel_g, dir.cross(&V3::y()), V3::y())
         .ok_or("degenerate long-heel plane")?;
-    let (long_heel, long_heel_girth) = hull_loop(&cut(m, &lh_plane), &lh_plane);
+    let (long_heel, long_heel_girth) = hull_loop(&cut(m, &lh_plane), &lh_plane, top);
     let ankle_plane = Plane::with_axis(P3::new(ANKLE_X * l, 0.0, 0.0), V3::x(), V3::y()).unwrap();
-    let (ankle, ankle_girth) = hull_loop(&cut(m, &ankle_plane), &ankle_plane);
+    let (ankle, ankle_girth) = hull_loop(&cut(m, &ankle_plane), &ankle_plane, top);
     let prof_plane = Plane::with_axis(P3::origin(), V3::y(), V3::x()).unwrap();
     let profile = cut(m, &prof_plane)
         .into_iter()
         .max_by_key(|l| l.len())
+        .map(|l| clip_below(&[l], top))
         .unwrap_or_default();
     Ok(Measures {
         length,

@@ -13,10 +13,10 @@ pub mod shape;
 
 pub use error::CustomizeError;
 
-use curves::{fit_loop, least_change, param_of, secant, Constraint, FitRecord};
+use curves::{fit_loop, least_change, Constraint, FitRecord};
 use footscan_geom::mesh::{Bvh, Format, TriMesh, Units};
 use footscan_geom::nurbs::NurbsCurve;
-use footscan_geom::{P3, V3};
+use footscan_geom::P3;
 use measure::{find_frame, measure, FootFrame, Measures};
 use rules::{RuleSet, Shoe, Wearer};
 use serde::Serialize;
@@ -68,6 +68,8 @@ pub struct DeformRecord {
     /// Length of the deformed curve and its target (girths), mm.
     pub length_mm: f64,
     pub target_mm: Option<f64>,
+    /// Largest distance of the eq. 9 deformed foot curve from the output last's own cut (mm).
+    pub max_dev_from_last_mm: f64,
 }
 
 /// Everything a customization produced.
@@ -253,13 +255,13 @@ pub fn customize(
     }
     let (mut rows, heel_allow) = targets(rules, inp, &fm);
     let target: [f64; 8] = std::array::from_fn(|i| rows[i].target_mm);
-    // Algorithm I and II on the characteristic curves.
-    let (fits, curves) = frame_curves(&fm, &target, heel_allow)?;
-    // The surface.
-    let sec = shape::Sections::of_foot(&foot, fm.length);
+    let sec = shape::Sections::of_foot(&foot, fm.length, fm.sole_from());
+    // The surface: the field solved so the cut last meets every rule.
     let mut nd = shape::Nodes::of(&fm);
     nd.heel_allowance = heel_allow;
     let (last, lm, field, evals) = shape::solve(&sec, &nd, &fm, &target, medial)?;
+    // Algorithm I on the foot's characteristic curves, Algorithm II onto the last's.
+    let (fits, curves) = frame_curves(&fm, &sec.sole_outline(), &lm, &target)?;
     let v = shape::values(&lm);
     for (i, r) in rows.iter_mut().enumerate() {
         r.last_mm = v[i];
@@ -317,13 +319,31 @@ fn clearance(foot: &TriMesh, last: &TriMesh, fm: &Measures) -> Clearance {
     }
 }
 
-/// Algorithm I on the six foot curves, then Algorithm II in type order.
+/// One characteristic curve: name, type (I-IV), foot cut, last cut, girth target.
+type CurveSpec<'a> = (&'static str, u8, &'a [P3], &'a [P3], Option<f64>);
+
+/// Algorithm I on the six foot curves, then Algorithm II in type order (I: the bottom
+/// outline; II: the ball, instep and long-heel girths; III: the side profile; IV: the ankle
+/// girth). Each curve's nodes (its characteristic points and evenly spaced points between
+/// them, by arc length from the point nearest the last's) move to the matching points of the
+/// output last's own cut by the same plane, with the least change of control points (eq. 9).
+/// The targets come from the last, which was solved so that the cut mesh meets every rule,
+/// so the frame written is the frame of that last (within `max_dev_from_last_mm`), not a
+/// second answer to the rules that could disagree with it.
 fn frame_curves(
     f: &Measures,
+    outline: &[P3],
+    lm: &Measures,
     target: &[f64; 8],
-    heel_allow: f64,
 ) -> Result<(Vec<FitRecord>, Frame), CustomizeError> {
-    let outline = f
+    let tol = 0.05;
+    let mut fits = Vec::new();
+    let mut fit = |name: &'static str, pts: &[P3]| -> Result<NurbsCurve, CustomizeError> {
+        let (c, r) = fit_loop(name, pts, 1.0, tol)?;
+        fits.push(r);
+        Ok(c)
+    };
+    let last_outline = lm
         .outline
         .iter()
         .max_by(|a, b| {
@@ -333,270 +353,160 @@ fn frame_curves(
         })
         .cloned()
         .unwrap_or_default();
-    let tol = 0.05;
-    let mut fits = Vec::new();
-    let mut fit = |name: &'static str, pts: &[P3]| -> Result<NurbsCurve, CustomizeError> {
-        let (c, r) = fit_loop(name, pts, 1.0, tol)?;
-        fits.push(r);
-        Ok(c)
-    };
-    let c_out = fit("bottom_outline", &outline)?;
-    let c_ball = fit("ball_girth", &f.ball)?;
-    let c_inst = fit("instep_girth", &f.instep)?;
-    let c_lh = fit("long_heel_girth", &f.long_heel)?;
-    let c_prof = fit("side_profile", &f.profile)?;
-    let c_ank = fit("ankle_girth", &f.ankle)?;
-    let mut deform = Vec::new();
-    let maxmove = |a: &NurbsCurve, b: &NurbsCurve| {
-        a.points
-            .iter()
-            .zip(&b.points)
-            .map(|(p, q)| (p - q).norm())
-            .fold(0.0, f64::max)
-    };
-    // Type I: O back by the heel allowance, A forward so the length is met, widths split
-    // between the medial and lateral points in proportion to their distances from the axis.
-    let ext = target[0] - f.length + heel_allow;
-    let split = |pm: &P3, pl: &P3, dw: f64| {
-        let (am, al) = (pm.y.abs(), pl.y.abs());
-        let s = (am + al).max(1e-9);
+    let specs: [CurveSpec; 6] = [
+        ("bottom_outline", 1, outline, &last_outline, None),
+        ("ball_girth", 2, &f.ball, &lm.ball, Some(target[4])),
+        ("instep_girth", 2, &f.instep, &lm.instep, Some(target[5])),
         (
-            V3::new(0.0, pm.y.signum() * dw * am / s, 0.0),
-            V3::new(0.0, pl.y.signum() * dw * al / s, 0.0),
-        )
-    };
-    let (db, dc) = split(&f.b, &f.c, target[1] - f.ball_width);
-    let (dd, de) = split(&f.d, &f.e, target[2] - f.waist_width);
-    let (dhm, dhl) = split(&f.heel_m, &f.heel_l, target[3] - f.heel_width);
-    let pts_i = [
-        ("O", f.o, V3::new(heel_allow, 0.0, 0.0)),
-        ("A", f.a, V3::new(ext, 0.0, 0.0)),
-        ("B", f.b, db),
-        ("C", f.c, dc),
-        ("D", f.d, dd),
-        ("E", f.e, de),
-        ("heel medial", f.heel_m, dhm),
-        ("heel lateral", f.heel_l, dhl),
+            "long_heel_girth",
+            2,
+            &f.long_heel,
+            &lm.long_heel,
+            Some(target[6]),
+        ),
+        ("side_profile", 3, &f.profile, &lm.profile, None),
+        ("ankle_girth", 4, &f.ankle, &lm.ankle, Some(target[7])),
     ];
-    let cons: Vec<Constraint> = pts_i
-        .iter()
-        .map(|(n, p, d)| Constraint {
-            name: n,
-            u: param_of(&c_out, &P3::new(p.x, p.y, c_out.point(0.0).z)),
-            order: 0,
-            delta: *d,
+    let mut foot = Vec::new();
+    let mut last = Vec::new();
+    let mut deform = Vec::new();
+    for (name, kind, fpts, lpts, tgt) in specs {
+        let c = fit(name, fpts)?;
+        let (_, rec) = conform(name, kind, &c, lpts, tgt)?;
+        // The frame written: the last's own cut fitted by Algorithm I (within the fit's
+        // tolerance of the mesh). Eq. 9 interpolates the foot curve's nodes onto the same cut
+        // (the record above) but keeps the foot curve's knots, which leaves it up to a few
+        // millimetres off where the last has an edge the foot has not (the flat bottom).
+        let (l, _) = fit_loop(name, lpts, 1.0, tol)?;
+        foot.push((name, c));
+        last.push((name, l));
+        deform.push(rec);
+    }
+    Ok((fits, Frame { foot, last, deform }))
+}
+
+/// Algorithm II for one closed curve onto a closed target polyline (see [`frame_curves`]).
+fn conform(
+    name: &'static str,
+    kind: u8,
+    c: &NurbsCurve,
+    target: &[P3],
+    target_len: Option<f64>,
+) -> Result<(NurbsCurve, DeformRecord), CustomizeError> {
+    if target.len() < 3 {
+        return Err(CustomizeError::Curve {
+            curve: name.into(),
+            why: "the last has no section for this curve".into(),
+        });
+    }
+    let (a, b) = c.domain();
+    let nfree = if c.periodic {
+        c.points.len() - c.degree
+    } else {
+        c.points.len()
+    };
+    // A node at the Greville abscissa of every control point: R is the square collocation
+    // matrix, nonsingular wherever the fit put its knots (Schoenberg-Whitney), so eq. 9 has
+    // one solution and the curve passes through the last at every node. Fewer nodes leave
+    // control points the minimum-norm change barely moves between moved ones: a comb.
+    let p = c.degree;
+    let node_u: Vec<f64> = (0..nfree)
+        .map(|i| {
+            let g = c.knots[i + 1..=i + p].iter().sum::<f64>() / p as f64;
+            a + (g - a).rem_euclid(b - a)
         })
         .collect();
-    let l_out = least_change("bottom_outline", &c_out, &cons)?;
-    deform.push(DeformRecord {
-        curve: "bottom_outline",
-        curve_type: 1,
+    let k = node_u.len();
+    if k < 4 {
+        return Err(CustomizeError::Curve {
+            curve: name.into(),
+            why: format!("{nfree} control points: too few to deform"),
+        });
+    }
+    // Arc length of the foot curve at each node (fraction of the whole).
+    let ns = 4000;
+    let us: Vec<f64> = (0..=ns)
+        .map(|i| a + (b - a) * i as f64 / ns as f64)
+        .collect();
+    let pts: Vec<P3> = us.iter().map(|&u| c.point(u)).collect();
+    let mut cum = vec![0.0];
+    for w in pts.windows(2) {
+        cum.push(cum.last().unwrap() + (w[1] - w[0]).norm());
+    }
+    let total = *cum.last().unwrap();
+    let frac_at = |u: f64| {
+        let j = us.partition_point(|&x| x < u).min(ns);
+        cum[j] / total
+    };
+    let u_start = node_u[0];
+    let node_s: Vec<f64> = node_u
+        .iter()
+        .map(|&u| (frac_at(u) - frac_at(u_start)).rem_euclid(1.0))
+        .collect();
+    // The target by arc length from the point nearest the curve's start, in the curve's
+    // direction.
+    let pl = footscan_geom::polyline::Polyline::closed(target.to_vec());
+    let m = 4000;
+    let mut tp = pl.resample(m).points;
+    if tp.len() > m {
+        tp.truncate(m);
+    }
+    let m = tp.len();
+    let p0 = c.point(u_start);
+    let i0 = (0..m)
+        .min_by(|&i, &j| (tp[i] - p0).norm().total_cmp(&(tp[j] - p0).norm()))
+        .unwrap();
+    tp.rotate_left(i0);
+    let ahead = c.point(node_u[1]);
+    let j1 = ((node_s[1] * m as f64) as usize).clamp(1, m - 1);
+    if (tp[j1] - ahead).norm() > (tp[m - j1] - ahead).norm() {
+        tp[1..].reverse();
+    }
+    let cons: Vec<Constraint> = node_u
+        .iter()
+        .zip(&node_s)
+        .map(|(&u, &sf)| {
+            let q = tp[((sf * m as f64).round() as usize) % m];
+            Constraint {
+                name,
+                u,
+                order: 0,
+                delta: q - c.point(u),
+            }
+        })
+        .collect();
+    let d = least_change(name, c, &cons)?;
+    // Agreement with the last: every sample of the curve against the target polyline.
+    let dev = (0..400)
+        .map(|i| {
+            let p = d.point(a + (b - a) * i as f64 / 400.0);
+            (0..tp.len())
+                .map(|j| seg_dist(&p, &tp[j], &tp[(j + 1) % tp.len()]))
+                .fold(f64::MAX, f64::min)
+        })
+        .fold(0.0, f64::max);
+    let max_move = c
+        .points
+        .iter()
+        .zip(&d.points)
+        .map(|(p, q)| (p - q).norm())
+        .fold(0.0, f64::max);
+    let rec = DeformRecord {
+        curve: name,
+        curve_type: kind,
         constraints: cons.len(),
-        max_control_move_mm: maxmove(&c_out, &l_out),
-        length_mm: l_out.length(),
-        target_mm: None,
-    });
-    // Type II: the bottom nodes follow type I; the top moves up or down until the girth
-    // (the curve's length) is met.
-    let moved = |p: &P3| -> V3 {
-        let u = param_of(&c_out, &P3::new(p.x, p.y, c_out.point(0.0).z));
-        l_out.point(u) - c_out.point(u)
+        max_control_move_mm: max_move,
+        length_mm: d.length(),
+        target_mm: target_len,
+        max_dev_from_last_mm: dev,
     };
-    let mut girth = |name: &'static str,
-                     c: &NurbsCurve,
-                     nodes: &[(&'static str, P3)],
-                     tgt: f64,
-                     kind: u8|
-     -> Result<(NurbsCurve, V3), CustomizeError> {
-        let top = (0..400)
-            .map(|k| c.point(k as f64 / 400.0))
-            .max_by(|a, b| a.z.total_cmp(&b.z))
-            .unwrap();
-        let ut = param_of(c, &top);
-        let mut base: Vec<Constraint> = nodes
-            .iter()
-            .map(|(n, p)| Constraint {
-                name: n,
-                u: param_of(c, p),
-                order: 0,
-                delta: moved(p),
-            })
-            .collect();
-        base.push(Constraint {
-            name: "top",
-            u: ut,
-            order: 0,
-            delta: V3::zeros(),
-        });
-        let k = base.len() - 1;
-        let run = |dz: f64, base: &mut Vec<Constraint>| {
-            base[k].delta = V3::new(0.0, 0.0, dz);
-            least_change(name, c, base)
-        };
-        let dz = secant(|dz| Ok(run(dz, &mut base.clone())?.length() - tgt), 1.0)?;
-        let out = run(dz, &mut base)?;
-        deform.push(DeformRecord {
-            curve: name,
-            curve_type: kind,
-            constraints: base.len(),
-            max_control_move_mm: maxmove(c, &out),
-            length_mm: out.length(),
-            target_mm: Some(tgt),
-        });
-        Ok((out, V3::new(0.0, 0.0, dz)))
-    };
-    let low = |c: &NurbsCurve, side: f64| {
-        (0..400)
-            .map(|k| c.point(k as f64 / 400.0))
-            .filter(|p| p.z < 0.3 * (f.instep_top.z))
-            .max_by(|a, b| (side * a.y).total_cmp(&(side * b.y)))
-            .unwrap_or(c.point(0.0))
-    };
-    let (l_ball, t_ball) = girth(
-        "ball_girth",
-        &c_ball,
-        &[("B", f.b), ("C", f.c)],
-        target[4],
-        2,
-    )?;
-    let (l_inst, t_inst) = girth(
-        "instep_girth",
-        &c_inst,
-        &[
-            ("instep medial", low(&c_inst, 1.0)),
-            ("instep lateral", low(&c_inst, -1.0)),
-        ],
-        target[5],
-        2,
-    )?;
-    let heel_back = (0..400)
-        .map(|k| c_lh.point(k as f64 / 400.0))
-        .min_by(|a, b| a.x.total_cmp(&b.x))
-        .unwrap();
-    let (l_lh, t_lh) = girth(
-        "long_heel_girth",
-        &c_lh,
-        &[("heel back", heel_back)],
-        target[6],
-        2,
-    )?;
-    // Type III: the profile through the moved heel and toe points and the girth tops.
-    let prof_pts = |x: f64| {
-        (0..800)
-            .map(|k| c_prof.point(k as f64 / 800.0))
-            .filter(|p| p.z > 0.5 * f.instep_top.z.min(30.0))
-            .min_by(|a, b| (a.x - x).abs().total_cmp(&(b.x - x).abs()))
-            .unwrap_or(c_prof.point(0.0))
-    };
-    let back = (0..800)
-        .map(|k| c_prof.point(k as f64 / 800.0))
-        .min_by(|a, b| a.x.total_cmp(&b.x))
-        .unwrap();
-    let front = (0..800)
-        .map(|k| c_prof.point(k as f64 / 800.0))
-        .max_by(|a, b| a.x.total_cmp(&b.x))
-        .unwrap();
-    let pcons = vec![
-        Constraint {
-            name: "heel back",
-            u: param_of(&c_prof, &back),
-            order: 0,
-            delta: V3::zeros(),
-        },
-        Constraint {
-            name: "toe tip",
-            u: param_of(&c_prof, &front),
-            order: 0,
-            delta: V3::new(ext, 0.0, 0.0),
-        },
-        Constraint {
-            name: "ball top",
-            u: param_of(&c_prof, &prof_pts(0.5 * (f.b.x + f.c.x))),
-            order: 0,
-            delta: t_ball,
-        },
-        Constraint {
-            name: "instep top",
-            u: param_of(&c_prof, &prof_pts(f.instep_top.x)),
-            order: 0,
-            delta: t_inst,
-        },
-        Constraint {
-            name: "long-heel top",
-            u: param_of(&c_prof, &prof_pts(f.instep_top.x + 0.02 * f.length)),
-            order: 0,
-            delta: t_lh,
-        },
-    ];
-    let l_prof = least_change("side_profile", &c_prof, &pcons)?;
-    deform.push(DeformRecord {
-        curve: "side_profile",
-        curve_type: 3,
-        constraints: pcons.len(),
-        max_control_move_mm: maxmove(&c_prof, &l_prof),
-        length_mm: l_prof.length(),
-        target_mm: None,
-    });
-    // Type IV: scaled about its centre at four extreme points until its length is met.
-    let ctr = {
-        let pts: Vec<P3> = (0..200).map(|k| c_ank.point(k as f64 / 200.0)).collect();
-        pts.iter().fold(V3::zeros(), |s, p| s + p.coords) / pts.len() as f64
-    };
-    let ext4: Vec<(&'static str, P3)> = ["front", "back", "left", "right"]
-        .iter()
-        .zip([V3::x(), -V3::x(), V3::y(), -V3::y()])
-        .map(|(n, d)| {
-            let p = (0..400)
-                .map(|k| c_ank.point(k as f64 / 400.0))
-                .max_by(|a, b| a.coords.dot(&d).total_cmp(&b.coords.dot(&d)))
-                .unwrap();
-            (*n, p)
-        })
-        .collect();
-    let ank = |s: f64| {
-        let cons: Vec<Constraint> = ext4
-            .iter()
-            .map(|(n, p)| Constraint {
-                name: n,
-                u: param_of(&c_ank, p),
-                order: 0,
-                delta: (p.coords - ctr) * s,
-            })
-            .collect();
-        least_change("ankle_girth", &c_ank, &cons)
-    };
-    let s = secant(|s| Ok(ank(s)?.length() - target[7]), 0.01)?;
-    let l_ank = ank(s)?;
-    deform.push(DeformRecord {
-        curve: "ankle_girth",
-        curve_type: 4,
-        constraints: 4,
-        max_control_move_mm: maxmove(&c_ank, &l_ank),
-        length_mm: l_ank.length(),
-        target_mm: Some(target[7]),
-    });
-    Ok((
-        fits,
-        Frame {
-            foot: vec![
-                ("bottom_outline", c_out),
-                ("ball_girth", c_ball),
-                ("instep_girth", c_inst),
-                ("long_heel_girth", c_lh),
-                ("side_profile", c_prof),
-                ("ankle_girth", c_ank),
-            ],
-            last: vec![
-                ("bottom_outline", l_out),
-                ("ball_girth", l_ball),
-                ("instep_girth", l_inst),
-                ("long_heel_girth", l_lh),
-                ("side_profile", l_prof),
-                ("ankle_girth", l_ank),
-            ],
-            deform,
-        },
-    ))
+    Ok((d, rec))
+}
+
+fn seg_dist(p: &P3, a: &P3, b: &P3) -> f64 {
+    let ab = b - a;
+    let t = ((p - a).dot(&ab) / ab.norm_squared().max(1e-300)).clamp(0.0, 1.0);
+    (p - (a + ab * t)).norm()
 }
 
 #[derive(Serialize)]

@@ -21,18 +21,22 @@ use footscan_geom::{P2, P3};
 /// Number of stations along the axis and points around each section.
 pub const STATIONS: usize = 150;
 pub const AROUND: usize = 96;
-/// Top of the last above the glass, as a fraction of the foot length.
-pub const TOP_Z: f64 = 0.30;
+pub use super::measure::TOP_Z;
 
 /// The foot's hull sections at the stations, before deformation.
 pub struct Sections {
     pub xs: Vec<f64>,
     /// Points around each section (y, z), arc-length spaced from the bottom.
     pub rings: Vec<Vec<P2>>,
+    /// The sole as the last stands on it: per station with a flat bottom, (x, lowest y,
+    /// highest y) of the bottom band carried to the glass.
+    pub sole: Vec<(f64, f64, f64)>,
 }
 
-/// All crossing points of the mesh with the planes x = xs[k].
-fn station_points(m: &TriMesh, xs: &[f64]) -> Vec<Vec<P2>> {
+/// The section segments of the mesh by the planes x = xs[k], clipped to z <= `top` (one
+/// segment per crossed triangle, as (y, z) pairs; the part above the top is cut off at the
+/// top, so a section's top edge is where the foot crosses the top, not its widest point).
+fn station_points(m: &TriMesh, xs: &[f64], top: f64) -> Vec<Vec<P2>> {
     let mut out = vec![Vec::new(); xs.len()];
     for t in &m.triangles {
         let v = t.map(|i| m.vertices[i as usize]);
@@ -42,6 +46,7 @@ fn station_points(m: &TriMesh, xs: &[f64]) -> Vec<Vec<P2>> {
         let k1 = xs.partition_point(|&x| x <= xmax);
         for k in k0..k1 {
             let x = xs[k];
+            let mut seg: Vec<P2> = Vec::with_capacity(3);
             for e in 0..3 {
                 let (p, q) = (v[e], v[(e + 1) % 3]);
                 if (p.x - x) * (q.x - x) > 0.0 || p.x == q.x {
@@ -49,7 +54,20 @@ fn station_points(m: &TriMesh, xs: &[f64]) -> Vec<Vec<P2>> {
                 }
                 let s = (x - p.x) / (q.x - p.x);
                 let r = p + (q - p) * s;
-                out[k].push(P2::new(r.y, r.z));
+                seg.push(P2::new(r.y, r.z));
+            }
+            if seg.len() < 2 {
+                continue;
+            }
+            let (a, b) = (seg[0], seg[1]);
+            if a.y <= top {
+                out[k].push(a);
+            }
+            if b.y <= top {
+                out[k].push(b);
+            }
+            if (a.y - top) * (b.y - top) < 0.0 {
+                out[k].push(a + (b - a) * ((top - a.y) / (b.y - a.y)));
             }
         }
     }
@@ -94,8 +112,22 @@ fn resample_hull(h: &[P2], n: usize) -> Vec<P2> {
 }
 
 impl Sections {
-    /// Cut the framed foot at cosine-spaced stations from heel to toe.
-    pub fn of_foot(foot: &TriMesh, length: f64) -> Sections {
+    /// The sole outline of the foot standing on the glass, at the outline height: the
+    /// bottom bands' lowest y from heel to toe, then their highest back (a closed loop).
+    pub fn sole_outline(&self) -> Vec<P3> {
+        let mut out: Vec<P3> = self
+            .sole
+            .iter()
+            .map(|s| P3::new(s.0, s.1, OUTLINE_Z))
+            .collect();
+        out.extend(self.sole.iter().rev().map(|s| P3::new(s.0, s.2, OUTLINE_Z)));
+        out
+    }
+
+    /// Cut the framed foot at cosine-spaced stations from heel to toe. `bottom_from`: where
+    /// the foot's own sole outline starts (its rearmost point at 1.5 mm); the flat bottom
+    /// starts there, so a rounded heel keeps its shape (no box behind it).
+    pub fn of_foot(foot: &TriMesh, length: f64, bottom_from: f64) -> Sections {
         let bb = foot.bbox();
         let (x0, x1) = (bb.min.x, bb.max.x);
         let xs: Vec<f64> = (0..STATIONS)
@@ -105,29 +137,29 @@ impl Sections {
             })
             .collect();
         let top = TOP_Z * length;
-        let pts = station_points(foot, &xs);
+        let pts = station_points(foot, &xs, top);
         let mut keep_x = Vec::new();
         let mut rings = Vec::new();
-        for (x, p) in xs.iter().zip(pts) {
-            let mut q: Vec<P2> = p.into_iter().filter(|q| q.y <= top).collect();
+        let mut sole = Vec::new();
+        for (x, mut q) in xs.iter().zip(pts) {
             if q.len() < 3 {
                 continue;
             }
-            // Close the clipped hull at the top with the hull's own extent there.
-            let (ylo, yhi) = q
-                .iter()
-                .fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.x), b.max(r.x)));
-            if q.iter().any(|r| r.y > top - 1e-9)
-                || q.iter().fold(f64::MIN, |a, r| a.max(r.y)) >= top - 0.5
-            {
-                q.push(P2::new(
-                    ylo,
-                    top.min(q.iter().fold(f64::MIN, |a, r| a.max(r.y))),
-                ));
-                q.push(P2::new(
-                    yhi,
-                    top.min(q.iter().fold(f64::MIN, |a, r| a.max(r.y))),
-                ));
+            // A last stands on a flat bottom: the section's lowest band (within the outline
+            // height of its lowest point) is carried down to the glass. On a pressed foot
+            // this changes nothing; raised toes or a hanging heel get a flat bottom under
+            // them, and the bottom's edge is the sole's edge, not a rounded fin. Behind the
+            // foot's own outline the heel keeps its curve.
+            if *x >= bottom_from {
+                let zl = q.iter().map(|r| r.y).fold(f64::MAX, f64::min);
+                let band = q.iter().filter(|r| r.y <= zl + OUTLINE_Z);
+                let (yl, yh) =
+                    band.fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.x), b.max(r.x)));
+                q.push(P2::new(yl, 0.0));
+                q.push(P2::new(yh, 0.0));
+                if yh > yl {
+                    sole.push((*x, yl, yh));
+                }
             }
             let h = convex_hull(&q);
             if h.points.len() < 3 || h.area() < 0.5 {
@@ -136,7 +168,11 @@ impl Sections {
             keep_x.push(*x);
             rings.push(resample_hull(&h.points, AROUND));
         }
-        Sections { xs: keep_x, rings }
+        Sections {
+            xs: keep_x,
+            rings,
+            sole,
+        }
     }
 }
 
