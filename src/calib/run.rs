@@ -53,7 +53,7 @@ pub fn detector(name: &str) -> Result<Box<dyn Detector>, CalibError> {
 
 /// A calibration and what was learnt making it.
 #[derive(Clone, Debug)]
-pub struct Outcome {
+pub struct Calibrated {
     pub calibration: Calibration,
     /// The in-system fit (methods insystem and bezier).
     pub insystem: Option<InsystemFit>,
@@ -66,7 +66,7 @@ pub fn from_insystem(
     data: &InsystemData,
     method: Method,
     plan: &CalibrationPlan,
-) -> Result<Outcome, CalibError> {
+) -> Result<Calibrated, CalibError> {
     let fit = fit_insystem(data, &InsystemOptions::default())?;
     let mut calibration = Calibration {
         method: Method::Insystem.name().into(),
@@ -101,7 +101,7 @@ pub fn from_insystem(
         }
     }
     check_before_saving(&calibration)?;
-    Ok(Outcome {
+    Ok(Calibrated {
         calibration,
         insystem: Some(fit),
         steps: Vec::new(),

@@ -15,7 +15,7 @@ use crate::calib::guided::{
     StepKind,
 };
 pub use crate::calib::run::{
-    check_before_saving, check_limits, detector, from_insystem, Method, Outcome, DETECTOR,
+    check_before_saving, check_limits, detector, from_insystem, Calibrated, Method, DETECTOR,
 };
 use crate::calib::verify::CheckReport;
 use crate::calib::{CalibError, Calibration, CalibrationPlan, CameraModel};
@@ -143,7 +143,7 @@ pub fn calibrate_with(
     plan: &CalibrationPlan,
     prior: Option<&CameraModel>,
     guide: &mut dyn Guide,
-) -> Result<Outcome, CalibError> {
+) -> Result<Calibrated, CalibError> {
     let guided = acquire_with(rig, plan, prior, guide)?;
     let mut out = from_insystem(&guided.data, method, plan)?;
     out.steps = guided.steps;
@@ -171,7 +171,7 @@ pub fn calibrate(
     plan: &CalibrationPlan,
     prior: Option<&CameraModel>,
     guide: &mut dyn Guide,
-) -> Result<Outcome, CalibError> {
+) -> Result<Calibrated, CalibError> {
     plan.validate()?;
     match method {
         Method::Insystem | Method::Bezier => {
@@ -271,7 +271,7 @@ pub fn calibrate_unattended(
     method: Method,
     plan: &CalibrationPlan,
     progress: acquire::Progress,
-) -> Result<Outcome, CalibError> {
+) -> Result<Calibrated, CalibError> {
     if method == Method::Opencv {
         plan.validate()?;
         return opencv_sim(cfg, plan, progress);
@@ -286,13 +286,13 @@ fn opencv_sim(
     cfg: &ScanConfig,
     plan: &CalibrationPlan,
     progress: acquire::Progress,
-) -> Result<Outcome, CalibError> {
+) -> Result<Calibrated, CalibError> {
     let shots = render_shots(cfg, plan, progress)?;
     let mut det = detector(DETECTOR)?;
     progress("OpenCV calibration", 1, 1);
     let calibration = crate::calib::opencv::calibrate(&shots, &plan.board, det.as_mut())?;
     check_before_saving(&calibration)?;
-    Ok(Outcome {
+    Ok(Calibrated {
         calibration,
         insystem: None,
         steps: Vec::new(),
@@ -304,7 +304,7 @@ fn opencv_sim(
     _cfg: &ScanConfig,
     _plan: &CalibrationPlan,
     _progress: acquire::Progress,
-) -> Result<Outcome, CalibError> {
+) -> Result<Calibrated, CalibError> {
     Err(CalibError::OpenCvDisabled)
 }
 

@@ -12,10 +12,14 @@ use crate::scandata::{FrameMeta, ScanGrid};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
-/// How a scan ended, in scan.json and the daemon's archive. The first five strings are
-/// today's and earlier records': old scan.json files keep loading.
+/// A scan's state: running, or how it ended, in scan.json and the daemon's archive (one enum
+/// from the pipeline to the HTTP edge). The strings are today's and earlier records': old
+/// scan.json files and archive records keep loading.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 pub enum ScanStatus {
+    /// Still acquiring (the daemon's archive; a finished scan.json never says it).
+    #[serde(rename = "running")]
+    Running,
     #[serde(rename = "complete")]
     Complete,
     /// Usable, but the operator should read the reason (bridged gaps, a few rows lost).
@@ -35,7 +39,8 @@ pub enum ScanStatus {
 }
 
 impl ScanStatus {
-    pub const ALL: [ScanStatus; 6] = [
+    pub const ALL: [ScanStatus; 7] = [
+        ScanStatus::Running,
         ScanStatus::Complete,
         ScanStatus::CompleteWithWarnings,
         ScanStatus::SideMismatch,
@@ -47,6 +52,7 @@ impl ScanStatus {
     /// The string of scan.json and the archive index.
     pub fn as_str(self) -> &'static str {
         match self {
+            ScanStatus::Running => "running",
             ScanStatus::Complete => "complete",
             ScanStatus::CompleteWithWarnings => "complete with warnings",
             ScanStatus::SideMismatch => "side mismatch",

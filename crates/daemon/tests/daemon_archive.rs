@@ -1,7 +1,7 @@
 //! The scan archive on its own: atomic close, failed and cancelled scans kept with their
 //! reason, interrupted scans recovered as failed, the index rebuilt from the directories.
 
-use footscan_daemon::archive::{Archive, NewScan, Outcome, ScanId, Status, INTERRUPTED};
+use footscan_daemon::archive::{Archive, NewScan, ScanEnd, ScanId, Status, INTERRUPTED};
 
 fn meta(subject: &str) -> NewScan {
     NewScan {
@@ -11,8 +11,8 @@ fn meta(subject: &str) -> NewScan {
     }
 }
 
-fn outcome(status: Status, reason: Option<&str>) -> Outcome {
-    Outcome {
+fn outcome(status: Status, reason: Option<&str>) -> ScanEnd {
+    ScanEnd {
         status,
         reason: reason.map(Into::into),
         frames: 12,

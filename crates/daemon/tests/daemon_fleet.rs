@@ -15,7 +15,7 @@
 mod daemon_support;
 
 use daemon_support::*;
-use footscan_daemon::archive::{Archive, NewScan, Outcome, Status};
+use footscan_daemon::archive::{Archive, NewScan, ScanEnd, Status};
 use footscan_fleet::testing::{PgServer, PASSWORD};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -74,7 +74,7 @@ fn make_scans(root: &Path, n: usize, kib: usize, tag: &str) -> Vec<String> {
         let r = a
             .finish(
                 s,
-                Outcome {
+                ScanEnd {
                     status,
                     reason: (status != Status::Complete).then(|| "made by the test".into()),
                     frames: 100 + i as u64,

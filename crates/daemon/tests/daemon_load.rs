@@ -358,7 +358,7 @@ fn scan_threads_keep_the_daemon_priority_above_the_http_threads() {
 #[test]
 #[ignore = "met on a quiet 2-core machine (0 of 642 dropped, debug and release builds), not while other nice-0 work saturates both cores (1-4 dropped with two busy loops): the daemon cannot outrank it (issue 17)"]
 fn fifty_clients_during_a_full_scan_drop_no_frames() {
-    use footscan_daemon::archive::{Archive, NewScan, Outcome, Status};
+    use footscan_daemon::archive::{Archive, NewScan, ScanEnd, Status};
     const FIFTY: usize = 50;
     let _serial = serial();
     let tmp = tempfile::tempdir().unwrap();
@@ -378,7 +378,7 @@ fn fifty_clients_during_a_full_scan_drop_no_frames() {
         let r = a
             .finish(
                 s,
-                Outcome {
+                ScanEnd {
                     status: Status::Complete,
                     reason: None,
                     frames: 1,

@@ -95,7 +95,7 @@ fn second_daemon_on_one_archive_refuses_to_start() {
     );
 }
 
-use footscan_daemon::archive::{Archive, NewScan, Outcome, Status};
+use footscan_daemon::archive::{Archive, NewScan, ScanEnd, Status};
 
 /// An archive with `n` complete scans made through the library (each with a scan.json and
 /// a points.ply); their ids.
@@ -119,7 +119,7 @@ fn archive_with_scans(root: &std::path::Path, n: usize) -> Vec<String> {
             let r = a
                 .finish(
                     s,
-                    Outcome {
+                    ScanEnd {
                         status: Status::Complete,
                         reason: None,
                         frames: 7,

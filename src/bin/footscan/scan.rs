@@ -87,6 +87,10 @@ pub fn run(
             out.display()
         ),
         ScanStatus::Complete | ScanStatus::CompleteWithWarnings => {}
+        ScanStatus::Running => bail!(
+            "the scan returned without a verdict (status \"running\"): a bug; the files are in {}",
+            out.display()
+        ),
     }
     println!(
         "scan {}: {} frames ({} dropped), {} points in {:.1} s",

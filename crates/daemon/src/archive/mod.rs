@@ -17,7 +17,7 @@ mod record;
 
 pub use id::{valid_file_name, IdError, ScanId};
 pub use outbox::{OutboxCounts, OutboxEntry};
-pub use record::{ArchiveError, NewScan, Outcome, Record, Status};
+pub use record::{ArchiveError, NewScan, Record, ScanEnd, Status};
 
 use index::Index;
 use serde::Serialize;
@@ -275,7 +275,7 @@ impl Archive {
     /// When archiving fails, the scan is closed as failed with the reason, written into its
     /// directory (record.json, read by recovery at the next start) as far as it can be, and
     /// listed so until then even if the index cannot be written.
-    pub fn finish(&self, scan: ActiveScan, outcome: Outcome) -> Result<Record, ArchiveError> {
+    pub fn finish(&self, scan: ActiveScan, outcome: ScanEnd) -> Result<Record, ArchiveError> {
         let mut record = scan.record;
         record.status = outcome.status;
         record.reason = outcome.reason;

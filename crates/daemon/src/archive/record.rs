@@ -4,65 +4,9 @@
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
-/// A scan's state: running, or the scan's verdict ([`footscan::scan::ScanStatus`], the same
-/// strings, so records written before the quality gate keep loading).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Status {
-    #[serde(rename = "running")]
-    Running,
-    #[serde(rename = "complete")]
-    Complete,
-    /// Usable; the reason says what to look at (docs/method.md section 3.3).
-    #[serde(rename = "complete with warnings")]
-    CompleteWithWarnings,
-    /// The scan looks like the other foot: the operator confirms the side or rescans.
-    #[serde(rename = "side mismatch")]
-    SideMismatch,
-    /// The scan ran but cannot be used: scan again before the patient leaves.
-    #[serde(rename = "rescan")]
-    Rescan,
-    #[serde(rename = "failed")]
-    Failed,
-    #[serde(rename = "cancelled")]
-    Cancelled,
-}
-
-impl Status {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Status::Running => "running",
-            Status::Complete => "complete",
-            Status::CompleteWithWarnings => "complete with warnings",
-            Status::SideMismatch => "side mismatch",
-            Status::Rescan => "rescan",
-            Status::Failed => "failed",
-            Status::Cancelled => "cancelled",
-        }
-    }
-    pub fn parse(s: &str) -> Option<Status> {
-        [
-            Status::Running,
-            Status::Complete,
-            Status::CompleteWithWarnings,
-            Status::SideMismatch,
-            Status::Rescan,
-            Status::Failed,
-            Status::Cancelled,
-        ]
-        .into_iter()
-        .find(|x| x.as_str() == s)
-    }
-    /// The scan's files are usable as they are.
-    pub fn is_usable(self) -> bool {
-        matches!(self, Status::Complete | Status::CompleteWithWarnings)
-    }
-}
-
-impl From<footscan::scan::ScanStatus> for Status {
-    fn from(s: footscan::scan::ScanStatus) -> Status {
-        Status::parse(s.as_str()).unwrap_or(Status::Failed)
-    }
-}
+/// A scan's state: running, or the scan's verdict: the pipeline's own enum, the same strings
+/// on disk, so records written before the quality gate keep loading.
+pub use footscan::scan::ScanStatus as Status;
 
 /// The metadata of one scan, as record.json and as an index row.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -109,7 +53,7 @@ pub struct NewScan {
 
 /// How a scan ended.
 #[derive(Clone, Debug)]
-pub struct Outcome {
+pub struct ScanEnd {
     pub status: Status,
     pub reason: Option<String>,
     pub frames: u64,

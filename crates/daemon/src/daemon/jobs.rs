@@ -2,7 +2,7 @@
 //! calibration (the in-system or reference calibration, stored as the current calibration).
 
 use super::{CalibrationInfo, CalibrationJob, Daemon, DaemonError, Event, Job, Progress};
-use crate::archive::{ActiveScan, NewScan, Outcome, ScanId, Status};
+use crate::archive::{ActiveScan, NewScan, ScanEnd, ScanId, Status};
 use footscan::calib::{self, CalibrationPlan, Method};
 use footscan::scan::{run_scan, CancelToken, ScanOptions, ScanProgress};
 use std::panic::AssertUnwindSafe;
@@ -184,19 +184,19 @@ impl Daemon {
             _ => None,
         };
         let mut outcome = match result {
-            Ok(Ok(s)) => Outcome {
-                status: s.status.into(),
+            Ok(Ok(s)) => ScanEnd {
+                status: s.status,
                 reason: s.reason.clone(),
                 frames: s.frames,
                 points: s.points as u64,
             },
-            Ok(Err(e)) => Outcome {
+            Ok(Err(e)) => ScanEnd {
                 status: Status::Failed,
                 reason: Some(e.to_string()),
                 frames: 0,
                 points: 0,
             },
-            Err(panic) => Outcome {
+            Err(panic) => ScanEnd {
                 status: Status::Failed,
                 reason: Some(format!(
                     "internal error: the scan thread panicked: {}",
@@ -350,7 +350,12 @@ impl Daemon {
         tracing::info!("calibration {} ({}) started", job.id, job.method);
         let plan = CalibrationPlan::default();
         let result = std::panic::catch_unwind(AssertUnwindSafe(|| {
-            footscan::scan::calibrate_unattended(&self.scanner.config, method, &plan, &mut |_, _, _| {})
+            footscan::scan::calibrate_unattended(
+                &self.scanner.config,
+                method,
+                &plan,
+                &mut |_, _, _| {},
+            )
         }));
         let saved = match result {
             Ok(Ok(outcome)) => self.store_calibration(&job.id, &outcome.calibration),
