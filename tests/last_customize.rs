@@ -203,7 +203,90 @@ fn simulated_foot_customized_and_cut_independently() {
     ] {
         assert!(out_dir.join(f).is_file(), "{f} missing");
     }
-    check_cut(&out_dir);
+    let rep = check_cut(&out_dir);
+    frame_agrees_with_last(&out_dir, &rep);
+}
+
+/// frame.igs read back by OpenCASCADE (scripts/occt_readback.py in the venv scripts/setup.sh
+/// makes): six closed curves; each girth curve as long as its rule's target (within the
+/// girth bound), never inside last.stl and at least 40 % on it (the long-heel tape bridges the hollow
+/// above the heel).
+fn frame_agrees_with_last(out_dir: &Path, rep: &serde_json::Value) {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let py = root.join("target/venv-occt/bin/python");
+    assert!(
+        py.exists(),
+        "no OCCT venv at {}: run `bash scripts/setup.sh`",
+        py.display()
+    );
+    let n = 400;
+    let mut cmd = Command::new(&py);
+    cmd.arg(root.join("scripts/occt_readback.py"))
+        .arg(out_dir.join("frame.igs"))
+        .arg("--unit");
+    for k in 0..=n {
+        cmd.arg(format!("{}", k as f64 / n as f64));
+    }
+    let out = cmd.output().unwrap();
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "occt_readback.py printed no JSON ({e}): {}",
+            String::from_utf8_lossy(&out.stderr)
+        )
+    });
+    assert_eq!(j["read"], true);
+    let curves = j["curves"].as_array().unwrap();
+    assert_eq!(curves.len(), 6, "frame.igs curves");
+    let last = TriMesh::read(out_dir.join("last.stl")).unwrap();
+    let bvh = footscan_geom::mesh::Bvh::new(&last);
+    let rules = rep["rules"].as_array().unwrap();
+    // Curve order of frame.igs: outline, ball, instep, long heel, profile, ankle.
+    let girth_rule = [None, Some(4), Some(5), Some(6), None, Some(7)];
+    for (i, c) in curves.iter().enumerate() {
+        let pts: Vec<P3> = c["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| {
+                let p = &p["p"];
+                P3::new(
+                    p[0].as_f64().unwrap(),
+                    p[1].as_f64().unwrap(),
+                    p[2].as_f64().unwrap(),
+                )
+            })
+            .collect();
+        let len: f64 = pts.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+        // A girth is the tape's path (the section's convex hull): never inside the last, on
+        // it wherever the section is convex. The 1.5 mm outline of the last is a staircase at
+        // the section bottoms' corners (docs/method.md 10.5): fitted through points 1 mm apart
+        // it cuts its steps by up to 0.3 mm.
+        let d: Vec<f64> = pts
+            .iter()
+            .map(|p| bvh.signed_distance(p).unwrap().distance)
+            .collect();
+        let inside = d.iter().cloned().fold(f64::MAX, f64::min);
+        let on = d.iter().filter(|x| x.abs() < 0.1).count() as f64 / d.len() as f64;
+        println!(
+            "frame.igs curve {i}: length {len:.2} mm, deepest inside last.stl {:.3} mm, {:.0} % within 0.1 mm of it",
+            -inside,
+            100.0 * on
+        );
+        let bound = if i == 0 { 0.5 } else { 0.1 };
+        assert!(
+            inside > -bound,
+            "frame curve {i} goes {inside:.3} mm into last.stl"
+        );
+        assert!(on > 0.4, "frame curve {i}: only {on:.2} of it on last.stl");
+        if let Some(r) = girth_rule[i] {
+            let t = rules[r]["target_mm"].as_f64().unwrap();
+            assert!(
+                (len - t).abs() <= 0.5,
+                "frame curve {i} ({}): length {len:.2}, target {t:.2}",
+                rules[r]["quantity"]
+            );
+        }
+    }
 }
 
 #[test]
