@@ -3,6 +3,7 @@
 //! ids and file names validated before any path is built, and a bearer token on every request
 //! but the health check and the static dashboard when one is configured.
 
+mod confirm;
 mod guard;
 mod live;
 mod scans;
@@ -88,6 +89,7 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/api/scans", get(scans::list).post(scans::start))
         .route("/api/scans/{id}", get(scans::show))
         .route("/api/scans/{id}/cancel", post(scans::cancel))
+        .route("/api/scans/{id}/side", post(confirm::confirm_side))
         .route("/api/scans/{id}/files/{name}", get(scans::download))
         .route("/api/preview.png", get(live::preview_png))
         .route("/api/preview/line", get(live::preview_line))

@@ -10,11 +10,13 @@
 //! A scan directory holds a small reserve file while it runs; it is deleted before the
 //! record is written, so a scan that filled the disk can still be closed with its reason.
 
+mod history;
 mod id;
 mod index;
 mod outbox;
 mod record;
 
+pub use history::{Change, HISTORY};
 pub use id::{valid_file_name, IdError, ScanId};
 pub use outbox::{OutboxCounts, OutboxEntry};
 pub use record::{ArchiveError, NewScan, Record, ScanEnd, Status};

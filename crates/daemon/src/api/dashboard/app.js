@@ -702,8 +702,13 @@ async function loadResult(id) {
     warn.hidden = false;
   }
 
+  renderSideConfirm(rec);
+
   const files = $('result-files');
   files.replaceChildren();
+  for (const c of rec.history || []) {
+    files.append(el('p', { class: 'small history', text: `Corrected ${fmtTime(c.at)}: ${c.field} ${c.from ?? '–'} → ${c.to ?? '–'} (${c.why})` }));
+  }
   const s = rec.summary;
   if (s && typeof s === 'object') {
     const bits = [];
@@ -714,6 +719,37 @@ async function loadResult(id) {
     if (bits.length) files.append(el('p', { class: 'small', text: 'Scan: ' + bits.join(', ') }));
   }
   if ((rec.artifacts || []).length) files.append(el('p', { class: 'small' }, 'Download: ', artifactLinks(rec)));
+}
+
+/** A "side mismatch" scan: the operator confirms the side the scan shows or keeps theirs
+ * (POST /api/scans/{id}/side); the record is corrected and the change kept in its history. */
+function renderSideConfirm(rec) {
+  let box = $('side-confirm');
+  if (!box) {
+    box = el('div', { id: 'side-confirm', class: 'warn', role: 'group', 'aria-label': 'Confirm the side' });
+    $('result-warnings').after(box);
+  }
+  box.replaceChildren();
+  box.hidden = rec.status !== 'side mismatch';
+  if (box.hidden) return;
+  const side = rec.summary && rec.summary.quality && rec.summary.quality.side;
+  const seen = side && side.detected;
+  const choose = async (value) => {
+    try {
+      await api('POST', `/api/scans/${encodeURIComponent(rec.id)}/side`, { side: value });
+      clearError('POST /api/scans');
+      await loadResult(rec.id);
+      await refreshScans();
+    } catch (e) {
+      showError(e);
+    }
+  };
+  box.append(el('p', { text: `Saved as the ${rec.side} foot, but the scan looks like the ${seen || 'other'} foot. Look at the foot, then:` }));
+  if (seen === 'left' || seen === 'right') {
+    box.append(el('button', { type: 'button', id: 'confirm-scan-side', onclick: () => choose(seen) }, `It is the ${seen} foot`));
+    box.append(' ');
+  }
+  box.append(el('button', { type: 'button', id: 'keep-chosen-side', onclick: () => choose(rec.side) }, `Keep ${rec.side}`));
 }
 
 function artifactLinks(rec) {
