@@ -1,15 +1,13 @@
-//! Live endpoints: status, the preview frame and line, the event stream, calibration.
+//! Live endpoints: status, the preview frame and line, the event stream.
 
-use super::{scans::body, ApiError, AppState};
+use super::{ApiError, AppState};
 use crate::archive::Status;
 use crate::daemon::Event;
-use axum::extract::rejection::JsonRejection;
 use axum::extract::{Query, State};
-use axum::http::{header, StatusCode};
+use axum::http::header;
 use axum::response::sse::{Event as SseEvent, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
-use footscan::calib::Method;
 use footscan::scan::config::Backend;
 use footscan::scan::{DeviceRole, FaultKind};
 use futures_util::stream::Stream;
@@ -90,7 +88,12 @@ pub async fn status(State(st): State<AppState>) -> Json<Value> {
                 "connected": !slider_lost,
             },
         },
-        "calibration": d.calibration(),
+        "calibration": d.calibration().map(|c| {
+            let age = crate::archive::calibrations::age_h(&c.date);
+            json!({"id": c.id, "method": c.method, "date": c.date, "path": c.path, "age_h": age})
+        }),
+        "daily_check": crate::archive::calibrations::Calibrations::new(&d.config.archive)
+            .check_status(cfg.calibration.verify_max_age_h),
         "scan": scan,
         "calibrating": d.calibrating(),
         "archive": { "notices": d.archive.notices() },
@@ -286,28 +289,4 @@ pub async fn events(
             .interval(Duration::from_secs(15))
             .text("keep-alive"),
     )
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct StartCalibration {
-    method: String,
-}
-
-pub async fn calibrate(
-    State(st): State<AppState>,
-    b: Result<Json<StartCalibration>, JsonRejection>,
-) -> Result<Response, ApiError> {
-    let req = body(b)?;
-    let method: Method = req.method.parse().map_err(|_| {
-        ApiError::bad_request(format!(
-            "method {:?}: must be \"insystem\", \"bezier\" or \"opencv\"",
-            req.method.chars().take(80).collect::<String>()
-        ))
-    })?;
-    let d = st.daemon.clone();
-    let id = tokio::task::spawn_blocking(move || d.start_calibration(method))
-        .await
-        .map_err(ApiError::internal)??;
-    Ok((StatusCode::ACCEPTED, Json(json!({ "id": id }))).into_response())
 }

@@ -4,6 +4,7 @@
 //! but the health check and the static dashboard when one is configured.
 
 mod confirm;
+mod calibration;
 mod guard;
 mod live;
 mod scans;
@@ -68,6 +69,7 @@ impl From<crate::daemon::DaemonError> for ApiError {
             E::Archive(e) => ApiError(StatusCode::INSUFFICIENT_STORAGE, e.to_string()),
             E::Setup(m) => ApiError::internal(m),
             E::Unsupported(m) => ApiError(StatusCode::NOT_IMPLEMENTED, m),
+            E::BadRequest(m) => ApiError::bad_request(m),
             E::Unavailable(m) => ApiError(StatusCode::SERVICE_UNAVAILABLE, m),
         }
     }
@@ -94,7 +96,19 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/api/preview.png", get(live::preview_png))
         .route("/api/preview/line", get(live::preview_line))
         .route("/api/events", get(live::events))
-        .route("/api/calibrations", post(live::calibrate))
+        .route(
+            "/api/calibrations",
+            get(calibration::history).post(calibration::start_calibration),
+        )
+        .route("/api/calibrations/job", get(calibration::job))
+        .route("/api/calibrations/{id}", get(calibration::show))
+        .route("/api/calibrations/{id}/confirm", post(calibration::confirm))
+        .route("/api/calibrations/{id}/repeat", post(calibration::repeat))
+        .route("/api/calibrations/{id}/abort", post(calibration::abort))
+        .route(
+            "/api/verify",
+            get(calibration::trend).post(calibration::start_verify),
+        )
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(axum::extract::DefaultBodyLimit::max(BODY_LIMIT))

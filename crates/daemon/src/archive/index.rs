@@ -19,10 +19,12 @@ const SCHEMA: &str = "CREATE TABLE IF NOT EXISTS scans (
     started TEXT NOT NULL,
     finished TEXT,
     frames INTEGER NOT NULL,
-    points INTEGER NOT NULL
+    points INTEGER NOT NULL,
+    calibration TEXT
 )";
 
-const COLUMNS: &str = "id, subject, side, notes, status, reason, started, finished, frames, points";
+const COLUMNS: &str =
+    "id, subject, side, notes, status, reason, started, finished, frames, points, calibration";
 
 /// Why the index could not be opened: damaged (move it aside and rebuild), or anything else
 /// (a permission, a full disk: not repaired by rebuilding).
@@ -76,6 +78,14 @@ impl Index {
             return Err(OpenError::Corrupt(format!("integrity check: {check}")));
         }
         conn.execute(SCHEMA, []).map_err(classify)?;
+        // An index made before scans recorded their calibration lacks the column.
+        let has_cal = conn
+            .prepare("SELECT calibration FROM scans LIMIT 0")
+            .is_ok();
+        if !has_cal {
+            conn.execute("ALTER TABLE scans ADD COLUMN calibration TEXT", [])
+                .map_err(classify)?;
+        }
         // A table of another shape (not ours) is as good as damaged.
         conn.prepare(&format!("SELECT {COLUMNS} FROM scans LIMIT 0"))
             .map_err(|e| OpenError::Corrupt(format!("not the scan index: {e}")))?;
@@ -136,7 +146,7 @@ impl Index {
 
 fn insert(conn: &Connection, r: &Record) -> rusqlite::Result<()> {
     conn.execute(
-        &format!("INSERT OR REPLACE INTO scans ({COLUMNS}) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)"),
+        &format!("INSERT OR REPLACE INTO scans ({COLUMNS}) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)"),
         params![
             r.id,
             r.subject,
@@ -147,7 +157,8 @@ fn insert(conn: &Connection, r: &Record) -> rusqlite::Result<()> {
             r.started,
             r.finished,
             r.frames as i64,
-            r.points as i64
+            r.points as i64,
+            r.calibration
         ],
     )?;
     Ok(())
@@ -166,5 +177,6 @@ fn row(r: &rusqlite::Row<'_>) -> rusqlite::Result<Record> {
         finished: r.get(7)?,
         frames: r.get::<_, i64>(8)? as u64,
         points: r.get::<_, i64>(9)? as u64,
+        calibration: r.get(10)?,
     })
 }

@@ -11,6 +11,7 @@
 //! record is written, so a scan that filled the disk can still be closed with its reason.
 
 mod history;
+pub mod calibrations;
 mod id;
 mod index;
 mod outbox;

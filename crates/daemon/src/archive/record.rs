@@ -23,6 +23,10 @@ pub struct Record {
     pub finished: Option<String>,
     pub frames: u64,
     pub points: u64,
+    /// The id of the calibration the scan used (its calibration history entry); None for
+    /// scans made before the history, or with a configured calibration outside it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<String>,
 }
 
 impl Record {
@@ -39,6 +43,7 @@ impl Record {
             finished: None,
             frames: 0,
             points: 0,
+            calibration: None,
         }
     }
 }

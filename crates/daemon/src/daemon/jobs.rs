@@ -1,19 +1,13 @@
-//! The daemon's jobs: a scan (run_scan on a thread, written into the archive) and a
-//! calibration (the in-system or reference calibration, stored as the current calibration).
+//! The daemon's scan job (run_scan on a thread, written into the archive) and the thread
+//! launcher every job starts from; the calibration and daily-check jobs are in `guided.rs`.
 
-use super::{CalibrationInfo, CalibrationJob, Daemon, DaemonError, Event, Job, Progress};
-use crate::archive::{ActiveScan, NewScan, ScanEnd, ScanId, Status};
-use footscan::calib::{self, CalibrationPlan, Method};
+use super::{Daemon, DaemonError, Event, Job, Progress};
+use crate::archive::{ActiveScan, NewScan, ScanEnd, Status};
 use footscan::scan::{run_scan, CancelToken, ScanOptions, ScanProgress};
 use std::panic::AssertUnwindSafe;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-
-/// The calibration the daemon made last: `<archive>/calibrations/current.toml`.
-pub fn current_calibration_path(archive: &Path) -> PathBuf {
-    archive.join("calibrations").join("current.toml")
-}
 
 /// Hand the memory a scan freed (frame buffers, the grid, the model) back to the system, so
 /// resident memory between scans is what the daemon holds, not what the last scan peaked at.
@@ -85,7 +79,7 @@ impl Daemon {
                 "scan {id} is running: wait for it to end or cancel it (POST /api/scans/{id}/cancel)"
             )),
             Some(Job::Calibration { .. }) => Some(format!(
-                "calibration {} is running: wait for it to end",
+                "calibration {} is running: finish or abort it",
                 st.calibrating.as_ref().map_or("", |c| c.id.as_str())
             )),
             None => None,
@@ -124,6 +118,8 @@ impl Daemon {
         });
         st.cancel_reason = None;
         let calibration = st.calibration.as_ref().map(|c| c.path.clone());
+        let mut active = active;
+        active.record.calibration = st.calibration.as_ref().and_then(|c| c.id.clone());
         let me = self.clone();
         let token = cancel.clone();
         let thread = self
@@ -300,114 +296,5 @@ impl Daemon {
         };
         st.scan = Some(prog.clone());
         prog
-    }
-
-    /// Start a calibration with `method`; returns its id. Busy while another job runs.
-    pub fn start_calibration(self: &Arc<Self>, method: Method) -> Result<String, DaemonError> {
-        if self.scanner.config.scanner.backend != footscan::scan::config::Backend::Sim {
-            return Err(DaemonError::Unsupported(format!(
-                "calibration through footscand runs on the simulator backend only so far; for \
-                 backend {:?} put a calibration file in `calibration` of [daemon] or \
-                 [scanner] of {}",
-                self.scanner.config.scanner.backend,
-                self.scanner.path.display()
-            )));
-        }
-        if let Some(why) = self.busy() {
-            return Err(DaemonError::Busy(why));
-        }
-        let mut st = self.state.lock().unwrap();
-        if st.job.is_some() || st.shutting_down {
-            return Err(DaemonError::Busy("another job started just now".into()));
-        }
-        let id = ScanId::generate(7).to_string();
-        let job = CalibrationJob {
-            id: id.clone(),
-            method: method.name().into(),
-            state: Status::Running,
-            reason: None,
-        };
-        st.calibrating = Some(job.clone());
-        let me = self.clone();
-        let thread = self
-            .launcher
-            .spawn(format!("calibrate-{id}"), move || {
-                me.run_calibration_job(job, method)
-            })
-            .map_err(|e| DaemonError::Setup(format!("cannot start the calibration thread: {e}")))?;
-        st.job = Some(Job::Calibration { _thread: thread });
-        drop(st);
-        self.emit(Event::Calibration(CalibrationJob {
-            id: id.clone(),
-            method: method.name().into(),
-            state: Status::Running,
-            reason: None,
-        }));
-        Ok(id)
-    }
-
-    fn run_calibration_job(self: Arc<Self>, mut job: CalibrationJob, method: Method) {
-        tracing::info!("calibration {} ({}) started", job.id, job.method);
-        let plan = CalibrationPlan::default();
-        let result = std::panic::catch_unwind(AssertUnwindSafe(|| {
-            footscan::scan::calibrate_unattended(
-                &self.scanner.config,
-                method,
-                &plan,
-                &mut |_, _, _| {},
-            )
-        }));
-        let saved = match result {
-            Ok(Ok(outcome)) => self.store_calibration(&job.id, &outcome.calibration),
-            Ok(Err(e)) => Err(format!("{} calibration failed: {e}", method.name())),
-            Err(_) => Err("internal error: the calibration thread panicked".into()),
-        };
-        let mut st = self.state.lock().unwrap();
-        match saved {
-            Ok(info) => {
-                job.state = Status::Complete;
-                st.calibration = Some(info);
-            }
-            Err(reason) => {
-                job.state = Status::Failed;
-                job.reason = Some(reason);
-            }
-        }
-        tracing::info!(
-            "calibration {} {}{}",
-            job.id,
-            job.state.as_str(),
-            job.reason
-                .as_deref()
-                .map_or(String::new(), |r| format!(": {r}"))
-        );
-        st.calibrating = Some(job.clone());
-        if matches!(st.job, Some(Job::Calibration { .. })) {
-            st.job = None;
-        }
-        drop(st);
-        self.emit(Event::Calibration(job));
-    }
-
-    /// Keep `calibrations/<id>.toml` and make it `current.toml` (atomically).
-    fn store_calibration(
-        &self,
-        id: &str,
-        c: &calib::Calibration,
-    ) -> Result<CalibrationInfo, String> {
-        let dir = self.config.archive.join("calibrations");
-        std::fs::create_dir_all(&dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
-        let kept = dir.join(format!("{id}.toml"));
-        c.save(&kept)
-            .map_err(|e| format!("saving the calibration: {e}"))?;
-        let current = current_calibration_path(&self.config.archive);
-        let text = std::fs::read(&kept).map_err(|e| format!("reading {}: {e}", kept.display()))?;
-        footscan::io::write_atomic(&current, &text)
-            .map_err(|e| format!("writing {}: {e}", current.display()))?;
-        Ok(CalibrationInfo {
-            method: c.method.clone(),
-            date: c.date.clone(),
-            path: current,
-        })
     }
 }

@@ -4,6 +4,7 @@
 
 pub mod config;
 mod fleet;
+pub mod guided;
 mod jobs;
 pub mod preflight;
 pub mod preview;
@@ -12,6 +13,7 @@ pub use config::{DaemonConfig, DaemonConfigError};
 pub use fleet::FleetStatus;
 pub use preview::Preview;
 
+use crate::archive::calibrations::Calibrations;
 use crate::archive::{Archive, ArchiveError, Status};
 use footscan::scan::{CancelToken, LoadedConfig, ScanFault};
 use serde::Serialize;
@@ -42,18 +44,46 @@ pub struct Progress {
     pub fault: Option<ScanFault>,
 }
 
-/// A calibration job as the API shows it.
+/// A calibration or daily-check job as the API shows it (GET /api/calibrations/job and the
+/// `calibration` event): the step shown, what it saw, what the job waits for.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct CalibrationJob {
     pub id: String,
+    /// `calibration` or `verify` (the daily check).
+    pub kind: String,
     pub method: String,
     pub state: Status,
     pub reason: Option<String>,
+    /// Whether the operator confirms each step over the API.
+    pub guided: bool,
+    pub confirmed_by: String,
+    /// `starting`, `place` (waits for confirm/abort), `acquiring`, `review` (waits for
+    /// confirm/repeat/abort), `fitting`, `done`.
+    pub phase: String,
+    /// The step shown: what to place, where the slider goes.
+    pub step: Option<footscan::calib::guided::Step>,
+    /// Attempt at the step, from 1.
+    pub attempt: usize,
+    pub frames: usize,
+    pub total_frames: usize,
+    /// What the step saw against what it expected, once taken.
+    pub result: Option<footscan::calib::guided::StepResult>,
+    /// What to do now, in words.
+    pub message: Option<String>,
+    /// The steps kept so far.
+    pub kept: Vec<String>,
+    /// The calibration made (kind calibration) or checked (kind verify).
+    pub calibration_id: Option<String>,
+    /// The daily check's report.
+    pub report: Option<serde_json::Value>,
 }
 
 /// The calibration later scans use.
 #[derive(Clone, Debug, Serialize)]
 pub struct CalibrationInfo {
+    /// Its id in the archive's calibration history (None: a configured file, or an archive's
+    /// `current.toml` from before the history).
+    pub id: Option<String>,
     pub method: String,
     pub date: String,
     pub path: PathBuf,
@@ -72,7 +102,7 @@ pub enum Event {
         id: String,
         reason: String,
     },
-    Calibration(CalibrationJob),
+    Calibration(Box<CalibrationJob>),
 }
 
 impl Event {
@@ -111,6 +141,8 @@ pub enum DaemonError {
     Setup(String),
     #[error("{0}")]
     Unsupported(String),
+    #[error("{0}")]
+    BadRequest(String),
     /// A device the scan needs is missing (it may be plugged in later).
     #[error("{0}")]
     Unavailable(String),
@@ -123,8 +155,8 @@ enum Job {
         cancel: CancelToken,
         thread: std::thread::JoinHandle<()>,
     },
-    /// Never joined: calibration cannot be cancelled and writes nothing until it succeeded,
-    /// so shutdown leaves it.
+    /// Never joined: a calibration writes nothing until it succeeded, so shutdown leaves it
+    /// (a guided one waiting for the operator ends: its answers channel closes).
     Calibration {
         _thread: std::thread::JoinHandle<()>,
     },
@@ -138,6 +170,8 @@ struct State {
     /// Set when the scan is cancelled: the reason recorded with it.
     cancel_reason: Option<String>,
     calibrating: Option<CalibrationJob>,
+    /// The running guided job's answers.
+    guide: Option<guided::AnswerTx>,
     calibration: Option<CalibrationInfo>,
     shutting_down: bool,
 }
@@ -162,14 +196,19 @@ impl Daemon {
         let scanner = LoadedConfig::load(&config.scanner_config)
             .map_err(|e| DaemonError::Setup(e.to_string()))?;
         // A calibration made by the daemon wins over the configured one (it is newer).
-        let current = jobs::current_calibration_path(&config.archive);
-        let daemon_cal = if current.is_file() {
-            Some((current, "the daemon's last calibration".to_string()))
-        } else {
-            config.calibration.clone().map(|p| {
-                let from = format!("calibration in [daemon] of {}", config.path.display());
-                (p, from)
-            })
+        let history = Calibrations::new(&config.archive);
+        let (cal_id, daemon_cal) = match history.current() {
+            Some((id, path)) => (
+                id,
+                Some((path, "the daemon's last calibration".to_string())),
+            ),
+            None => (
+                None,
+                config.calibration.clone().map(|p| {
+                    let from = format!("calibration in [daemon] of {}", config.path.display());
+                    (p, from)
+                }),
+            ),
         };
         let cal = preflight::scan_calibration(
             &scanner,
@@ -182,6 +221,7 @@ impl Daemon {
         }
         let archive = Arc::new(Archive::open(&config.archive)?);
         let calibration = daemon_cal.map(|(path, _)| CalibrationInfo {
+            id: cal_id,
             method: cal.method,
             date: cal.date,
             path,
@@ -283,6 +323,7 @@ impl Daemon {
     /// [`SHUTDOWN_REASON`]) and wait for it to be archived. A running calibration is not
     /// waited for: it writes nothing until it has succeeded.
     pub fn shutdown(&self) {
+        self.end_guides();
         let thread = {
             let mut st = self.state.lock().unwrap();
             st.shutting_down = true;
