@@ -3,8 +3,8 @@
 //! ids and file names validated before any path is built, and a bearer token on every request
 //! but the health check and the static dashboard when one is configured.
 
-mod confirm;
 mod calibration;
+mod confirm;
 mod guard;
 mod live;
 mod scans;

@@ -10,8 +10,8 @@
 //! A scan directory holds a small reserve file while it runs; it is deleted before the
 //! record is written, so a scan that filled the disk can still be closed with its reason.
 
-mod history;
 pub mod calibrations;
+mod history;
 mod id;
 mod index;
 mod outbox;
