@@ -41,10 +41,12 @@ pub struct StartJob {
 fn request(st: &AppState, req: StartJob, verify: bool) -> Result<JobRequest, ApiError> {
     let method = match req.method.as_deref() {
         None => Method::Insystem,
-        Some(m) if verify => return Err(ApiError::bad_request(format!(
+        Some(m) if verify => {
+            return Err(ApiError::bad_request(format!(
             "method {:?}: the daily check measures with the current calibration; send no method",
             m.chars().take(80).collect::<String>()
-        ))),
+        )))
+        }
         Some(m) => m.parse().map_err(|_| {
             ApiError::bad_request(format!(
                 "method {:?}: must be \"insystem\", \"bezier\" or \"opencv\"",
