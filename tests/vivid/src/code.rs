@@ -30,6 +30,26 @@ pub fn write_id(px: &mut [u8], width: usize, id: u32) {
     }
 }
 
+/// Write `id` into rows `0..ID_ROWS` of a packed `width`-wide RGB24 image in pure red (a one
+/// is R 255, G = B = 0): it survives a red-minus-others channel as 255.
+pub fn write_id_rgb(px: &mut [u8], width: usize, id: u32) {
+    let mut grey = vec![0u8; ID_ROWS * width];
+    write_id(&mut grey, width, id);
+    for (i, &v) in grey.iter().enumerate() {
+        px[3 * i..3 * i + 3].copy_from_slice(&[v, 0, 0]);
+    }
+}
+
+/// Write `id` into rows `0..ID_ROWS` of a packed `width`-wide YUYV image, the RGB24 code
+/// encoded as [`crate::scene::yuyv_from_rgb`] does (blocks start on even columns, so no pixel
+/// pair straddles two blocks).
+pub fn write_id_yuyv(px: &mut [u8], width: usize, id: u32) {
+    let mut rgb = vec![0u8; ID_ROWS * width * 3];
+    write_id_rgb(&mut rgb, width, id);
+    let yuyv = crate::scene::yuyv_from_rgb(&rgb, width, ID_ROWS);
+    px[..yuyv.len()].copy_from_slice(&yuyv);
+}
+
 /// The id in rows `0..ID_ROWS`, if the code is intact.
 pub fn read_id(px: &[u8], width: usize) -> Option<u32> {
     let bw = width / BLOCKS;

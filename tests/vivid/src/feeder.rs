@@ -28,21 +28,28 @@ pub struct Feeder {
 }
 
 impl Feeder {
-    /// Open the output node, select its HDMI output, set `timings` and GREY `w` x `h`, and
-    /// start streaming `images[id % images.len()]` with the id written in.
+    /// Open the output node, select its HDMI output, set `timings` and `fourcc` (GREY, RGB3 or
+    /// YUYV) at `w` x `h`, and start streaming `images[id % images.len()]` (packed rows) with
+    /// the id written in.
     pub fn start(
         path: &Path,
         output: u32,
         timings: &DvTimings,
-        w: u32,
-        h: u32,
+        (w, h): (u32, u32),
+        fourcc: &[u8; 4],
         images: Arc<Vec<Vec<u8>>>,
     ) -> Result<Feeder, String> {
+        let (bpp, write_id): (usize, fn(&mut [u8], usize, u32)) = match fourcc {
+            b"GREY" => (1, code::write_id),
+            b"RGB3" => (3, code::write_id_rgb),
+            b"YUYV" => (2, code::write_id_yuyv),
+            other => return Err(format!("no feeder for {}", String::from_utf8_lossy(other))),
+        };
         let dev = v4l::Device::with_path(path).map_err(|e| format!("open {path:?}: {e}"))?;
         let fd = dev.handle().fd();
         dv::set_output(fd, output).map_err(|e| format!("S_OUTPUT {output}: {e}"))?;
         dv::set_dv_timings(fd, timings).map_err(|e| format!("output S_DV_TIMINGS: {e}"))?;
-        let mut f = v4l::Format::new(w, h, v4l::FourCC::new(b"GREY"));
+        let mut f = v4l::Format::new(w, h, v4l::FourCC::new(fourcc));
         f.field_order = v4l::format::FieldOrder::Progressive;
         let got = Output::set_format(&dev, &f).map_err(|e| format!("output S_FMT: {e}"))?;
         if got.width != w || got.height != h || got.fourcc != f.fourcc {
@@ -57,16 +64,17 @@ impl Feeder {
         let next_id = Arc::new(AtomicU32::new(0));
         let (p, qt, nid) = (pause.clone(), quit.clone(), next_id.clone());
         let (w, h) = (w as usize, h as usize);
+        let row = w * bpp;
         let fill = move |buf: &mut [u8], id: u32| {
             let img = &images[id as usize % images.len()];
             for r in 0..h {
-                buf[r * stride..r * stride + w].copy_from_slice(&img[r * w..(r + 1) * w]);
+                buf[r * stride..r * stride + row].copy_from_slice(&img[r * row..(r + 1) * row]);
             }
             // The id goes into the buffer's rows directly (stride-aware).
-            let mut head = vec![0u8; code::ID_ROWS * w];
-            code::write_id(&mut head, w, id);
+            let mut head = vec![0u8; code::ID_ROWS * row];
+            write_id(&mut head, w, id);
             for r in 0..code::ID_ROWS {
-                buf[r * stride..r * stride + w].copy_from_slice(&head[r * w..(r + 1) * w]);
+                buf[r * stride..r * stride + row].copy_from_slice(&head[r * row..(r + 1) * row]);
             }
         };
         for i in 0..q.len() {

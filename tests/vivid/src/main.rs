@@ -1,11 +1,14 @@
 //! The driver on a real kernel V4L2 driver: vivid in loopback, inside a VM (tests/vivid/run.sh).
 //!
-//! For 640x480 and 1280x720 GREY: simulator frames with a laser line over the foot, each with
-//! its id written in the first rows, go out through vivid's HDMI output and come back on its
-//! HDMI capture through the whole V4L2 capture path, read by `footscan-v4l2`. Checks:
+//! For 640x480 and 1280x720 GREY, and 640x480 RGB3 and YUYV (a red line over a grey
+//! checkerboard, reduced by the driver to red-minus-others): simulator frames with a laser line
+//! over the foot, each with its id written in the first rows, go out through vivid's HDMI
+//! output and come back on its HDMI capture through the whole V4L2 capture path, read by
+//! `footscan-v4l2`. Checks:
 //! sequence numbers increase (gaps are counted as dropped frames), timestamps are monotonic and
 //! spaced by the frame period times the sequence step, every captured frame equals the frame
-//! regenerated for its id bit for bit, and the project's detectors find the line in the
+//! regenerated for its id bit for bit (colour frames: the driver's channel of the capture
+//! against the same conversion of the frame sent), and the project's detectors find the line in the
 //! captured frames to the same accuracy (against the renderer's truth) as in the originals.
 //! Then, on the last stream: the output stops being fed (the loop freezes on its last frame,
 //! the capture goes on), the capture stalls (vivid drops every buffer: `next_frame` must time
@@ -19,8 +22,9 @@ mod feeder;
 mod scene;
 
 use footscan::detect::{self, DetectParams, LinePeak};
-use footscan_hal::{Camera, Frame, HalError, Pixels, Timestamp};
+use footscan_hal::{Camera, Channel, Frame, HalError, Pixels, Timestamp};
 use footscan_sim::render::{FrameTruth, RowTruth};
+use footscan_v4l2::format::Converter;
 use footscan_v4l2::{dv, SourceFormat, V4l2Camera, V4l2Config};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -140,14 +144,25 @@ fn capture(cam: &mut V4l2Camera, n: usize, w: usize) -> Result<Vec<Captured>, Ha
     Ok(out)
 }
 
-fn loop_case(checks: &mut Checks, w: u32, h: u32, n: usize, last: bool) -> Result<(), String> {
-    let case = format!("{w}x{h}");
+/// One loop through vivid: frames in `format` (GREY, RGB24 or YUYV; the colour ones reduced to
+/// `channel` by the driver), `n` captured.
+fn loop_case(
+    checks: &mut Checks,
+    (w, h): (u32, u32),
+    format: SourceFormat,
+    channel: Option<Channel>,
+    n: usize,
+    last: bool,
+) -> Result<(), String> {
+    let fourcc: [u8; 4] = format.fourcc().repr;
+    let case = format!("{w}x{h} {}", String::from_utf8_lossy(&fourcc));
     let t_case = Instant::now();
     let cfg = V4l2Config {
         path: CAPTURE.into(),
         width: w,
         height: h,
-        formats: vec![SourceFormat::Grey],
+        formats: vec![format],
+        channel,
         fps: Some(60.0),
         buffers: 4,
         input: Some(HDMI_INPUT),
@@ -167,8 +182,14 @@ fn loop_case(checks: &mut Checks, w: u32, h: u32, n: usize, last: bool) -> Resul
     );
     checks.check(
         &format!("{case} negotiate"),
-        info.width == w && info.height == h && cam.converter().format == SourceFormat::Grey,
-        format!("GREY {}x{} at {:.2} fps", info.width, info.height, info.fps),
+        info.width == w && info.height == h && cam.converter().format == format,
+        format!(
+            "{} {}x{} at {:.2} fps, channel {channel:?}",
+            cam.converter().format.fourcc(),
+            info.width,
+            info.height,
+            info.fps
+        ),
     );
     cam.set_control(VIVID_LOOP_VIDEO, 1)
         .map_err(|e| format!("Loop Video: {e}"))?;
@@ -192,14 +213,16 @@ fn loop_case(checks: &mut Checks, w: u32, h: u32, n: usize, last: bool) -> Resul
     // The images of the cycle, rendered once; the feeder writes each frame's id in.
     let t = Instant::now();
     let mut frames = scene::Frames::new(w, h);
-    let images: Vec<Vec<u8>> = (0..scene::CYCLE).map(|j| frames.render(j).0).collect();
+    let images: Vec<Vec<u8>> = (0..scene::CYCLE)
+        .map(|j| frames.render_format(j, &fourcc).0)
+        .collect();
     let t_render = t.elapsed();
     let fdr = feeder::Feeder::start(
         Path::new(OUTPUT),
         HDMI_OUTPUT,
         &timings,
-        w,
-        h,
+        (w, h),
+        &fourcc,
         Arc::new(images),
     )?;
     cam.start().map_err(|e| format!("start: {e}"))?;
@@ -287,7 +310,11 @@ fn loop_case(checks: &mut Checks, w: u32, h: u32, n: usize, last: bool) -> Resul
         ),
     );
 
-    // Frames: each captured frame against the frame regenerated for its id.
+    // Frames: each captured frame against the frame regenerated for its id, converted by the
+    // driver's own converter (the identity for GREY).
+    let mut conv = Converter::new(format, w, h, 0)
+        .with_channel(channel)
+        .map_err(|e| format!("converter: {e}"))?;
     let t = Instant::now();
     let valid: Vec<&Captured> = caps.iter().filter(|c| c.id.is_some()).collect();
     let leading_invalid = caps.iter().take_while(|c| c.id.is_none()).count();
@@ -296,7 +323,15 @@ fn loop_case(checks: &mut Checks, w: u32, h: u32, n: usize, last: bool) -> Resul
     let (mut exact, mut differing) = (0u32, 0u32);
     for c in &valid {
         let id = c.id.unwrap();
-        let (orig, _) = originals.entry(id).or_insert_with(|| fresh.render(id));
+        let (orig, _) = originals.entry(id).or_insert_with(|| {
+            let (raw, truth) = fresh.render_format(id, &fourcc);
+            let mut grey = Pixels::Gray8(vec![0; (w * h) as usize]);
+            conv.convert(&raw, &mut grey).expect("a whole frame");
+            let Pixels::Gray8(g) = grey else {
+                unreachable!("Gray8")
+            };
+            (g, truth)
+        });
         let got = gray8(&c.frame);
         if got == orig.as_slice() {
             exact += 1;
@@ -511,10 +546,19 @@ fn main() {
         format!("{} capture nodes", cams.len()),
     );
 
-    let sizes = [(640, 480), (1280, 720)];
-    for (i, &(w, h)) in sizes.iter().enumerate() {
-        if let Err(e) = loop_case(&mut checks, w, h, n, i + 1 == sizes.len()) {
-            checks.check(&format!("{w}x{h}"), false, e);
+    // Grey at two sizes, then the colour formats reduced to red-minus-others by the driver;
+    // the last case also stalls and unplugs the device.
+    let rmo = Some(Channel::RedMinusOthers);
+    let cases = [
+        ((640, 480), SourceFormat::Grey, None, n),
+        ((640, 480), SourceFormat::Rgb24, rmo, n / 2),
+        ((640, 480), SourceFormat::Yuyv, rmo, n / 2),
+        ((1280, 720), SourceFormat::Grey, None, n),
+    ];
+    for (i, &(size, format, channel, frames)) in cases.iter().enumerate() {
+        let last = i + 1 == cases.len();
+        if let Err(e) = loop_case(&mut checks, size, format, channel, frames, last) {
+            checks.check(&format!("{size:?} {format:?}"), false, e);
         }
     }
     println!(

@@ -52,6 +52,43 @@ impl Frames {
         60.0 + 14.0 * j as f64
     }
 
+    /// Frame `id` in `format` (GREY, RGB3 or YUYV), packed rows, id code included, and its
+    /// truth. Colour frames: a red laser over a grey checkerboard of 16 px squares (30 and
+    /// 90 DN) that a red-minus-others channel cancels: R = board + v, G = board + v / 16,
+    /// B = board + v / 32 with v the monochrome frame.
+    pub fn render_format(&mut self, id: u32, format: &[u8; 4]) -> (Vec<u8>, FrameTruth) {
+        let (grey, truth) = self.render(id);
+        if format == b"GREY" {
+            return (grey, truth);
+        }
+        let w = self.width;
+        let h = grey.len() / w;
+        let mut rgb = vec![0u8; w * h * 3];
+        for (i, &v) in grey.iter().enumerate() {
+            let (x, y) = (i % w, i / w);
+            let board = if (x / 16 + y / 16) % 2 == 0 {
+                30u32
+            } else {
+                90
+            };
+            let v = v as u32;
+            let px = [board + v, board + v / 16, board + v / 32].map(|c| c.min(255) as u8);
+            rgb[3 * i..3 * i + 3].copy_from_slice(&px);
+        }
+        match format {
+            b"RGB3" => {
+                code::write_id_rgb(&mut rgb, w, id);
+                (rgb, truth)
+            }
+            b"YUYV" => {
+                let mut yuyv = yuyv_from_rgb(&rgb, w, h);
+                code::write_id_yuyv(&mut yuyv, w, id);
+                (yuyv, truth)
+            }
+            other => panic!("no frames in {}", String::from_utf8_lossy(other)),
+        }
+    }
+
     /// The image and truth of frame `id` (noise drawn for image `id % CYCLE`), id code included.
     pub fn render(&mut self, id: u32) -> (Vec<u8>, FrameTruth) {
         let j = id % CYCLE;
@@ -62,4 +99,23 @@ impl Frames {
         code::write_id(&mut v, self.width, id);
         (v, truth)
     }
+}
+
+/// BT.601 limited-range YUYV of a packed RGB24 image (`w` even): Y per pixel, U and V from the
+/// pair's mean.
+pub fn yuyv_from_rgb(rgb: &[u8], w: usize, h: usize) -> Vec<u8> {
+    let mut out = vec![0u8; w * h * 2];
+    let y = |p: &[u8]| {
+        let (r, g, b) = (p[0] as i32, p[1] as i32, p[2] as i32);
+        (16 + ((66 * r + 129 * g + 25 * b + 128) >> 8)).clamp(0, 255) as u8
+    };
+    for (i, pair) in rgb.chunks_exact(6).enumerate() {
+        let (a, b) = (&pair[..3], &pair[3..]);
+        let m = |k: usize| (a[k] as i32 + b[k] as i32) / 2;
+        let (r, g, bl) = (m(0), m(1), m(2));
+        let u = (128 + ((-38 * r - 74 * g + 112 * bl + 128) >> 8)).clamp(0, 255) as u8;
+        let v = (128 + ((112 * r - 94 * g - 18 * bl + 128) >> 8)).clamp(0, 255) as u8;
+        out[4 * i..4 * i + 4].copy_from_slice(&[y(a), u, y(b), v]);
+    }
+    out
 }
