@@ -17,6 +17,9 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 use v4l::video::Output;
 
+/// Writes a frame id into the first rows of a packed image of the given width.
+type IdWriter = fn(&mut [u8], usize, u32);
+
 pub struct Feeder {
     /// Set: stop queueing (the output stream stays on with what it holds).
     pub pause: Arc<AtomicBool>,
@@ -39,7 +42,7 @@ impl Feeder {
         fourcc: &[u8; 4],
         images: Arc<Vec<Vec<u8>>>,
     ) -> Result<Feeder, String> {
-        let (bpp, write_id): (usize, fn(&mut [u8], usize, u32)) = match fourcc {
+        let (bpp, write_id): (usize, IdWriter) = match fourcc {
             b"GREY" => (1, code::write_id),
             b"RGB3" => (3, code::write_id_rgb),
             b"YUYV" => (2, code::write_id_yuyv),
