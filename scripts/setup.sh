@@ -12,7 +12,7 @@ packages+=(curl)
 packages+=(python3-venv)
 # The fleet tests (crates/fleet, crates/daemon/tests/daemon_fleet.rs, tests/fleet_cli.rs) start
 # a PostgreSQL server of their own (initdb + pg_ctl); footscan-fleet's TLS links OpenSSL.
-packages+=(postgresql libssl-dev)
+packages+=(postgresql libssl-dev openssl)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

@@ -121,6 +121,97 @@ impl PgServer {
         s
     }
 
+    /// Turn TLS on: a throwaway certificate authority and a server certificate for
+    /// `localhost` and 127.0.0.1 (openssl), `ssl = on`, and [`USER`] allowed over TLS only
+    /// (a plain connection of the fleet user is rejected by pg_hba.conf; the admin keeps
+    /// plain connections for the test's own setup). Returns the CA's PEM file.
+    pub fn enable_tls(&self) -> PathBuf {
+        let d = &self.dir;
+        let ssl = |args: &[&str]| {
+            let out = Command::new("openssl")
+                .args(args)
+                .current_dir(d)
+                .output()
+                .expect("openssl (Debian's openssl package)");
+            assert!(
+                out.status.success(),
+                "openssl {args:?}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        };
+        ssl(&[
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-days",
+            "2",
+            "-subj",
+            "/CN=footscan test CA",
+            "-keyout",
+            "ca.key",
+            "-out",
+            "ca.pem",
+        ]);
+        ssl(&[
+            "req",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-subj",
+            "/CN=localhost",
+            "-keyout",
+            "server.key",
+            "-out",
+            "server.csr",
+        ]);
+        std::fs::write(
+            d.join("san.ext"),
+            "subjectAltName = DNS:localhost, IP:127.0.0.1\n",
+        )
+        .unwrap();
+        ssl(&[
+            "x509",
+            "-req",
+            "-in",
+            "server.csr",
+            "-CA",
+            "ca.pem",
+            "-CAkey",
+            "ca.key",
+            "-CAcreateserial",
+            "-days",
+            "2",
+            "-extfile",
+            "san.ext",
+            "-out",
+            "server.pem",
+        ]);
+        for f in ["server.key", "server.pem"] {
+            if let Some(u) = &self.run_as {
+                let _ = Command::new("chown").arg(u).arg(d.join(f)).status();
+            }
+            let _ = Command::new("chmod").arg("600").arg(d.join(f)).status();
+        }
+        let mut conf = std::fs::read_to_string(self.data().join("postgresql.conf")).unwrap();
+        conf.push_str(&format!(
+            "\nssl = on\nssl_cert_file = '{}'\nssl_key_file = '{}'\n",
+            d.join("server.pem").display(),
+            d.join("server.key").display()
+        ));
+        std::fs::write(self.data().join("postgresql.conf"), conf).unwrap();
+        let hba = std::fs::read_to_string(self.data().join("pg_hba.conf")).unwrap();
+        let rules = format!(
+            "hostssl {DATABASE} {USER} 127.0.0.1/32 scram-sha-256\n\
+             hostnossl {DATABASE} {USER} 127.0.0.1/32 reject\n"
+        );
+        std::fs::write(self.data().join("pg_hba.conf"), rules + &hba).unwrap();
+        self.stop("fast");
+        self.start_server();
+        d.join("ca.pem")
+    }
+
     fn data(&self) -> PathBuf {
         self.dir.join("data")
     }
