@@ -473,6 +473,16 @@ fn scanners_run(
             .unwrap()
             .get(0);
         assert_eq!(dups, 0);
+        // The read-only view: one scanner sees every scanner's scans in the database.
+        let (_, _, d0) = &daemons[0];
+        let all = d0.get_json("/api/fleet/scans");
+        assert_eq!(all["scans"].as_array().unwrap().len(), n_daemons * scans, "{all}");
+        let other = format!("scanner-{n_daemons}");
+        let one = d0.get_json(&format!("/api/fleet/scans?scanner={other}"));
+        let rows = one["scans"].as_array().unwrap();
+        assert_eq!(rows.len(), scans, "{one}");
+        assert!(rows.iter().all(|r| r["scanner"] == other.as_str()), "{one}");
+        assert_eq!(d0.get("/api/fleet/scans?limit=0").status(), 400);
     }
     timings.into_inner().unwrap()
 }

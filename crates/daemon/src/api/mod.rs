@@ -5,6 +5,7 @@
 
 mod calibration;
 mod confirm;
+mod fleet;
 mod guard;
 mod live;
 mod scans;
@@ -96,6 +97,7 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/api/preview.png", get(live::preview_png))
         .route("/api/preview/line", get(live::preview_line))
         .route("/api/events", get(live::events))
+        .route("/api/fleet/scans", get(fleet::list))
         .route(
             "/api/calibrations",
             get(calibration::history).post(calibration::start_calibration),

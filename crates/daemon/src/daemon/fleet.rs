@@ -52,6 +52,8 @@ struct Shared {
 /// The running pusher (absent when [fleet] is off).
 pub struct Fleet {
     shared: Arc<Shared>,
+    /// For the read-only view (each query opens its own connection: the pusher's is its own).
+    settings: Settings,
 }
 
 impl Fleet {
@@ -75,6 +77,7 @@ impl Fleet {
             settings.clinic
         );
         let sh = shared.clone();
+        let view = settings.clone();
         std::thread::Builder::new()
             .name("fleet-push".into())
             .spawn(move || {
@@ -88,7 +91,10 @@ impl Fleet {
                 }
                 .run()
             })?;
-        Ok(Fleet { shared })
+        Ok(Fleet {
+            shared,
+            settings: view,
+        })
     }
 
     fn wake(&self) {
@@ -116,6 +122,19 @@ impl Daemon {
     /// The fleet's state for /api/status; None without [fleet].
     pub fn fleet_status(&self) -> Option<FleetStatus> {
         self.fleet.as_ref().map(Fleet::status)
+    }
+
+    /// The fleet database's scans (every scanner's) matching `filter`, read on a connection
+    /// of its own; None without [fleet]. Blocking: call it off the async runtime.
+    pub fn fleet_list(
+        &self,
+        filter: &footscan_fleet::Filter,
+    ) -> Option<Result<Vec<footscan_fleet::ScanRow>, footscan_fleet::FleetError>> {
+        let f = self.fleet.as_ref()?;
+        Some(
+            footscan_fleet::connect(&f.settings)
+                .and_then(|mut c| footscan_fleet::list(&mut c, filter)),
+        )
     }
 }
 
