@@ -377,7 +377,9 @@ fn frame_curves(
         // tolerance of the mesh). Eq. 9 interpolates the foot curve's nodes onto the same cut
         // (the record above) but keeps the foot curve's knots, which leaves it up to a few
         // millimetres off where the last has an edge the foot has not (the flat bottom).
-        let (l, _) = fit_loop(name, lpts, 1.0, tol)?;
+        // Points 0.5 mm apart: at the flat bottom's right-angled corners a fit through points
+        // 1 mm apart cut the corner by 0.13 mm and a girth curve came out 0.5 mm short.
+        let (l, _) = fit_loop(name, lpts, 0.5, tol)?;
         foot.push((name, c));
         last.push((name, l));
         deform.push(rec);

@@ -74,42 +74,94 @@ fn station_points(m: &TriMesh, xs: &[f64], top: f64) -> Vec<Vec<P2>> {
     out
 }
 
-/// Resample a convex polygon to `n` points by arc length, starting where a ray straight down
-/// from its centroid leaves it (so corresponding points of neighbouring sections line up).
-fn resample_hull(h: &[P2], n: usize) -> Vec<P2> {
-    let m = h.len();
-    let c = h.iter().fold(P2::origin(), |s, p| s + p.coords / m as f64);
-    // Start: the edge crossed by the vertical line through the centroid, below it.
-    let mut start = (0usize, 0.0f64);
-    let mut best = f64::MAX;
-    for i in 0..m {
-        let (a, b) = (h[i], h[(i + 1) % m]);
-        if (a.x - c.x) * (b.x - c.x) <= 0.0 && a.x != b.x {
-            let t = (c.x - a.x) / (b.x - a.x);
-            let z = a.y + t * (b.y - a.y);
-            if z < best {
-                best = z;
-                start = (i, t);
-            }
-        }
-    }
-    let seg: Vec<f64> = (0..m).map(|i| (h[(i + 1) % m] - h[i]).norm()).collect();
+/// Points spaced evenly by arc length along an open polyline: `n` points from its start,
+/// the end excluded.
+fn along(path: &[P2], n: usize, out: &mut Vec<P2>) {
+    let seg: Vec<f64> = path.windows(2).map(|w| (w[1] - w[0]).norm()).collect();
     let total: f64 = seg.iter().sum();
-    let mut out = Vec::with_capacity(n);
-    let (mut i, mut pos) = (start.0, start.1 * seg[start.0]);
-    let mut walked = -pos;
+    let (mut i, mut walked) = (0usize, 0.0);
     for k in 0..n {
         let s = total * k as f64 / n as f64;
-        while walked + seg[i] < s {
+        while i + 1 < seg.len() && walked + seg[i] < s {
             walked += seg[i];
-            i = (i + 1) % m;
+            i += 1;
         }
-        pos = s - walked;
-        let t = if seg[i] > 0.0 { pos / seg[i] } else { 0.0 };
-        out.push(h[i] + (h[(i + 1) % m] - h[i]) * t);
+        let t = if seg[i] > 0.0 {
+            ((s - walked) / seg[i]).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        out.push(path[i] + (path[i + 1] - path[i]) * t);
     }
+}
+
+/// Points of the bottom chain of a ring and of each wall piece beside it (see
+/// [`resample_hull`]).
+pub const BOTTOM: usize = 24;
+const WALL: usize = 2;
+/// Heights above a section's lowest point (mm) that bound its bottom chain (the corners of a
+/// flat bottom lie within it) and the wall pieces beside it (twice the outline height).
+const CORNER_Z: f64 = 0.05;
+const WALL_Z: f64 = 2.0 * OUTLINE_Z;
+
+/// Where a counterclockwise convex polygon crosses height `z` going down (its low-y side)
+/// and going up: (edge index, point) each.
+fn crossings(h: &[P2], z: f64) -> Option<[(usize, P2); 2]> {
+    let m = h.len();
+    let below = |i: usize| h[i % m].y <= z;
+    let at = |i: usize| {
+        let (a, b) = (h[i % m], h[(i + 1) % m]);
+        (i, a + (b - a) * ((z - a.y) / (b.y - a.y)))
+    };
+    let down = (0..m).find(|&i| !below(i) && below(i + 1))?;
+    let up = (0..m).find(|&i| below(i) && !below(i + 1))?;
+    Some([at(down), at(up)])
+}
+
+/// The polygon's boundary from point `a` (on edge a.0) counterclockwise to `b` (on b.0).
+fn arc(h: &[P2], a: (usize, P2), b: (usize, P2)) -> Vec<P2> {
+    let m = h.len();
+    let mut out = vec![a.1];
+    let mut i = a.0 + 1;
+    while i % m != (b.0 + 1) % m {
+        out.push(h[i % m]);
+        i += 1;
+    }
+    out.push(b.1);
     out
 }
+
+/// Resample a counterclockwise convex polygon (y, z) to `n` points with the same meaning in
+/// every section: [`WALL`] points down the low-y wall from [`WALL_Z`] above the lowest point
+/// to [`CORNER_Z`], [`BOTTOM`] along the bottom, [`WALL`] up the other wall, the rest over the
+/// top. Pinning the corners of the flat bottom and the wall above them in every ring makes
+/// the tube's edges run along the last's feather edge, so the 1.5 mm outline is a smooth
+/// curve; with plain arc-length samples the corners fell at a different place in each
+/// station and the outline was a staircase (950-1200 mm long on a 260 mm last).
+fn resample_hull(h: &[P2], n: usize) -> Vec<P2> {
+    let zl = h.iter().map(|p| p.y).fold(f64::MAX, f64::min);
+    let zt = h.iter().map(|p| p.y).fold(f64::MIN, f64::max);
+    let wall = WALL_Z.min(0.5 * (zt - zl));
+    let corner = CORNER_Z.min(0.5 * wall);
+    let (Some([wd, wu]), Some([cd, cu])) = (crossings(h, zl + wall), crossings(h, zl + corner))
+    else {
+        unreachable!("a hull with area has a bottom and a top")
+    };
+    let mut out = Vec::with_capacity(n);
+    along(&arc(h, wd, cd), WALL, &mut out);
+    along(&arc(h, cd, cu), BOTTOM, &mut out);
+    along(&arc(h, cu, wu), WALL, &mut out);
+    along(&arc(h, wu, wd), n - BOTTOM - 2 * WALL, &mut out);
+    out
+}
+
+/// Fraction of a section's height (its lowest point to the last's top) whose extent is
+/// carried down to the glass as the flat bottom.
+const BAND: f64 = 0.06;
+/// Half-widths of the closing and of the running mean smoothing the bottom's edges along
+/// the axis (mm).
+const SOLE_CLOSE: f64 = 8.0;
+const SOLE_SMOOTH: f64 = 3.0;
 
 impl Sections {
     /// The sole outline of the foot standing on the glass, at the outline height: the
@@ -138,28 +190,80 @@ impl Sections {
             .collect();
         let top = TOP_Z * length;
         let pts = station_points(foot, &xs, top);
+        // A last stands on a flat bottom: each section's lower band (the lowest BAND of its
+        // height) is carried down to the glass. On a pressed foot this widens the bottom a
+        // little; raised toes or a hanging heel get a flat bottom under them, and the
+        // bottom's edge is the sole's edge, not a rounded fin. The band used to be the lowest
+        // 1.5 mm only: where a toe or the hallux was slightly raised it was one-sided, which
+        // left notches in the toe bottom of the side profile and a slot in the outline. The
+        // edges are smoothed along the axis (scan noise made the outline a staircase).
+        // Behind the foot's own outline the heel keeps its curve.
+        let mut band: Vec<Option<(f64, f64)>> = vec![None; xs.len()];
+        for (k, (x, q)) in xs.iter().zip(&pts).enumerate() {
+            if *x < bottom_from || q.len() < 3 {
+                continue;
+            }
+            let zl = q.iter().map(|r| r.y).fold(f64::MAX, f64::min);
+            let zt = q.iter().map(|r| r.y).fold(f64::MIN, f64::max);
+            let zb = zl + (BAND * (zt - zl)).max(OUTLINE_Z);
+            let (yl, yh) = q
+                .iter()
+                .filter(|r| r.y <= zb)
+                .fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.x), b.max(r.x)));
+            if yh > yl {
+                band[k] = Some((yl, yh));
+            }
+        }
+        // Gaps between toes and a one-sided band at a slightly raised toe would leave slots
+        // in the bottom: a morphological closing of each edge along the axis (the widest
+        // within SOLE_CLOSE, then the narrowest of those) fills dips shorter than twice
+        // SOLE_CLOSE and keeps every bulge; a running mean over SOLE_SMOOTH then removes scan
+        // noise.
+        let (xs_, band_) = (&xs, &band);
+        let window = |k: usize, w: f64| {
+            (0..xs_.len()).filter(move |&j| (xs_[j] - xs_[k]).abs() <= w && band_[j].is_some())
+        };
+        let dil: Vec<Option<(f64, f64)>> = (0..xs.len())
+            .map(|k| {
+                band[k]?;
+                Some(
+                    window(k, SOLE_CLOSE)
+                        .filter_map(|j| band[j])
+                        .fold((f64::MAX, f64::MIN), |(a, b), (l, h)| (a.min(l), b.max(h))),
+                )
+            })
+            .collect();
+        let closed: Vec<Option<(f64, f64)>> = (0..xs.len())
+            .map(|k| {
+                let (l0, h0) = band[k]?;
+                let (l, h) = window(k, SOLE_CLOSE)
+                    .filter_map(|j| dil[j])
+                    .fold((f64::MIN, f64::MAX), |(a, b), (l, h)| (a.max(l), b.min(h)));
+                Some((l.min(l0), h.max(h0)))
+            })
+            .collect();
+        let smooth: Vec<Option<(f64, f64)>> = (0..xs.len())
+            .map(|k| {
+                closed[k]?;
+                let near: Vec<(f64, f64)> =
+                    window(k, SOLE_SMOOTH).filter_map(|j| closed[j]).collect();
+                let n = near.len() as f64;
+                let yl = near.iter().map(|b| b.0).sum::<f64>() / n;
+                let yh = near.iter().map(|b| b.1).sum::<f64>() / n;
+                (yh > yl).then_some((yl, yh))
+            })
+            .collect();
         let mut keep_x = Vec::new();
         let mut rings = Vec::new();
         let mut sole = Vec::new();
-        for (x, mut q) in xs.iter().zip(pts) {
+        for ((x, mut q), b) in xs.iter().zip(pts).zip(smooth) {
             if q.len() < 3 {
                 continue;
             }
-            // A last stands on a flat bottom: the section's lowest band (within the outline
-            // height of its lowest point) is carried down to the glass. On a pressed foot
-            // this changes nothing; raised toes or a hanging heel get a flat bottom under
-            // them, and the bottom's edge is the sole's edge, not a rounded fin. Behind the
-            // foot's own outline the heel keeps its curve.
-            if *x >= bottom_from {
-                let zl = q.iter().map(|r| r.y).fold(f64::MAX, f64::min);
-                let band = q.iter().filter(|r| r.y <= zl + OUTLINE_Z);
-                let (yl, yh) =
-                    band.fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.x), b.max(r.x)));
+            if let Some((yl, yh)) = b {
                 q.push(P2::new(yl, 0.0));
                 q.push(P2::new(yh, 0.0));
-                if yh > yl {
-                    sole.push((*x, yl, yh));
-                }
+                sole.push((*x, yl, yh));
             }
             let h = convex_hull(&q);
             if h.points.len() < 3 || h.area() < 0.5 {
@@ -377,6 +481,9 @@ pub fn solve(
     ];
     let steps: Params = [0.2, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3];
     let (mut mesh, mut me, mut r) = eval(&p)?;
+    if std::env::var_os("FOOTSCAN_DEBUG").is_some() {
+        eprintln!("newton start: r {r:.3?} p {p:.4?}");
+    }
     let norm = |r: &[f64; 8]| -> f64 {
         r.iter()
             .zip(TOL)
