@@ -86,6 +86,7 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
     Router::new()
         .route("/", get(dashboard_index))
         .route("/app.js", get(dashboard_js))
+        .route("/calibration.js", get(dashboard_calibration_js))
         .route("/style.css", get(dashboard_css))
         .route("/api/health", get(health))
         .route("/api/status", get(live::status))
@@ -171,7 +172,11 @@ async fn auth(State(st): State<AppState>, req: Request, next: Next) -> Response 
         return next.run(req).await;
     };
     let path = req.uri().path();
-    if req.method() == Method::GET && matches!(path, "/api/health" | "/" | "/app.js" | "/style.css")
+    if req.method() == Method::GET
+        && matches!(
+            path,
+            "/api/health" | "/" | "/app.js" | "/calibration.js" | "/style.css"
+        )
     {
         return next.run(req).await;
     }
@@ -312,6 +317,13 @@ async fn dashboard_js() -> Response {
     static_file(
         "text/javascript; charset=utf-8",
         include_str!("dashboard/app.js"),
+    )
+}
+
+async fn dashboard_calibration_js() -> Response {
+    static_file(
+        "text/javascript; charset=utf-8",
+        include_str!("dashboard/calibration.js"),
     )
 }
 

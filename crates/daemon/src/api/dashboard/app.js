@@ -238,7 +238,7 @@ function renderCalibration(cal, calib) {
   }
   calibrating = calib && calib.state === 'running' ? calib : null;
   if (calib) {
-    dd.append(el('br'), `calibration ${calib.id} (${calib.method}): `, stateBadge(calib.state));
+    dd.append(el('br'), `${calib.kind === 'verify' ? 'daily check' : 'calibration'} ${calib.id}: `, stateBadge(calib.state));
     if (calib.reason) dd.append(' ', calib.reason);
   }
   updateButtons();
