@@ -267,7 +267,7 @@ impl CalibrationRig for DeviceRig {
     fn check_moves(&mut self, positions: &[f64]) -> Result<(), CalibError> {
         let settings = self.slider.settings()?;
         self.home_to_recover = settings.get(&22).is_some_and(|&v| v != 0.0);
-        super::guided::check_controller(&settings, positions, self.feed_mm_min)
+        check_controller(&settings, positions, self.feed_mm_min)
     }
 
     /// Reconnect the slider (a soft reset clears what the fault left) and home it when the
@@ -370,4 +370,32 @@ pub fn average_frames(height_mm: f64, frames: &[Vec<f64>]) -> PlateObservation {
         col,
         std,
     }
+}
+
+/// The controller's limits against the moves: every position inside the travel `$130` when
+/// soft limits are on (`$20=1`), the feed within `$110`. `settings` as `$$` lists them.
+pub fn check_controller(
+    settings: &footscan_hal::SliderSettings,
+    positions: &[f64],
+    feed_mm_min: f64,
+) -> Result<(), CalibError> {
+    if let Some(&max) = settings.get(&110) {
+        if feed_mm_min > max + 1e-9 {
+            return Err(CalibError::Plan(format!(
+                "the calibration moves at scan.approach_feed_mm_min = {feed_mm_min} mm/min, \
+                 above the controller's X max rate $110 = {max} mm/min"
+            )));
+        }
+    }
+    let soft = settings.get(&20).is_some_and(|&v| v != 0.0);
+    if let (true, Some(&travel)) = (soft, settings.get(&130)) {
+        if let Some(x) = positions.iter().find(|&&x| !(0.0..=travel).contains(&x)) {
+            return Err(CalibError::Plan(format!(
+                "the plan moves the head to x = {x} mm, outside the controller's travel \
+                 0..{travel} mm ($130, soft limits on): change plate_x_mm, stair_start_mm, \
+                 stair_end_mm or glass_positions_mm"
+            )));
+        }
+    }
+    Ok(())
 }

@@ -15,6 +15,7 @@
 //! matte sheet on the glass), which cancels the check model's offset; the allowance grows with
 //! the height because its scale may be a few percent off.
 
+pub use super::acquire::check_controller;
 use super::acquire::{average_frames, CalibrationRig, Target};
 use super::data::{InsystemData, PlateObservation, StairFrame};
 use super::plan::{CalibrationPlan, StepChecks};
@@ -874,30 +875,3 @@ pub fn acquire_guided(
     })
 }
 
-/// The controller's limits against the moves: every position inside the travel `$130` when
-/// soft limits are on (`$20=1`), the feed within `$110`. `settings` as `$$` lists them.
-pub fn check_controller(
-    settings: &footscan_hal::SliderSettings,
-    positions: &[f64],
-    feed_mm_min: f64,
-) -> Result<(), CalibError> {
-    if let Some(&max) = settings.get(&110) {
-        if feed_mm_min > max + 1e-9 {
-            return Err(CalibError::Plan(format!(
-                "the calibration moves at scan.approach_feed_mm_min = {feed_mm_min} mm/min, \
-                 above the controller's X max rate $110 = {max} mm/min"
-            )));
-        }
-    }
-    let soft = settings.get(&20).is_some_and(|&v| v != 0.0);
-    if let (true, Some(&travel)) = (soft, settings.get(&130)) {
-        if let Some(x) = positions.iter().find(|&&x| !(0.0..=travel).contains(&x)) {
-            return Err(CalibError::Plan(format!(
-                "the plan moves the head to x = {x} mm, outside the controller's travel \
-                 0..{travel} mm ($130, soft limits on): change plate_x_mm, stair_start_mm, \
-                 stair_end_mm or glass_positions_mm"
-            )));
-        }
-    }
-    Ok(())
-}

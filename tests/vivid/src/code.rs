@@ -41,12 +41,12 @@ pub fn write_id_rgb(px: &mut [u8], width: usize, id: u32) {
 }
 
 /// Write `id` into rows `0..ID_ROWS` of a packed `width`-wide YUYV image, the RGB24 code
-/// encoded as [`crate::scene::yuyv_from_rgb`] does (blocks start on even columns, so no pixel
+/// encoded as [`crate::yuyv::from_rgb`] does (blocks start on even columns, so no pixel
 /// pair straddles two blocks).
 pub fn write_id_yuyv(px: &mut [u8], width: usize, id: u32) {
     let mut rgb = vec![0u8; ID_ROWS * width * 3];
     write_id_rgb(&mut rgb, width, id);
-    let yuyv = crate::scene::yuyv_from_rgb(&rgb, width, ID_ROWS);
+    let yuyv = crate::yuyv::from_rgb(&rgb, width, ID_ROWS);
     px[..yuyv.len()].copy_from_slice(&yuyv);
 }
 

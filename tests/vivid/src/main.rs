@@ -20,6 +20,7 @@
 mod code;
 mod feeder;
 mod scene;
+mod yuyv;
 
 use footscan::detect::{self, DetectParams, LinePeak};
 use footscan_hal::{Camera, Channel, Frame, HalError, Pixels, Timestamp};
