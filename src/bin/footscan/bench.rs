@@ -4,6 +4,9 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+#[path = "bench_customize.rs"]
+mod customize;
+
 #[derive(Parser)]
 pub struct Args {
     #[command(subcommand)]
@@ -82,6 +85,21 @@ enum What {
         /// Only these line sigmas, px (repeatable; default 0.6 1.0 1.6 2.0 2.5 3.0).
         #[arg(long = "sigma")]
         sigmas: Vec<f64>,
+    },
+    /// The customized last (docs/method.md section 10) on simulated feet of 230, 260 and 290
+    /// mm, both sides, and the real feet of DATA/feet: the rule table, per foot each rule's
+    /// foot value, target and value cut from the output last, the minimum clearance, and the
+    /// time of the whole customization and of the slowest curve's fit and deformation.
+    Customize {
+        /// Directory holding feet/ (default: $FOOTSCAN_DATA or ../shared/data).
+        #[arg(long)]
+        data: Option<PathBuf>,
+        /// Runs per foot; the fastest is reported.
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+        /// One JSON array of objects instead of the tables.
+        #[arg(long)]
+        json: bool,
     },
     /// Last joining on the real last pairs: the Gordon join (45 and 10 deg) beside the blend
     /// fill (linear, poly, fair, the morph alone; the morph and poly also with their pieces
@@ -228,6 +246,18 @@ pub fn run(args: Args) -> Result<()> {
                 print!("{}", bd::table(&rows));
             }
             Ok(())
+        }
+        What::Customize {
+            data,
+            repeats,
+            json,
+        } => {
+            let dir = data.unwrap_or_else(|| {
+                std::env::var_os("FOOTSCAN_DATA")
+                    .map(PathBuf::from)
+                    .unwrap_or_else(|| PathBuf::from("../shared/data"))
+            });
+            customize::run(&dir, repeats, json)
         }
         What::Join {
             data,

@@ -70,6 +70,8 @@ pub struct DeformRecord {
     pub target_mm: Option<f64>,
     /// Largest distance of the eq. 9 deformed foot curve from the output last's own cut (mm).
     pub max_dev_from_last_mm: f64,
+    /// Wall time of this curve's Algorithm I fit and Algorithm II deformation (ms).
+    pub fit_deform_ms: f64,
 }
 
 /// Everything a customization produced.
@@ -371,8 +373,10 @@ fn frame_curves(
     let mut last = Vec::new();
     let mut deform = Vec::new();
     for (name, kind, fpts, lpts, tgt) in specs {
+        let t0 = std::time::Instant::now();
         let c = fit(name, fpts)?;
-        let (_, rec) = conform(name, kind, &c, lpts, tgt)?;
+        let (_, mut rec) = conform(name, kind, &c, lpts, tgt)?;
+        rec.fit_deform_ms = t0.elapsed().as_secs_f64() * 1e3;
         // The frame written: the last's own cut fitted by Algorithm I (within the fit's
         // tolerance of the mesh). Eq. 9 interpolates the foot curve's nodes onto the same cut
         // (the record above) but keeps the foot curve's knots, which leaves it up to a few
@@ -501,6 +505,7 @@ fn conform(
         length_mm: d.length(),
         target_mm: target_len,
         max_dev_from_last_mm: dev,
+        fit_deform_ms: 0.0,
     };
     Ok((d, rec))
 }

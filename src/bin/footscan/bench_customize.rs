@@ -1,0 +1,204 @@
+//! `footscan bench customize`: the customized last (docs/method.md section 10) on simulated
+//! feet of 230, 260 and 290 mm, both sides, and on the real feet of the data directory. For
+//! each: every rule's foot value, target and value measured by cutting the output last, the
+//! minimum clearance, the whole customization's time and the slowest curve's Algorithm I fit
+//! plus Algorithm II deformation (best of the repeats).
+
+use anyhow::{anyhow, Result};
+use footscan_geom::mesh::{TriMesh, Units};
+use footscan_geom::P3;
+use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
+use footscan_last::customize::{customize, foot_in_frame, Customized, Inputs};
+use footscan_sim::foot::{Foot, FootParams, MeshResolution, Side};
+use serde_json::json;
+use std::path::Path;
+use std::time::Instant;
+
+/// The real feet of the data directory (relative to it) and their sides.
+const REAL: [(&str, &str); 3] = [
+    ("feet/find_template/template_mm.stl", "left"),
+    ("feet/find_lowres/find_demo_template.obj", "left"),
+    (
+        "feet/makehuman/makehuman_default_right_foot_cut150mm.stl",
+        "right",
+    ),
+];
+
+fn sim_foot(length: f64, side: Side) -> Result<TriMesh> {
+    let f = Foot::new(FootParams {
+        length_mm: length,
+        side,
+        ..FootParams::default()
+    })
+    .map_err(|e| anyhow!("sim foot: {e}"))?;
+    let m = f.mesh(MeshResolution::default());
+    let v = m
+        .vertices
+        .iter()
+        .map(|v| P3::new(v[0], v[1], v[2]))
+        .collect();
+    Ok(TriMesh::new(v, m.triangles.clone()))
+}
+
+struct Row {
+    name: String,
+    c: Customized,
+    frame_ms: f64,
+    customize_ms: f64,
+    curve_ms: f64,
+}
+
+fn one(name: String, world: TriMesh, rules: &RuleSet, inp: &Inputs, repeats: usize) -> Result<Row> {
+    let mut best: Option<Row> = None;
+    for _ in 0..repeats.max(1) {
+        let t0 = Instant::now();
+        let (foot, frame) = foot_in_frame(world.clone(), &name).map_err(|e| anyhow!("{e}"))?;
+        let frame_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let t1 = Instant::now();
+        let c = customize(foot, frame, rules, inp).map_err(|e| anyhow!("{name}: {e}"))?;
+        let customize_ms = t1.elapsed().as_secs_f64() * 1e3;
+        let curve_ms = c
+            .curves
+            .deform
+            .iter()
+            .map(|d| d.fit_deform_ms)
+            .fold(0.0, f64::max);
+        if best.as_ref().is_none_or(|b| customize_ms < b.customize_ms) {
+            best = Some(Row {
+                name: name.clone(),
+                c,
+                frame_ms,
+                customize_ms,
+                curve_ms,
+            });
+        }
+    }
+    Ok(best.expect("one run"))
+}
+
+pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
+    let rules = RuleSet::default_rules();
+    let inp = Inputs {
+        shoe: Shoe::Dress,
+        wearer: Wearer::Man,
+        heel_mm: 25.0,
+    };
+    let mut rows = Vec::new();
+    for l in [230.0, 260.0, 290.0] {
+        for (side, s) in [(Side::Right, "right"), (Side::Left, "left")] {
+            let m = sim_foot(l, side)?;
+            rows.push(one(format!("sim {l:.0} {s}"), m, &rules, &inp, repeats)?);
+        }
+    }
+    for (f, side) in REAL {
+        let p = data.join(f);
+        if !p.exists() {
+            eprintln!("{}: absent, skipped", p.display());
+            continue;
+        }
+        let (m, _) = TriMesh::load_solid(&p, Units::Auto, None)
+            .map_err(|e| anyhow!("{}: {e}", p.display()))?;
+        let name = format!(
+            "{} ({side})",
+            Path::new(f).file_name().unwrap().to_string_lossy()
+        );
+        rows.push(one(name, m, &rules, &inp, repeats)?);
+    }
+    if json_out {
+        let j: Vec<_> = rows
+            .iter()
+            .map(|r| {
+                json!({
+                    "foot": r.name,
+                    "side": r.c.frame_in_world.side,
+                    "rules": r.c.rules,
+                    "clearance": r.c.clearance,
+                    "frame_ms": r.frame_ms,
+                    "customize_ms": r.customize_ms,
+                    "slowest_curve_fit_deform_ms": r.curve_ms,
+                    "mesh_evaluations": r.c.evaluations,
+                })
+            })
+            .collect();
+        println!("{}", serde_json::to_string_pretty(&j)?);
+        return Ok(());
+    }
+    println!(
+        "rules ({:?}, {:?}, heel {:.0} mm; config/last-rules.toml as shipped):",
+        inp.shoe, inp.wearer, inp.heel_mm
+    );
+    println!(
+        "{:5} {:16} {:>8} {:>6}  source",
+        "rule", "quantity", "change", "bound"
+    );
+    for r in &rows[0].c.rules {
+        println!(
+            "{:5} {:16} {:>+8.2} {:>6.2}  {}",
+            r.rule, r.quantity, r.change_mm, r.bound_mm, r.source
+        );
+    }
+    println!();
+    println!(
+        "per foot: foot value / target / last (cut from the output mesh) per rule, mm; \
+         clearance = foot inside the last below its top (negative: the foot stands out); \
+         time best of {repeats}"
+    );
+    for r in &rows {
+        let cl = &r.c.clearance;
+        println!(
+            "{}: {:?}, clearance toe {:.2} ball {:.2} heel {:.2} overall {:.2} mm; frame {:.0} ms, \
+             customize {:.0} ms ({} mesh evaluations), slowest curve fit+deform {:.3} ms",
+            r.name,
+            r.c.frame_in_world.side,
+            cl.toe_box_mm,
+            cl.ball_mm,
+            cl.heel_seat_mm,
+            cl.overall_mm,
+            r.frame_ms,
+            r.customize_ms,
+            r.c.evaluations,
+            r.curve_ms
+        );
+        let worst =
+            r.c.rules
+                .iter()
+                .map(|x| x.error_mm.abs())
+                .fold(0.0, f64::max);
+        let all_met = r.c.rules.iter().all(|x| x.met);
+        for x in &r.c.rules {
+            println!(
+                "  {:5} {:16} {:8.2} {:8.2} {:8.2} {:+7.3}",
+                x.rule, x.quantity, x.foot_mm, x.target_mm, x.last_mm, x.error_mm
+            );
+        }
+        println!("  all met: {all_met}, worst error {worst:.3} mm");
+        let per: Vec<String> =
+            r.c.curves
+                .deform
+                .iter()
+                .zip(&r.c.fits)
+                .map(|(d, f)| {
+                    format!(
+                        "{} {:.1} ms ({} points, {} control points)",
+                        d.curve, d.fit_deform_ms, f.data_points, f.control_points
+                    )
+                })
+                .collect();
+        println!("  fit+deform: {}", per.join(", "));
+    }
+    let n = rows.len() as f64;
+    let mean = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).sum::<f64>() / n;
+    let max = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).fold(f64::MIN, f64::max);
+    println!(
+        "{} feet: customize mean {:.0} ms, max {:.0} ms (target < 1000 ms; paper 480 s); \
+         slowest curve fit+deform max {:.3} ms (target < 1 ms); minimum clearance {:.2} mm",
+        rows.len(),
+        mean(&|r| r.customize_ms),
+        max(&|r| r.customize_ms),
+        max(&|r| r.curve_ms),
+        rows.iter()
+            .map(|r| r.c.clearance.overall_mm)
+            .fold(f64::MAX, f64::min)
+    );
+    Ok(())
+}
