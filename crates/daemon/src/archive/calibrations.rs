@@ -259,6 +259,134 @@ fn read_json<T: serde::de::DeserializeOwned>(p: &Path) -> Option<T> {
 mod tests {
     use super::*;
 
+    fn calibration(d_mm: f64) -> Calibration {
+        let mut model = CalibrationPlan::default().nominal.model(1280, 1024);
+        model.d_mm = d_mm;
+        Calibration {
+            method: "insystem".into(),
+            date: footscan::util::now_rfc3339(),
+            model,
+            stddev: [("d_mm".to_string(), 0.02)].into(),
+            residuals: [("u_h_mm".to_string(), f64::NAN)].into(),
+            bezier: None,
+        }
+    }
+
+    fn entry(id: &str, c: &Calibration) -> CalibrationEntry {
+        CalibrationEntry {
+            id: id.into(),
+            date: c.date.clone(),
+            method: c.method.clone(),
+            confirmed_by: "test".into(),
+            plan: Some(CalibrationPlan::default()),
+            parameters: serde_json::to_value(&c.model).unwrap(),
+            stddev: serde_json::to_value(&c.stddev).unwrap(),
+            residuals: serde_json::to_value(&c.residuals).unwrap(),
+            steps: serde_json::json!([]),
+        }
+    }
+
+    #[test]
+    fn history_keeps_every_calibration_and_points_at_the_current_one() {
+        let tmp = tempfile::tempdir().unwrap();
+        let h = Calibrations::new(tmp.path());
+        assert!(h.current().is_none());
+        // An archive from before the history: its current.toml is current.
+        std::fs::create_dir_all(h.dir()).unwrap();
+        let (a, b) = (calibration(250.0), calibration(251.0));
+        a.save(&h.dir().join(LEGACY)).unwrap();
+        assert_eq!(h.current().unwrap().0, None);
+        let pa = h.add(&entry("cal-a", &a), &a).unwrap();
+        assert_eq!(h.current().unwrap(), (Some("cal-a".into()), pa.clone()));
+        let pb = h.add(&entry("cal-b", &b), &b).unwrap();
+        assert_eq!(h.current().unwrap().1, pb);
+        // The same id again is refused and changes nothing.
+        let e = h.add(&entry("cal-a", &b), &b).unwrap_err();
+        assert!(e.contains("never overwritten"), "{e}");
+        assert_eq!(Calibration::load(&pa).unwrap().model.d_mm, 250.0);
+        assert_eq!(h.current().unwrap().0.as_deref(), Some("cal-b"));
+        assert_eq!(h.list().len(), 2);
+        // A NaN residual is kept as null and the record still loads.
+        assert!(h.get("cal-b").unwrap().residuals["u_h_mm"].is_null());
+        assert!(h.get("../cal-b").is_none());
+    }
+
+    #[test]
+    fn check_status_warns_on_a_failed_or_stale_check() {
+        let tmp = tempfile::tempdir().unwrap();
+        let h = Calibrations::new(tmp.path());
+        let w = |h: &Calibrations, age: f64| h.check_status(age)["warning"].clone();
+        assert!(w(&h, 26.0).as_str().unwrap().contains("no daily check"));
+        let report = |date: &str, passed: bool| CheckReport {
+            date: date.into(),
+            calibration: "insystem".into(),
+            tolerance_mm: 0.05,
+            width_tolerance_mm: 0.5,
+            steps: Vec::new(),
+            width_stated_mm: 60.0,
+            width_mm: 59.7,
+            y_scale: 0.995,
+            width_passed: true,
+            passed,
+            failures: if passed {
+                vec![]
+            } else {
+                vec!["step 7 mm: -1.27 mm".into()]
+            },
+        };
+        let two_days = humantime::format_rfc3339_seconds(
+            SystemTime::now() - std::time::Duration::from_secs(48 * 3600),
+        )
+        .to_string();
+        h.add_check(&CheckEntry::new(
+            "c1".into(),
+            None,
+            &report(&two_days, true),
+        ))
+        .unwrap();
+        assert!(w(&h, 26.0).as_str().unwrap().contains("older than"));
+        assert!(w(&h, 72.0).is_null());
+        let now = footscan::util::now_rfc3339();
+        h.add_check(&CheckEntry::new("c2".into(), None, &report(&now, false)))
+            .unwrap();
+        let st = h.check_status(72.0);
+        assert!(st["warning"].as_str().unwrap().contains("-1.27 mm"), "{st}");
+        assert_eq!(st["last_pass"], two_days.as_str());
+        assert_eq!(st["checks"], 2);
+    }
+
+    #[test]
+    fn an_index_from_before_the_calibration_column_is_migrated() {
+        let tmp = tempfile::tempdir().unwrap();
+        let db = tmp.path().join("index.sqlite");
+        let old = rusqlite::Connection::open(&db).unwrap();
+        old.execute_batch(
+            "CREATE TABLE scans (id TEXT PRIMARY KEY NOT NULL, subject TEXT NOT NULL, \
+             side TEXT NOT NULL, notes TEXT NOT NULL, status TEXT NOT NULL, reason TEXT, \
+             started TEXT NOT NULL, finished TEXT, frames INTEGER NOT NULL, \
+             points INTEGER NOT NULL); \
+             INSERT INTO scans VALUES ('20261121T222947Z-c20b', 's', 'left', '', 'complete', \
+             NULL, '2026-11-21T22:29:47Z', NULL, 1, 2);",
+        )
+        .unwrap();
+        drop(old);
+        let Ok(index) = super::super::index::Index::open(&db) else {
+            panic!("the old index opens")
+        };
+        let mut r = index.get("20261121T222947Z-c20b").unwrap().unwrap();
+        assert_eq!(r.calibration, None);
+        r.calibration = Some("cal-a".into());
+        index.upsert(&r).unwrap();
+        let back = index.get(&r.id).unwrap().unwrap();
+        assert_eq!(back.calibration.as_deref(), Some("cal-a"));
+        // An old record.json (no calibration field) still loads.
+        let json = serde_json::to_value(&back).unwrap();
+        let mut obj = json.as_object().unwrap().clone();
+        obj.remove("calibration");
+        let old: super::super::Record = serde_json::from_value(obj.into()).unwrap();
+        assert_eq!(old.calibration, None);
+    }
+
     #[test]
     fn ids_and_ages() {
         assert!(valid_id("20261124T223000Z-abc"));
