@@ -8,6 +8,8 @@ packages=(pkg-config libudev-dev gcc clang libclang-dev libopencv-dev)
 packages+=(chromium fonts-dejavu-core)
 # tests/daemon_api.rs runs the curl examples of docs/API.md.
 packages+=(curl)
+# tests/report_pdf.rs reads the printable report back (pdfinfo, pdftotext, pdftoppm).
+packages+=(poppler-utils)
 # The geometry export tests read IGES/STEP back with OpenCASCADE in a Python venv (below).
 packages+=(python3-venv)
 # The fleet tests (crates/fleet, crates/daemon/tests/daemon_fleet.rs, tests/fleet_cli.rs) start

@@ -11,6 +11,7 @@ pub mod geom;
 pub mod io;
 pub mod lastfit;
 pub mod measure;
+pub mod report;
 pub mod scan;
 pub mod scandata;
 pub mod surface;

@@ -10,6 +10,7 @@ mod last_customize;
 mod last_join;
 mod measure;
 mod model;
+mod report;
 mod scan;
 mod sim;
 mod verify;
@@ -68,6 +69,8 @@ enum Command {
     Calibrate(calibrate::Args),
     /// The daily check: the staircase gauge measured with the current calibration, pass/fail.
     Verify(verify::Args),
+    /// The printable PDF report of a measured scan: the foot at 1:1, a 100 mm calibration bar.
+    Report(report::Args),
     /// Measure speed and accuracy (see `footscan bench --help`).
     Bench(bench::Args),
     /// Run a laser-line detector on recorded frames and write one CSV line per image row.
@@ -137,6 +140,7 @@ fn run() -> Result<()> {
         Command::Measure(args) => measure::run(args),
         Command::Calibrate(args) => calibrate::run(args),
         Command::Verify(args) => verify::run(args),
+        Command::Report(args) => report::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Detect(args) => detect::run(args),
         Command::Last(args) => last::run(args),
