@@ -567,3 +567,48 @@ fn self_intersection_check_finds_crossings() {
     }
     assert!(self_intersections(&TriMesh::new(apart, vec![[0, 1, 2], [3, 4, 5]])).is_empty());
 }
+
+/// Defaults that must not depend on the working directory: `last customize` without --rules
+/// uses the shipped rules (built in) from any directory, and FOOTSCAN_LAST_RULES names
+/// another file (a missing one is an error naming it). `sim foot --out` into a missing
+/// directory: an error naming it, nothing written.
+#[test]
+fn rules_default_and_sim_foot_missing_dir() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |args: &[&str], env: Option<&str>| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_footscan"));
+        c.args(args).current_dir(dir.path());
+        c.env_remove("FOOTSCAN_LAST_RULES");
+        if let Some(e) = env {
+            c.env("FOOTSCAN_LAST_RULES", e);
+        }
+        let o = c.output().unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr),
+        )
+    };
+    let missing = dir.path().join("no/such/dir/foot.stl");
+    let (ok, out) = run(&["sim", "foot", "--out", s(&missing)], None);
+    assert!(!ok && out.contains("does not exist"), "{out}");
+    assert!(!dir.path().join("no").exists());
+    let foot = dir.path().join("foot.stl");
+    let (ok, out) = run(
+        &["sim", "foot", "--length", "250", "--out", "foot.stl"],
+        None,
+    );
+    assert!(ok, "{out}");
+    let (ok, out) = run(
+        &["last", "customize", "--foot", s(&foot), "--out", "last"],
+        None,
+    );
+    assert!(ok, "{out}");
+    assert!(out.contains("II-F"), "{out}");
+    assert!(dir.path().join("last/last.stl").is_file());
+    let (ok, out) = run(
+        &["last", "customize", "--foot", s(&foot), "--out", "last2"],
+        Some("nowhere.toml"),
+    );
+    assert!(!ok && out.contains("nowhere.toml"), "{out}");
+    assert!(!dir.path().join("last2").exists());
+}

@@ -18,9 +18,11 @@ pub struct CustomizeArgs {
     /// 3D foot scanner or `footscan sim foot` writes it.
     #[arg(long)]
     foot: PathBuf,
-    /// Comfort rule file (TOML by curve type I-IV; see config/last-rules.toml).
-    #[arg(long, default_value = "config/last-rules.toml")]
-    rules: PathBuf,
+    /// Comfort rule file (TOML by curve type I-IV; see config/last-rules.toml). Default:
+    /// $FOOTSCAN_LAST_RULES if set, else the shipped config/last-rules.toml, built into the
+    /// binary (so the default does not depend on the working directory).
+    #[arg(long)]
+    rules: Option<PathBuf>,
     /// Shoe type: dress (leather), sport, football, hiking, casual.
     #[arg(long, default_value = "dress")]
     shoe: Shoe,
@@ -49,7 +51,14 @@ fn heel_mm(s: &str) -> Result<f64, String> {
 
 pub fn run(a: CustomizeArgs) -> Result<()> {
     // The rule file first: a typo in it is named before the foot is read.
-    let rules = RuleSet::load(&a.rules).map_err(|e| anyhow!(e))?;
+    let rules_path = a
+        .rules
+        .clone()
+        .or_else(|| std::env::var_os("FOOTSCAN_LAST_RULES").map(PathBuf::from));
+    let rules = match &rules_path {
+        Some(p) => RuleSet::load(p).map_err(|e| anyhow!(e))?,
+        None => RuleSet::default_rules(),
+    };
     let inp = Inputs {
         shoe: a.shoe,
         wearer: a.wearer,

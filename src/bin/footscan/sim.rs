@@ -59,6 +59,20 @@ pub fn run(a: Args) -> Result<()> {
 }
 
 fn foot(a: FootArgs) -> Result<()> {
+    // Before any work: a missing directory would otherwise surface as a bare OS error from
+    // the temporary file.
+    let dir = a
+        .out
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(std::path::Path::new("."));
+    if !dir.is_dir() {
+        anyhow::bail!(
+            "--out {}: the directory {} does not exist (create it first)",
+            a.out.display(),
+            dir.display()
+        );
+    }
     let side = match a.side {
         SideArg::Left => Side::Left,
         SideArg::Right => Side::Right,
