@@ -270,7 +270,9 @@ pub fn render(input: &ReportInput) -> Result<(Vec<u8>, Layout)> {
     };
 
     // Header.
-    let side = m["side"].as_str().unwrap_or("?");
+    // The record's side (the operator's, or as corrected), the scan's when there is none.
+    let measured_side = m["side"].as_str().unwrap_or("?");
+    let side = input.record["side"].as_str().unwrap_or(measured_side);
     let subject = input.record["subject"].as_str().unwrap_or("");
     let when = input.record["started"].as_str().unwrap_or("");
     let top = page_mm[1];
@@ -280,9 +282,9 @@ pub fn render(input: &ReportInput) -> Result<(Vec<u8>, Layout)> {
         format!("footscan report: {subject}, {side} foot")
     };
     pg.text(12.0, top - 12.0, 14.0, true, &head);
-    let status = input.summary["status"]
+    let status = input.record["status"]
         .as_str()
-        .or(input.record["status"].as_str())
+        .or(input.summary["status"].as_str())
         .unwrap_or("?");
     let reason = input.record["reason"]
         .as_str()
@@ -292,6 +294,9 @@ pub fn render(input: &ReportInput) -> Result<(Vec<u8>, Layout)> {
         sub += &format!(", {when}");
     }
     sub += &format!(", verdict: {status}");
+    if side != measured_side {
+        sub += &format!(" (the scan looks like a {measured_side} foot)");
+    }
     pg.text(12.0, top - 18.0, 8.0, false, &sub);
     if let Some(r) = reason {
         pg.text(12.0, top - 22.5, 7.0, false, &clip(r, 130));

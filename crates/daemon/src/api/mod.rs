@@ -8,6 +8,7 @@ mod confirm;
 mod fleet;
 mod guard;
 mod live;
+mod report;
 mod scans;
 pub mod server;
 
@@ -94,6 +95,7 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/api/scans/{id}", get(scans::show))
         .route("/api/scans/{id}/cancel", post(scans::cancel))
         .route("/api/scans/{id}/side", post(confirm::confirm_side))
+        .route("/api/scans/{id}/report.pdf", get(report::report_pdf))
         .route("/api/scans/{id}/files/{name}", get(scans::download))
         .route("/api/preview.png", get(live::preview_png))
         .route("/api/preview/line", get(live::preview_line))

@@ -719,6 +719,9 @@ async function loadResult(id) {
     if (bits.length) files.append(el('p', { class: 'small', text: 'Scan: ' + bits.join(', ') }));
   }
   if ((rec.artifacts || []).length) files.append(el('p', { class: 'small' }, 'Download: ', artifactLinks(rec)));
+  if (names.has('measurements.json')) {
+    files.append(el('p', { class: 'small' }, el('a', { id: 'report-link', href: withToken(`/api/scans/${encodeURIComponent(rec.id)}/report.pdf`), target: '_blank', text: 'Printable report (PDF, foot at 1:1)' })));
+  }
 }
 
 /** A "side mismatch" scan: the operator confirms the side the scan shows or keeps theirs

@@ -1,0 +1,54 @@
+//! `GET /api/scans/{id}/report.pdf`: the printable report of a measured scan (the library's
+//! src/report.rs: the foot at 1:1 with a 100 mm calibration bar), made from the scan's files
+//! when asked for, so a record corrected later (its side, its subject) prints as corrected.
+
+use super::{ApiError, AppState};
+use crate::archive::ScanId;
+use axum::extract::{Path, State};
+use axum::http::{header, StatusCode};
+use axum::response::{IntoResponse, Response};
+
+pub async fn report_pdf(
+    State(st): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let id = ScanId::parse(&id).map_err(|e| ApiError::bad_request(e.to_string()))?;
+    let d = st.daemon.clone();
+    let (bytes, id) = tokio::task::spawn_blocking(move || {
+        let a = &d.archive;
+        let rec = a.get(&id).map_err(crate::daemon::DaemonError::from)?;
+        let dir = a
+            .checked_dir(&rec)
+            .ok_or_else(|| ApiError::not_found(format!("scan {id}: its directory is missing")))?;
+        if a.artifact_path(&rec, "measurements.json").is_none() {
+            return Err(ApiError(
+                StatusCode::CONFLICT,
+                format!(
+                    "scan {id} ({}) has no measurements.json: a report needs a measured foot",
+                    rec.status.as_str()
+                ),
+            ));
+        }
+        let mut input = footscan::report::ReportInput::from_scan_dir(&dir)
+            .map_err(|e| ApiError::internal(format!("{e:#}")))?;
+        input.title = rec.id.clone();
+        // The record as it is now (a corrected side or subject), not as first written.
+        input.record = serde_json::to_value(&rec).map_err(ApiError::internal)?;
+        let (bytes, _) = footscan::report::render(&input)
+            .map_err(|e| ApiError(StatusCode::UNPROCESSABLE_ENTITY, format!("{e:#}")))?;
+        Ok::<_, ApiError>((bytes, rec.id))
+    })
+    .await
+    .map_err(ApiError::internal)??;
+    Ok((
+        [
+            (header::CONTENT_TYPE, "application/pdf".to_string()),
+            (
+                header::CONTENT_DISPOSITION,
+                format!("inline; filename=\"{id}-report.pdf\""),
+            ),
+        ],
+        bytes,
+    )
+        .into_response())
+}
