@@ -27,7 +27,8 @@
 
 use super::bernstein::{root_near, Binomials, MAX_N};
 use super::coarse::{
-    block_max, prefetch_ahead, CoarseConfig, CoarseScratch, Near, Peak, Px, NEAR_ROWS,
+    block_max, prefetch_ahead, reject_isolated, CoarseConfig, CoarseScratch, Near, Peak, Px,
+    NEAR_ROWS,
 };
 use super::estimators::{accepted, binomials};
 use super::{Detector, LinePeak, Reject};
@@ -291,6 +292,7 @@ impl BezierPlus {
                 out,
             );
         }
+        reject_isolated(out);
     }
 }
 

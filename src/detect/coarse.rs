@@ -646,8 +646,28 @@ pub struct Near {
     pub width: f32,
 }
 
-/// How many rows back a line still counts as the neighbour of an ambiguous row.
+/// How many rows back a line still counts as the neighbour of an ambiguous row, and how far a
+/// row must be from every other row with a line to be [`Reject::Isolated`].
 pub const NEAR_ROWS: usize = 2;
+
+/// Reject every accepted row with no other accepted row within [`NEAR_ROWS`] above or below:
+/// a line crosses many rows, a lone row is a speck of the lit scene (a laser-off frame of a
+/// wood slice gave two such rows of 21 DN over a dark background).
+pub fn reject_isolated(out: &mut [super::LinePeak]) {
+    let n = out.len();
+    let mut last_valid: Option<usize> = None;
+    for r in 0..n {
+        if !out[r].is_valid() {
+            continue;
+        }
+        let above = last_valid.is_some_and(|p| r - p <= NEAR_ROWS);
+        let below = (r + 1..(r + 1 + NEAR_ROWS).min(n)).any(|k| out[k].is_valid());
+        last_valid = Some(r);
+        if !above && !below {
+            out[r] = super::LinePeak::rejected(Reject::Isolated, out[r].intensity);
+        }
+    }
+}
 
 /// An ambiguous row (a second peak of at least [`CoarseConfig::ambiguity`] of the line's) read
 /// again in a window around the line's column in the rows just above, `near.col` +- max(3
@@ -822,6 +842,30 @@ mod tests {
         assert_eq!(q.m, 40);
         // A neighbour far from both peaks decides nothing.
         assert!(s.row_near(&row, &cfg, thr, near(100.0)).is_err());
+    }
+
+    #[test]
+    fn a_lone_row_is_a_speck_and_a_line_of_two_rows_is_kept() {
+        use crate::detect::LinePeak;
+        let at = |c: f64| LinePeak {
+            col: c,
+            intensity: 100.0,
+            width: 3.0,
+            quality: 1.0,
+            reject: None,
+        };
+        let mut out = vec![LinePeak::NONE; 20];
+        out[1] = at(10.0); // alone
+        out[7] = at(30.0); // with row 9, two apart
+        out[9] = at(30.5);
+        out[15] = at(50.0); // alone, 3 rows from 12 and 18
+        out[19] = at(60.0); // alone at the end
+        reject_isolated(&mut out);
+        let kept: Vec<usize> = (0..20).filter(|&r| out[r].is_valid()).collect();
+        assert_eq!(kept, vec![7, 9]);
+        assert_eq!(out[1].reject, Some(Reject::Isolated));
+        assert_eq!(out[15].reject, Some(Reject::Isolated));
+        assert_eq!(out[19].reject, Some(Reject::Isolated));
     }
 
     #[test]

@@ -3,7 +3,8 @@
 
 use super::bernstein::{bisect_literal, Binomials, MAX_N};
 use super::coarse::{
-    block_max, prefetch_ahead, CoarseConfig, CoarseScratch, Near, Peak, Px, NEAR_ROWS,
+    block_max, prefetch_ahead, reject_isolated, CoarseConfig, CoarseScratch, Near, Peak, Px,
+    NEAR_ROWS,
 };
 use super::{Detector, LinePeak, Reject};
 use footscan_hal::{Frame, Pixels};
@@ -64,6 +65,7 @@ fn run_rows<T: Px, E: Estimate>(
             },
         };
     }
+    reject_isolated(&mut out[..px.len() / w.max(1)]);
 }
 
 pub(crate) fn accepted(col: f64, pk: &Peak, full: f32) -> LinePeak {

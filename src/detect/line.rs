@@ -12,6 +12,9 @@ pub enum Reject {
     Saturated,
     Ambiguous,
     Border,
+    /// Accepted alone: no row within [`super::coarse::NEAR_ROWS`] above or below holds a
+    /// line, so it is a speck of the scene, not a line crossing the rows.
+    Isolated,
 }
 
 impl Reject {
@@ -21,6 +24,7 @@ impl Reject {
             Reject::Saturated => "saturated",
             Reject::Ambiguous => "ambiguous",
             Reject::Border => "border",
+            Reject::Isolated => "isolated",
         }
     }
 }

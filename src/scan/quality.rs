@@ -169,6 +169,9 @@ pub struct RejectCounts {
     pub saturated: u64,
     pub ambiguous: u64,
     pub border: u64,
+    /// A lone row's line dropped as a speck ([`Reject::Isolated`]).
+    #[serde(default)]
+    pub isolated: u64,
     /// A line was found but gave no 3D point (outside the calibrated volume).
     pub not_triangulated: u64,
 }
@@ -342,6 +345,7 @@ pub fn inspect(grid: &ScanGrid, q: &mut Quality) {
                 Some(Reject::Saturated) => r.saturated += 1,
                 Some(Reject::Ambiguous) => r.ambiguous += 1,
                 Some(Reject::Border) => r.border += 1,
+                Some(Reject::Isolated) => r.isolated += 1,
             }
         }
     }

@@ -143,6 +143,7 @@ fn reject_code(r: Option<Reject>) -> u8 {
         Some(Reject::Saturated) => 2,
         Some(Reject::Ambiguous) => 3,
         Some(Reject::Border) => 4,
+        Some(Reject::Isolated) => 5,
     }
 }
 
@@ -152,6 +153,7 @@ fn reject_from(c: u8) -> Option<Reject> {
         2 => Some(Reject::Saturated),
         3 => Some(Reject::Ambiguous),
         4 => Some(Reject::Border),
+        5 => Some(Reject::Isolated),
         _ => Some(Reject::BelowThreshold),
     }
 }
