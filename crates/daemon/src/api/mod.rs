@@ -10,6 +10,7 @@ mod guard;
 mod live;
 mod report;
 mod scans;
+mod visits;
 pub mod server;
 
 use crate::daemon::Daemon;
@@ -96,6 +97,11 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/api/scans/{id}/cancel", post(scans::cancel))
         .route("/api/scans/{id}/side", post(confirm::confirm_side))
         .route("/api/scans/{id}/report.pdf", get(report::report_pdf))
+        .route("/api/scans/{id}/record", post(visits::correct))
+        .route("/api/visits", get(visits::list).post(visits::create))
+        .route("/api/visits/{id}", get(visits::show).delete(visits::delete))
+        .route("/api/visits/{id}/notes", post(visits::set_notes))
+        .route("/api/visits/{id}/scans", post(visits::add_scan))
         .route("/api/scans/{id}/files/{name}", get(scans::download))
         .route("/api/preview.png", get(live::preview_png))
         .route("/api/preview/line", get(live::preview_line))

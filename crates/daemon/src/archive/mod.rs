@@ -16,11 +16,13 @@ mod id;
 mod index;
 mod outbox;
 mod record;
+mod visits;
 
 pub use history::{Change, HISTORY};
 pub use id::{valid_file_name, IdError, ScanId};
 pub use outbox::{OutboxCounts, OutboxEntry};
 pub use record::{ArchiveError, NewScan, Record, ScanEnd, Status};
+pub use visits::{Visit, VisitError};
 
 use index::Index;
 use serde::Serialize;

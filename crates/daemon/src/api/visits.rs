@@ -1,0 +1,267 @@
+//! Visits (archive/visits.rs) over HTTP, and the correction of a scan's subject or side:
+//! `POST /api/visits`, `GET /api/visits?subject=&date=`, `GET /api/visits/{id}`,
+//! `POST /api/visits/{id}/notes`, `POST /api/visits/{id}/scans`, `DELETE /api/visits/{id}`,
+//! `POST /api/scans/{id}/record`.
+
+use super::scans::body;
+use super::{ApiError, AppState};
+use crate::archive::{Record, ScanId, Visit, VisitError};
+use axum::extract::rejection::JsonRejection;
+use axum::extract::{Path, Query, State};
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde::Deserialize;
+use std::collections::HashMap;
+
+impl From<VisitError> for ApiError {
+    fn from(e: VisitError) -> Self {
+        match e {
+            VisitError::NotFound(_) => ApiError::not_found(e.to_string()),
+            VisitError::Conflict(m) => ApiError(StatusCode::CONFLICT, m),
+            VisitError::Archive(crate::archive::ArchiveError::NotFound(id)) => {
+                ApiError::not_found(format!("scan {id} is not in the archive"))
+            }
+            VisitError::Archive(a) => ApiError::internal(a),
+        }
+    }
+}
+
+fn subject_ok(what: &str, s: &str) -> Result<(), ApiError> {
+    let ok = (1..=64).contains(&s.len())
+        && s.bytes()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, b'.' | b'_' | b'-'));
+    if ok {
+        Ok(())
+    } else {
+        Err(ApiError::bad_request(format!(
+            "{what} {:?}: must be 1-64 characters of A-Z a-z 0-9 . _ -",
+            s.chars().take(80).collect::<String>()
+        )))
+    }
+}
+
+fn notes_ok(n: &str) -> Result<(), ApiError> {
+    let c = n.chars().count();
+    if c > 2000 {
+        return Err(ApiError::bad_request(format!(
+            "notes: {c} characters, at most 2000"
+        )));
+    }
+    Ok(())
+}
+
+fn id(s: &str) -> Result<ScanId, ApiError> {
+    ScanId::parse(s).map_err(|e| ApiError::bad_request(e.to_string()))
+}
+
+async fn blocking<T: Send + 'static>(
+    f: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
+) -> Result<T, ApiError> {
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(ApiError::internal)?
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NewVisit {
+    patient: String,
+    #[serde(default)]
+    notes: String,
+}
+
+pub async fn create(
+    State(st): State<AppState>,
+    b: Result<Json<NewVisit>, JsonRejection>,
+) -> Result<Response, ApiError> {
+    let v = body(b)?;
+    subject_ok("patient", &v.patient)?;
+    notes_ok(&v.notes)?;
+    let d = st.daemon.clone();
+    let visit = blocking(move || {
+        d.archive
+            .new_visit(&v.patient, &v.notes)
+            .map_err(ApiError::internal)
+    })
+    .await?;
+    Ok((StatusCode::CREATED, Json(visit)).into_response())
+}
+
+/// `?subject=` (part of the patient id, any case) and `?date=YYYY-MM-DD` (UTC).
+pub async fn list(
+    State(st): State<AppState>,
+    Query(q): Query<HashMap<String, String>>,
+) -> Result<Json<Vec<Visit>>, ApiError> {
+    if let Some(k) = q.keys().find(|k| !matches!(k.as_str(), "subject" | "date")) {
+        return Err(ApiError::bad_request(format!(
+            "unknown query parameter {k:?}: use subject and date"
+        )));
+    }
+    let date = q.get("date").cloned();
+    if let Some(d) = &date {
+        let b = d.as_bytes();
+        let ok = b.len() == 10
+            && b[4] == b'-'
+            && b[7] == b'-'
+            && b.iter()
+                .enumerate()
+                .all(|(i, c)| i == 4 || i == 7 || c.is_ascii_digit());
+        if !ok {
+            return Err(ApiError::bad_request(format!(
+                "date {d:?}: must be YYYY-MM-DD"
+            )));
+        }
+    }
+    let subject = q.get("subject").cloned();
+    let d = st.daemon.clone();
+    let v = blocking(move || {
+        d.archive
+            .visits(subject.as_deref(), date.as_deref())
+            .map_err(ApiError::internal)
+    })
+    .await?;
+    Ok(Json(v))
+}
+
+pub async fn show(
+    State(st): State<AppState>,
+    Path(vid): Path<String>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    let vid = id(&vid)?;
+    let d = st.daemon.clone();
+    blocking(move || {
+        let v = d.archive.visit(&vid)?;
+        let mut out = serde_json::to_value(&v).map_err(ApiError::internal)?;
+        // Each foot's record as it is now (its verdict, a corrected side).
+        for side in ["left", "right"] {
+            let rec = out[side]
+                .as_str()
+                .and_then(|s| ScanId::parse(s).ok())
+                .and_then(|s| d.archive.get(&s).ok());
+            out[format!("{side}_scan")] = serde_json::to_value(rec).map_err(ApiError::internal)?;
+        }
+        Ok(Json(out))
+    })
+    .await
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Notes {
+    notes: String,
+}
+
+pub async fn set_notes(
+    State(st): State<AppState>,
+    Path(vid): Path<String>,
+    b: Result<Json<Notes>, JsonRejection>,
+) -> Result<Json<Visit>, ApiError> {
+    let vid = id(&vid)?;
+    let n = body(b)?.notes;
+    notes_ok(&n)?;
+    let d = st.daemon.clone();
+    Ok(Json(
+        blocking(move || Ok(d.archive.set_visit_notes(&vid, &n)?)).await?,
+    ))
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AddScan {
+    scan: String,
+}
+
+pub async fn add_scan(
+    State(st): State<AppState>,
+    Path(vid): Path<String>,
+    b: Result<Json<AddScan>, JsonRejection>,
+) -> Result<Json<Visit>, ApiError> {
+    let vid = id(&vid)?;
+    let sid = id(&body(b)?.scan)?;
+    let d = st.daemon.clone();
+    Ok(Json(
+        blocking(move || Ok(d.archive.add_visit_scan(&vid, &sid)?)).await?,
+    ))
+}
+
+pub async fn delete(
+    State(st): State<AppState>,
+    Path(vid): Path<String>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    let vid = id(&vid)?;
+    let d = st.daemon.clone();
+    let key = vid.to_string();
+    let scans = blocking(move || Ok(d.archive.delete_visit(&vid)?)).await?;
+    Ok(Json(
+        serde_json::json!({"deleted": key, "scans_deleted": scans}),
+    ))
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Correction {
+    #[serde(default)]
+    subject: Option<String>,
+    #[serde(default)]
+    side: Option<String>,
+    why: String,
+}
+
+/// Correct a finished scan's subject or side (a typing slip, a foot saved as the other one);
+/// the change is kept in the scan's history.json with `why`.
+pub async fn correct(
+    State(st): State<AppState>,
+    Path(sid): Path<String>,
+    b: Result<Json<Correction>, JsonRejection>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    let sid = id(&sid)?;
+    let c = body(b)?;
+    if let Some(s) = &c.subject {
+        subject_ok("subject", s)?;
+    }
+    if let Some(s) = &c.side {
+        if !matches!(s.as_str(), "left" | "right") {
+            return Err(ApiError::bad_request(format!(
+                "side {:?}: must be \"left\" or \"right\"",
+                s.chars().take(80).collect::<String>()
+            )));
+        }
+    }
+    let why = c.why.trim().to_string();
+    if why.is_empty() || why.chars().count() > 500 {
+        return Err(ApiError::bad_request(
+            "why: say why the record is corrected (1-500 characters)",
+        ));
+    }
+    if c.subject.is_none() && c.side.is_none() {
+        return Err(ApiError::bad_request(
+            "nothing to correct: give subject or side",
+        ));
+    }
+    let d = st.daemon.clone();
+    blocking(move || {
+        let edit = |r: &mut Record| {
+            if let Some(s) = &c.subject {
+                r.subject = s.clone();
+            }
+            if let Some(s) = &c.side {
+                r.side = s.clone();
+            }
+            Ok::<(), ApiError>(())
+        };
+        let (rec, changes) = d
+            .archive
+            .amend(&sid, &format!("corrected: {why}"), edit)
+            .map_err(|e| match e {
+                crate::archive::ArchiveError::NotFound(id) => {
+                    ApiError::not_found(format!("scan {id} is not in the archive"))
+                }
+                e => ApiError(StatusCode::CONFLICT, e.to_string()),
+            })??;
+        let mut v = serde_json::to_value(&rec).map_err(ApiError::internal)?;
+        v["changes"] = serde_json::to_value(&changes).map_err(ApiError::internal)?;
+        Ok(Json(v))
+    })
+    .await
+}

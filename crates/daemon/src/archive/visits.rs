@@ -1,0 +1,215 @@
+//! Visits: a patient's stay in the clinic, holding the patient's id (no more personal data than
+//! the clinic types in), notes, the time, and at most one scan of each foot.
+//!
+//! Each visit is one JSON file `<archive>/visits/<id>.json`, written atomically; the files are
+//! the truth (a few thousand are listed in milliseconds), so nothing here depends on the index.
+//! Deleting a visit deletes its scans' directories too, and is logged in
+//! `<archive>/visits/deleted.log` (one JSON line: when, which visit, whose, which scans).
+
+use super::record::{ArchiveError, Record, Status};
+use super::{io_at, Archive, ScanId};
+use serde::{Deserialize, Serialize};
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+pub const VISITS: &str = "visits";
+pub const DELETED_LOG: &str = "deleted.log";
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Visit {
+    pub id: String,
+    /// The patient's id as the clinic uses it (the scans' `subject`).
+    pub patient: String,
+    pub notes: String,
+    /// RFC 3339 UTC; shown in the clinic's time zone by the dashboard.
+    pub started: String,
+    pub left: Option<String>,
+    pub right: Option<String>,
+}
+
+/// Why a visit request was refused (the API's 400/404/409).
+#[derive(Debug, thiserror::Error)]
+pub enum VisitError {
+    #[error("visit {0} is not in the archive")]
+    NotFound(String),
+    #[error("{0}")]
+    Conflict(String),
+    #[error(transparent)]
+    Archive(#[from] ArchiveError),
+}
+
+/// One writer of visit files at a time (read, change, write).
+static VISITS_LOCK: Mutex<()> = Mutex::new(());
+
+impl Archive {
+    fn visits_dir(&self) -> Result<PathBuf, ArchiveError> {
+        let d = self.root.join(VISITS);
+        std::fs::create_dir_all(&d).map_err(io_at(&d))?;
+        Ok(d)
+    }
+
+    fn write_visit(&self, v: &Visit) -> Result<(), ArchiveError> {
+        let p = self.visits_dir()?.join(format!("{}.json", v.id));
+        let json = serde_json::to_vec_pretty(v).expect("visit serialises");
+        footscan::io::write_atomic(&p, &json).map_err(io_at(&p))
+    }
+
+    /// A new visit for `patient` (validated by the caller), starting now.
+    pub fn new_visit(&self, patient: &str, notes: &str) -> Result<Visit, ArchiveError> {
+        let _one = VISITS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
+        let dir = self.visits_dir()?;
+        let id = (0..16)
+            .map(ScanId::generate)
+            .find(|id| !dir.join(format!("{id}.json")).exists())
+            .ok_or_else(|| io_at(&dir)(std::io::Error::other("no free visit id")))?;
+        let v = Visit {
+            id: id.to_string(),
+            patient: patient.to_string(),
+            notes: notes.to_string(),
+            started: footscan::util::now_rfc3339(),
+            left: None,
+            right: None,
+        };
+        self.write_visit(&v)?;
+        tracing::info!("visit {} of {} opened", v.id, v.patient);
+        Ok(v)
+    }
+
+    pub fn visit(&self, id: &ScanId) -> Result<Visit, VisitError> {
+        let p = self.visits_dir()?.join(format!("{id}.json"));
+        let bytes = match std::fs::read(&p) {
+            Ok(b) => b,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Err(VisitError::NotFound(id.to_string()))
+            }
+            Err(e) => return Err(io_at(&p)(e).into()),
+        };
+        serde_json::from_slice(&bytes).map_err(|e| {
+            ArchiveError::BadRecord {
+                path: p,
+                message: e.to_string(),
+            }
+            .into()
+        })
+    }
+
+    /// Visits, newest first, whose patient contains `subject` (case-insensitive) and that
+    /// started on `date` (YYYY-MM-DD, UTC) when given.
+    pub fn visits(
+        &self,
+        subject: Option<&str>,
+        date: Option<&str>,
+    ) -> Result<Vec<Visit>, ArchiveError> {
+        let dir = self.visits_dir()?;
+        let mut out = Vec::new();
+        for e in std::fs::read_dir(&dir).map_err(io_at(&dir))? {
+            let e = e.map_err(io_at(&dir))?;
+            let name = e.file_name().to_string_lossy().into_owned();
+            let Some(id) = name.strip_suffix(".json") else {
+                continue;
+            };
+            let Ok(id) = ScanId::parse(id) else { continue };
+            match self.visit(&id) {
+                Ok(v) => out.push(v),
+                Err(err) => tracing::warn!("visits: {name} skipped: {err}"),
+            }
+        }
+        let subject = subject.map(str::to_lowercase);
+        out.retain(|v| {
+            subject
+                .as_ref()
+                .is_none_or(|s| v.patient.to_lowercase().contains(s))
+                && date.is_none_or(|d| v.started.starts_with(d))
+        });
+        out.sort_by(|a, b| b.id.cmp(&a.id));
+        Ok(out)
+    }
+
+    /// Change a visit's notes.
+    pub fn set_visit_notes(&self, id: &ScanId, notes: &str) -> Result<Visit, VisitError> {
+        let _one = VISITS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
+        let mut v = self.visit(id)?;
+        v.notes = notes.to_string();
+        self.write_visit(&v)?;
+        Ok(v)
+    }
+
+    /// Put finished scan `scan` into the visit as its foot (by the record's side). The scan
+    /// must be the visit's patient's; a foot already held is replaced (a rescan).
+    pub fn add_visit_scan(&self, id: &ScanId, scan: &ScanId) -> Result<Visit, VisitError> {
+        let _one = VISITS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
+        let mut v = self.visit(id)?;
+        let r: Record = self.get(scan)?;
+        if r.status == Status::Running {
+            return Err(VisitError::Conflict(format!(
+                "scan {scan} is still running: add it once it has ended"
+            )));
+        }
+        if r.subject != v.patient {
+            return Err(VisitError::Conflict(format!(
+                "scan {scan} is of subject {:?}, the visit of patient {:?}: correct the scan's \
+                 subject first",
+                r.subject, v.patient
+            )));
+        }
+        match r.side.as_str() {
+            "left" => v.left = Some(r.id),
+            "right" => v.right = Some(r.id),
+            s => {
+                return Err(VisitError::Conflict(format!(
+                    "scan {scan} has side {s:?}, not left or right"
+                )))
+            }
+        }
+        self.write_visit(&v)?;
+        Ok(v)
+    }
+
+    /// Delete a visit with its scans' directories (and their index rows); logged. Returns the
+    /// scans deleted.
+    pub fn delete_visit(&self, id: &ScanId) -> Result<Vec<String>, VisitError> {
+        let _one = VISITS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
+        let v = self.visit(id)?;
+        let mut deleted = Vec::new();
+        for sid in [&v.left, &v.right].into_iter().flatten() {
+            let Ok(sid) = ScanId::parse(sid) else {
+                continue;
+            };
+            let Ok(r) = self.get(&sid) else { continue };
+            if let Some(dir) = self.checked_dir(&r) {
+                std::fs::remove_dir_all(&dir).map_err(io_at(&dir))?;
+            }
+            let key = r.id.clone();
+            self.with_index(|i| i.delete(&key))?;
+            deleted.push(r.id);
+        }
+        let dir = self.visits_dir()?;
+        let log = dir.join(DELETED_LOG);
+        let line = serde_json::json!({
+            "at": footscan::util::now_rfc3339(),
+            "visit": v.id,
+            "patient": v.patient,
+            "scans": deleted,
+        });
+        std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&log)
+            .and_then(|mut f| {
+                writeln!(f, "{line}")?;
+                f.sync_all()
+            })
+            .map_err(io_at(&log))?;
+        let p = dir.join(format!("{}.json", v.id));
+        std::fs::remove_file(&p).map_err(io_at(&p))?;
+        tracing::warn!(
+            "visit {} of {} deleted on request, with scans {:?}",
+            v.id,
+            v.patient,
+            deleted
+        );
+        Ok(deleted)
+    }
+}
