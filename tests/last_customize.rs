@@ -612,3 +612,84 @@ fn rules_default_and_sim_foot_missing_dir() {
     assert!(!ok && out.contains("nowhere.toml"), "{out}");
     assert!(!dir.path().join("last2").exists());
 }
+
+/// The clinic's way: a simulated plantar scan of ours (a 250 mm right foot), the girths a
+/// fitter measured with a tape (those of the simulator's 250 mm foot, rounded) and a stock
+/// last (the whole-foot path's last for a 240 mm foot). The stock last deformed: every rule
+/// met on last.stl cut here, the plantar figures within 0.5 mm of the simulator's foot.
+/// Girths missing from the tape file are named, nothing written.
+#[test]
+fn clinic_scan_girths_and_stock_last() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n);
+    let (ok, out, err) = footscan(&[
+        "scan",
+        "--config",
+        "config/sim.toml",
+        "--out",
+        s(&p("scan")),
+    ]);
+    assert!(ok, "{out}{err}");
+    let (ok, out, err) = footscan(&["sim", "foot", "--length", "240", "--out", s(&p("f240.stl"))]);
+    assert!(ok, "{out}{err}");
+    let (ok, out, err) = footscan(&[
+        "last",
+        "customize",
+        "--foot",
+        s(&p("f240.stl")),
+        "--out",
+        s(&p("stock")),
+    ]);
+    assert!(ok, "{out}{err}");
+    let stock = p("stock").join("last.stl");
+    std::fs::write(p("partial.toml"), "ball = 260.0\ninstep = 248.0\n").unwrap();
+    let (ok, out, err) = footscan(&[
+        "last",
+        "customize",
+        "--scan",
+        s(&p("scan")),
+        "--girths",
+        s(&p("partial.toml")),
+        "--stock",
+        s(&stock),
+        "--out",
+        s(&p("bad")),
+    ]);
+    assert!(
+        !ok && err.contains("missing girths: long_heel, ankle"),
+        "{out}{err}"
+    );
+    assert!(!p("bad").exists());
+    std::fs::write(
+        p("girths.toml"),
+        "ball = 260.0\ninstep = 248.0\nlong_heel = 367.0\nankle = 200.5\n",
+    )
+    .unwrap();
+    let (ok, out, err) = footscan(&[
+        "last",
+        "customize",
+        "--scan",
+        s(&p("scan")),
+        "--girths",
+        s(&p("girths.toml")),
+        "--stock",
+        s(&stock),
+        "--out",
+        s(&p("last")),
+    ]);
+    assert!(ok, "{out}{err}");
+    println!("{out}");
+    let rep = check_cut(&p("last"));
+    let rules = rep["rules"].as_array().unwrap();
+    // The scan's plantar figures against the simulator's 250 mm foot (whole-foot path:
+    // length 250.00, ball width 99.99, waist 58.42, heel width 62.50).
+    for (i, truth) in [(0, 250.0), (1, 99.99), (2, 58.42), (3, 62.5)] {
+        let f = rules[i]["foot_mm"].as_f64().unwrap();
+        assert!(
+            (f - truth).abs() < 0.5,
+            "{}: scan {f:.2}, foot {truth}",
+            rules[i]["quantity"]
+        );
+    }
+    assert_eq!(rep["clearance"]["of"], "stock last");
+}

@@ -4,6 +4,9 @@
 
 use anyhow::{anyhow, Result};
 use clap::Parser;
+use footscan_geom::mesh::{TriMesh, Units};
+use footscan_last::customize::clinic::{customize_stock, Plantar, TapeGirths};
+use footscan_last::customize::measure::Side;
 use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
 use footscan_last::customize::{customize, load_foot, write_outputs_atomic, Inputs};
 use std::path::PathBuf;
@@ -16,8 +19,19 @@ const HEEL_RANGE_MM: (f64, f64) = (0.0, 120.0);
 pub struct CustomizeArgs {
     /// The whole foot as a closed mesh (STL, OBJ or PLY; millimetres or metres, z up), as a
     /// 3D foot scanner or `footscan sim foot` writes it.
+    #[arg(long, required_unless_present = "scan", conflicts_with_all = ["scan", "girths", "stock"])]
+    foot: Option<PathBuf>,
+    /// The clinic's way: a plantar scan directory of ours (its measurements.json: length,
+    /// widths, side), with --girths and --stock.
+    #[arg(long, requires_all = ["girths", "stock"])]
+    scan: Option<PathBuf>,
+    /// The girths a fitter measured with a tape (TOML, mm): ball, instep, long_heel, ankle.
     #[arg(long)]
-    foot: PathBuf,
+    girths: Option<PathBuf>,
+    /// A stock last of the foot's side from the shop's collection (closed mesh, z up),
+    /// deformed until its cut values meet the rules.
+    #[arg(long)]
+    stock: Option<PathBuf>,
     /// Comfort rule file (TOML by curve type I-IV; see config/last-rules.toml). Default:
     /// $FOOTSCAN_LAST_RULES if set, else the shipped config/last-rules.toml, built into the
     /// binary (so the default does not depend on the working directory).
@@ -65,15 +79,33 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
         heel_mm: a.heel_mm,
     };
     let t0 = Instant::now();
-    let (foot, frame) = load_foot(&a.foot).map_err(|e| named(&a.foot, e))?;
-    let t_load = t0.elapsed();
-    let t1 = Instant::now();
-    let c = customize(foot, frame, &rules, &inp).map_err(|e| named(&a.foot, e))?;
-    let t_custom = t1.elapsed();
+    let (c, t_load, t_custom, input) = if let Some(foot_path) = &a.foot {
+        let (foot, frame) = load_foot(foot_path).map_err(|e| named(foot_path, e))?;
+        let t_load = t0.elapsed();
+        let t1 = Instant::now();
+        let c = customize(foot, frame, &rules, &inp).map_err(|e| named(foot_path, e))?;
+        (c, t_load, t1.elapsed(), foot_path.clone())
+    } else {
+        let (scan, girths, stock) = (
+            a.scan.as_ref().expect("clap: --foot or --scan"),
+            a.girths.as_ref().expect("clap: --scan requires --girths"),
+            a.stock.as_ref().expect("clap: --scan requires --stock"),
+        );
+        let g = TapeGirths::load(girths).map_err(|e| anyhow!(e))?;
+        let plantar = read_plantar(scan)?;
+        let (m, _) = TriMesh::load_solid(stock, Units::Auto, None)
+            .map_err(|e| anyhow!("{}: {e}", stock.display()))?;
+        let t_load = t0.elapsed();
+        let t1 = Instant::now();
+        let name = stock.display().to_string();
+        let c =
+            customize_stock(m, &name, &plantar, &g, &rules, &inp).map_err(|e| named(stock, e))?;
+        (c, t_load, t1.elapsed(), scan.clone())
+    };
     let fm = &c.foot_measures;
     println!(
         "{}: {:?} foot, length {:.2} mm, {} triangles; {:?} last for a {:?}, heel {:.0} mm",
-        a.foot.display(),
+        input.display(),
         c.frame_in_world.side,
         fm.length,
         c.foot.triangles.len(),
@@ -122,8 +154,8 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
     }
     let cl = &c.clearance;
     println!(
-        "clearance (foot inside the last, below its top): toe box {:+.2} ball {:+.2} heel seat {:+.2} overall {:+.2} mm at ({:.1}, {:.1}, {:.1})",
-        cl.toe_box_mm, cl.ball_mm, cl.heel_seat_mm, cl.overall_mm, cl.worst_at_mm[0], cl.worst_at_mm[1], cl.worst_at_mm[2]
+        "clearance ({} inside the last, below its top): toe box {:+.2} ball {:+.2} heel seat {:+.2} overall {:+.2} mm at ({:.1}, {:.1}, {:.1})",
+        cl.of, cl.toe_box_mm, cl.ball_mm, cl.heel_seat_mm, cl.overall_mm, cl.worst_at_mm[0], cl.worst_at_mm[1], cl.worst_at_mm[2]
     );
     let t2 = Instant::now();
     let files = write_outputs_atomic(&c, &inp, &a.out)?;
@@ -142,6 +174,32 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
 }
 
 /// A customization error with the foot file in front unless the message names it already.
+/// The plantar figures of a scan directory's measurements.json (docs/method.md section 8).
+fn read_plantar(dir: &std::path::Path) -> Result<Plantar> {
+    let p = dir.join("measurements.json");
+    let text = std::fs::read_to_string(&p).map_err(|e| {
+        anyhow!(
+            "{}: {e} (a scan directory whose pipeline ran measure.foot, or one `footscan measure` has measured)",
+            p.display()
+        )
+    })?;
+    let m: footscan::measure::Measurements =
+        serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", p.display()))?;
+    // Waist width across the axis, between the waist points.
+    let (d, wi, wo) = (m.axis_dir, m.waist_inner, m.waist_outer);
+    let waist = ((wi[0] - wo[0]) * -d[1] + (wi[1] - wo[1]) * d[0]).abs();
+    Ok(Plantar {
+        side: match m.side {
+            footscan::measure::Side::Left => Side::Left,
+            footscan::measure::Side::Right => Side::Right,
+        },
+        length: m.foot_length_mm,
+        ball_width: m.ball_width_mm,
+        waist_width: waist,
+        heel_width: m.heel_width_mm,
+    })
+}
+
 fn named(foot: &std::path::Path, e: footscan_last::customize::CustomizeError) -> anyhow::Error {
     let msg = e.to_string();
     let name = foot.display().to_string();

@@ -5,6 +5,7 @@
 //! Method: docs/method.md section 10; paper: "Adaptive deformation of characteristic NURBS
 //! curves for customized shoe-last" (Ren, Wang, Liu, Luo, 2013).
 
+pub mod clinic;
 pub mod curves;
 mod error;
 pub mod measure;
@@ -93,6 +94,9 @@ pub struct Customized {
 
 #[derive(Clone, Debug, Serialize)]
 pub struct Clearance {
+    /// What stands inside the last: "foot" (the foot mesh), or "stock last" on the clinic
+    /// path (no whole foot: how the stock last sits in the customized one).
+    pub of: &'static str,
     pub toe_box_mm: f64,
     pub ball_mm: f64,
     pub heel_seat_mm: f64,
@@ -286,7 +290,7 @@ pub fn customize(
     })
 }
 
-fn clearance(foot: &TriMesh, last: &TriMesh, fm: &Measures) -> Clearance {
+pub(crate) fn clearance(foot: &TriMesh, last: &TriMesh, fm: &Measures) -> Clearance {
     let bvh = Bvh::new(last);
     let (mut toe, mut ball, mut heel, mut all) = (f64::MAX, f64::MAX, f64::MAX, f64::MAX);
     let mut at = [f64::NAN; 3];
@@ -313,6 +317,7 @@ fn clearance(foot: &TriMesh, last: &TriMesh, fm: &Measures) -> Clearance {
         }
     }
     Clearance {
+        of: "foot",
         toe_box_mm: toe,
         ball_mm: ball,
         heel_seat_mm: heel,
@@ -332,7 +337,7 @@ type CurveSpec<'a> = (&'static str, u8, &'a [P3], &'a [P3], Option<f64>);
 /// The targets come from the last, which was solved so that the cut mesh meets every rule,
 /// so the frame written is the frame of that last (within `max_dev_from_last_mm`), not a
 /// second answer to the rules that could disagree with it.
-fn frame_curves(
+pub(crate) fn frame_curves(
     f: &Measures,
     outline: &[P3],
     lm: &Measures,

@@ -1,0 +1,153 @@
+//! The clinic's way to a customized last: our scanner sees only the sole, so the foot comes
+//! as the plantar measurements of a scan (length, ball, waist and heel widths, side) plus the
+//! girths a fitter measures with a tape, and a stock last from the shop's collection is the
+//! starting frame. The stock last is cut like a foot (its characteristic curves), the rules
+//! are applied to the foot's values, and the stock last is deformed by the same solved field
+//! as on the whole-foot path until its cut values are the targets (docs/method.md 10.7).
+
+use super::measure::{measure, Side};
+use super::rules::RuleSet;
+use super::{clearance, foot_in_frame, frame_curves, shape, targets};
+use super::{CustomizeError, Customized, Inputs};
+use footscan_geom::mesh::TriMesh;
+use serde::Deserialize;
+use std::path::Path;
+
+/// The four girths a fitter measures with a tape (mm).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TapeGirths {
+    pub ball: f64,
+    pub instep: f64,
+    pub long_heel: f64,
+    pub ankle: f64,
+}
+
+/// Tape girths a person can have (mm).
+const GIRTH_RANGE: (f64, f64) = (120.0, 600.0);
+
+impl TapeGirths {
+    /// Parse a girths file: `ball = 245.0`, `instep = 240.0`, `long_heel = 330.0`,
+    /// `ankle = 230.0` (mm, TOML). Every missing girth is named; an unknown key or a value
+    /// outside 120-600 mm is an error.
+    pub fn parse(text: &str, name: &str) -> Result<TapeGirths, CustomizeError> {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct G {
+            ball: Option<f64>,
+            instep: Option<f64>,
+            long_heel: Option<f64>,
+            ankle: Option<f64>,
+        }
+        let bad = |why: String| CustomizeError::Rules(format!("{name}: {why}"));
+        let g: G = toml::from_str(text).map_err(|e| bad(e.to_string()))?;
+        let all = [
+            ("ball", g.ball),
+            ("instep", g.instep),
+            ("long_heel", g.long_heel),
+            ("ankle", g.ankle),
+        ];
+        let missing: Vec<&str> = all.iter().filter(|x| x.1.is_none()).map(|x| x.0).collect();
+        if !missing.is_empty() {
+            return Err(bad(format!(
+                "missing girths: {} (mm, measured with a tape: ball, instep, long_heel, ankle)",
+                missing.join(", ")
+            )));
+        }
+        for (k, v) in all {
+            let v = v.unwrap_or_default();
+            if !(GIRTH_RANGE.0..=GIRTH_RANGE.1).contains(&v) {
+                return Err(bad(format!(
+                    "{k} = {v} mm: a girth is {:.0}-{:.0} mm",
+                    GIRTH_RANGE.0, GIRTH_RANGE.1
+                )));
+            }
+        }
+        Ok(TapeGirths {
+            ball: g.ball.unwrap_or_default(),
+            instep: g.instep.unwrap_or_default(),
+            long_heel: g.long_heel.unwrap_or_default(),
+            ankle: g.ankle.unwrap_or_default(),
+        })
+    }
+    pub fn load(path: &Path) -> Result<TapeGirths, CustomizeError> {
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            CustomizeError::Rules(format!("{}: cannot read the girths: {e}", path.display()))
+        })?;
+        TapeGirths::parse(&text, &path.display().to_string())
+    }
+}
+
+/// The plantar scan's figures the rules need (docs/method.md section 8).
+#[derive(Clone, Copy, Debug)]
+pub struct Plantar {
+    pub side: Side,
+    pub length: f64,
+    pub ball_width: f64,
+    pub waist_width: f64,
+    pub heel_width: f64,
+}
+
+/// The stock last (a closed world mesh, z up) deformed so its measured values meet the rules
+/// applied to the scanned and taped foot. The stock last is taken to be for the scanned
+/// foot's side (the caller picks the right one of the pair).
+pub fn customize_stock(
+    stock: TriMesh,
+    name: &str,
+    foot: &Plantar,
+    girths: &TapeGirths,
+    rules: &RuleSet,
+    inp: &Inputs,
+) -> Result<Customized, CustomizeError> {
+    let (stock, mut frame) = foot_in_frame(stock, name)?;
+    // The side a foot's frame finds from where the toes reach furthest says little on a
+    // last (its toe is one smooth tip; two real lasts read "left" both as given and
+    // mirrored): the stock last is taken to be for the scanned foot's side.
+    frame.side = foot.side;
+    let medial = frame.medial_sign();
+    let sm = measure(&stock, None, medial).map_err(|why| CustomizeError::NotAFoot {
+        name: name.into(),
+        why,
+    })?;
+    // The foot's values: the scan's plan figures and the tape's girths; the stock last's
+    // own cuts stay as the curves Algorithm II moves.
+    let mut fm = sm.clone();
+    fm.length = foot.length;
+    fm.ball_width = foot.ball_width;
+    fm.waist_width = foot.waist_width;
+    fm.heel_width = foot.heel_width;
+    fm.ball_girth = girths.ball;
+    fm.instep_girth = girths.instep;
+    fm.long_heel_girth = girths.long_heel;
+    fm.ankle_girth = girths.ankle;
+    let (mut rows, _heel_allow) = targets(rules, inp, &fm);
+    let target: [f64; 8] = std::array::from_fn(|i| rows[i].target_mm);
+    let sec = shape::Sections::of_foot(&stock, sm.length, sm.sole_from());
+    let mut nd = shape::Nodes::of(&sm);
+    // Stations of the rules at the foot's length; the stock last has its own heel
+    // allowance already (its heel point is the last's), so no chamfer.
+    nd.length = foot.length;
+    nd.heel_allowance = 0.0;
+    let (last, lm, field, evals) = shape::solve(&sec, &nd, &sm, &target, medial)?;
+    let (fits, curves) = frame_curves(&sm, &sec.sole_outline(), &lm, &target)?;
+    let v = shape::values(&lm);
+    for (i, r) in rows.iter_mut().enumerate() {
+        r.last_mm = v[i];
+        r.error_mm = v[i] - r.target_mm;
+        r.met = r.error_mm.abs() <= r.bound_mm;
+    }
+    let mut cl = clearance(&stock, &last, &sm);
+    cl.of = "stock last";
+    Ok(Customized {
+        frame_in_world: frame,
+        foot: stock,
+        foot_measures: fm,
+        last,
+        last_measures: lm,
+        rules: rows,
+        fits,
+        curves,
+        field,
+        evaluations: evals,
+        clearance: cl,
+    })
+}
