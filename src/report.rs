@@ -165,53 +165,142 @@ pub struct Layout {
     pub toe: [f64; 2],
 }
 
+/// A measured foot in its own frame (mm): `a` along the axis from the heel point, `c` across
+/// (+y of the scanner).
+struct Foot {
+    outlines: Vec<Vec<[f64; 2]>>,
+    length: f64,
+    toe: [f64; 2],
+    /// MT1 and MT5 heads.
+    mt: Option<([f64; 2], [f64; 2])>,
+    a_min: f64,
+    a_max: f64,
+    c_min: f64,
+    c_max: f64,
+}
+
+impl Foot {
+    fn from_measurements(m: &Value) -> Result<Foot> {
+        let need = |k: &str| {
+            point(&m[k]).with_context(|| format!("measurements.json has no {k} (a point [x, y])"))
+        };
+        let heel = need("heel_point")?;
+        let toe = need("toe_tip")?;
+        let axis = need("axis_dir")?;
+        let n = (axis[0] * axis[0] + axis[1] * axis[1]).sqrt();
+        if n.is_nan() || n <= 0.5 {
+            bail!("measurements.json: axis_dir {axis:?} is not a direction");
+        }
+        let axis = [axis[0] / n, axis[1] / n];
+        let length = m["foot_length_mm"]
+            .as_f64()
+            .context("measurements.json has no foot_length_mm")?;
+        let local = |p: [f64; 2]| {
+            let d = [p[0] - heel[0], p[1] - heel[1]];
+            [
+                d[0] * axis[0] + d[1] * axis[1],
+                -d[0] * axis[1] + d[1] * axis[0],
+            ]
+        };
+        // The sole's outline (a polygon) and the toe pads' (a list of polygons).
+        let poly = |v: &Value| -> Vec<[f64; 2]> {
+            v.as_array()
+                .map(|pts| pts.iter().filter_map(point).map(local).collect())
+                .unwrap_or_default()
+        };
+        let mut outlines = vec![poly(&m["outline"])];
+        if let Some(toes) = m["toe_outlines"].as_array() {
+            outlines.extend(toes.iter().map(poly));
+        }
+        outlines.retain(|p| p.len() >= 3);
+        if outlines.is_empty() {
+            bail!("measurements.json has no outline (a polygon of [x, y] points)");
+        }
+        let (mut a_min, mut a_max, mut c_min, mut c_max) = (0.0f64, length, 0.0f64, 0.0f64);
+        for p in outlines.iter().flatten() {
+            a_min = a_min.min(p[0]);
+            a_max = a_max.max(p[0]);
+            c_min = c_min.min(p[1]);
+            c_max = c_max.max(p[1]);
+        }
+        let mt = match (point(&m["mt1_head"]), point(&m["mt5_head"])) {
+            (Some(a), Some(b)) => Some((local(a), local(b))),
+            _ => None,
+        };
+        Ok(Foot {
+            outlines,
+            length,
+            toe: local(toe),
+            mt,
+            a_min,
+            a_max,
+            c_min,
+            c_max,
+        })
+    }
+
+    fn width(&self) -> f64 {
+        self.c_max - self.c_min
+    }
+
+    fn span(&self) -> f64 {
+        self.a_max - self.a_min
+    }
+
+    /// The straight MT1-MT5 distance (mm): the last maker's ball width.
+    fn straight_ball(&self) -> Option<f64> {
+        self.mt
+            .map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt())
+    }
+
+    /// Draw at 1:1 with the outline's left edge at `left_x` and its rear at `bottom_y` (mm),
+    /// seen from above with the toes up the page (+y of the scanner to the left). Returns the
+    /// heel point and the end of the foot-length line on the page.
+    fn draw(&self, pg: &mut Page, left_x: f64, bottom_y: f64) -> ([f64; 2], [f64; 2]) {
+        let cx = left_x + self.width() / 2.0;
+        let c_mid = (self.c_max + self.c_min) / 2.0;
+        let to_page = |p: [f64; 2]| [cx - (p[1] - c_mid), bottom_y - self.a_min + p[0]];
+        pg.c.set_stroke_rgb(0.1, 0.1, 0.1);
+        pg.c.set_fill_rgb(0.93, 0.93, 0.93);
+        pg.c.set_line_width(pt(0.3));
+        for poly in &self.outlines {
+            let f = to_page(poly[0]);
+            pg.c.move_to(pt(f[0]), pt(f[1]));
+            for p in &poly[1..] {
+                let q = to_page(*p);
+                pg.c.line_to(pt(q[0]), pt(q[1]));
+            }
+            pg.c.close_path();
+            pg.c.fill_nonzero_and_stroke();
+        }
+        // Foot length: heel point to toe tip along the axis.
+        let (h, t) = (to_page([0.0, 0.0]), to_page([self.length, 0.0]));
+        pg.line(h, t, 0.5, LENGTH_RGB);
+        for (p, label, dy) in [(h, "heel point", -4.0), (to_page(self.toe), "toe tip", 2.0)] {
+            pg.dot(p, 1.0, LENGTH_RGB);
+            pg.text(p[0] + 2.0, p[1] + dy, 7.0, false, label);
+        }
+        // Ball: MT1 and MT5 heads, joined straight.
+        if let Some((a, b)) = self.mt {
+            let (pa, pb) = (to_page(a), to_page(b));
+            pg.line(pa, pb, 0.4, [0.0, 0.45, 0.0]);
+            for (p, label) in [(pa, "MT1"), (pb, "MT5")] {
+                pg.dot(p, 0.9, [0.0, 0.45, 0.0]);
+                pg.text(p[0] + 1.5, p[1] + 1.5, 7.0, false, label);
+            }
+        }
+        (h, t)
+    }
+}
+
 /// The report as PDF bytes, and where its parts were put.
 pub fn render(input: &ReportInput) -> Result<(Vec<u8>, Layout)> {
     let m = &input.measurements;
-    let need = |k: &str| {
-        point(&m[k]).with_context(|| format!("measurements.json has no {k} (a point [x, y])"))
-    };
-    let heel = need("heel_point")?;
-    let toe = need("toe_tip")?;
-    let axis = need("axis_dir")?;
-    let n = (axis[0] * axis[0] + axis[1] * axis[1]).sqrt();
-    if n.is_nan() || n <= 0.5 {
-        bail!("measurements.json: axis_dir {axis:?} is not a direction");
-    }
-    let axis = [axis[0] / n, axis[1] / n];
-    let length = m["foot_length_mm"]
-        .as_f64()
-        .context("measurements.json has no foot_length_mm")?;
-    // Foot frame: a along the axis from the heel point, c across (+y of the scanner).
-    let local = |p: [f64; 2]| {
-        let d = [p[0] - heel[0], p[1] - heel[1]];
-        let a = d[0] * axis[0] + d[1] * axis[1];
-        let c = -d[0] * axis[1] + d[1] * axis[0];
-        [a, c]
-    };
-    // The sole's outline (a polygon) and the toe pads' (a list of polygons).
-    let poly = |v: &Value| -> Vec<[f64; 2]> {
-        v.as_array()
-            .map(|pts| pts.iter().filter_map(point).map(local).collect())
-            .unwrap_or_default()
-    };
-    let mut outlines = vec![poly(&m["outline"])];
-    if let Some(toes) = m["toe_outlines"].as_array() {
-        outlines.extend(toes.iter().map(poly));
-    }
-    outlines.retain(|p| p.len() >= 3);
-    if outlines.is_empty() {
-        bail!("measurements.json has no outline (a polygon of [x, y] points)");
-    }
-    let (mut a_min, mut a_max, mut c_min, mut c_max) = (0.0f64, length, 0.0f64, 0.0f64);
-    for p in outlines.iter().flatten() {
-        a_min = a_min.min(p[0]);
-        a_max = a_max.max(p[0]);
-        c_min = c_min.min(p[1]);
-        c_max = c_max.max(p[1]);
-    }
+    let foot = Foot::from_measurements(m)?;
+    let length = foot.length;
+    let (c_min, c_max) = (foot.c_min, foot.c_max);
     // A4 portrait, A3 when the foot does not fit at 1:1 (header 25 mm, footer 12 mm).
-    let span = a_max - a_min;
+    let span = foot.span();
     let page_mm = if span + 45.0 <= 297.0 {
         [210.0, 297.0]
     } else if span + 45.0 <= 420.0 {
@@ -219,55 +308,10 @@ pub fn render(input: &ReportInput) -> Result<(Vec<u8>, Layout)> {
     } else {
         bail!("the foot spans {span:.0} mm along its axis: more than an A3 page holds at 1:1");
     };
-    // Seen from above with the toes up the page, +y (the scanner's) is to the left.
-    let foot_cx = 12.0 + (c_max - c_min).max(90.0) / 2.0 + 2.0;
-    let c_mid = (c_max + c_min) / 2.0;
-    let base = 14.0 - a_min;
-    let to_page = |p: [f64; 2]| [foot_cx - (p[1] - c_mid), base + p[0]];
-
+    let foot_cx = 12.0 + foot.width().max(90.0) / 2.0 + 2.0;
     let mut pg = Page { c: Content::new() };
-    // The outline.
-    pg.c.set_stroke_rgb(0.1, 0.1, 0.1);
-    pg.c.set_fill_rgb(0.93, 0.93, 0.93);
-    pg.c.set_line_width(pt(0.3));
-    for poly in &outlines {
-        let Some(first) = poly.first() else { continue };
-        let f = to_page(*first);
-        pg.c.move_to(pt(f[0]), pt(f[1]));
-        for p in &poly[1..] {
-            let q = to_page(*p);
-            pg.c.line_to(pt(q[0]), pt(q[1]));
-        }
-        pg.c.close_path();
-        pg.c.fill_nonzero_and_stroke();
-    }
-    // Foot length: heel point to toe tip along the axis.
-    let (h, t) = (to_page([0.0, 0.0]), to_page([length, 0.0]));
-    pg.line(h, t, 0.5, LENGTH_RGB);
-    let toe_p = to_page(local(toe));
-    for (p, label) in [(h, "heel point"), (toe_p, "toe tip")] {
-        pg.dot(p, 1.0, LENGTH_RGB);
-        pg.text(
-            p[0] + 2.0,
-            p[1] + if label == "toe tip" { 2.0 } else { -4.0 },
-            7.0,
-            false,
-            label,
-        );
-    }
-    // Ball: MT1 and MT5 heads, joined straight (the last maker's ball width).
-    let mt = (point(&m["mt1_head"]), point(&m["mt5_head"]));
-    let straight_ball = if let (Some(a), Some(b)) = mt {
-        let (pa, pb) = (to_page(local(a)), to_page(local(b)));
-        pg.line(pa, pb, 0.4, [0.0, 0.45, 0.0]);
-        pg.dot(pa, 0.9, [0.0, 0.45, 0.0]);
-        pg.dot(pb, 0.9, [0.0, 0.45, 0.0]);
-        pg.text(pa[0] + 1.5, pa[1] + 1.5, 7.0, false, "MT1");
-        pg.text(pb[0] + 1.5, pb[1] + 1.5, 7.0, false, "MT5");
-        Some(((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt())
-    } else {
-        None
-    };
+    let (h, t) = foot.draw(&mut pg, foot_cx - foot.width() / 2.0, 14.0);
+    let straight_ball = foot.straight_ball();
 
     // Header.
     // The record's side (the operator's, or as corrected), the scan's when there is none.
