@@ -112,7 +112,11 @@ impl Calibrations {
         }
         c.save(&toml_path).map_err(|e| e.to_string())?;
         let json = serde_json::to_vec_pretty(entry).expect("entry serialises");
-        footscan::io::write_atomic(&json_path, &json).map_err(|e| err(&json_path, e))?;
+        if let Err(e) = footscan::io::write_atomic(&json_path, &json) {
+            // Half an entry is none: the id stays free and the current one unchanged.
+            let _ = std::fs::remove_file(&toml_path);
+            return Err(err(&json_path, e));
+        }
         let pointer = self.dir.join(POINTER);
         footscan::io::write_atomic(&pointer, format!("{}\n", entry.id).as_bytes())
             .map_err(|e| err(&pointer, e))?;

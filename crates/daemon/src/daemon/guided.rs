@@ -177,7 +177,14 @@ impl Guide for HttpGuide {
             Answer::Confirm => {
                 self.daemon.update_job(|j| {
                     j.kept.push(step.title.clone());
-                    j.phase = "acquiring".into();
+                    // After the last step the fit (or the check's measurement) runs.
+                    j.phase = if step.index + 1 == step.of {
+                        "fitting"
+                    } else {
+                        "acquiring"
+                    }
+                    .into();
+                    j.message = None;
                 });
                 Decision::Accept
             }
