@@ -470,8 +470,20 @@ pub fn render(input: &ReportInput) -> Result<(Vec<u8>, Layout)> {
         );
     }
 
-    // The calibration bar: 100 mm upright at the page's right edge, mm ticks, cm numbered.
     let (rx, ry) = (ruler_x, 16.0);
+    draw_ruler(&mut pg, rx, ry, x0, chars);
+    let layout = Layout {
+        page_mm,
+        ruler: [rx, ry, RULER_MM],
+        heel: h,
+        toe: t,
+    };
+    Ok((pdf_page(page_mm, pg), layout))
+}
+
+/// The calibration bar: 100 mm upright with its lower end at (rx, ry), mm ticks, cm numbered;
+/// its caption at x0 at the page's foot, wrapped at `chars`.
+fn draw_ruler(pg: &mut Page, rx: f64, ry: f64, x0: f64, chars: usize) {
     pg.rect(rx, ry, 2.5, RULER_MM, RULER_RGB);
     for k in 0..=(RULER_MM as usize) {
         let y = ry + k as f64;
@@ -504,7 +516,10 @@ pub fn render(input: &ReportInput) -> Result<(Vec<u8>, Layout)> {
     {
         pg.text(x0, 8.5 - 2.9 * k as f64, 6.5, false, l);
     }
+}
 
+/// One page of `page_mm` holding `pg`, as a PDF.
+fn pdf_page(page_mm: [f64; 2], pg: Page) -> Vec<u8> {
     let mut pdf = Pdf::new();
     let (catalog, tree, page, content, f1, f2) = (
         Ref::new(1),
@@ -533,13 +548,153 @@ pub fn render(input: &ReportInput) -> Result<(Vec<u8>, Layout)> {
             .encoding_predefined(Name(b"WinAnsiEncoding"));
     }
     pdf.stream(content, &pg.c.finish());
-    let layout = Layout {
-        page_mm,
-        ruler: [rx, ry, RULER_MM],
-        heel: h,
-        toe: t,
+    pdf.finish()
+}
+
+/// A visit's report: both feet side by side at 1:1 on an A3 landscape page (the left foot on
+/// the left, as seen from above), the calibration bar, and a table of both feet's
+/// measurements with the difference right minus left. `left` and `right` are the two scans'
+/// inputs; `title` names the visit (patient, date).
+pub fn render_visit(title: &str, left: &ReportInput, right: &ReportInput) -> Result<Vec<u8>> {
+    let page_mm = [420.0, 297.0];
+    let feet = [
+        Foot::from_measurements(&left.measurements).context("the left foot")?,
+        Foot::from_measurements(&right.measurements).context("the right foot")?,
+    ];
+    for (f, side) in feet.iter().zip(["left", "right"]) {
+        if f.span() + 45.0 > page_mm[1] {
+            bail!(
+                "the {side} foot spans {:.0} mm along its axis: more than the page holds at 1:1",
+                f.span()
+            );
+        }
+    }
+    let mut pg = Page { c: Content::new() };
+    let mut x = 12.0;
+    for f in &feet {
+        f.draw(&mut pg, x, 14.0);
+        x += f.width() + 12.0;
+    }
+    let x0 = x + 4.0;
+    let ruler_x = page_mm[0] - 14.0;
+    let chars = ((ruler_x - 6.0 - x0) / 1.2) as usize;
+    if chars < 40 {
+        bail!("the feet are too wide for the visit report's layout");
+    }
+    let top = page_mm[1];
+    pg.text(
+        12.0,
+        top - 12.0,
+        14.0,
+        true,
+        &format!("footscan visit report: {title}"),
+    );
+    pg.text(
+        12.0,
+        top - 18.0,
+        8.0,
+        false,
+        "left foot | right foot, seen from above, 1:1",
+    );
+    // The table: measure, left, right, right - left.
+    let cols = [x0, x0 + 58.0, x0 + 82.0, x0 + 106.0];
+    let mut y = top - 34.0;
+    for (c, h) in cols.iter().zip(["", "left", "right", "R - L"]) {
+        pg.text(*c, y, 9.0, true, h);
+    }
+    y -= 5.0;
+    let num = |i: &ReportInput, k: &str| i.measurements[k].as_f64();
+    let rows: Vec<(&str, [Option<f64>; 2], usize)> = vec![
+        (
+            "Foot length (mm)",
+            [Some(feet[0].length), Some(feet[1].length)],
+            1,
+        ),
+        (
+            "Ball width MT1-MT5 (mm)",
+            [feet[0].straight_ball(), feet[1].straight_ball()],
+            1,
+        ),
+        (
+            "Ball width, across axis (mm)",
+            [num(left, "ball_width_mm"), num(right, "ball_width_mm")],
+            1,
+        ),
+        (
+            "Mid-foot width (mm)",
+            [
+                num(left, "midfoot_width_mm"),
+                num(right, "midfoot_width_mm"),
+            ],
+            1,
+        ),
+        (
+            "Heel width (mm)",
+            [num(left, "heel_width_mm"), num(right, "heel_width_mm")],
+            1,
+        ),
+        (
+            "Arch height (mm)",
+            [num(left, "arch_height_mm"), num(right, "arch_height_mm")],
+            1,
+        ),
+        (
+            "Arch index",
+            [num(left, "arch_index"), num(right, "arch_index")],
+            3,
+        ),
+        (
+            "Axis angle (°)",
+            [num(left, "axis_angle_deg"), num(right, "axis_angle_deg")],
+            1,
+        ),
+    ];
+    let f = |v: Option<f64>, d: usize| v.map_or("-".to_string(), |v| format!("{v:.d$}"));
+    for (label, v, d) in rows {
+        pg.text(cols[0], y, 8.5, false, label);
+        pg.text(cols[1], y, 8.5, false, &f(v[0], d));
+        pg.text(cols[2], y, 8.5, false, &f(v[1], d));
+        let diff = v[0].zip(v[1]).map(|(l, r)| r - l);
+        pg.text(cols[3], y, 8.5, false, &f(diff, d));
+        y -= 4.2;
+    }
+    let sizes = [shoe_sizes(feet[0].length), shoe_sizes(feet[1].length)];
+    for (label, a, b) in [
+        ("Shoe size EU", sizes[0].eu, sizes[1].eu),
+        ("Shoe size UK", sizes[0].uk, sizes[1].uk),
+        ("Mondopoint", sizes[0].mondopoint, sizes[1].mondopoint),
+    ] {
+        pg.text(cols[0], y, 8.5, false, label);
+        pg.text(cols[1], y, 8.5, false, &format!("{a}"));
+        pg.text(cols[2], y, 8.5, false, &format!("{b}"));
+        y -= 4.2;
+    }
+    let verdict = |i: &ReportInput| {
+        i.record["status"]
+            .as_str()
+            .or(i.summary["status"].as_str())
+            .unwrap_or("?")
+            .to_string()
     };
-    Ok((pdf.finish(), layout))
+    pg.text(cols[0], y, 8.5, false, "Verdict");
+    pg.text(cols[1], y, 7.0, false, &verdict(left));
+    pg.text(cols[2], y, 7.0, false, &verdict(right));
+    y -= 8.0;
+    for l in wrap(
+        "Foot length: heel point to toe tip along the foot axis (red). Ball width MT1-MT5: the \
+         straight distance between the first and fifth metatarsal heads (green), as last makers \
+         measure it; across the axis: the footprint's width at the ball square to the axis. \
+         Arch index: contact area of the middle third over the whole without the toes (< 0.21 \
+         high, 0.21-0.26 normal, > 0.26 flat). Shoe sizes from foot length + 15 mm (EU 2/3 cm, \
+         UK 3 x inches - 25); Mondopoint = foot length (ISO 9407). Approximate: makers differ \
+         by about one size.",
+        chars,
+    ) {
+        pg.text(x0, y, 6.5, false, &l);
+        y -= 2.9;
+    }
+    draw_ruler(&mut pg, ruler_x, 16.0, x0, chars);
+    Ok(pdf_page(page_mm, pg))
 }
 
 fn clip(s: &str, n: usize) -> String {

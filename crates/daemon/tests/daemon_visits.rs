@@ -56,6 +56,8 @@ fn a_visit_holds_both_feet_and_is_deleted_with_them() {
     let (s, v) = add(&right);
     assert_eq!(s, 200, "{v}");
     assert_eq!(v["right"], right.as_str());
+    let r = d.get(&format!("/api/visits/{vid}/report.pdf"));
+    assert_eq!(r.status(), 409, "one foot only");
     let (s, v) = add(&left);
     assert_eq!(s, 409, "{v}");
     assert!(v["error"].as_str().unwrap().contains("P-0008"), "{v}");
@@ -94,6 +96,34 @@ fn a_visit_holds_both_feet_and_is_deleted_with_them() {
     assert_eq!(shown["notes"], "pes planus, both");
     assert_eq!(shown["left_scan"]["subject"], "P-0007");
     assert_eq!(shown["right_scan"]["id"], right.as_str());
+
+    // The visit's report: both feet side by side at 1:1 on A3 landscape, the comparison,
+    // the 100 mm bar (283.46 pt).
+    let r = d.get(&format!("/api/visits/{vid}/report.pdf"));
+    assert_eq!(r.status(), 200);
+    assert_eq!(r.headers()["content-type"], "application/pdf");
+    let pdf = r.bytes().unwrap();
+    std::fs::write(tmp.path().join("visit.pdf"), &pdf).unwrap();
+    let text = String::from_utf8_lossy(&pdf);
+    for w in [
+        "footscan visit report: P-0007",
+        "R - L",
+        "Foot length (mm)",
+        "100 mm long",
+    ] {
+        assert!(text.contains(w), "{w:?} not in the visit report");
+    }
+    let bars: Vec<Vec<f64>> = text
+        .lines()
+        .filter_map(|l| l.strip_suffix(" re"))
+        .map(|l| l.split(' ').map(|v| v.parse::<f64>().unwrap()).collect())
+        .filter(|v: &Vec<f64>| v[3] > 100.0)
+        .collect();
+    assert_eq!(bars.len(), 1, "{bars:?}");
+    assert!((bars[0][3] - 283.4646).abs() < 0.01, "{bars:?}");
+    if let Ok(keep) = std::env::var("FOOTSCAN_KEEP_VISIT_PDF") {
+        std::fs::write(keep, &pdf).unwrap();
+    }
 
     // Search by subject (any case, part of it) and by date.
     let today = &visit["started"].as_str().unwrap()[..10];

@@ -102,6 +102,7 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/api/visits/{id}", get(visits::show).delete(visits::delete))
         .route("/api/visits/{id}/notes", post(visits::set_notes))
         .route("/api/visits/{id}/scans", post(visits::add_scan))
+        .route("/api/visits/{id}/report.pdf", get(visits::report_pdf))
         .route("/api/scans/{id}/files/{name}", get(scans::download))
         .route("/api/preview.png", get(live::preview_png))
         .route("/api/preview/line", get(live::preview_line))

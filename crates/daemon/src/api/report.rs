@@ -15,40 +15,54 @@ pub async fn report_pdf(
     let id = ScanId::parse(&id).map_err(|e| ApiError::bad_request(e.to_string()))?;
     let d = st.daemon.clone();
     let (bytes, id) = tokio::task::spawn_blocking(move || {
-        let a = &d.archive;
-        let rec = a.get(&id).map_err(crate::daemon::DaemonError::from)?;
-        let dir = a
-            .checked_dir(&rec)
-            .ok_or_else(|| ApiError::not_found(format!("scan {id}: its directory is missing")))?;
-        if a.artifact_path(&rec, "measurements.json").is_none() {
-            return Err(ApiError(
-                StatusCode::CONFLICT,
-                format!(
-                    "scan {id} ({}) has no measurements.json: a report needs a measured foot",
-                    rec.status.as_str()
-                ),
-            ));
-        }
-        let mut input = footscan::report::ReportInput::from_scan_dir(&dir)
-            .map_err(|e| ApiError::internal(format!("{e:#}")))?;
-        input.title = rec.id.clone();
-        // The record as it is now (a corrected side or subject), not as first written.
-        input.record = serde_json::to_value(&rec).map_err(ApiError::internal)?;
+        let input = scan_input(&d, &id)?;
         let (bytes, _) = footscan::report::render(&input)
             .map_err(|e| ApiError(StatusCode::UNPROCESSABLE_ENTITY, format!("{e:#}")))?;
-        Ok::<_, ApiError>((bytes, rec.id))
+        Ok::<_, ApiError>((bytes, input.title))
     })
     .await
     .map_err(ApiError::internal)??;
-    Ok((
+    Ok(pdf(bytes, &format!("{id}-report.pdf")))
+}
+
+/// What the report of scan `id` shows: its files and its record as it is now (a corrected
+/// side or subject). 409 without measurements.json.
+pub(super) fn scan_input(
+    d: &crate::daemon::Daemon,
+    id: &ScanId,
+) -> Result<footscan::report::ReportInput, ApiError> {
+    let a = &d.archive;
+    let rec = a.get(id).map_err(crate::daemon::DaemonError::from)?;
+    let dir = a
+        .checked_dir(&rec)
+        .ok_or_else(|| ApiError::not_found(format!("scan {id}: its directory is missing")))?;
+    if a.artifact_path(&rec, "measurements.json").is_none() {
+        return Err(ApiError(
+            StatusCode::CONFLICT,
+            format!(
+                "scan {id} ({}) has no measurements.json: a report needs a measured foot",
+                rec.status.as_str()
+            ),
+        ));
+    }
+    let mut input = footscan::report::ReportInput::from_scan_dir(&dir)
+        .map_err(|e| ApiError::internal(format!("{e:#}")))?;
+    input.title = rec.id.clone();
+    input.record = serde_json::to_value(&rec).map_err(ApiError::internal)?;
+    Ok(input)
+}
+
+/// A PDF response shown in the browser, saved as `name`.
+pub(super) fn pdf(bytes: Vec<u8>, name: &str) -> Response {
+    (
         [
             (header::CONTENT_TYPE, "application/pdf".to_string()),
             (
                 header::CONTENT_DISPOSITION,
-                format!("inline; filename=\"{id}-report.pdf\""),
+                format!("inline; filename=\"{name}\""),
             ),
         ],
         bytes,
     )
-        .into_response())
+        .into_response()
 }

@@ -265,3 +265,32 @@ pub async fn correct(
     })
     .await
 }
+
+/// `GET /api/visits/{id}/report.pdf`: both feet side by side at 1:1 with the comparison
+/// (footscan::report::render_visit); 409 until the visit holds both feet, measured.
+pub async fn report_pdf(
+    State(st): State<AppState>,
+    Path(vid): Path<String>,
+) -> Result<Response, ApiError> {
+    let vid = id(&vid)?;
+    let d = st.daemon.clone();
+    let name = format!("{vid}-visit-report.pdf");
+    let bytes = blocking(move || {
+        let v = d.archive.visit(&vid)?;
+        let foot = |s: &Option<String>, side: &str| {
+            let s = s.as_deref().ok_or_else(|| {
+                ApiError(
+                    StatusCode::CONFLICT,
+                    format!("visit {vid} has no {side} foot yet: add its scan first"),
+                )
+            })?;
+            super::report::scan_input(&d, &id(s)?)
+        };
+        let (l, r) = (foot(&v.left, "left")?, foot(&v.right, "right")?);
+        let date = v.started.get(..10).unwrap_or(&v.started);
+        footscan::report::render_visit(&format!("{}, {date}", v.patient), &l, &r)
+            .map_err(|e| ApiError(StatusCode::UNPROCESSABLE_ENTITY, format!("{e:#}")))
+    })
+    .await?;
+    Ok(super::report::pdf(bytes, &name))
+}
