@@ -89,7 +89,11 @@ pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
     cv.text(
         20,
         14,
-        "side: foot grey, last black, last frame curves coloured",
+        // The clinic path has no foot mesh: the grey one is the stock last.
+        &format!(
+            "side: {} grey, last black, last frame curves coloured",
+            c.clearance.of
+        ),
         BLACK,
         2,
     );
