@@ -100,6 +100,30 @@ fn report_pdf_is_printed_at_one_to_one() {
         assert!(words.contains(w), "{w:?} not in the report:\n{words}");
     }
 
+    // Both feet (the same scan twice: the layout, not the foot, is under test): A3
+    // landscape with the comparison and the same bar.
+    let both = tmp.path().join("both.pdf");
+    run(Command::new(env!("CARGO_BIN_EXE_footscan"))
+        .args(["report", "--left"])
+        .arg(&dir)
+        .arg("--right")
+        .arg(&dir)
+        .arg("--out")
+        .arg(&both));
+    let info = run(Command::new(&pdfinfo).arg(&both));
+    assert!(info.contains("1190.55 x 841.89 pts (A3)"), "{info}");
+    let words = run(Command::new(&pdftotext).arg(&both).arg("-"));
+    for w in [
+        "Foot length (mm)",
+        "is 100 mm long",
+        "Ball width MT1-MT5 (mm)",
+    ] {
+        assert!(
+            words.contains(w),
+            "{w:?} not in the two feet's report:\n{words}"
+        );
+    }
+
     // Rendered at 254 dpi (10 px a mm): the bar's length and the foot's length in pixels.
     let png = tmp.path().join("page");
     run(Command::new(&pdftoppm)
