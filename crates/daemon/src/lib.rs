@@ -9,3 +9,4 @@
 pub mod api;
 pub mod archive;
 pub mod daemon;
+pub mod priority;

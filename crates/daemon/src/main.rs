@@ -54,30 +54,15 @@ fn limit_malloc_arenas() {
 /// needs no privilege. A new thread inherits its creator's value, so jobs are started from a
 /// thread made before the runtime (`daemon::jobs::Launcher`), not from these.
 fn lower_priority() {
-    #[cfg(target_os = "linux")]
-    // SAFETY: gettid and setpriority on the calling thread only.
-    unsafe {
-        let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
-        // Ten below the daemon's own, which may already be lowered (a niced service or test
-        // runner): an absolute 10 would then put the web clients level with the scan.
-        *libc::__errno_location() = 0;
-        let own = libc::getpriority(libc::PRIO_PROCESS, tid);
-        let own = if own == -1 && *libc::__errno_location() != 0 {
-            0
-        } else {
-            own
-        };
-        if libc::setpriority(libc::PRIO_PROCESS, tid, (own + 10).min(19)) != 0 {
-            // Once: every runtime thread would say the same.
-            static SAID: std::sync::Once = std::sync::Once::new();
-            let e = std::io::Error::last_os_error();
-            SAID.call_once(|| {
-                tracing::warn!(
-                    "cannot lower the HTTP threads' priority ({e}): web clients compete with \
-                     the scan for the CPU (a seccomp filter without setpriority?)"
-                )
-            });
-        }
+    if let Err(e) = footscan_daemon::priority::lower_this_thread(10) {
+        // Once: every runtime thread would say the same.
+        static SAID: std::sync::Once = std::sync::Once::new();
+        SAID.call_once(|| {
+            tracing::warn!(
+                "cannot lower the HTTP threads' priority ({e}): web clients compete with the \
+                 scan for the CPU (a seccomp filter without setpriority?)"
+            )
+        });
     }
 }
 

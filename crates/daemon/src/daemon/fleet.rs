@@ -347,24 +347,11 @@ impl Pusher {
     }
 }
 
-/// Ten nice levels below the daemon for this thread (Linux nice values are per thread).
+/// Ten nice levels below the daemon for this thread.
 fn lower_own_priority() {
-    #[cfg(target_os = "linux")]
-    // SAFETY: gettid, getpriority and setpriority on the calling thread only.
-    unsafe {
-        let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
-        *libc::__errno_location() = 0;
-        let own = libc::getpriority(libc::PRIO_PROCESS, tid);
-        let own = if own == -1 && *libc::__errno_location() != 0 {
-            0
-        } else {
-            own
-        };
-        if libc::setpriority(libc::PRIO_PROCESS, tid, (own + 10).min(19)) != 0 {
-            tracing::warn!(
-                "fleet: cannot lower the pusher's priority ({}): it competes with the scan for the CPU",
-                std::io::Error::last_os_error()
-            );
-        }
+    if let Err(e) = crate::priority::lower_this_thread(10) {
+        tracing::warn!(
+            "fleet: cannot lower the pusher's priority ({e}): it competes with the scan for the CPU"
+        );
     }
 }
