@@ -10,8 +10,8 @@ mod guard;
 mod live;
 mod report;
 mod scans;
-mod visits;
 pub mod server;
+mod visits;
 
 use crate::daemon::Daemon;
 use axum::extract::{Request, State};

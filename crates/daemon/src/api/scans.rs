@@ -136,8 +136,8 @@ pub async fn show(
         v["artifacts"] = serde_json::to_value(&artifacts).map_err(ApiError::internal)?;
         v["summary"] = read_json(a.artifact_path(&r, "scan.json"));
         v["measurements"] = read_json(a.artifact_path(&r, "measurements.json"));
-        v["history"] = serde_json::to_value(a.history(&r).unwrap_or_default())
-            .map_err(ApiError::internal)?;
+        v["history"] =
+            serde_json::to_value(a.history(&r).unwrap_or_default()).map_err(ApiError::internal)?;
         Ok(Json(v))
     })
     .await
