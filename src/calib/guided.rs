@@ -874,4 +874,3 @@ pub fn acquire_guided(
         steps: records,
     })
 }
-

@@ -37,4 +37,4 @@ pub use file::{Calibration, CalibrationError};
 pub use gauge::untilted_equivalent;
 pub use model::{CameraModel, Triangulator};
 pub use plan::CalibrationPlan;
-pub use run::{Method, Calibrated};
+pub use run::{Calibrated, Method};

@@ -10,8 +10,8 @@
 //! grid (see [`PointGrid::filled`]) the least-squares problem is
 //! `X = (A_u^T A_u)^-1 A_u^T D A_v (A_v^T A_v)^-1`, two small dense Cholesky solves.
 
-use super::point_grid::PointGrid;
 use super::ops::{dot, OpCount, Scalar};
+use super::point_grid::PointGrid;
 use super::SurfaceError;
 use nalgebra::DMatrix;
 

@@ -12,9 +12,9 @@
 //! method is judged on the same region.
 
 use super::bspline::{self, BSplineSurface};
-use super::point_grid::{PointGrid, Subsample};
 use super::network::BezierNetwork;
 use super::ops::{Counted, OpCount};
+use super::point_grid::{PointGrid, Subsample};
 use super::poly::PolySurface;
 use super::SurfaceError;
 use serde::Serialize;

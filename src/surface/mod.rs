@@ -16,17 +16,17 @@ mod basis;
 pub mod bspline;
 pub mod compare;
 mod export;
-mod point_grid;
 mod mesh;
 mod network;
 pub mod ops;
+mod point_grid;
 pub mod poly;
 
 pub use basis::{basis, basis_d1, basis_d2, interpolation_matrix};
 pub use export::{build_scan_model, model_scan, write_model, MeshFiles, ModelSummary};
-pub use point_grid::{PointGrid, Subsample};
 pub use mesh::Mesh;
 pub use network::{BezierNetwork, Continuity, Segment};
+pub use point_grid::{PointGrid, Subsample};
 
 /// Errors building a surface model.
 #[derive(Debug, thiserror::Error)]

@@ -12,8 +12,8 @@
 //! [0, nv - 1] along rows; segment (a, b) covers s in [3a, 3a + k_u], local u = (s - 3a)/k_u.
 
 use super::basis::{basis, basis_d1, basis_d2, interpolation_matrix};
-use super::point_grid::{is_point, PointGrid};
 use super::ops::{dot, Scalar};
+use super::point_grid::{is_point, PointGrid};
 use super::SurfaceError;
 use crate::geom::HeightMap;
 use std::sync::OnceLock;

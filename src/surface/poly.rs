@@ -2,8 +2,8 @@
 //! x, y and z each a polynomial of total degree `d` in the grid parameters (s, t) (scaled to
 //! [-1, 1], Chebyshev basis for conditioning), fitted to the valid points only.
 
-use super::point_grid::{is_point, PointGrid};
 use super::ops::{Counted, OpCount, Scalar};
+use super::point_grid::{is_point, PointGrid};
 use super::SurfaceError;
 use nalgebra::{DMatrix, DVector};
 

@@ -476,7 +476,11 @@ fn scanners_run(
         // The read-only view: one scanner sees every scanner's scans in the database.
         let (_, _, d0) = &daemons[0];
         let all = d0.get_json("/api/fleet/scans");
-        assert_eq!(all["scans"].as_array().unwrap().len(), n_daemons * scans, "{all}");
+        assert_eq!(
+            all["scans"].as_array().unwrap().len(),
+            n_daemons * scans,
+            "{all}"
+        );
         let other = format!("scanner-{n_daemons}");
         let one = d0.get_json(&format!("/api/fleet/scans?scanner={other}"));
         let rows = one["scans"].as_array().unwrap();
