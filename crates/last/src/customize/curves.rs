@@ -97,29 +97,45 @@ pub fn fit_closed_split(
                 met: true,
             });
         }
-        // Split every span holding a point over the tolerance, at the middle of its data.
+        // Split every span holding a point over the tolerance at the middle of its data; a
+        // span too sparse to split has its neighbours split instead (their basis functions
+        // reach into it).
         let mut bounds = period.clone();
         bounds.push(1.0);
-        let mut new = Vec::new();
-        let mut k = 0;
-        for s in 0..period.len() {
-            let (lo, hi) = (bounds[s], bounds[s + 1]);
-            let start = k;
-            let mut worst = 0.0f64;
-            while k < m && params[k] < hi {
-                worst = worst.max(e[k]);
-                k += 1;
+        let ns = period.len();
+        let mut worst = vec![0.0f64; ns];
+        let mut inside: Vec<Vec<f64>> = vec![Vec::new(); ns];
+        let mut s = 0;
+        for k in 0..m {
+            while s + 1 < ns && params[k] >= bounds[s + 1] {
+                s += 1;
             }
-            let inside: Vec<f64> = params[start..k]
-                .iter()
-                .copied()
-                .filter(|&u| u > lo && u < hi)
-                .collect();
-            if worst > opts.tolerance && inside.len() >= 2 && period.len() + new.len() < m {
-                let h = inside.len() / 2;
-                new.push(0.5 * (inside[h - 1] + inside[h]));
+            worst[s] = worst[s].max(e[k]);
+            if params[k] > bounds[s] && params[k] < bounds[s + 1] {
+                inside[s].push(params[k]);
             }
         }
+        let mut split = vec![false; ns];
+        for s in 0..ns {
+            if worst[s] <= opts.tolerance {
+                continue;
+            }
+            if inside[s].len() >= 2 {
+                split[s] = true;
+            } else {
+                for t in [(s + ns - 1) % ns, (s + 1) % ns] {
+                    split[t] |= inside[t].len() >= 2;
+                }
+            }
+        }
+        let mut new: Vec<f64> = (0..ns)
+            .filter(|&s| split[s])
+            .map(|s| {
+                let h = inside[s].len() / 2;
+                0.5 * (inside[s][h - 1] + inside[s][h])
+            })
+            .collect();
+        new.truncate(m.saturating_sub(ns));
         if new.is_empty() {
             return fit::fit_closed_adaptive(points, opts);
         }
