@@ -7,6 +7,10 @@
 //! is complete and its parameters shown; then the "Daily check" button, its one step confirmed,
 //! PASS shown. Screenshots at target/dashboard-calibration-*.png for people to look at.
 
+#[path = "daemon_support/chromium.rs"]
+mod chromium;
+
+use chromium::CHROMIUM;
 use serde_json::{json, Value};
 use std::fs::File;
 use std::io::{BufRead, BufReader, Write};
@@ -16,7 +20,6 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-const CHROMIUM: &str = "/usr/bin/chromium";
 const TOKEN: &str = "dashboard-calibration-token-0123456789";
 
 struct Kill(Child);
@@ -113,29 +116,17 @@ fn pipe() -> (OwnedFd, OwnedFd) {
 
 impl Browser {
     fn launch(profile: &Path, width: u32, height: u32) -> Browser {
-        assert!(
-            Path::new(CHROMIUM).is_file(),
-            "{CHROMIUM} is missing: run scripts/setup.sh (it installs chromium)"
-        );
+        chromium::require();
         let (cmd_r, cmd_w) = pipe(); // we write commands, Chromium reads fd 3
         let (ev_r, ev_w) = pipe(); // Chromium writes fd 4, we read
         let (a, b) = (cmd_r.into_raw_fd(), ev_w.into_raw_fd());
         let mut cmd = Command::new(CHROMIUM);
-        cmd.args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--no-first-run",
-            "--remote-debugging-pipe",
-            "about:blank",
-        ])
-        .arg(format!("--user-data-dir={}", profile.display()))
-        .arg(format!("--window-size={width},{height}"))
-        .stdout(Stdio::null())
-        .stderr(Stdio::null());
+        cmd.args(chromium::HEADLESS)
+            .args(["--remote-debugging-pipe", "about:blank"])
+            .arg(format!("--user-data-dir={}", profile.display()))
+            .arg(format!("--window-size={width},{height}"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null());
         // SAFETY: only async-signal-safe dup2 calls between fork and exec.
         unsafe {
             cmd.pre_exec(move || {

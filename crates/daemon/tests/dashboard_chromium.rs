@@ -4,13 +4,15 @@
 //! target/dashboard.png for people to look at) must show the page's header, the laser frame and
 //! the height map's colour map where the layout puts them.
 
+#[path = "daemon_support/chromium.rs"]
+mod chromium;
+
 use serde_json::Value;
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-const CHROMIUM: &str = "/usr/bin/chromium";
 /// Window of the screenshot; the layout's three columns are laid out for this width.
 const WIN_W: u32 = 1280;
 const WIN_H: u32 = 900;
@@ -33,12 +35,19 @@ fn manifest() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-fn require_chromium() {
-    assert!(
-        Path::new(CHROMIUM).is_file(),
-        "{CHROMIUM} is missing: this test needs Debian's chromium package; run scripts/setup.sh \
-         (it installs chromium and fonts-dejavu-core)"
-    );
+/// The dashboard in Chromium at this test's window size. The page's requests all finish in
+/// virtual time: an idle dashboard holds no open event stream (it follows events only while a
+/// scan runs), so the budget can expire.
+fn run_chromium(url: &str, profile: &Path, extra: &[&str]) -> Vec<u8> {
+    let mut flags = vec!["--virtual-time-budget=5000"];
+    flags.extend_from_slice(extra);
+    chromium::run(
+        url,
+        profile,
+        (WIN_W, WIN_H),
+        &flags,
+        Duration::from_secs(120),
+    )
 }
 
 /// Bearer token the daemon is started with: the page must carry it on every request.
@@ -102,66 +111,6 @@ impl Daemon {
         assert!(r.status().is_success(), "GET {path}: {}", r.status());
         r.bytes().unwrap().to_vec()
     }
-}
-
-/// Run Chromium with the required flags plus `extra`, at most `limit`; stdout is returned.
-fn chromium(url: &str, profile: &Path, extra: &[String], limit: Duration) -> Vec<u8> {
-    let mut child = Command::new(CHROMIUM)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--no-first-run",
-        ])
-        .arg(format!("--user-data-dir={}", profile.display()))
-        .arg(format!("--window-size={WIN_W},{WIN_H}"))
-        // The page's requests all finish in virtual time: an idle dashboard holds no open
-        // event stream (it follows events only while a scan runs), so the budget can expire.
-        .arg("--virtual-time-budget=5000")
-        .args(extra)
-        .arg(url)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap_or_else(|e| panic!("starting {CHROMIUM}: {e}"));
-    let mut out = child.stdout.take().unwrap();
-    let mut err = child.stderr.take().unwrap();
-    let out_t = std::thread::spawn(move || {
-        let mut v = Vec::new();
-        out.read_to_end(&mut v).map(|_| v)
-    });
-    let err_t = std::thread::spawn(move || {
-        let mut s = String::new();
-        err.read_to_string(&mut s).map(|_| s)
-    });
-    let t0 = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if t0.elapsed() > limit {
-            let _ = child.kill();
-            let _ = child.wait();
-            let stderr = err_t.join().unwrap().unwrap_or_default();
-            panic!("chromium did not finish within {limit:?} on {url}; stderr:\n{stderr}");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let stdout = out_t.join().unwrap().unwrap();
-    let stderr = err_t.join().unwrap().unwrap_or_default();
-    println!(
-        "chromium {:?}: {status} in {:.1} s",
-        extra,
-        t0.elapsed().as_secs_f64()
-    );
-    assert!(
-        status.success(),
-        "chromium failed ({status}) on {url}; stderr:\n{stderr}"
-    );
-    stdout
 }
 
 /// Every start tag that contains `needle` (e.g. `data-key="x"`), from `<` to `>`.
@@ -278,14 +227,6 @@ fn write_configs(dir: &Path) -> PathBuf {
     path
 }
 
-/// Where people find the screenshot: target/dashboard.png.
-fn screenshot_path() -> PathBuf {
-    Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .parent()
-        .expect("CARGO_TARGET_TMPDIR is inside the target directory")
-        .join("dashboard.png")
-}
-
 /// The number in a cell's text ("1,234.5 mm" -> 1234.5).
 fn number_in(text: &str) -> f64 {
     let t: String = text
@@ -299,7 +240,7 @@ fn number_in(text: &str) -> f64 {
 
 #[test]
 fn dashboard_in_headless_chromium_shows_the_scan() {
-    require_chromium();
+    chromium::require();
     let tmp = tempfile::tempdir().unwrap();
     let cfg = write_configs(tmp.path());
     let d = Daemon::start(&cfg);
@@ -370,14 +311,13 @@ fn dashboard_in_headless_chromium_shows_the_scan() {
 
     // 1. The DOM after the page's requests: the scan in the archive list, the result panel on
     //    it, the measurements the API gave, images and links that carry the token, no error.
-    let dom = chromium(
-        &url,
-        &tmp.path().join("profile-dom"),
-        &["--dump-dom".to_string()],
-        Duration::from_secs(120),
-    );
+    let dom = run_chromium(&url, &tmp.path().join("profile-dom"), &["--dump-dom"]);
     let dom = String::from_utf8(dom).expect("the DOM is UTF-8");
-    std::fs::write(screenshot_path().with_extension("html"), &dom).unwrap();
+    std::fs::write(
+        chromium::target_png("dashboard.png").with_extension("html"),
+        &dom,
+    )
+    .unwrap();
     let error_hidden = attr_of_tag_with(&dom, "id=\"error\"", "hidden");
     assert!(
         error_hidden.is_some(),
@@ -432,13 +372,12 @@ fn dashboard_in_headless_chromium_shows_the_scan() {
     }
 
     // 2. The screenshot: laid out as designed at 1280 px.
-    let shot = screenshot_path();
+    let shot = chromium::target_png("dashboard.png");
     let _ = std::fs::remove_file(&shot);
-    chromium(
+    run_chromium(
         &url,
         &tmp.path().join("profile-shot"),
-        &[format!("--screenshot={}", shot.display())],
-        Duration::from_secs(120),
+        &[&format!("--screenshot={}", shot.display())],
     );
     println!("screenshot: {}", shot.display());
     let img = image::open(&shot)

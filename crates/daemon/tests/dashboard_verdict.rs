@@ -6,13 +6,10 @@
 
 mod daemon_support;
 
-use daemon_support::{command, short_scanner_config, Footscand, Opts};
-use std::io::Read;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use daemon_support::{chromium, command, short_scanner_config, Footscand, Opts};
+use std::path::Path;
+use std::time::Duration;
 
-const CHROMIUM: &str = "/usr/bin/chromium";
 const WIN_W: u32 = 1280;
 /// Tall enough for the archive table below the result panel.
 const WIN_H: u32 = 2200;
@@ -51,54 +48,16 @@ fn scan(d: &Footscand, subject: &str) -> (String, String, String) {
     out
 }
 
-/// Headless Chromium on `url` with `extra` flags; its stdout.
-fn chromium(url: &str, profile: &Path, extra: &str) -> Vec<u8> {
-    let mut child = Command::new(CHROMIUM)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--no-first-run",
-            "--hide-scrollbars",
-            "--virtual-time-budget=5000",
-        ])
-        .arg(format!("--user-data-dir={}", profile.display()))
-        .arg(format!("--window-size={WIN_W},{WIN_H}"))
-        .arg(extra)
-        .arg(url)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap_or_else(|e| panic!("starting {CHROMIUM}: {e}"));
-    let mut out = child.stdout.take().unwrap();
-    let mut err = child.stderr.take().unwrap();
-    let out_t = std::thread::spawn(move || {
-        let mut v = Vec::new();
-        out.read_to_end(&mut v).map(|_| v)
-    });
-    let err_t = std::thread::spawn(move || {
-        let mut s = String::new();
-        err.read_to_string(&mut s).map(|_| s)
-    });
-    let t0 = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if t0.elapsed() > Duration::from_secs(120) {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("chromium did not finish within 120 s on {url}");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let stdout = out_t.join().unwrap().unwrap();
-    let stderr = err_t.join().unwrap().unwrap_or_default();
-    assert!(status.success(), "chromium failed ({status}): {stderr}");
-    stdout
+/// The dashboard in Chromium at this test's window size with `extra`; its stdout.
+fn run_chromium(url: &str, profile: &Path, extra: &str) -> Vec<u8> {
+    let flags = ["--hide-scrollbars", "--virtual-time-budget=5000", extra];
+    chromium::run(
+        url,
+        profile,
+        (WIN_W, WIN_H),
+        &flags,
+        Duration::from_secs(120),
+    )
 }
 
 /// The start tag (from `<` to `>`) of the first element whose start tag holds `needle`.
@@ -139,19 +98,9 @@ fn near(p: [u8; 3], c: [u8; 3]) -> bool {
     (0..3).all(|k| (p[k] as i32 - c[k] as i32).abs() <= 12)
 }
 
-fn screenshot_path() -> PathBuf {
-    Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .parent()
-        .unwrap()
-        .join("dashboard-verdict.png")
-}
-
 #[test]
 fn dashboard_shows_warnings_amber_and_rescan_red() {
-    assert!(
-        Path::new(CHROMIUM).is_file(),
-        "{CHROMIUM} is missing: run scripts/setup.sh (it installs chromium)"
-    );
+    chromium::require();
     let tmp = tempfile::tempdir().unwrap();
     let archive = tmp.path().join("archive");
 
@@ -167,9 +116,13 @@ fn dashboard_shows_warnings_amber_and_rescan_red() {
 
     // 1. The DOM: both rows with their verdict badges; the result panel (the newest scan)
     //    red, saying rescan before the patient leaves, with the reason.
-    let dom = chromium(&d.url("/"), &tmp.path().join("p1"), "--dump-dom");
+    let dom = run_chromium(&d.url("/"), &tmp.path().join("p1"), "--dump-dom");
     let dom = String::from_utf8(dom).unwrap();
-    std::fs::write(screenshot_path().with_extension("html"), &dom).unwrap();
+    std::fs::write(
+        chromium::target_png("dashboard-verdict.png").with_extension("html"),
+        &dom,
+    )
+    .unwrap();
     let badge = |id: &str| {
         let r = row(&dom, id);
         let t = tag_with(r, "class=\"badge").expect("a badge in the row");
@@ -201,9 +154,9 @@ fn dashboard_shows_warnings_amber_and_rescan_red() {
 
     // 2. The screenshot: amber and red where the verdicts are, and no green badge (the page
     //    has no complete scan to show).
-    let png = screenshot_path();
+    let png = chromium::target_png("dashboard-verdict.png");
     let _ = std::fs::remove_file(&png);
-    chromium(
+    run_chromium(
         &d.url("/"),
         &tmp.path().join("p2"),
         &format!("--screenshot={}", png.display()),

@@ -2,6 +2,8 @@
 //! scan, talk to it over HTTP, follow its event stream.
 #![allow(dead_code)]
 
+pub mod chromium;
+
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
