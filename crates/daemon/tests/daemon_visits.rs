@@ -1,11 +1,13 @@
 //! Visits over real HTTP (archive/visits.rs): a visit holds a patient id, notes and both feet;
 //! a scan saved under a mistyped subject is corrected (kept in its history) before it joins the
 //! visit; visits are searched by subject and date; a visit deleted on request takes its scans'
-//! files with it and is logged.
+//! files with it and is logged. Visits are shown and searched in the clinic's time zone
+//! (`[clinic] time_zone`): across midnight and the DST changes.
 
 mod daemon_support;
 
-use daemon_support::{Footscand, Opts, Value};
+use daemon_support::{command, Footscand, Opts, Value};
+use std::path::Path;
 use std::time::Duration;
 
 fn scan(d: &Footscand, subject: &str, side: &str) -> String {
@@ -153,4 +155,187 @@ fn a_visit_holds_both_feet_and_is_deleted_with_them() {
     );
     let (s, _) = delete(&d, &format!("/api/visits/{vid}"));
     assert_eq!(s, 404);
+}
+
+/// footscand on `dir` with `clinic` appended to its config and `TZ` set to `tz` (the machine's
+/// zone, used when the config names none).
+fn daemon_in_zone(dir: &Path, clinic: &str, tz: &str) -> Footscand {
+    let (mut cmd, archive) = command(dir, &Opts::default());
+    let cfg = dir.join("footscand.toml");
+    let text = std::fs::read_to_string(&cfg).unwrap();
+    std::fs::write(&cfg, format!("{text}{clinic}")).unwrap();
+    cmd.env("TZ", tz);
+    Footscand::spawn(cmd, archive, None)
+}
+
+/// Visits started at these UTC instants, written as the archive keeps them (the API opens
+/// visits only at the present time): (id, started UTC, local in Europe/Berlin).
+const PLANTED: [(&str, &str, &str); 8] = [
+    // Winter (CET, +01:00): 23:30 UTC is half past midnight of the next day.
+    (
+        "20261124T223000Z-000a",
+        "2026-11-24T22:30:00Z",
+        "2026-11-24T23:30:00+01:00",
+    ),
+    (
+        "20261124T233000Z-000b",
+        "2026-11-24T23:30:00Z",
+        "2026-11-25T00:30:00+01:00",
+    ),
+    // 29 March 2026, clocks forward at 01:00 UTC (02:00 CET -> 03:00 CEST): a 23-hour day,
+    // 2026-03-28T23:00Z to 2026-03-29T22:00Z.
+    (
+        "20260328T223000Z-000c",
+        "2026-03-28T22:30:00Z",
+        "2026-03-28T23:30:00+01:00",
+    ),
+    (
+        "20260328T233000Z-000d",
+        "2026-03-28T23:30:00Z",
+        "2026-03-29T00:30:00+01:00",
+    ),
+    (
+        "20260329T013000Z-000e",
+        "2026-03-29T01:30:00Z",
+        "2026-03-29T03:30:00+02:00",
+    ),
+    (
+        "20260329T215959Z-000f",
+        "2026-03-29T21:59:59Z",
+        "2026-03-29T23:59:59+02:00",
+    ),
+    (
+        "20260329T223000Z-0010",
+        "2026-03-29T22:30:00Z",
+        "2026-03-30T00:30:00+02:00",
+    ),
+    // 25 October 2026, clocks back at 01:00 UTC: 02:30 local twice, told apart by the offset.
+    (
+        "20261025T013000Z-0011",
+        "2026-10-25T01:30:00Z",
+        "2026-10-25T02:30:00+01:00",
+    ),
+];
+
+fn plant(archive: &Path) {
+    let dir = archive.join("visits");
+    std::fs::create_dir_all(&dir).unwrap();
+    for (id, started, _) in PLANTED {
+        let v = serde_json::json!({"id": id, "patient": "TZ-1", "notes": "", "started": started,
+            "left": null, "right": null});
+        std::fs::write(dir.join(format!("{id}.json")), v.to_string()).unwrap();
+    }
+    let early = serde_json::json!({"id": "20261025T003000Z-0012", "patient": "TZ-1",
+        "notes": "", "started": "2026-10-25T00:30:00Z", "left": null, "right": null});
+    std::fs::write(dir.join("20261025T003000Z-0012.json"), early.to_string()).unwrap();
+}
+
+fn ids(list: &Value) -> Vec<&str> {
+    list.as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v["id"].as_str().unwrap())
+        .collect()
+}
+
+#[test]
+fn visits_are_dated_in_the_clinics_time_zone() {
+    let tmp = tempfile::tempdir().unwrap();
+
+    // An unknown zone name stops the daemon at start, naming the key and the value.
+    let (mut cmd, _) = command(tmp.path(), &Opts::default());
+    let cfg = tmp.path().join("footscand.toml");
+    let text = std::fs::read_to_string(&cfg).unwrap();
+    std::fs::write(
+        &cfg,
+        format!("{text}[clinic]\ntime_zone = \"Europe/Berln\"\n"),
+    )
+    .unwrap();
+    let out = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "footscand started: {err}");
+    assert!(
+        err.contains("[clinic] time_zone = \"Europe/Berln\"") && err.contains("Europe/Berlin"),
+        "{err}"
+    );
+
+    // Berlin, on a machine whose own zone is New York (the config wins).
+    let mut d = daemon_in_zone(
+        tmp.path(),
+        "[clinic]\ntime_zone = \"Europe/Berlin\"\n",
+        "America/New_York",
+    );
+    plant(&d.archive);
+    let all = d.get_json("/api/visits?subject=TZ-1");
+    assert_eq!(all.as_array().unwrap().len(), PLANTED.len() + 1, "{all}");
+    for v in all.as_array().unwrap() {
+        assert_eq!(v["time_zone"], "Europe/Berlin", "{v}");
+        if let Some((_, _, local)) = PLANTED.iter().find(|p| p.0 == v["id"]) {
+            assert_eq!(v["started_local"], *local, "{v}");
+        }
+    }
+    let early = all
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|v| v["id"] == "20261025T003000Z-0012")
+        .unwrap();
+    assert_eq!(early["started_local"], "2026-10-25T02:30:00+02:00");
+    for (date, want) in [
+        ("2026-11-24", vec!["20261124T223000Z-000a"]),
+        ("2026-11-25", vec!["20261124T233000Z-000b"]),
+        ("2026-03-28", vec!["20260328T223000Z-000c"]),
+        (
+            "2026-03-29",
+            vec![
+                "20260329T215959Z-000f",
+                "20260329T013000Z-000e",
+                "20260328T233000Z-000d",
+            ],
+        ),
+        ("2026-03-30", vec!["20260329T223000Z-0010"]),
+        (
+            "2026-10-25",
+            vec!["20261025T013000Z-0011", "20261025T003000Z-0012"],
+        ),
+    ] {
+        let l = d.get_json(&format!("/api/visits?date={date}"));
+        assert_eq!(ids(&l), want, "date={date}: {l}");
+    }
+    for bad in ["2026-02-30", "2026-13-01", "26-11-24"] {
+        let r = d.get(&format!("/api/visits?date={bad}"));
+        assert_eq!(r.status(), 400, "{bad}");
+        let text = r.text().unwrap();
+        assert!(text.contains(bad) && text.contains("YYYY-MM-DD"), "{text}");
+    }
+    // Every visit answer has the local time: one opened now, shown, its notes changed.
+    let (s, v) = d.post("/api/visits", r#"{"patient": "TZ-2"}"#);
+    assert_eq!(s, 201, "{v}");
+    let local = v["started_local"].as_str().unwrap();
+    assert!(
+        local.len() == 25 && (local.ends_with("+01:00") || local.ends_with("+02:00")),
+        "{v}"
+    );
+    assert_eq!(v["time_zone"], "Europe/Berlin");
+    let vid = v["id"].as_str().unwrap();
+    let shown = d.get_json(&format!("/api/visits/{vid}"));
+    assert_eq!(shown["started_local"], local, "{shown}");
+    let (s, v) = d.post(&format!("/api/visits/{vid}/notes"), r#"{"notes": "x"}"#);
+    assert_eq!(
+        (s, &v["started_local"]),
+        (200, &shown["started_local"]),
+        "{v}"
+    );
+    d.terminate(Duration::from_secs(20));
+
+    // No [clinic] zone: the machine's (TZ), here UTC; the same archive dated in UTC.
+    let d = daemon_in_zone(tmp.path(), "", "UTC");
+    let l = d.get_json("/api/visits?date=2026-11-24");
+    assert_eq!(
+        ids(&l),
+        ["20261124T233000Z-000b", "20261124T223000Z-000a"],
+        "{l}"
+    );
+    assert_eq!(l[0]["time_zone"], "UTC");
+    assert_eq!(l[0]["started_local"], "2026-11-24T23:30:00+00:00");
 }

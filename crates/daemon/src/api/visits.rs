@@ -2,10 +2,13 @@
 //! `POST /api/visits`, `GET /api/visits?subject=&date=`, `GET /api/visits/{id}`,
 //! `POST /api/visits/{id}/notes`, `POST /api/visits/{id}/scans`, `DELETE /api/visits/{id}`,
 //! `POST /api/scans/{id}/record`.
+//!
+//! Every visit in an answer carries `started_local` and `time_zone` (the clinic's, from the
+//! daemon config) beside the stored UTC `started`; `?date=` is the clinic's local date.
 
 use super::scans::body;
 use super::{ApiError, AppState};
-use crate::archive::{Record, ScanId, Visit, VisitError};
+use crate::archive::{Record, ScanId, VisitError};
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Path, Query, State};
 use axum::http::StatusCode;
@@ -85,43 +88,52 @@ pub async fn create(
             .map_err(ApiError::internal)
     })
     .await?;
-    Ok((StatusCode::CREATED, Json(visit)).into_response())
+    let zone = &st.daemon.config.clinic_zone;
+    Ok((StatusCode::CREATED, Json(zone.visit_json(&visit))).into_response())
 }
 
-/// `?subject=` (part of the patient id, any case) and `?date=YYYY-MM-DD` (UTC).
+/// `?subject=` (part of the patient id, any case) and `?date=YYYY-MM-DD` (the clinic's local
+/// date).
 pub async fn list(
     State(st): State<AppState>,
     Query(q): Query<HashMap<String, String>>,
-) -> Result<Json<Vec<Visit>>, ApiError> {
+) -> Result<Json<Vec<serde_json::Value>>, ApiError> {
     if let Some(k) = q.keys().find(|k| !matches!(k.as_str(), "subject" | "date")) {
         return Err(ApiError::bad_request(format!(
             "unknown query parameter {k:?}: use subject and date"
         )));
     }
-    let date = q.get("date").cloned();
-    if let Some(d) = &date {
-        let b = d.as_bytes();
-        let ok = b.len() == 10
-            && b[4] == b'-'
-            && b[7] == b'-'
-            && b.iter()
-                .enumerate()
-                .all(|(i, c)| i == 4 || i == 7 || c.is_ascii_digit());
-        if !ok {
-            return Err(ApiError::bad_request(format!(
-                "date {d:?}: must be YYYY-MM-DD"
-            )));
-        }
-    }
+    let date = q.get("date").map(|d| parse_date(d)).transpose()?;
     let subject = q.get("subject").cloned();
     let d = st.daemon.clone();
     let v = blocking(move || {
-        d.archive
-            .visits(subject.as_deref(), date.as_deref())
-            .map_err(ApiError::internal)
+        let zone = &d.config.clinic_zone;
+        let v = d
+            .archive
+            .visits(subject.as_deref(), date.map(|date| (date, zone)))
+            .map_err(ApiError::internal)?;
+        Ok(v.iter().map(|v| zone.visit_json(v)).collect())
     })
     .await?;
     Ok(Json(v))
+}
+
+/// A calendar date written YYYY-MM-DD.
+fn parse_date(d: &str) -> Result<jiff::civil::Date, ApiError> {
+    let b = d.as_bytes();
+    let shape = b.len() == 10
+        && b[4] == b'-'
+        && b[7] == b'-'
+        && b.iter()
+            .enumerate()
+            .all(|(i, c)| i == 4 || i == 7 || c.is_ascii_digit());
+    let date = shape.then(|| d.parse::<jiff::civil::Date>().ok()).flatten();
+    date.ok_or_else(|| {
+        ApiError::bad_request(format!(
+            "date {:?}: must be a calendar date YYYY-MM-DD (the clinic's local date)",
+            d.chars().take(80).collect::<String>()
+        ))
+    })
 }
 
 pub async fn show(
@@ -132,7 +144,7 @@ pub async fn show(
     let d = st.daemon.clone();
     blocking(move || {
         let v = d.archive.visit(&vid)?;
-        let mut out = serde_json::to_value(&v).map_err(ApiError::internal)?;
+        let mut out = d.config.clinic_zone.visit_json(&v);
         // Each foot's record as it is now (its verdict, a corrected side).
         for side in ["left", "right"] {
             let rec = out[side]
@@ -156,14 +168,13 @@ pub async fn set_notes(
     State(st): State<AppState>,
     Path(vid): Path<String>,
     b: Result<Json<Notes>, JsonRejection>,
-) -> Result<Json<Visit>, ApiError> {
+) -> Result<Json<serde_json::Value>, ApiError> {
     let vid = id(&vid)?;
     let n = body(b)?.notes;
     notes_ok(&n)?;
     let d = st.daemon.clone();
-    Ok(Json(
-        blocking(move || Ok(d.archive.set_visit_notes(&vid, &n)?)).await?,
-    ))
+    let v = blocking(move || Ok(d.archive.set_visit_notes(&vid, &n)?)).await?;
+    Ok(Json(st.daemon.config.clinic_zone.visit_json(&v)))
 }
 
 #[derive(Deserialize)]
@@ -176,13 +187,12 @@ pub async fn add_scan(
     State(st): State<AppState>,
     Path(vid): Path<String>,
     b: Result<Json<AddScan>, JsonRejection>,
-) -> Result<Json<Visit>, ApiError> {
+) -> Result<Json<serde_json::Value>, ApiError> {
     let vid = id(&vid)?;
     let sid = id(&body(b)?.scan)?;
     let d = st.daemon.clone();
-    Ok(Json(
-        blocking(move || Ok(d.archive.add_visit_scan(&vid, &sid)?)).await?,
-    ))
+    let v = blocking(move || Ok(d.archive.add_visit_scan(&vid, &sid)?)).await?;
+    Ok(Json(st.daemon.config.clinic_zone.visit_json(&v)))
 }
 
 pub async fn delete(
@@ -287,7 +297,12 @@ pub async fn report_pdf(
             super::report::scan_input(&d, &id(s)?)
         };
         let (l, r) = (foot(&v.left, "left")?, foot(&v.right, "right")?);
-        let date = v.started.get(..10).unwrap_or(&v.started);
+        // The clinic's date of the visit.
+        let date = d
+            .config
+            .clinic_zone
+            .local_date(&v.started)
+            .map_or_else(|| v.started.clone(), |d| d.to_string());
         footscan::report::render_visit(&format!("{}, {date}", v.patient), &l, &r)
             .map_err(|e| ApiError(StatusCode::UNPROCESSABLE_ENTITY, format!("{e:#}")))
     })

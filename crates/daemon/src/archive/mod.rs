@@ -22,7 +22,7 @@ pub use history::{Change, HISTORY};
 pub use id::{valid_file_name, IdError, ScanId};
 pub use outbox::{OutboxCounts, OutboxEntry};
 pub use record::{ArchiveError, NewScan, Record, ScanEnd, Status};
-pub use visits::{Visit, VisitError};
+pub use visits::{ClinicZone, Visit, VisitError};
 
 use index::Index;
 use serde::Serialize;

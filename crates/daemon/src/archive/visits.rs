@@ -5,6 +5,10 @@
 //! the truth (a few thousand are listed in milliseconds), so nothing here depends on the index.
 //! Deleting a visit deletes its scans' directories too, and is logged in
 //! `<archive>/visits/deleted.log` (one JSON line: when, which visit, whose, which scans).
+//!
+//! Times are kept as UTC instants; the clinic's time zone ([`ClinicZone`], `[clinic]
+//! time_zone` of the daemon config) gives each visit its local time and its local date, which
+//! is what `?date=` searches by (a visit at 23:30 UTC in Berlin belongs to the next day).
 
 use super::record::{ArchiveError, Record, Status};
 use super::{io_at, Archive, ScanId};
@@ -23,10 +27,105 @@ pub struct Visit {
     /// The patient's id as the clinic uses it (the scans' `subject`).
     pub patient: String,
     pub notes: String,
-    /// RFC 3339 UTC; shown in the clinic's time zone by the dashboard.
+    /// RFC 3339 UTC; the API adds the clinic's local time ([`ClinicZone::visit_json`]).
     pub started: String,
     pub left: Option<String>,
     pub right: Option<String>,
+}
+
+/// The clinic's time zone: an IANA zone by name (`[clinic] time_zone`), else the machine's
+/// (`TZ`, then /etc/localtime), else UTC.
+#[derive(Clone, Debug)]
+pub struct ClinicZone {
+    /// The IANA name (or, for a machine zone without one, the `TZ` value).
+    pub name: String,
+    /// Where it came from: "config", "TZ", "/etc/localtime" or "default".
+    pub source: &'static str,
+    tz: jiff::tz::TimeZone,
+}
+
+impl ClinicZone {
+    /// The zone called `name` in the IANA database; the error says what is valid.
+    pub fn named(name: &str) -> Result<ClinicZone, String> {
+        let bad = |why: String| {
+            format!(
+                "{name:?} is not a time zone of the IANA database ({why}); give a name such as \
+                 \"Europe/Berlin\", \"America/New_York\" or \"UTC\" (the names are the files under \
+                 /usr/share/zoneinfo)"
+            )
+        };
+        // A path or a POSIX rule would be taken by some readers; the key wants a name.
+        if name.is_empty() || name.starts_with('/') || name.contains(',') || name.contains("..") {
+            return Err(bad("not a zone name".into()));
+        }
+        let tz = jiff::tz::TimeZone::get(name).map_err(|e| bad(e.to_string()))?;
+        Ok(ClinicZone {
+            name: tz.iana_name().unwrap_or(name).to_string(),
+            source: "config",
+            tz,
+        })
+    }
+
+    /// The machine's zone (`TZ`, then /etc/localtime), else UTC.
+    pub fn system() -> ClinicZone {
+        let from_tz = std::env::var("TZ").ok().filter(|t| !t.is_empty());
+        match jiff::tz::TimeZone::try_system() {
+            Ok(tz) => ClinicZone {
+                name: tz
+                    .iana_name()
+                    .map(str::to_string)
+                    .or(from_tz.clone())
+                    .unwrap_or_else(|| "/etc/localtime".into()),
+                source: if from_tz.is_some() {
+                    "TZ"
+                } else {
+                    "/etc/localtime"
+                },
+                tz,
+            },
+            Err(e) => {
+                tracing::warn!("clinic time zone: the machine's is unknown ({e}); using UTC");
+                ClinicZone::utc()
+            }
+        }
+    }
+
+    pub fn utc() -> ClinicZone {
+        ClinicZone {
+            name: "UTC".into(),
+            source: "default",
+            tz: jiff::tz::TimeZone::UTC,
+        }
+    }
+
+    fn zoned(&self, utc: &str) -> Option<jiff::ZonedDateTime> {
+        let t: jiff::Timestamp = utc.parse().ok()?;
+        Some(t.to_zoned_datetime(self.tz.clone()))
+    }
+
+    /// An RFC 3339 UTC instant as the clinic's local time with its offset
+    /// (`2026-11-25T00:30:00+01:00`); None when `utc` is not an instant.
+    pub fn local(&self, utc: &str) -> Option<String> {
+        Some(
+            self.zoned(utc)?
+                .strftime("%Y-%m-%dT%H:%M:%S%:z")
+                .to_string(),
+        )
+    }
+
+    /// The clinic's calendar date of an RFC 3339 UTC instant.
+    pub fn local_date(&self, utc: &str) -> Option<jiff::civil::Date> {
+        Some(self.zoned(utc)?.date())
+    }
+
+    /// A visit as the API answers it: its fields plus `started_local` (the local time with
+    /// its offset; null when `started` is unreadable) and `time_zone`.
+    pub fn visit_json(&self, v: &Visit) -> serde_json::Value {
+        let mut out = serde_json::to_value(v).expect("visit serialises");
+        out["started_local"] = self.local(&v.started).into();
+        out["time_zone"] = self.name.clone().into();
+        out
+    }
 }
 
 /// Why a visit request was refused (the API's 400/404/409).
@@ -96,11 +195,11 @@ impl Archive {
     }
 
     /// Visits, newest first, whose patient contains `subject` (case-insensitive) and that
-    /// started on `date` (YYYY-MM-DD, UTC) when given.
+    /// started on `date` in the clinic's time zone `zone` when given.
     pub fn visits(
         &self,
         subject: Option<&str>,
-        date: Option<&str>,
+        date: Option<(jiff::civil::Date, &ClinicZone)>,
     ) -> Result<Vec<Visit>, ArchiveError> {
         let dir = self.visits_dir()?;
         let mut out = Vec::new();
@@ -121,7 +220,7 @@ impl Archive {
             subject
                 .as_ref()
                 .is_none_or(|s| v.patient.to_lowercase().contains(s))
-                && date.is_none_or(|d| v.started.starts_with(d))
+                && date.is_none_or(|(d, zone)| zone.local_date(&v.started) == Some(d))
         });
         out.sort_by(|a, b| b.id.cmp(&a.id));
         Ok(out)

@@ -16,6 +16,15 @@ struct File {
     daemon: DaemonSection,
     /// Optional: push every ended scan to a central PostgreSQL (crates/fleet).
     fleet: Option<footscan_fleet::settings::Section>,
+    /// Optional: the clinic (its time zone for visits).
+    clinic: Option<ClinicSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ClinicSection {
+    /// IANA name, e.g. "Europe/Berlin"; default: the machine's zone.
+    time_zone: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -61,6 +70,9 @@ pub struct DaemonConfig {
     pub max_connections_per_client: usize,
     /// The fleet database scans are pushed to (`[fleet]`, when present and enabled).
     pub fleet: Option<footscan_fleet::Settings>,
+    /// The clinic's time zone (`[clinic] time_zone`; default: the machine's, else UTC):
+    /// visits' local times and dates.
+    pub clinic_zone: crate::archive::ClinicZone,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -111,7 +123,13 @@ impl DaemonConfig {
         let File {
             daemon: d,
             fleet: fleet_section,
+            clinic,
         } = f;
+        let clinic_zone = match clinic.and_then(|c| c.time_zone) {
+            Some(name) => crate::archive::ClinicZone::named(&name)
+                .map_err(|e| invalid(format!("[clinic] time_zone = {name:?}: {e}")))?,
+            None => crate::archive::ClinicZone::system(),
+        };
         let bind_text = bind
             .map(str::to_string)
             .or(d.bind)
@@ -206,6 +224,7 @@ impl DaemonConfig {
             max_connections,
             max_connections_per_client,
             fleet,
+            clinic_zone,
         })
     }
 }
@@ -251,5 +270,33 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("at least 16"), "{e}");
+    }
+
+    #[test]
+    fn the_clinic_time_zone_is_an_iana_name() {
+        let text = format!("{OK}[clinic]\ntime_zone = \"Europe/Berlin\"\n");
+        let c = DaemonConfig::parse(Path::new("d.toml"), &text, None, None).unwrap();
+        assert_eq!(c.clinic_zone.name, "Europe/Berlin");
+        assert_eq!(
+            c.clinic_zone.local("2026-11-24T23:30:00Z").as_deref(),
+            Some("2026-11-25T00:30:00+01:00")
+        );
+        for bad in [
+            "Europe/Berln",
+            "CET-1CEST,M3.5.0,M10.5.0/3",
+            "/etc/localtime",
+            "",
+        ] {
+            let text = format!("{OK}[clinic]\ntime_zone = {bad:?}\n");
+            let e = DaemonConfig::parse(Path::new("d.toml"), &text, None, None)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("d.toml")
+                    && e.contains(&format!("[clinic] time_zone = {bad:?}"))
+                    && e.contains("Europe/Berlin"),
+                "{e}"
+            );
+        }
     }
 }
