@@ -14,6 +14,7 @@ pub mod measure;
 pub mod report;
 pub mod scan;
 pub mod scandata;
+pub mod startup;
 pub mod surface;
 pub mod util;
 

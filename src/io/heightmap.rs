@@ -1,8 +1,64 @@
+use crate::measure::Side;
 use image::{Rgb, RgbImage};
 use std::path::Path;
 
+/// Which foot a height map shows and whose it is: its title's first line.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct HeightMapLabel {
+    /// The foot's side, if known.
+    pub side: Option<Side>,
+    /// Whether `side` was measured on the scan (stage `measure.foot`) rather than chosen by
+    /// the operator.
+    pub side_measured: bool,
+    /// The subject (patient id) when the scan has one.
+    pub subject: Option<String>,
+}
+
+/// Characters of the subject shown in a title at most.
+const SUBJECT_CHARS: usize = 40;
+
+impl HeightMapLabel {
+    /// The title's first line: side (and where it comes from), the view, the subject.
+    /// Characters the 8x8 font lacks are shown as '?'.
+    pub fn title(&self) -> String {
+        let side = match (self.side, self.side_measured) {
+            (None, _) => "side not given".to_string(),
+            (Some(s), measured) => format!(
+                "{} foot ({})",
+                match s {
+                    Side::Left => "LEFT",
+                    Side::Right => "RIGHT",
+                },
+                if measured { "measured" } else { "as chosen" }
+            ),
+        };
+        let mut t = format!("{side}, plantar view seen from below");
+        if let Some(subject) = self.subject.as_deref().filter(|s| !s.trim().is_empty()) {
+            let mut shown: String = subject
+                .trim()
+                .chars()
+                .map(|c| {
+                    if c.is_ascii_graphic() || c == ' ' {
+                        c
+                    } else {
+                        '?'
+                    }
+                })
+                .take(SUBJECT_CHARS)
+                .collect();
+            if subject.trim().chars().count() > SUBJECT_CHARS {
+                shown.push_str("...");
+            }
+            t.push_str(", subject ");
+            t.push_str(&shown);
+        }
+        t
+    }
+}
+
 /// A sole height map rendered for people: heights on a colour scale over the platform's
-/// x (heel to toe, left to right) and y (top to bottom), with a labelled colour bar.
+/// x (heel to toe, left to right) and y (top to bottom), seen from below as the camera sees
+/// the sole, with a labelled colour bar and a title naming the side, the view and the subject.
 pub struct HeightMapImage {
     pub image: RgbImage,
     /// Height at the top of the colour scale, mm.
@@ -20,8 +76,22 @@ impl HeightMapImage {
 pub(crate) const BG: Rgb<u8> = Rgb([24, 24, 28]);
 pub(crate) const FG: Rgb<u8> = Rgb([230, 230, 230]);
 
-/// Rasterise points (mm) into `cell_mm` cells (mean height per cell) and colour them.
-pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
+/// Pixels around the drawing.
+pub const MARGIN_PX: u32 = 12;
+/// Top of the title's first line (the label) and of its second (extent and cell), px; the
+/// text is the 8x8 font of [`draw_text`] in the colour [`FG`], 8 px a character from
+/// [`MARGIN_PX`].
+pub const TITLE_LINES_Y: [u32; 2] = [4, 16];
+/// Height of the title band above the map, px.
+const TITLE_H: u32 = 28;
+
+/// Rasterise points (mm) into `cell_mm` cells (mean height per cell) and colour them, under a
+/// title of two lines: `label`'s, then the extent and the cell.
+pub fn render_heightmap(
+    points: &[[f64; 3]],
+    cell_mm: f64,
+    label: &HeightMapLabel,
+) -> HeightMapImage {
     assert!(cell_mm > 0.0);
     let finite = points.iter().filter(|p| p.iter().all(|v| v.is_finite()));
     let (mut x0, mut x1, mut y0, mut y1, mut zmax) =
@@ -53,15 +123,17 @@ pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
     let step = nice_step(zmax.max(1.0) / 5.0);
     let max_mm = (zmax.max(1.0) / step).ceil() * step;
 
-    let margin = 12u32;
+    let margin = MARGIN_PX;
     let bar_w = 110u32;
-    let title_h = 20u32;
+    let title_h = TITLE_H;
+    let head = label.title();
     let title = format!(
         "sole height, x {:.0}-{:.0} mm, y {:.0}-{:.0} mm, cell {} mm",
         x0, x1, y0, y1, cell_mm
     );
     // Wide enough for the title (8 px a character) on a narrow map.
-    let img_w = (w as u32 + 2 * margin + bar_w).max(title.len() as u32 * 8 + 2 * margin);
+    let chars = head.chars().count().max(title.len()) as u32;
+    let img_w = (w as u32 + 2 * margin + bar_w).max(chars * 8 + 2 * margin);
     let img_h = (h as u32).max(160) + 2 * margin + title_h;
     let mut image = RgbImage::from_pixel(img_w, img_h, BG);
     let mut filled = 0;
@@ -79,7 +151,8 @@ pub fn render_heightmap(points: &[[f64; 3]], cell_mm: f64) -> HeightMapImage {
             }
         }
     }
-    draw_text(&mut image, margin, 4, &title);
+    draw_text(&mut image, margin, TITLE_LINES_Y[0], &head);
+    draw_text(&mut image, margin, TITLE_LINES_Y[1], &title);
     // Colour bar with ticks.
     let bx = margin * 2 + w as u32;
     let by = margin + title_h;
@@ -208,7 +281,7 @@ mod tests {
         let pts: Vec<[f64; 3]> = (0..100)
             .flat_map(|i| (0..40).map(move |j| [i as f64, j as f64, (i as f64) * 0.13]))
             .collect();
-        let hm = render_heightmap(&pts, 1.0);
+        let hm = render_heightmap(&pts, 1.0, &HeightMapLabel::default());
         assert_eq!(hm.filled_cells, 100 * 40);
         // Every other column missing: filled; a two-cell gap is left.
         let sparse: Vec<[f64; 3]> = pts
@@ -216,18 +289,92 @@ mod tests {
             .filter(|p| p[0] as i32 % 2 == 0 || p[0] > 90.0)
             .copied()
             .collect();
-        assert_eq!(render_heightmap(&sparse, 1.0).filled_cells, 100 * 40);
+        assert_eq!(
+            render_heightmap(&sparse, 1.0, &HeightMapLabel::default()).filled_cells,
+            100 * 40
+        );
         let gap: Vec<[f64; 3]> = pts
             .iter()
             .filter(|p| p[0] != 50.0 && p[0] != 51.0)
             .copied()
             .collect();
-        assert_eq!(render_heightmap(&gap, 1.0).filled_cells, 98 * 40);
+        assert_eq!(
+            render_heightmap(&gap, 1.0, &HeightMapLabel::default()).filled_cells,
+            98 * 40
+        );
         assert!(hm.max_mm >= 12.87 && hm.max_mm <= 15.0, "{}", hm.max_mm);
         // Highest cell is yellow-ish, lowest dark.
-        let hi = hm.image.get_pixel(12 + 99, 12 + 20);
-        let lo = hm.image.get_pixel(12, 12 + 20);
+        let hi = hm.image.get_pixel(12 + 99, 12 + TITLE_H + 20);
+        let lo = hm.image.get_pixel(12, 12 + TITLE_H + 20);
         assert!(hi.0[0] as u32 + hi.0[1] as u32 > lo.0[0] as u32 + lo.0[1] as u32 + 150);
+    }
+
+    /// Read the text of one title line back from the image: each 8 px cell matched against
+    /// the font's printable ASCII glyphs.
+    fn read_line(img: &RgbImage, y: u32) -> String {
+        use font8x8::UnicodeFonts;
+        let mut s = String::new();
+        let mut x = MARGIN_PX;
+        while x + 8 <= img.width() {
+            let cell: [u8; 8] = std::array::from_fn(|row| {
+                (0..8).fold(0u8, |b, col| {
+                    b | (u8::from(*img.get_pixel(x + col, y + row as u32) == FG) << col)
+                })
+            });
+            let c = (' '..='~')
+                .find(|&c| font8x8::BASIC_FONTS.get(c) == Some(cell))
+                .unwrap_or('#');
+            s.push(c);
+            x += 8;
+        }
+        s.trim_end().to_string()
+    }
+
+    #[test]
+    fn title_names_side_view_and_subject() {
+        let pts: Vec<[f64; 3]> = (0..200)
+            .flat_map(|i| (0..80).map(move |j| [i as f64, j as f64, 5.0]))
+            .collect();
+        let label = HeightMapLabel {
+            side: Some(Side::Left),
+            side_measured: true,
+            subject: Some("p-0042".into()),
+        };
+        let hm = render_heightmap(&pts, 1.0, &label);
+        assert_eq!(
+            read_line(&hm.image, TITLE_LINES_Y[0]),
+            "LEFT foot (measured), plantar view seen from below, subject p-0042"
+        );
+        assert!(read_line(&hm.image, TITLE_LINES_Y[1]).starts_with("sole height, x 0-199 mm"));
+        let chosen = HeightMapLabel {
+            side: Some(Side::Right),
+            side_measured: false,
+            subject: Some("  ".into()),
+        };
+        assert_eq!(
+            read_line(
+                &render_heightmap(&pts, 1.0, &chosen).image,
+                TITLE_LINES_Y[0]
+            ),
+            "RIGHT foot (as chosen), plantar view seen from below"
+        );
+        assert_eq!(
+            HeightMapLabel::default().title(),
+            "side not given, plantar view seen from below"
+        );
+        let long = HeightMapLabel {
+            subject: Some(format!("M\u{fc}ller {}", "x".repeat(60))),
+            ..HeightMapLabel::default()
+        };
+        let t = long.title();
+        assert!(
+            t.ends_with(&format!(", subject M?ller {}...", "x".repeat(33))),
+            "{t}"
+        );
+        // The image is widened to the whole title.
+        let narrow: Vec<[f64; 3]> = pts.iter().filter(|p| p[0] < 10.0).copied().collect();
+        let hm = render_heightmap(&narrow, 1.0, &long);
+        assert_eq!(read_line(&hm.image, TITLE_LINES_Y[0]), t);
     }
 
     #[test]

@@ -5,7 +5,7 @@ mod mesh;
 mod plantar;
 mod ply;
 
-pub use heightmap::{render_heightmap, HeightMapImage};
+pub use heightmap::{render_heightmap, HeightMapImage, HeightMapLabel};
 pub use mesh::{write_obj, write_ply_mesh, write_stl};
 pub use plantar::{render_plantar, PlantarImage};
 pub use ply::write_ply_points;

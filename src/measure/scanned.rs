@@ -87,11 +87,13 @@ pub struct MeasureOutput {
 }
 
 /// Measure the saved scan in `dir` (grid.bin; the Bezier model is rebuilt from it unless
-/// `use_model` is false), write `json` (default dir/measurements.json) and dir/plantar.png,
-/// and compare with dir/truth.json when there is one.
+/// `use_model` is false), write `json` and `png` (default dir/measurements.json and
+/// dir/plantar.png; nothing else is written), and compare with dir/truth.json when there is
+/// one.
 pub fn measure_scan_dir(
     dir: &Path,
     json: Option<&Path>,
+    png: Option<&Path>,
     cell_mm: f64,
     use_model: bool,
 ) -> Result<MeasureOutput, MeasureError> {
@@ -109,7 +111,7 @@ pub fn measure_scan_dir(
     };
     let (map, m) = measure_grid(&grid, model.as_ref(), cell_mm)?;
     let json = json.map_or_else(|| dir.join("measurements.json"), Path::to_path_buf);
-    let png = dir.join("plantar.png");
+    let png = png.map_or_else(|| dir.join("plantar.png"), Path::to_path_buf);
     write_measurements(&m, &map, &json, &png)?;
     let truth_path = dir.join("truth.json");
     let comparison = match std::fs::read_to_string(&truth_path) {

@@ -24,6 +24,8 @@ pub struct ScanContext {
     pub counters: Arc<ScanCounters>,
     /// Live preview of the detect stage's frames and lines (the daemon's).
     pub tap: Option<Arc<dyn super::stages::FrameTap>>,
+    /// What heightmap.png is titled with: the side the operator chose, the subject.
+    pub label: crate::io::HeightMapLabel,
 }
 
 /// A stage's parameters as its typed, `deny_unknown_fields` struct; serde's message names the
@@ -161,7 +163,7 @@ pub fn registry() -> Registry<Item, ScanContext> {
     );
     r.register(
         "sink.heightmap",
-        "writes the sole height map as PNG with a colour scale (file, cell_mm)",
+        "writes the sole height map as PNG with a colour scale, titled with side, view and subject (file, cell_mm)",
         |p, ctx: &ScanContext| {
             let p: HeightMapParams = params(p)?;
             let cell_mm = p.cell_mm.unwrap_or(0.5);
@@ -171,6 +173,8 @@ pub fn registry() -> Registry<Item, ScanContext> {
             Ok(Node::stage(HeightMapSink {
                 path: file_in(ctx, p.file, "heightmap.png")?,
                 cell_mm,
+                label: ctx.label.clone(),
+                points: None,
             }))
         },
     );

@@ -26,6 +26,8 @@ pub struct ScanOptions {
     /// The foot the operator says is on the glass; a measured foot of the other side makes
     /// the verdict "side mismatch" (docs/method.md section 3.3).
     pub side: Option<crate::measure::Side>,
+    /// The subject (patient id) the scan is of, for the titles of its images.
+    pub subject: Option<String>,
 }
 
 impl ScanOptions {
@@ -36,6 +38,7 @@ impl ScanOptions {
             cancel: CancelToken::default(),
             tap: None,
             side: None,
+            subject: None,
         }
     }
 }
@@ -96,6 +99,11 @@ pub fn run_scan(
             truth: backend.truth_source(),
             counters: counters.clone(),
             tap: opts.tap.clone(),
+            label: crate::io::HeightMapLabel {
+                side: opts.side,
+                side_measured: false,
+                subject: opts.subject.clone(),
+            },
         };
         let pipeline = registry()
             .build(&cfg.config.pipeline, &ctx)

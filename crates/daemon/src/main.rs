@@ -14,8 +14,11 @@ use std::path::PathBuf;
     about = "footscan daemon: HTTP API, live preview and scan archive"
 )]
 struct Args {
-    /// Daemon config (see config/footscand.toml).
-    #[arg(long, default_value = "config/footscand.toml")]
+    /// Daemon config: a path, or a relative name looked up in the working directory (NAME,
+    /// config/NAME), $FOOTSCAN_CONFIG_DIR, $XDG_CONFIG_HOME/footscan (~/.config/footscan),
+    /// /etc/footscan, ../share/footscan beside the executable, and the config/ of the checkout
+    /// it was built in; first found wins (see config/footscand.toml).
+    #[arg(long, default_value = "footscand.toml")]
     config: PathBuf,
     /// Address to listen on (IP:PORT; port 0 picks a free one), overriding [daemon] bind.
     #[arg(long)]
@@ -74,6 +77,7 @@ fn main() {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(footscan::startup::log_colour())
         .init();
     if let Err(e) = run(args) {
         eprintln!("footscand: {e:#}");
@@ -82,7 +86,9 @@ fn main() {
 }
 
 fn run(args: Args) -> Result<()> {
-    let config = DaemonConfig::load(&args.config, args.bind.as_deref())?;
+    let path = footscan::startup::find_config(&args.config)?;
+    tracing::info!("config {}", path.display());
+    let config = DaemonConfig::load(&path, args.bind.as_deref())?;
     let bind = config.bind;
     let daemon = Daemon::open(config)?;
     let rt = tokio::runtime::Builder::new_multi_thread()

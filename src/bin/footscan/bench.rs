@@ -18,7 +18,7 @@ enum What {
     /// Calibration methods side by side: each parameter against the simulator's truth, height
     /// RMS and max error on a held-out staircase and the simulated foot.
     Calibrate {
-        #[arg(long, default_value = "config/sim.toml")]
+        #[arg(long, default_value = crate::DEFAULT_CONFIG, help = crate::CONFIG_HELP)]
         config: PathBuf,
         /// Only these methods (repeatable; default insystem, bezier, opencv).
         #[arg(long = "method", value_parser = ["insystem", "bezier", "opencv"])]
@@ -35,7 +35,7 @@ enum What {
     /// 7.5): the Bezier network against least squares, B-spline approximation, NURBS and C2
     /// B-spline interpolation on one scan, printed beside the paper's figures.
     Surface {
-        #[arg(long, default_value = "config/sim.toml")]
+        #[arg(long, default_value = crate::DEFAULT_CONFIG, help = crate::CONFIG_HELP)]
         config: PathBuf,
         /// A saved scan directory (its grid.bin); default: run a simulated scan (~15 s).
         #[arg(long)]
@@ -46,7 +46,7 @@ enum What {
     },
     /// Simulator renderer: frames/s on one core for the configured scanner.
     Render {
-        #[arg(long, default_value = "config/sim.toml")]
+        #[arg(long, default_value = crate::DEFAULT_CONFIG, help = crate::CONFIG_HELP)]
         config: PathBuf,
         /// Frames to render.
         #[arg(long, default_value_t = 400)]
@@ -137,7 +137,7 @@ pub fn run(args: Args) -> Result<()> {
         } => {
             use footscan::bench::calibrate as bc;
             use footscan::calib::{CalibrationPlan, Method};
-            let cfg = footscan::scan::LoadedConfig::load(&config)?;
+            let cfg = crate::load_config(&config)?;
             let methods: Vec<Method> = if methods.is_empty() {
                 Method::ALL.to_vec()
             } else {
@@ -164,7 +164,7 @@ pub fn run(args: Args) -> Result<()> {
             Ok(())
         }
         What::Surface { config, scan, json } => {
-            let cfg = footscan::scan::LoadedConfig::load(&config)?;
+            let cfg = crate::load_config(&config)?;
             let grid = footscan::bench::surface::scan_or_load(&cfg, scan.as_deref())
                 .map_err(|e| anyhow::anyhow!(e))?;
             let b = footscan::bench::surface::run(&cfg.config, &grid)
@@ -181,7 +181,7 @@ pub fn run(args: Args) -> Result<()> {
             frames,
             json,
         } => {
-            let cfg = footscan::scan::LoadedConfig::load(&config)?;
+            let cfg = crate::load_config(&config)?;
             let rows = footscan::bench::render::run(&cfg.config, frames)
                 .map_err(|e| anyhow::anyhow!(e))?;
             if json {

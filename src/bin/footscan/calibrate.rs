@@ -7,15 +7,13 @@ use anyhow::{Context, Result};
 use footscan::calib::guided::{Decision, Guide, Ready, Step, StepResult};
 use footscan::calib::{CalibError, CalibrationPlan, Method};
 use footscan::scan::calibrate as procedure;
-use footscan::scan::LoadedConfig;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::{BufRead, Write};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scanner configuration (config/footscan.toml for hardware, config/sim.toml simulated).
-    #[arg(long, default_value = "config/sim.toml")]
+    #[arg(long, default_value = crate::DEFAULT_CONFIG, help = crate::CONFIG_HELP)]
     config: PathBuf,
     /// insystem: the scanner's own fit of the general model; bezier: heights from the Bezier
     /// depth network; opencv: the checkerboard reference (simulator only).
@@ -141,7 +139,7 @@ impl Guide for ConsoleGuide {
 }
 
 pub fn run(args: Args) -> Result<()> {
-    let cfg = LoadedConfig::load(&args.config)?;
+    let cfg = crate::load_config(&args.config)?;
     let plan = match &args.plan {
         Some(p) => CalibrationPlan::load(p)?,
         None => CalibrationPlan::default(),

@@ -12,13 +12,31 @@ mod measure;
 mod model;
 mod report;
 mod scan;
+mod scan_dir;
 mod sim;
 mod verify;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 use footscan::scan::{self as fscan, LoadedConfig};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// `--config`'s default: a name looked up as `footscan::startup` says.
+pub const DEFAULT_CONFIG: &str = "sim.toml";
+/// `--config`'s help: where a relative name is looked for.
+pub const CONFIG_HELP: &str = "Scanner configuration: a path, or a relative name looked up in \
+    the working directory (NAME, config/NAME), $FOOTSCAN_CONFIG_DIR, \
+    $XDG_CONFIG_HOME/footscan (~/.config/footscan), /etc/footscan, ../share/footscan beside the \
+    executable, and the config/ of the checkout it was built in; first found wins \
+    (config/sim.toml: the simulator, config/footscan.toml: hardware)";
+
+/// The scanner config `--config` names (looked up as [`footscan::startup::find_config`] says),
+/// loaded; the file used is logged at info level.
+pub fn load_config(name: &Path) -> Result<LoadedConfig> {
+    let path = footscan::startup::find_config(name)?;
+    tracing::info!("scanner config {}", path.display());
+    Ok(LoadedConfig::load(&path)?)
+}
 
 #[derive(Parser)]
 #[command(
@@ -34,11 +52,12 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run a scan and write points.ply, heightmap.png, scan.json and calibration.toml to --out.
+    /// The scan is written beside --out and moved there when it ends; an earlier scan in
+    /// --out is kept whole as --out.previous-<UTC time>.
     Scan {
-        /// Scanner configuration (see config/sim.toml).
-        #[arg(long, default_value = "config/sim.toml")]
+        #[arg(long, default_value = crate::DEFAULT_CONFIG, help = crate::CONFIG_HELP)]
         config: PathBuf,
-        /// Scan directory to create or overwrite.
+        /// Scan folder: new, empty, or holding an earlier scan (kept, renamed).
         #[arg(long)]
         out: PathBuf,
         /// Calibration TOML (default for the simulator: its true model).
@@ -54,7 +73,7 @@ enum Command {
     },
     /// Write the simulated scanner's true calibration as a calibration TOML.
     SimCalibration {
-        #[arg(long, default_value = "config/sim.toml")]
+        #[arg(long, default_value = crate::DEFAULT_CONFIG, help = crate::CONFIG_HELP)]
         config: PathBuf,
         #[arg(long)]
         out: PathBuf,
@@ -63,7 +82,8 @@ enum Command {
     Stages,
     /// Build the Bezier-network plantar model of a saved scan and write it as closed meshes.
     Model(model::Args),
-    /// Foot measurements of a saved scan: measurements.json and plantar.png in the scan directory.
+    /// Foot measurements of a saved scan: measurements.json and plantar.png, in the scan
+    /// directory or only in --out.
     Measure(measure::Args),
     /// Calibrate the scanner (insystem, bezier or the OpenCV reference) into a calibration TOML.
     Calibrate(calibrate::Args),
@@ -115,6 +135,7 @@ fn run() -> Result<()> {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(footscan::startup::log_colour())
         .init();
     match Cli::parse().command {
         Command::Scan {
@@ -125,7 +146,7 @@ fn run() -> Result<()> {
             side,
         } => scan::run(config, out, calibration, quiet, side),
         Command::SimCalibration { config, out } => {
-            let cfg = LoadedConfig::load(&config)?;
+            let cfg = load_config(&config)?;
             fscan::sim::true_calibration(&cfg.config).save(&out)?;
             println!("wrote {}", out.display());
             Ok(())

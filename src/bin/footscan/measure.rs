@@ -1,17 +1,20 @@
-//! `footscan measure --scan DIR`: the foot measurements of a saved scan (measurements.json and
-//! plantar.png in DIR), a table on stdout and, for simulated scans, the error against truth.
+//! `footscan measure --scan DIR [--out OUT]`: the foot measurements of a saved scan
+//! (measurements.json and plantar.png, in DIR or else only in OUT), a table on stdout and, for
+//! simulated scans, the error against truth.
 
 use anyhow::{Context, Result};
 use clap::Parser;
 use footscan::measure::{measure_scan_dir, DEFAULT_CELL_MM};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(Parser)]
 pub struct Args {
     /// Scan directory holding grid.bin (written by the sink.grid stage).
     #[arg(long)]
     scan: PathBuf,
-    /// Measurements JSON (default: DIR/measurements.json).
+    /// Where to write, instead of the scan directory (which is then only read): a folder
+    /// (created if needed) for measurements.json and plantar.png, or a file name ending in
+    /// .json, with the drawing beside it under the same name ending in .png.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Cell of the height map measured (mm).
@@ -22,9 +25,34 @@ pub struct Args {
     no_model: bool,
 }
 
+/// The measurements JSON and the drawing `--out` names.
+fn outputs(out: &Path) -> (PathBuf, PathBuf) {
+    if out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+    {
+        (out.to_path_buf(), out.with_extension("png"))
+    } else {
+        (out.join("measurements.json"), out.join("plantar.png"))
+    }
+}
+
 pub fn run(a: Args) -> Result<()> {
-    let o = measure_scan_dir(&a.scan, a.out.as_deref(), a.cell_mm, !a.no_model)
-        .with_context(|| format!("measuring the scan in {}", a.scan.display()))?;
+    let files = a.out.as_deref().map(outputs);
+    if let Some((json, _)) = &files {
+        if let Some(dir) = json.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("creating --out's folder {}", dir.display()))?;
+        }
+    }
+    let o = measure_scan_dir(
+        &a.scan,
+        files.as_ref().map(|f| f.0.as_path()),
+        files.as_ref().map(|f| f.1.as_path()),
+        a.cell_mm,
+        !a.no_model,
+    )
+    .with_context(|| format!("measuring the scan in {}", a.scan.display()))?;
     let m = &o.measurements;
     let side = format!("{:?}", m.side).to_lowercase();
     println!("{side} foot (heights: {})", m.heights_from);
@@ -62,4 +90,24 @@ pub fn run(a: Args) -> Result<()> {
     }
     println!("wrote {} and {}", o.json.display(), o.png.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn out_names_a_folder_or_the_json() {
+        assert_eq!(
+            outputs(Path::new("o")),
+            (
+                PathBuf::from("o/measurements.json"),
+                PathBuf::from("o/plantar.png")
+            )
+        );
+        assert_eq!(
+            outputs(Path::new("a/m.JSON")),
+            (PathBuf::from("a/m.JSON"), PathBuf::from("a/m.png"))
+        );
+    }
 }

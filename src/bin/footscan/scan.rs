@@ -1,10 +1,13 @@
 //! `footscan scan`: a scan with a progress bar, a printed summary and the quality gate's
 //! verdict; a scan that must be redone (or whose side disagrees with `--side`) ends the
-//! command with an error, its files kept with the reason in scan.json.
+//! command with an error, its files kept with the reason in scan.json. The scan is written
+//! beside `--out` and moved there when it ends (`scan_dir`): an earlier scan in `--out` is kept
+//! whole as `--out.previous-<UTC time>`, never mixed with the new one.
 
+use crate::scan_dir::Staged;
 use anyhow::{bail, Context, Result};
 use footscan::measure::Side;
-use footscan::scan::{self, LoadedConfig, ScanOptions, ScanStatus};
+use footscan::scan::{self, ScanOptions, ScanStatus};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
@@ -22,7 +25,7 @@ pub fn run(
     quiet: bool,
     side: Option<SideArg>,
 ) -> Result<()> {
-    let cfg = LoadedConfig::load(&config)?;
+    let cfg = crate::load_config(&config)?;
     let bar = if quiet {
         ProgressBar::hidden()
     } else {
@@ -35,31 +38,45 @@ pub fn run(
         .expect("progress template")
         .progress_chars("=> "),
     );
-    let mut opts = ScanOptions::new(&out);
+    let staged = Staged::begin(&out)?;
+    let out = staged.dest.clone();
+    let mut opts = ScanOptions::new(&staged.partial);
     opts.calibration = calibration;
     opts.side = side.map(|s| match s {
         SideArg::Left => Side::Left,
         SideArg::Right => Side::Right,
     });
     let cancel = opts.cancel.clone();
+    let partial = staged.partial.clone();
     // First Ctrl-C stops the slider and ends the scan cleanly; a second one exits at once.
     ctrlc::set_handler(move || {
         if cancel.is_cancelled() {
+            eprintln!("\nthe unfinished scan is left in {}", partial.display());
             std::process::exit(130);
         }
         eprintln!("\ncancelling the scan (Ctrl-C again to quit at once)");
         cancel.cancel();
     })
     .context("installing the Ctrl-C handler")?;
-    let started = std::time::SystemTime::now();
-    let summary = scan::run_scan(&cfg, &opts, |p| {
+    let result = scan::run_scan(&cfg, &opts, |p| {
         bar.set_length(p.expected_frames);
         bar.set_position(p.frames.min(p.expected_frames));
         bar.set_message(format!("{} dropped", p.dropped));
-    })
-    .with_context(|| {
+    });
+    bar.finish_and_clear();
+    // Ended, whichever way: the new scan (even a failed one, with its reason) goes to --out.
+    let json_written = staged.partial.join("scan.json").is_file();
+    let placed = staged.finish()?;
+    if let Some(prev) = &placed.previous {
+        eprintln!(
+            "the earlier scan in {} is kept as {}",
+            out.display(),
+            prev.display()
+        );
+    }
+    let summary = result.with_context(|| {
         let json = out.join("scan.json");
-        if written_since(&json, started) {
+        if json_written {
             format!("scan failed (the reason is kept in {})", json.display())
         } else {
             format!(
@@ -68,7 +85,6 @@ pub fn run(
             )
         }
     })?;
-    bar.finish_and_clear();
     match summary.status {
         ScanStatus::Cancelled | ScanStatus::Failed => {
             println!(
@@ -112,11 +128,11 @@ pub fn run(
             s.name, s.input, s.output, s.dropped, s.mean_latency_ms, s.max_latency_ms
         );
     }
-    // What this scan's stages actually wrote, not a fixed list nor what --out held before.
+    // What this scan's stages wrote: --out holds this scan alone.
     let mut files: Vec<String> = std::fs::read_dir(&out)
         .map(|d| {
             d.filter_map(|e| e.ok())
-                .filter(|e| e.path().is_file() && written_since(&e.path(), started))
+                .filter(|e| e.path().is_file())
                 .map(|e| e.file_name().to_string_lossy().into_owned())
                 .collect()
         })
@@ -124,11 +140,4 @@ pub fn run(
     files.sort();
     println!("wrote {}/{{{}}}", out.display(), files.join(", "));
     Ok(())
-}
-
-/// Whether `path` is a file modified at or after `t` (this run wrote it).
-fn written_since(path: &std::path::Path, t: std::time::SystemTime) -> bool {
-    std::fs::metadata(path)
-        .and_then(|m| m.modified())
-        .is_ok_and(|m| m >= t)
 }

@@ -8,13 +8,11 @@ use footscan::calib::guided::{AutoGuide, Decision, Guide, Ready, Step, StepResul
 use footscan::calib::{CalibError, Calibration, CalibrationPlan};
 use footscan::scan::calibrate as procedure;
 use footscan::scan::config::Backend;
-use footscan::scan::LoadedConfig;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scanner configuration.
-    #[arg(long, default_value = "config/sim.toml")]
+    #[arg(long, default_value = crate::DEFAULT_CONFIG, help = crate::CONFIG_HELP)]
     config: PathBuf,
     /// The calibration to check (default: scanner.calibration; the simulator's true model
     /// when the simulator has none).
@@ -58,7 +56,7 @@ impl Guide for Console {
 }
 
 pub fn run(args: Args) -> Result<()> {
-    let cfg = LoadedConfig::load(&args.config)?;
+    let cfg = crate::load_config(&args.config)?;
     let plan = match &args.plan {
         Some(p) => CalibrationPlan::load(p)?,
         None => CalibrationPlan::default(),

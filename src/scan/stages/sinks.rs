@@ -1,7 +1,7 @@
 //! Sinks: files written from the finished scan grid. Each passes on every item (the grid and
 //! whatever it does not handle) so sinks and model stages chain in any order after accumulate.
 
-use crate::io::{render_heightmap, write_ply_points};
+use crate::io::{render_heightmap, write_ply_points, HeightMapLabel};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::Item;
 use crate::scan::summary::{summarize, TruthSource};
@@ -27,21 +27,42 @@ impl Stage<Item> for PlySink {
     }
 }
 
+/// Writes heightmap.png from the grid, titled with `label` (the side the operator chose, the
+/// subject). Placed after `measure.foot`, it writes the map again with the measured side when
+/// the measurement arrives.
 pub struct HeightMapSink {
     pub path: PathBuf,
     pub cell_mm: f64,
+    pub label: HeightMapLabel,
+    /// The grid's valid points, kept for a title with the measured side.
+    pub points: Option<Vec<[f64; 3]>>,
+}
+
+impl HeightMapSink {
+    fn write(&self, pts: &[[f64; 3]]) -> Result<(), BoxError> {
+        render_heightmap(pts, self.cell_mm, &self.label)
+            .save(&self.path)
+            .map_err(|e| format!("writing {}: {e}", self.path.display()).into())
+    }
 }
 
 impl Stage<Item> for HeightMapSink {
     fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
-        let Item::Grid(grid) = &item else {
-            let _ = out.emit(item);
-            return Ok(());
-        };
-        let pts: Vec<[f64; 3]> = grid.valid().map(|(_, _, p, _)| *p).collect();
-        render_heightmap(&pts, self.cell_mm)
-            .save(&self.path)
-            .map_err(|e| format!("writing {}: {e}", self.path.display()))?;
+        match &item {
+            Item::Grid(grid) => {
+                let pts: Vec<[f64; 3]> = grid.valid().map(|(_, _, p, _)| *p).collect();
+                self.write(&pts)?;
+                self.points = Some(pts);
+            }
+            Item::Foot(m) => {
+                self.label.side = Some(m.side);
+                self.label.side_measured = true;
+                if let Some(pts) = self.points.take() {
+                    self.write(&pts)?;
+                }
+            }
+            _ => {}
+        }
         let _ = out.emit(item);
         Ok(())
     }

@@ -162,6 +162,8 @@ impl Daemon {
             "right" => Some(footscan::measure::Side::Right),
             _ => None,
         };
+        // heightmap.png's title names the subject.
+        opts.subject = Some(active.record.subject.clone());
         let mut last_event: Option<Instant> = None;
         let on_progress = |p: &ScanProgress| {
             let prog = self.update_progress(&id, p, started);

@@ -132,6 +132,7 @@ fn check_stages(cfg: &LoadedConfig, calibration: &Calibration) -> Result<(), Str
         truth: None,
         counters: Arc::default(),
         tap: None,
+        label: Default::default(),
     };
     for (i, s) in spec.stages.iter().enumerate() {
         let wrong = |why: String| {
