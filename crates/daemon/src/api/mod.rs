@@ -89,6 +89,7 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/", get(dashboard_index))
         .route("/app.js", get(dashboard_js))
         .route("/calibration.js", get(dashboard_calibration_js))
+        .route("/visits.js", get(dashboard_visits_js))
         .route("/style.css", get(dashboard_css))
         .route("/api/health", get(health))
         .route("/api/status", get(live::status))
@@ -184,7 +185,7 @@ async fn auth(State(st): State<AppState>, req: Request, next: Next) -> Response 
     if req.method() == Method::GET
         && matches!(
             path,
-            "/api/health" | "/" | "/app.js" | "/calibration.js" | "/style.css"
+            "/api/health" | "/" | "/app.js" | "/calibration.js" | "/visits.js" | "/style.css"
         )
     {
         return next.run(req).await;
@@ -333,6 +334,13 @@ async fn dashboard_calibration_js() -> Response {
     static_file(
         "text/javascript; charset=utf-8",
         include_str!("dashboard/calibration.js"),
+    )
+}
+
+async fn dashboard_visits_js() -> Response {
+    static_file(
+        "text/javascript; charset=utf-8",
+        include_str!("dashboard/visits.js"),
     )
 }
 

@@ -94,3 +94,198 @@ pub fn target_png(name: &str) -> PathBuf {
         .expect("CARGO_TARGET_TMPDIR is inside the target directory")
         .join(name)
 }
+
+/// Chromium driven over the DevTools protocol (`--remote-debugging-pipe`: JSON messages ended
+/// by NUL on fds 3 and 4, no extra crate), one page attached: for tests that work the page
+/// (type, click) rather than only load it.
+pub struct Browser {
+    child: std::process::Child,
+    tx: std::fs::File,
+    rx: std::io::BufReader<std::fs::File>,
+    next_id: u64,
+    session: String,
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn pipe() -> (std::os::fd::OwnedFd, std::os::fd::OwnedFd) {
+    use std::os::fd::FromRawFd;
+    let mut fds = [0; 2];
+    // SAFETY: pipe2 fills two new descriptors, owned from here on.
+    assert_eq!(unsafe { libc::pipe2(fds.as_mut_ptr(), libc::O_CLOEXEC) }, 0);
+    unsafe {
+        (
+            std::os::fd::OwnedFd::from_raw_fd(fds[0]),
+            std::os::fd::OwnedFd::from_raw_fd(fds[1]),
+        )
+    }
+}
+
+impl Browser {
+    /// Headless Chromium with a fresh `profile`, one blank page of `width` x `height` CSS px.
+    pub fn launch(profile: &Path, width: u32, height: u32) -> Browser {
+        use serde_json::json;
+        use std::os::fd::IntoRawFd;
+        use std::os::unix::process::CommandExt;
+        require();
+        let (cmd_r, cmd_w) = pipe(); // we write commands, Chromium reads fd 3
+        let (ev_r, ev_w) = pipe(); // Chromium writes fd 4, we read
+        let (a, b) = (cmd_r.into_raw_fd(), ev_w.into_raw_fd());
+        let mut cmd = Command::new(CHROMIUM);
+        cmd.args(HEADLESS)
+            .args(["--remote-debugging-pipe", "about:blank"])
+            .arg(format!("--user-data-dir={}", profile.display()))
+            .arg(format!("--window-size={width},{height}"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null());
+        // SAFETY: only async-signal-safe dup2 calls between fork and exec.
+        unsafe {
+            cmd.pre_exec(move || {
+                if libc::dup2(a, 3) < 0 || libc::dup2(b, 4) < 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+        let child = cmd
+            .spawn()
+            .unwrap_or_else(|e| panic!("starting {CHROMIUM}: {e}"));
+        // SAFETY: the raw descriptors came from into_raw_fd above; the child has its copies.
+        unsafe {
+            libc::close(a);
+            libc::close(b);
+        }
+        let mut br = Browser {
+            child,
+            tx: std::fs::File::from(cmd_w),
+            rx: std::io::BufReader::new(std::fs::File::from(ev_r)),
+            next_id: 0,
+            session: String::new(),
+        };
+        let t = br.call(None, "Target.createTarget", json!({"url": "about:blank"}));
+        let target = t["targetId"].as_str().unwrap().to_string();
+        let s = br.call(
+            None,
+            "Target.attachToTarget",
+            json!({"targetId": target, "flatten": true}),
+        );
+        br.session = s["sessionId"].as_str().unwrap().to_string();
+        br.page(
+            "Emulation.setDeviceMetricsOverride",
+            json!({"width": width, "height": height, "deviceScaleFactor": 1, "mobile": false}),
+        );
+        br
+    }
+
+    /// One DevTools command (on the page's session when `session` is given); its result.
+    pub fn call(
+        &mut self,
+        session: Option<&str>,
+        method: &str,
+        params: serde_json::Value,
+    ) -> serde_json::Value {
+        use std::io::{BufRead, Write};
+        self.next_id += 1;
+        let id = self.next_id;
+        let mut msg = serde_json::json!({"id": id, "method": method, "params": params});
+        if let Some(s) = session {
+            msg["sessionId"] = s.into();
+        }
+        let mut bytes = serde_json::to_vec(&msg).unwrap();
+        bytes.push(0);
+        self.tx.write_all(&bytes).unwrap();
+        loop {
+            let mut buf = Vec::new();
+            let n = self.rx.read_until(0, &mut buf).unwrap();
+            assert!(n > 0, "chromium closed the DevTools pipe during {method}");
+            buf.pop();
+            let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
+            if v["id"] == id {
+                assert!(v["error"].is_null(), "{method}: {}", v["error"]);
+                return v["result"].clone();
+            }
+        }
+    }
+
+    /// A command on the page.
+    pub fn page(&mut self, method: &str, params: serde_json::Value) -> serde_json::Value {
+        let s = self.session.clone();
+        self.call(Some(&s), method, params)
+    }
+
+    /// Load `url` and wait (at most `limit`) until `ready` (a JS expression) is true.
+    pub fn open(&mut self, url: &str, ready: &str, limit: Duration) {
+        self.page("Page.enable", serde_json::json!({}));
+        self.page("Page.navigate", serde_json::json!({ "url": url }));
+        self.wait_for(
+            &format!("document.readyState === 'complete' && !!({ready})"),
+            limit,
+        );
+    }
+
+    /// Evaluate `expr` in the page (promises awaited); its value. Panics on an exception.
+    pub fn eval(&mut self, expr: &str) -> serde_json::Value {
+        let r = self.page(
+            "Runtime.evaluate",
+            serde_json::json!({"expression": expr, "returnByValue": true, "awaitPromise": true}),
+        );
+        assert!(
+            r["exceptionDetails"].is_null(),
+            "{expr}: {}",
+            r["exceptionDetails"]
+        );
+        r["result"]["value"].clone()
+    }
+
+    /// Poll `expr` until it is true (at most `limit`, else panic naming it).
+    pub fn wait_for(&mut self, expr: &str, limit: Duration) {
+        let t0 = Instant::now();
+        while self.eval(&format!(
+            "(() => {{ try {{ return !!({expr}); }} catch (_) {{ return false; }} }})()"
+        )) != true
+        {
+            assert!(
+                t0.elapsed() < limit,
+                "the page did not reach {expr} in {limit:?}"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    /// Click the element with this id.
+    pub fn click(&mut self, id: &str) {
+        let found = self.eval(&format!(
+            "(() => {{ const e = document.getElementById({id:?}); if (e) e.click(); return !!e; }})()"
+        ));
+        assert_eq!(found, true, "no element #{id} to click");
+    }
+
+    /// A PNG of the page as shown into `path`, decoded; with `element`, of that element only
+    /// (its box, scrolled or not).
+    pub fn screenshot(&mut self, path: &Path, element: Option<&str>) -> image::RgbImage {
+        use base64::Engine;
+        let mut params = serde_json::json!({"format": "png"});
+        if let Some(id) = element {
+            let r = self.eval(&format!(
+                "(() => {{ const r = document.getElementById({id:?}).getBoundingClientRect(); \
+                 return [r.left + scrollX, r.top + scrollY, r.width, r.height]; }})()"
+            ));
+            let b: Vec<f64> = serde_json::from_value(r).unwrap();
+            params["clip"] = serde_json::json!({"x": b[0], "y": b[1], "width": b[2],
+                "height": b[3], "scale": 1});
+            params["captureBeyondViewport"] = true.into();
+        }
+        let r = self.page("Page.captureScreenshot", params);
+        let png = base64::engine::general_purpose::STANDARD
+            .decode(r["data"].as_str().unwrap())
+            .unwrap();
+        std::fs::write(path, &png).unwrap();
+        println!("screenshot {}", path.display());
+        image::load_from_memory(&png).unwrap().to_rgb8()
+    }
+}
