@@ -229,7 +229,7 @@ fn rescan_keeps_both_scans_measure_out_writes_only_out_and_logs_are_plain() {
     let hm = image::open(dest.join("heightmap.png")).unwrap().to_rgb8();
     assert_eq!(
         read_title(&hm, 12, 4),
-        "RIGHT foot (as chosen), plantar view seen from below"
+        "RIGHT foot (measured), plantar view seen from below"
     );
     assert!(read_title(&hm, 12, 16).starts_with("sole height, x "));
 

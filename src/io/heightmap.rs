@@ -5,11 +5,10 @@ use std::path::Path;
 /// Which foot a height map shows and whose it is: its title's first line.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct HeightMapLabel {
-    /// The foot's side, if known.
-    pub side: Option<Side>,
-    /// Whether `side` was measured on the scan (stage `measure.foot`) rather than chosen by
-    /// the operator.
-    pub side_measured: bool,
+    /// The side the operator chose, if any.
+    pub chosen: Option<Side>,
+    /// The side measured on the scan (stage `measure.foot`), if known: the title's side.
+    pub measured: Option<Side>,
     /// The subject (patient id) when the scan has one.
     pub subject: Option<String>,
 }
@@ -21,16 +20,19 @@ impl HeightMapLabel {
     /// The title's first line: side (and where it comes from), the view, the subject.
     /// Characters the 8x8 font lacks are shown as '?'.
     pub fn title(&self) -> String {
-        let side = match (self.side, self.side_measured) {
-            (None, _) => "side not given".to_string(),
-            (Some(s), measured) => format!(
-                "{} foot ({})",
-                match s {
-                    Side::Left => "LEFT",
-                    Side::Right => "RIGHT",
-                },
-                if measured { "measured" } else { "as chosen" }
+        let word = |s: Side| match s {
+            Side::Left => "left",
+            Side::Right => "right",
+        };
+        let side = match (self.measured, self.chosen) {
+            (Some(m), Some(c)) if m != c => format!(
+                "{} foot (measured; chosen: {})",
+                word(m).to_uppercase(),
+                word(c)
             ),
+            (Some(m), _) => format!("{} foot (measured)", word(m).to_uppercase()),
+            (None, Some(c)) => format!("{} foot (as chosen)", word(c).to_uppercase()),
+            (None, None) => "side not given".to_string(),
         };
         let mut t = format!("{side}, plantar view seen from below");
         if let Some(subject) = self.subject.as_deref().filter(|s| !s.trim().is_empty()) {
@@ -336,8 +338,8 @@ mod tests {
             .flat_map(|i| (0..80).map(move |j| [i as f64, j as f64, 5.0]))
             .collect();
         let label = HeightMapLabel {
-            side: Some(Side::Left),
-            side_measured: true,
+            chosen: Some(Side::Left),
+            measured: Some(Side::Left),
             subject: Some("p-0042".into()),
         };
         let hm = render_heightmap(&pts, 1.0, &label);
@@ -347,16 +349,31 @@ mod tests {
         );
         assert!(read_line(&hm.image, TITLE_LINES_Y[1]).starts_with("sole height, x 0-199 mm"));
         let chosen = HeightMapLabel {
-            side: Some(Side::Right),
-            side_measured: false,
+            chosen: Some(Side::Right),
+            measured: None,
             subject: Some("  ".into()),
         };
+        let line =
+            |l: &HeightMapLabel| read_line(&render_heightmap(&pts, 1.0, l).image, TITLE_LINES_Y[0]);
         assert_eq!(
-            read_line(
-                &render_heightmap(&pts, 1.0, &chosen).image,
-                TITLE_LINES_Y[0]
-            ),
+            line(&chosen),
             "RIGHT foot (as chosen), plantar view seen from below"
+        );
+        let mismatch = HeightMapLabel {
+            measured: Some(Side::Left),
+            ..chosen.clone()
+        };
+        assert_eq!(
+            line(&mismatch),
+            "LEFT foot (measured; chosen: right), plantar view seen from below"
+        );
+        let measured = HeightMapLabel {
+            chosen: None,
+            ..mismatch
+        };
+        assert_eq!(
+            measured.title(),
+            "LEFT foot (measured), plantar view seen from below"
         );
         assert_eq!(
             HeightMapLabel::default().title(),

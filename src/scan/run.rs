@@ -100,8 +100,8 @@ pub fn run_scan(
             counters: counters.clone(),
             tap: opts.tap.clone(),
             label: crate::io::HeightMapLabel {
-                side: opts.side,
-                side_measured: false,
+                chosen: opts.side,
+                measured: None,
                 subject: opts.subject.clone(),
             },
         };

@@ -1,7 +1,7 @@
 //! footscand's start-up (issue 18 item 6): its default config name found through
 //! $FOOTSCAN_CONFIG_DIR from any working directory, a missing one named with every place
-//! looked at, plain log lines on a piped stderr, and heightmap.png titled with the side, the
-//! view and the scan's subject.
+//! looked at, plain log lines on a piped stderr, and heightmap.png titled with the side (the
+//! shipped pipeline measures it before the map is drawn), the view and the scan's subject.
 
 mod daemon_support;
 
@@ -68,14 +68,14 @@ fn config_from_the_config_dir_plain_logs_and_a_titled_heightmap() {
     let png = d.download(&id, "heightmap.png");
     let img = image::load_from_memory(&png).unwrap().to_rgb8();
     let label = HeightMapLabel {
-        side: Some(footscan::measure::Side::Right),
-        side_measured: false,
+        chosen: Some(footscan::measure::Side::Right),
+        measured: Some(footscan::measure::Side::Right),
         subject: Some("p-0099".into()),
     };
     assert!(title_reads(
         &img,
         &label,
-        "RIGHT foot (as chosen), plantar view seen from below, subject p-0099"
+        "RIGHT foot (measured), plantar view seen from below, subject p-0099"
     ));
     // The check can fail: another subject does not read the same.
     let other = HeightMapLabel {

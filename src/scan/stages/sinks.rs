@@ -55,8 +55,7 @@ impl Stage<Item> for HeightMapSink {
                 self.points = Some(pts);
             }
             Item::Foot(m) => {
-                self.label.side = Some(m.side);
-                self.label.side_measured = true;
+                self.label.measured = Some(m.side);
                 if let Some(pts) = self.points.take() {
                     self.write(&pts)?;
                 }
