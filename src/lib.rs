@@ -5,6 +5,7 @@
 //! simulator (`footscan-sim`) is one more backend behind the same traits.
 
 pub mod bench;
+pub mod cad;
 pub mod calib;
 pub mod detect;
 pub mod geom;

@@ -21,9 +21,10 @@ mod network;
 pub mod ops;
 mod point_grid;
 pub mod poly;
+pub mod solid;
 
 pub use basis::{basis, basis_d1, basis_d2, interpolation_matrix};
-pub use export::{build_scan_model, model_scan, write_model, MeshFiles, ModelSummary};
+pub use export::build_scan_model;
 pub use mesh::Mesh;
 pub use network::{BezierNetwork, Continuity, Segment};
 pub use point_grid::{PointGrid, Subsample};
@@ -41,6 +42,15 @@ pub enum SurfaceError {
     Singular,
     #[error("cell_mm = {0}: must be positive")]
     BadCell(f64),
+    #[error("cell_mm = {cell_mm}: {nx} x {ny} grid nodes, more than {max}: use a larger cell")]
+    TooManyCells {
+        cell_mm: f64,
+        nx: usize,
+        ny: usize,
+        max: usize,
+    },
+    #[error("the model's boundary is inconsistent: {0}")]
+    Topology(String),
     #[error("writing {path}: {source}")]
     Write {
         path: std::path::PathBuf,

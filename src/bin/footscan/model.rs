@@ -1,10 +1,11 @@
-//! `footscan model --scan DIR`: the Bezier-network plantar model of a saved scan, written as
-//! closed meshes (STL, and PLY / OBJ on request) with a summary on stdout.
+//! `footscan model --scan DIR`: the foot model for CAD of a saved scan (`footscan::cad`): the
+//! Bezier network, the foot measured for its frame and outline, the closed solid written as
+//! STL, PLY, OBJ and a faceted STEP solid, with a summary on stdout.
 
 use anyhow::{Context, Result};
 use clap::Parser;
+use footscan::cad::{check_cell, model_scan, ModelFiles, DEFAULT_STEP_CELL_MM};
 use footscan::scan::ScanGrid;
-use footscan::surface::{model_scan, MeshFiles};
 use std::path::PathBuf;
 
 #[derive(Parser)]
@@ -16,11 +17,15 @@ pub struct Args {
     #[arg(long)]
     out: Option<PathBuf>,
     /// Mesh formats to write.
-    #[arg(long, value_delimiter = ',', default_value = "stl,ply,obj")]
+    #[arg(long, value_delimiter = ',', default_value = "stl,ply,obj,step")]
     formats: Vec<Format>,
-    /// Cell of the (x, y) grid the mesh is sampled on (mm).
-    #[arg(long, default_value_t = 0.5)]
+    /// Cell of the grid the mesh is sampled on, in the foot frame (mm): from 0.1 to a
+    /// quarter of the foot's ball width.
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     cell_mm: f64,
+    /// Cell of the faceted STEP solid (mm), same range.
+    #[arg(long, default_value_t = DEFAULT_STEP_CELL_MM, allow_negative_numbers = true)]
+    step_cell_mm: f64,
     /// Print the summary as JSON.
     #[arg(long)]
     json: bool,
@@ -31,22 +36,31 @@ enum Format {
     Stl,
     Ply,
     Obj,
+    Step,
 }
 
 pub fn run(a: Args) -> Result<()> {
+    // Refuse a hopeless cell before reading the grid; the foot's width is checked after.
+    check_cell("--cell-mm", a.cell_mm, None)?;
+    if a.formats.contains(&Format::Step) {
+        check_cell("--step-cell-mm", a.step_cell_mm, None)?;
+    }
     let grid_path = a.scan.join("grid.bin");
     let grid = ScanGrid::load(&grid_path)
         .with_context(|| format!("loading the scan grid {}", grid_path.display()))?;
     let out = a.out.unwrap_or_else(|| a.scan.clone());
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let want = |f: Format, name: &str| a.formats.contains(&f).then(|| out.join(name));
-    let files = MeshFiles {
+    let files = ModelFiles {
         stl: want(Format::Stl, "model.stl"),
         ply: want(Format::Ply, "model.ply"),
         obj: want(Format::Obj, "model.obj"),
+        step: want(Format::Step, "model.step"),
         cell_mm: a.cell_mm,
+        step_cell_mm: a.step_cell_mm,
     };
-    let (_, summary) = model_scan(&grid, &files)?;
+    let (_, summary) = model_scan(&grid, &files, ["--cell-mm", "--step-cell-mm"])
+        .with_context(|| format!("modelling the scan in {}", a.scan.display()))?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {

@@ -1,10 +1,12 @@
-//! The `model.bezier` pipeline stage: takes the scan grid, passes it on, writes the model's
-//! mesh files into the scan directory and emits the model after the grid.
+//! The `model.bezier` pipeline stage: takes the scan grid, passes it on, builds the Bezier
+//! network, writes the foot model for CAD (`footscan::cad`: the closed solid in the foot
+//! frame, STL and STEP) into the scan directory and emits the network after the grid.
 
 use super::out_file;
+use crate::cad::{write_foot_model, CadError, ModelFiles, DEFAULT_STEP_CELL_MM};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::Item;
-use crate::surface::{model_scan, MeshFiles};
+use crate::surface::build_scan_model;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -19,9 +21,23 @@ pub struct ModelParams {
     pub ply: String,
     #[serde(default)]
     pub obj: String,
-    /// Cell of the (x, y) grid the mesh is sampled on (mm).
+    /// The faceted STEP solid; "" to skip it.
+    #[serde(default = "default_step")]
+    pub step: String,
+    /// Cell of the grid the mesh is sampled on (mm), in the foot frame.
     #[serde(default = "default_cell")]
     pub cell_mm: f64,
+    /// Cell of the STEP solid (mm).
+    #[serde(default = "default_step_cell")]
+    pub step_cell_mm: f64,
+}
+
+fn default_step() -> String {
+    "model.step".into()
+}
+
+fn default_step_cell() -> f64 {
+    DEFAULT_STEP_CELL_MM
 }
 
 fn default_stl() -> String {
@@ -41,21 +57,22 @@ fn optional(out_dir: &Path, key: &str, f: &str) -> Result<Option<PathBuf>, BoxEr
 }
 
 pub struct ModelStage {
-    files: MeshFiles,
+    files: ModelFiles,
 }
 
 impl ModelStage {
     /// The stage of `p`, writing into `out_dir`; checks the cell and the file names.
     pub fn new(p: ModelParams, out_dir: &Path) -> Result<Self, BoxError> {
-        if !(p.cell_mm >= 0.05 && p.cell_mm <= 10.0) {
-            return Err(format!("cell_mm = {}: valid range is [0.05, 10]", p.cell_mm).into());
-        }
+        crate::cad::check_cell("cell_mm", p.cell_mm, None)?;
+        crate::cad::check_cell("step_cell_mm", p.step_cell_mm, None)?;
         Ok(ModelStage {
-            files: MeshFiles {
+            files: ModelFiles {
                 stl: optional(out_dir, "stl", &p.stl)?,
                 ply: optional(out_dir, "ply", &p.ply)?,
                 obj: optional(out_dir, "obj", &p.obj)?,
+                step: optional(out_dir, "step", &p.step)?,
                 cell_mm: p.cell_mm,
+                step_cell_mm: p.step_cell_mm,
             },
         })
     }
@@ -67,14 +84,37 @@ impl Stage<Item> for ModelStage {
             let _ = out.emit(item);
             return Ok(());
         };
-        let (net, summary) = model_scan(grid, &self.files)?;
+        let (net, build_ms) = build_scan_model(grid)?;
         tracing::info!(
-            segments = summary.segments,
-            skipped = summary.skipped,
-            build_ms = summary.build_ms,
-            max_jump_deg = summary.continuity.max_deg,
+            segments = net.segments().len(),
+            skipped = net.skipped(),
+            build_ms,
             "plantar model built"
         );
+        match write_foot_model(
+            grid,
+            &net,
+            build_ms,
+            &self.files,
+            ["cell_mm", "step_cell_mm"],
+        ) {
+            Ok(s) => {
+                tracing::info!(
+                    length_mm = s.extent_mm[0][1] - s.extent_mm[0][0],
+                    measured_length_mm = s.foot_length_mm,
+                    triangles = s.triangles,
+                    pieces = s.components,
+                    mesh_ms = s.mesh_ms,
+                    "foot model written"
+                );
+                for w in &s.warnings {
+                    tracing::warn!("model: {w}");
+                }
+            }
+            // No foot to put a frame on (an empty glass, a plate): the network still goes on.
+            Err(CadError::Measure(e)) => tracing::warn!("foot model not written: {e}"),
+            Err(e) => return Err(e.into()),
+        }
         let _ = out.emit(item);
         let _ = out.emit(Item::Model(Arc::new(net)));
         Ok(())

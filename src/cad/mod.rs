@@ -1,0 +1,589 @@
+//! The foot model for CAD (issue 18 item 5): one closed solid per foot in the foot's own frame,
+//! its walls on the measured sole outline, written as STL (and PLY / OBJ) and as a faceted
+//! STEP solid. Shared by the `model.bezier` stage and `footscan model`.
+//!
+//! - Frame: the measurements' heel point is the origin, x runs along the foot axis (heel
+//!   centre to second metatarsal head) toward the toes, y is x turned 90 degrees
+//!   counterclockwise seen from above (medial for a right foot, lateral for a left one), z is
+//!   up, the glass at z = 0. So x of the toe tip is the foot length.
+//! - Outline: the measured body outline (toes excluded) joined to the toe pads by the convex
+//!   hull of the toe pads and the body in front of the metatarsal heads (the scanner sees no
+//!   sole between the toes and the ball; the hull bridges that gap like a mitten). Behind the
+//!   metatarsal heads the outline is the measured one, vertex for vertex.
+//! - Heights: those the measurements were taken on (the Bezier model where it has a segment,
+//!   else the scan grid, at 0.1 mm), bilinear between cells; the bridged gaps, which no scan
+//!   point covers, are filled by the Laplace equation from their borders.
+//! - Solid: [`crate::surface::solid`] on cells of `cell_mm` (STL) and `step_cell_mm` (STEP),
+//!   bottom 2 mm below the glass. The gaps are filled once, on [`FILL_CELL_MM`], and other
+//!   cells sample that fill, so the STL and the STEP agree there.
+
+mod step;
+
+use crate::geom::HeightMap;
+use crate::measure::{measure_grid, MeasureError, Measurements, DEFAULT_CELL_MM};
+use crate::scandata::ScanGrid;
+use crate::surface::solid::{outline_solid, OutlineSolid};
+use crate::surface::{build_scan_model, BezierNetwork, Continuity, Mesh, SurfaceError};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::time::Instant;
+
+pub use step::{faceted_step, write_faceted_step};
+
+/// Smallest model cell (mm): a whole foot on 0.1 mm cells is about 5 million triangles and
+/// 0.5 GB while it is built; finer grids would not fit the scanner's memory.
+pub const MIN_CELL_MM: f64 = 0.1;
+/// Largest cell accepted before the foot is measured; after, a quarter of its ball width.
+pub const MAX_CELL_MM: f64 = 50.0;
+
+/// Why a model could not be built or written.
+#[derive(Debug, thiserror::Error)]
+pub enum CadError {
+    #[error("{name} = {value}: the model's cell must be between {lo} and {hi:.2} mm{why}")]
+    Cell {
+        name: &'static str,
+        value: f64,
+        lo: f64,
+        hi: f64,
+        why: String,
+    },
+    #[error(transparent)]
+    Surface(#[from] SurfaceError),
+    #[error("measuring the foot for the model's frame and outline: {0}")]
+    Measure(#[from] MeasureError),
+    #[error("writing {}: {source}", path.display())]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// Refuse a cell that is not a number, not positive, finer than [`MIN_CELL_MM`] or coarser
+/// than a quarter of the foot's ball width (before measuring: [`MAX_CELL_MM`]). `name` is
+/// how the caller spells the setting (`--cell-mm`, `cell_mm`).
+pub fn check_cell(
+    name: &'static str,
+    value: f64,
+    ball_width_mm: Option<f64>,
+) -> Result<(), CadError> {
+    let (hi, why) = match ball_width_mm {
+        Some(w) if w.is_finite() && w > 0.0 => (
+            (w / 4.0).min(MAX_CELL_MM),
+            format!(" (at most a quarter of this foot's ball width, {w:.1} mm)"),
+        ),
+        _ => (MAX_CELL_MM, String::new()),
+    };
+    if value.is_finite() && value >= MIN_CELL_MM && value <= hi {
+        return Ok(());
+    }
+    let why = if value.is_nan() {
+        format!("{why}; it is not a number")
+    } else if value < MIN_CELL_MM {
+        format!("{why}; finer cells would not fit in memory, and none can be 0 or negative")
+    } else {
+        why
+    };
+    Err(CadError::Cell {
+        name,
+        value,
+        lo: MIN_CELL_MM,
+        hi,
+        why,
+    })
+}
+
+/// The foot's frame on the glass: origin (the heel point) and the unit axis, world mm.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct FootFrame {
+    pub origin: [f64; 2],
+    pub x_axis: [f64; 2],
+}
+
+impl FootFrame {
+    pub fn of(m: &Measurements) -> FootFrame {
+        let d = m.axis_dir;
+        let n = d[0].hypot(d[1]);
+        FootFrame {
+            origin: m.heel_point,
+            x_axis: [d[0] / n, d[1] / n],
+        }
+    }
+
+    /// World (glass) point to foot coordinates.
+    pub fn to_foot(&self, p: [f64; 2]) -> [f64; 2] {
+        let (dx, dy) = (p[0] - self.origin[0], p[1] - self.origin[1]);
+        let [c, s] = self.x_axis;
+        [c * dx + s * dy, -s * dx + c * dy]
+    }
+
+    /// Foot coordinates to the world (glass).
+    pub fn to_world(&self, q: [f64; 2]) -> [f64; 2] {
+        let [c, s] = self.x_axis;
+        [
+            self.origin[0] + c * q[0] - s * q[1],
+            self.origin[1] + s * q[0] + c * q[1],
+        ]
+    }
+}
+
+/// The sole outline in foot coordinates (counterclockwise) and what was done to get it.
+#[derive(Clone, Debug)]
+pub struct SoleOutline {
+    pub points: Vec<[f64; 2]>,
+    /// Area the hull added between the toe pads and the body (mm^2).
+    pub bridged_mm2: f64,
+    pub warnings: Vec<String>,
+}
+
+/// The measured body outline joined to the toe pads (see the module doc), foot coordinates.
+pub fn sole_outline(m: &Measurements, frame: &FootFrame) -> SoleOutline {
+    let mut body: Vec<[f64; 2]> = m.outline.iter().map(|&p| frame.to_foot(p)).collect();
+    if area(&body) < 0.0 {
+        body.reverse();
+    }
+    let toes: Vec<Vec<[f64; 2]>> = m
+        .toe_outlines
+        .iter()
+        .map(|t| t.iter().map(|&p| frame.to_foot(p)).collect())
+        .collect();
+    let body_area = area(&body);
+    let toe_area: f64 = toes.iter().map(|t| area(t).abs()).sum();
+    let mut warnings = Vec::new();
+    // The cut: behind both metatarsal heads and every toe pad.
+    let mut s_cut = frame.to_foot(m.mt1_head)[0].min(frame.to_foot(m.mt5_head)[0]);
+    for t in &toes {
+        for p in t {
+            s_cut = s_cut.min(p[0]);
+        }
+    }
+    s_cut -= 1.0;
+    // Step back until the body outline crosses the cut exactly twice.
+    for _ in 0..40 {
+        if let Some(points) = join_front(&body, &toes, s_cut) {
+            let bridged = area(&points) - body_area - toe_area;
+            return SoleOutline {
+                points,
+                bridged_mm2: bridged.max(0.0),
+                warnings,
+            };
+        }
+        s_cut -= 2.0;
+    }
+    warnings.push(format!(
+        "the body outline is not a simple band across the forefoot: the model leaves out the \
+         {} toe pads",
+        toes.len()
+    ));
+    SoleOutline {
+        points: body,
+        bridged_mm2: 0.0,
+        warnings,
+    }
+}
+
+/// Body outline behind x = `cut` followed by the convex hull of the body and toes in front of
+/// it; None unless the body crosses the cut exactly twice.
+fn join_front(body: &[[f64; 2]], toes: &[Vec<[f64; 2]>], cut: f64) -> Option<Vec<[f64; 2]>> {
+    let n = body.len();
+    // Crossings: (edge index k from body[k] to body[k+1], point, entering the front?).
+    let mut cross = Vec::new();
+    for k in 0..n {
+        let (a, b) = (body[k], body[(k + 1) % n]);
+        if (a[0] < cut) != (b[0] < cut) {
+            let f = (cut - a[0]) / (b[0] - a[0]);
+            cross.push((k, [cut, a[1] + f * (b[1] - a[1])], a[0] < cut));
+        }
+    }
+    if cross.len() != 2 || cross[0].2 == cross[1].2 {
+        return None;
+    }
+    let (enter, leave) = if cross[0].2 {
+        (cross[0], cross[1])
+    } else {
+        (cross[1], cross[0])
+    };
+    // Rear chain: from the leaving crossing through the vertices behind the cut to the
+    // entering one (counterclockwise).
+    let mut out = vec![leave.1];
+    let mut k = (leave.0 + 1) % n;
+    while k != (enter.0 + 1) % n {
+        out.push(body[k]);
+        k = (k + 1) % n;
+    }
+    out.push(enter.1);
+    // Front: hull of the body in front of the cut, the two crossings and the toes.
+    let mut pts: Vec<[f64; 2]> = body.iter().copied().filter(|p| p[0] >= cut).collect();
+    pts.push(enter.1);
+    pts.push(leave.1);
+    for t in toes {
+        pts.extend(t.iter().copied());
+    }
+    let hull = convex_hull(pts);
+    // Walk the hull counterclockwise from the entering crossing to the leaving one.
+    let at = |q: [f64; 2]| hull.iter().position(|&p| p == q);
+    let (s, e) = (at(enter.1)?, at(leave.1)?);
+    let h = hull.len();
+    let mut k = (s + 1) % h;
+    while k != e {
+        out.push(hull[k]);
+        k = (k + 1) % h;
+    }
+    Some(out)
+}
+
+/// Counterclockwise convex hull (Andrew's monotone chain), no collinear points.
+fn convex_hull(mut p: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
+    p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    p.dedup();
+    if p.len() < 3 {
+        return p;
+    }
+    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+    };
+    let mut h: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
+    for pass in 0..2 {
+        let start = h.len();
+        let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
+            Box::new(p.iter())
+        } else {
+            Box::new(p.iter().rev())
+        };
+        for &q in iter {
+            while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], q) <= 0.0 {
+                h.pop();
+            }
+            h.push(q);
+        }
+        h.pop();
+    }
+    h
+}
+
+/// Signed area, positive counterclockwise (mm^2).
+fn area(p: &[[f64; 2]]) -> f64 {
+    let n = p.len();
+    0.5 * (0..n)
+        .map(|k| {
+            let (a, b) = (p[k], p[(k + 1) % n]);
+            a[0] * b[1] - b[0] * a[1]
+        })
+        .sum::<f64>()
+}
+
+/// Height at a world point from a measured height map: bilinear between the four cell centres
+/// around it when all have a height, else the nearest cell with one within two cells.
+pub fn sample_height(map: &HeightMap, x: f64, y: f64) -> Option<f64> {
+    let c = map.cell_mm;
+    let fx = (x - map.x0) / c;
+    let fy = (y - map.y0) / c;
+    let (i0, j0) = (fx.floor(), fy.floor());
+    if i0 >= 0.0 && j0 >= 0.0 && (i0 as usize + 1) < map.nx && (j0 as usize + 1) < map.ny {
+        let (i, j) = (i0 as usize, j0 as usize);
+        let z = [
+            map.get(i, j),
+            map.get(i + 1, j),
+            map.get(i, j + 1),
+            map.get(i + 1, j + 1),
+        ];
+        if z.iter().all(|v| v.is_finite()) {
+            let (u, v) = (fx - i0, fy - j0);
+            return Some(
+                (1.0 - v) * ((1.0 - u) * z[0] + u * z[1]) + v * ((1.0 - u) * z[2] + u * z[3]),
+            );
+        }
+    }
+    let (ci, cj) = (fx.round() as i64, fy.round() as i64);
+    let mut best: Option<(f64, f64)> = None;
+    for dj in -2..=2i64 {
+        for di in -2..=2i64 {
+            let (i, j) = (ci + di, cj + dj);
+            if i < 0 || j < 0 || i as usize >= map.nx || j as usize >= map.ny {
+                continue;
+            }
+            let z = map.get(i as usize, j as usize);
+            if !z.is_finite() {
+                continue;
+            }
+            let d = (i as f64 - fx).powi(2) + (j as f64 - fy).powi(2);
+            if best.is_none_or(|(bd, _)| d < bd) {
+                best = Some((d, z));
+            }
+        }
+    }
+    best.map(|(_, z)| z)
+}
+
+/// Which files to write, and the cells of the STL (and PLY / OBJ) and of the STEP solid.
+#[derive(Clone, Debug)]
+pub struct ModelFiles {
+    pub stl: Option<PathBuf>,
+    pub ply: Option<PathBuf>,
+    pub obj: Option<PathBuf>,
+    pub step: Option<PathBuf>,
+    pub cell_mm: f64,
+    pub step_cell_mm: f64,
+}
+
+/// Default cell of the STEP solid (mm): a faceted solid with about 10,000 faces for an adult
+/// foot; a planar facet of 2 mm departs from a sole of 30 mm radius by 0.02 mm.
+pub const DEFAULT_STEP_CELL_MM: f64 = 2.0;
+
+/// What a model run built and wrote.
+#[derive(Clone, Debug, Serialize)]
+pub struct ModelSummary {
+    /// Grid points (frames x rows) and the valid ones.
+    pub grid: [usize; 2],
+    pub grid_points: usize,
+    /// Segment lattice, modelled segments, and segments left out for a missing point.
+    pub lattice: [usize; 2],
+    pub segments: usize,
+    pub skipped: usize,
+    pub bytes: usize,
+    pub build_ms: f64,
+    pub continuity: Continuity,
+    /// The foot frame (world mm on the glass) and the measured length.
+    pub frame: FootFrame,
+    pub foot_length_mm: f64,
+    pub ball_width_mm: f64,
+    /// Model extent in the foot frame: x (heel to toe), y, z (bottom to top), mm.
+    pub extent_mm: [[f64; 2]; 3],
+    /// Outline vertices, the area bridged between toes and body, nodes filled there.
+    pub outline_vertices: usize,
+    pub bridged_mm2: f64,
+    pub filled_nodes: usize,
+    pub cell_mm: f64,
+    pub vertices: usize,
+    pub triangles: usize,
+    pub boundary_vertices: usize,
+    pub components: usize,
+    pub volume_mm3: f64,
+    pub base_z_mm: f64,
+    /// The STEP solid: cell, faces, volume of its facets.
+    pub step_cell_mm: Option<f64>,
+    pub step_faces: Option<usize>,
+    pub step_volume_mm3: Option<f64>,
+    /// Measuring plus meshing plus writing (ms), beside `build_ms`.
+    pub mesh_ms: f64,
+    pub warnings: Vec<String>,
+    pub files: Vec<PathBuf>,
+}
+
+type MeshWriter = fn(&std::path::Path, &Mesh) -> std::io::Result<()>;
+
+/// Cell of the solid whose filled heights (the bridged gaps) every other cell samples, so
+/// solids on different cells (the STL's, the STEP's) agree there.
+pub const FILL_CELL_MM: f64 = 0.5;
+
+/// The solid of a measured foot on `cell_mm` cells, in the foot frame: heights from `map`,
+/// else from `fill` (a solid on [`FILL_CELL_MM`]), else the Laplace fill.
+pub fn foot_solid(
+    map: &HeightMap,
+    m: &Measurements,
+    outline: &SoleOutline,
+    cell_mm: f64,
+    base_z: Option<f64>,
+    fill: Option<&OutlineSolid>,
+) -> Result<OutlineSolid, CadError> {
+    let frame = FootFrame::of(m);
+    let solid = outline_solid(&outline.points, cell_mm, base_z, |x, y| {
+        let w = frame.to_world([x, y]);
+        sample_height(map, w[0], w[1]).or_else(|| fill.and_then(|f| f.height_at(x, y)))
+    })?;
+    Ok(solid)
+}
+
+/// Build the network of `grid`, then [`write_foot_model`].
+pub fn model_scan(
+    grid: &ScanGrid,
+    files: &ModelFiles,
+    names: [&'static str; 2],
+) -> Result<(BezierNetwork, ModelSummary), CadError> {
+    check_cell(names[0], files.cell_mm, None)?;
+    let (net, build_ms) = build_scan_model(grid)?;
+    let s = write_foot_model(grid, &net, build_ms, files, names)?;
+    Ok((net, s))
+}
+
+/// Measure the foot of `grid` with its network `net` and write its solid as `files` asks;
+/// `names` are how the caller spells the two cells (STL, STEP) in errors.
+pub fn write_foot_model(
+    grid: &ScanGrid,
+    net: &BezierNetwork,
+    build_ms: f64,
+    files: &ModelFiles,
+    names: [&'static str; 2],
+) -> Result<ModelSummary, CadError> {
+    check_cell(names[0], files.cell_mm, None)?;
+    if files.step.is_some() {
+        check_cell(names[1], files.step_cell_mm, None)?;
+    }
+    let t = Instant::now();
+    let (map, m) = measure_grid(grid, Some(net), DEFAULT_CELL_MM)?;
+    check_cell(names[0], files.cell_mm, Some(m.ball_width_mm))?;
+    if files.step.is_some() {
+        check_cell(names[1], files.step_cell_mm, Some(m.ball_width_mm))?;
+    }
+    let frame = FootFrame::of(&m);
+    let outline = sole_outline(&m, &frame);
+    let mut warnings = outline.warnings.clone();
+    let reference = foot_solid(&map, &m, &outline, FILL_CELL_MM, None, None)?;
+    let base = Some(reference.base_z);
+    let on = |cell: f64| -> Result<OutlineSolid, CadError> {
+        if cell == FILL_CELL_MM {
+            Ok(reference.clone())
+        } else {
+            foot_solid(&map, &m, &outline, cell, base, Some(&reference))
+        }
+    };
+    let solid = on(files.cell_mm)?;
+    let components = solid.components();
+    if components != 1 {
+        warnings.push(format!(
+            "the model falls into {components} pieces on {} mm cells (a part of the outline \
+             thinner than a cell): use a finer cell",
+            files.cell_mm
+        ));
+    }
+    let mesh = solid.mesh();
+    let mut written = Vec::new();
+    let writers: [(&Option<PathBuf>, MeshWriter); 3] = [
+        (&files.stl, crate::io::write_stl),
+        (&files.ply, crate::io::write_ply_mesh),
+        (&files.obj, crate::io::write_obj),
+    ];
+    for (path, write) in writers {
+        if let Some(p) = path {
+            write(p, &mesh).map_err(|source| CadError::Write {
+                path: p.clone(),
+                source,
+            })?;
+            written.push(p.clone());
+        }
+    }
+    let (mut step_faces, mut step_volume) = (None, None);
+    if let Some(p) = &files.step {
+        let s = on(files.step_cell_mm)?;
+        let faces =
+            write_faceted_step(p, &s, "footscan foot model").map_err(|source| CadError::Write {
+                path: p.clone(),
+                source,
+            })?;
+        step_faces = Some(faces);
+        step_volume = Some(s.mesh().signed_volume());
+        written.push(p.clone());
+    }
+    let mut ext = [[f64::MAX, f64::MIN]; 3];
+    for t in &mesh.triangles {
+        for &k in t {
+            let p = mesh.vertices[k as usize];
+            for d in 0..3 {
+                ext[d][0] = ext[d][0].min(p[d]);
+                ext[d][1] = ext[d][1].max(p[d]);
+            }
+        }
+    }
+    let (nu, nv) = net.grid_size();
+    let (lu, lv) = net.lattice();
+    let summary = ModelSummary {
+        grid: [nu, nv],
+        grid_points: grid.valid_count(),
+        lattice: [lu, lv],
+        segments: net.segments().len(),
+        skipped: net.skipped(),
+        bytes: net.bytes(),
+        build_ms,
+        continuity: net.continuity(8),
+        frame,
+        foot_length_mm: m.foot_length_mm,
+        ball_width_mm: m.ball_width_mm,
+        extent_mm: ext,
+        outline_vertices: outline.points.len(),
+        bridged_mm2: outline.bridged_mm2,
+        filled_nodes: reference.filled_nodes,
+        cell_mm: files.cell_mm,
+        vertices: mesh.vertices.len(),
+        triangles: mesh.triangles.len(),
+        boundary_vertices: solid.boundary_len(),
+        components,
+        volume_mm3: mesh.signed_volume(),
+        base_z_mm: solid.base_z,
+        step_cell_mm: files.step.as_ref().map(|_| files.step_cell_mm),
+        step_faces,
+        step_volume_mm3: step_volume,
+        mesh_ms: t.elapsed().as_secs_f64() * 1e3,
+        warnings,
+        files: written,
+    };
+    Ok(summary)
+}
+
+impl ModelSummary {
+    /// A few lines for a terminal.
+    pub fn text(&self) -> String {
+        let e = &self.extent_mm;
+        let mut s = format!(
+            "grid {} x {} ({} points): {} of {} x {} segments modelled, {} left out (missing points), \
+             {} bytes, built in {:.1} ms\n\
+             normal-angle jump across segment edges: max {:.1} deg, mean {:.1} deg over {} edges \
+             (first derivatives vanish on every edge: the tangent there comes from second derivatives)\n\
+             foot frame: heel point ({:.2}, {:.2}) mm on the glass is the origin, x along the axis at \
+             {:.2} deg; measured length {:.2} mm, ball width {:.2} mm\n\
+             outline: {} vertices, {:.0} mm^2 bridged between toes and ball ({} heights filled)\n\
+             solid on {} mm cells: {} vertices, {} triangles, {} boundary vertices, {} piece(s), \
+             closed, volume {:.0} mm^3, bottom at z = {:.2} mm\n\
+             extent: x {:.2} .. {:.2} (length {:.2}), y {:.2} .. {:.2}, z {:.2} .. {:.2} mm; \
+             measured, meshed and written in {:.0} ms\n",
+            self.grid[0],
+            self.grid[1],
+            self.grid_points,
+            self.segments,
+            self.lattice[0],
+            self.lattice[1],
+            self.skipped,
+            self.bytes,
+            self.build_ms,
+            self.continuity.max_deg,
+            self.continuity.mean_deg,
+            self.continuity.edges,
+            self.frame.origin[0],
+            self.frame.origin[1],
+            self.frame.x_axis[1].atan2(self.frame.x_axis[0]).to_degrees(),
+            self.foot_length_mm,
+            self.ball_width_mm,
+            self.outline_vertices,
+            self.bridged_mm2,
+            self.filled_nodes,
+            self.cell_mm,
+            self.vertices,
+            self.triangles,
+            self.boundary_vertices,
+            self.components,
+            self.volume_mm3,
+            self.base_z_mm,
+            e[0][0],
+            e[0][1],
+            e[0][1] - e[0][0],
+            e[1][0],
+            e[1][1],
+            e[2][0],
+            e[2][1],
+            self.mesh_ms,
+        );
+        if let (Some(c), Some(f), Some(v)) =
+            (self.step_cell_mm, self.step_faces, self.step_volume_mm3)
+        {
+            s += &format!(
+                "STEP: faceted closed solid on {c} mm cells, {f} faces, volume {v:.0} mm^3 ({:+.3} % of the STL's)\n",
+                100.0 * (v / self.volume_mm3 - 1.0)
+            );
+        }
+        for w in &self.warnings {
+            s += &format!("warning: {w}\n");
+        }
+        for f in &self.files {
+            s += &format!("wrote {}\n", f.display());
+        }
+        s
+    }
+}
