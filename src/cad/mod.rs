@@ -426,7 +426,12 @@ pub fn write_foot_model(
     }
     let frame = FootFrame::of(&m);
     let outline = sole_outline(&m, &frame);
-    let mut warnings = outline.warnings.clone();
+    let mut warnings: Vec<String> = m
+        .warnings
+        .iter()
+        .map(|w| format!("measurements: {w}"))
+        .collect();
+    warnings.extend(outline.warnings.iter().cloned());
     let reference = foot_solid(&map, &m, &outline, FILL_CELL_MM, None, None)?;
     let base = Some(reference.base_z);
     let on = |cell: f64| -> Result<OutlineSolid, CadError> {
