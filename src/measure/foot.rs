@@ -70,6 +70,10 @@ const MIN_TOE_FRACTION: f64 = 0.005;
 const MIN_BODY_MM2: f64 = 4000.0;
 /// Arch vault: slope limit and plane-fit radius (mm).
 const ARCH_SLOPE: f64 = 0.1;
+/// Looser slope limits tried in turn when no point of the medial midfoot slopes under
+/// [`ARCH_SLOPE`] (a foot not bearing weight: the real FIND meshes slope 9 and 14 degrees at
+/// the flattest), each noted in the warnings.
+const ARCH_SLOPE_FALLBACK: [f64; 4] = [0.2, 0.3, 0.4, 0.5];
 const ARCH_FIT_RADIUS: f64 = 1.0;
 /// Depth of the body front used to locate its most anterior point (mm).
 const FRONT_DEPTH: f64 = 3.0;
@@ -276,8 +280,27 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
     };
 
     let x_front = xl(front);
-    let (arch_height, arch_point) = arch_height(map, &body, x_front, &xl, &yl, yc)
-        .ok_or_else(|| missing("arch height (no gently sloping medial midfoot)"))?;
+    // The arch: where the medial midfoot faces the glass; on a foot that bears no weight the
+    // whole vault may slope more, and a looser limit is taken (said in the warnings) rather
+    // than losing every other measurement and the side with it.
+    let mut warnings = Vec::new();
+    let mut arch = arch_height(map, &body, x_front, &xl, &yl, yc, ARCH_SLOPE);
+    for limit in ARCH_SLOPE_FALLBACK {
+        if arch.is_some() {
+            break;
+        }
+        arch = arch_height(map, &body, x_front, &xl, &yl, yc, limit);
+        if arch.is_some() {
+            warnings.push(format!(
+                "arch height taken where the medial midfoot slopes under {:.0} degrees: it slopes \
+                 over {:.0} everywhere (a foot not bearing weight?)",
+                limit.atan().to_degrees(),
+                ARCH_SLOPE.atan().to_degrees()
+            ));
+        }
+    }
+    let (arch_height, arch_point) =
+        arch.ok_or_else(|| missing("arch height (no gently sloping medial midfoot)"))?;
     let thirds = contact_thirds(map, &body, x_front, &xl);
     let total: f64 = thirds.iter().sum();
     if total <= 0.0 {
@@ -315,7 +338,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         toe_outlines: toes.iter().map(|t| simplify(&t.outline, 0.02)).collect(),
         cell_mm: map.cell_mm,
         heights_from: "height map".into(),
-        warnings: Vec::new(),
+        warnings,
     })
 }
 
@@ -383,8 +406,8 @@ fn heel_width(
     Some((w, to_world(x, a), to_world(x, b)))
 }
 
-/// Highest gently sloping sole point over the medial half of the middle third of the body
-/// (x' in [x_f/3, 2 x_f/3], medial of the axis): plane fits over ARCH_FIT_RADIUS.
+/// Highest sole point sloping under `max_slope` over the medial half of the middle third of
+/// the body (x' in [x_f/3, 2 x_f/3], medial of the axis): plane fits over ARCH_FIT_RADIUS.
 fn arch_height(
     map: &HeightMap,
     body: &Region,
@@ -392,6 +415,7 @@ fn arch_height(
     xl: &impl Fn([f64; 2]) -> f64,
     yl: &impl Fn([f64; 2]) -> f64,
     y_axis: f64,
+    max_slope: f64,
 ) -> Option<(f64, [f64; 2])> {
     let cell = map.cell_mm;
     let rad = (ARCH_FIT_RADIUS / cell).ceil() as isize;
@@ -443,7 +467,7 @@ fn arch_height(
         let Some(c) = a.lu().solve(&nalgebra::Vector3::new(s[6], s[7], s[8])) else {
             continue;
         };
-        if c[1].hypot(c[2]) > ARCH_SLOPE {
+        if c[1].hypot(c[2]) > max_slope {
             continue;
         }
         if best.is_none_or(|b| c[0] > b.0) {

@@ -44,7 +44,8 @@
 //!   points where the sole (a plane fitted over 1 mm) slopes less than 0.1 (6 degrees).
 //!   Toward the medial border the sole turns up into the side wall of the foot; that wall
 //!   is not arch. (The scan cannot see the edge rounding radius the simulator's definition
-//!   uses; this rule needs none.)
+//!   uses; this rule needs none.) Where no point there slopes under 0.1 (a foot bearing no
+//!   weight, e.g. the FIND meshes), the limits 0.2 to 0.5 are tried in turn, with a warning.
 //! - Arch index (Cavanagh-Rodgers): contact = cells with h <= 1 mm on the body (toes
 //!   excluded); the body from the heel point to its most anterior point along the axis is
 //!   cut in three equal lengths; index = middle third's contact area over the total.
