@@ -200,9 +200,17 @@ fn check_cut(out_dir: &Path) -> serde_json::Value {
     );
     assert!(
         hits.is_empty(),
-        "{}: last.stl intersects itself: triangles {:?}",
+        "{}: last.stl intersects itself: triangles {:?} near {:?}",
         out_dir.display(),
-        &hits[..hits.len().min(5)]
+        &hits[..hits.len().min(5)],
+        hits.iter()
+            .take(5)
+            .map(|&(a, _)| {
+                let t = last.triangles[a];
+                let v = last.vertices[t[0] as usize];
+                (v.x.round(), v.y.round(), v.z.round())
+            })
+            .collect::<Vec<_>>()
     );
     let rules = rep["rules"].as_array().unwrap();
     let l = rules[0]["foot_mm"].as_f64().unwrap();

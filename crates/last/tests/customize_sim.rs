@@ -54,8 +54,18 @@ fn simulated_feet() {
                     f.curve, f.data_points, f.control_points, f.max_error_mm
                 );
             }
-            println!("  clearance {:?}", c.clearance);
+            println!("  clearance {}", c.clearance.summary());
             assert!((fm.length - truth.length_mm).abs() < 0.5, "length");
+            // Where the rules say the foot must fit: the heel seat holds it (it stood 2.3 mm
+            // out on the 230 mm foot under the old field); the toe box within 2 mm (3-5 mm
+            // before the swept toe rings; the target is FIT_TOL_MM, not met yet: the
+            // hallux's side, docs/method.md 10.5). The midfoot is not bounded: the
+            // simulator's arch has a vertical medial wall down to 2-3 mm above the glass
+            // that the flat bottom's band cuts off (a known limit, reported).
+            let heel = c.clearance.region("heel seat").unwrap();
+            assert!(heel.met(), "heel seat {heel:?}");
+            let toe = c.clearance.region("toe box").unwrap();
+            assert!(toe.min_mm > -2.0, "toe box {toe:?}");
             for r in &c.rules {
                 assert!(r.met, "{} {} err {}", r.rule, r.quantity, r.error_mm);
             }

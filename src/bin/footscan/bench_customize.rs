@@ -146,14 +146,12 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
     for r in &rows {
         let cl = &r.c.clearance;
         println!(
-            "{}: {:?}, clearance toe {:.2} ball {:.2} heel {:.2} overall {:.2} mm; frame {:.0} ms, \
+            "{}: {:?}, clearance {}; must-fit margin {:+.2} mm; frame {:.0} ms, \
              customize {:.0} ms ({} mesh evaluations), slowest curve fit+deform {:.3} ms",
             r.name,
             r.c.frame_in_world.side,
-            cl.toe_box_mm,
-            cl.ball_mm,
-            cl.heel_seat_mm,
-            cl.overall_mm,
+            cl.summary(),
+            cl.must_fit_margin_mm,
             r.frame_ms,
             r.customize_ms,
             r.c.evaluations,
@@ -191,11 +189,16 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
     let max = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).fold(f64::MIN, f64::max);
     println!(
         "{} feet: customize mean {:.0} ms, max {:.0} ms (target < 1000 ms; paper 480 s); \
-         slowest curve fit+deform max {:.3} ms (target < 1 ms); minimum clearance {:.2} mm",
+         slowest curve fit+deform max {:.3} ms (target < 1 ms); smallest must-fit margin {:+.2} mm \
+         (target >= -{} mm), smallest clearance anywhere {:+.2} mm",
         rows.len(),
         mean(&|r| r.customize_ms),
         max(&|r| r.customize_ms),
         max(&|r| r.curve_ms),
+        rows.iter()
+            .map(|r| r.c.clearance.must_fit_margin_mm)
+            .fold(f64::MAX, f64::min),
+        footscan_last::customize::FIT_TOL_MM,
         rows.iter()
             .map(|r| r.c.clearance.overall_mm)
             .fold(f64::MAX, f64::min)

@@ -154,8 +154,18 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
     }
     let cl = &c.clearance;
     println!(
-        "clearance ({} inside the last, below its top): toe box {:+.2} ball {:+.2} heel seat {:+.2} overall {:+.2} mm at ({:.1}, {:.1}, {:.1})",
-        cl.of, cl.toe_box_mm, cl.ball_mm, cl.heel_seat_mm, cl.overall_mm, cl.worst_at_mm[0], cl.worst_at_mm[1], cl.worst_at_mm[2]
+        "clearance ({} inside the last, below its top, mm): {}; overall {:+.2} at ({:.1}, {:.1}, {:.1}); {}",
+        cl.of,
+        cl.summary(),
+        cl.overall_mm,
+        cl.worst_at_mm[0],
+        cl.worst_at_mm[1],
+        cl.worst_at_mm[2],
+        if cl.regions.iter().all(|r| r.met()) {
+            "fits where the rules say it must"
+        } else {
+            "does NOT fit where the rules say it must"
+        }
     );
     let t2 = Instant::now();
     let files = write_outputs_atomic(&c, &inp, &a.out)?;

@@ -135,7 +135,7 @@ pub fn customize_stock(
         r.error_mm = v[i] - r.target_mm;
         r.met = r.error_mm.abs() <= r.bound_mm;
     }
-    let mut cl = clearance(&stock, &last, &sm);
+    let mut cl = clearance(&stock, &last, &nd, rows[2].change_mm);
     cl.of = "stock last";
     Ok(Customized {
         frame_in_world: frame,

@@ -18,7 +18,7 @@ use curves::{fit_loop, least_change, Constraint, FitRecord};
 use footscan_geom::mesh::{Bvh, Format, TriMesh, Units};
 use footscan_geom::nurbs::NurbsCurve;
 use footscan_geom::P3;
-use measure::{find_frame, measure, FootFrame, Measures};
+use measure::{find_frame, measure, FootFrame, Measures, OUTLINE_Z};
 use rules::{RuleSet, Shoe, Wearer};
 use serde::Serialize;
 use std::path::Path;
@@ -93,18 +93,79 @@ pub struct Customized {
     pub clearance: Clearance,
 }
 
+/// How far the foot stands inside the last, region by region (negative: the foot presses
+/// out through the last). The rules decide where it must fit: the toe box (I-A's toe
+/// allowance, III's forefoot "as the foot"), the midfoot (II-G, II-H, IV increase the
+/// girths; I-C's narrower waist lets the sides press by half its reduction) and the heel
+/// seat (I-D, II-H) must hold the foot; at the ball (II-F's reduced girth) and behind the
+/// heel allowance (I-A) the last is smaller than the foot on purpose and the figure is a
+/// report, not a requirement.
 #[derive(Clone, Debug, Serialize)]
 pub struct Clearance {
     /// What stands inside the last: "foot" (the foot mesh), or "stock last" on the clinic
     /// path (no whole foot: how the stock last sits in the customized one).
     pub of: &'static str,
-    pub toe_box_mm: f64,
-    pub ball_mm: f64,
-    pub heel_seat_mm: f64,
+    pub regions: Vec<RegionClearance>,
+    /// Smallest clearance less the allowed press over the regions where the foot must fit
+    /// (>= -[`FIT_TOL_MM`]: the foot fits where the rules say it must).
+    pub must_fit_margin_mm: f64,
+    /// Smallest clearance anywhere below the top, and where (foot frame, mm).
     pub overall_mm: f64,
-    /// The foot vertex where the overall minimum is (foot frame, mm): says which rule or
-    /// which feature of the foot mesh it comes from (docs/method.md section 10).
     pub worst_at_mm: [f64; 3],
+}
+
+/// One region's clearance.
+#[derive(Clone, Debug, Serialize)]
+pub struct RegionClearance {
+    pub region: &'static str,
+    /// The rules that shape the last here.
+    pub rules: &'static str,
+    /// How far the foot may press out here (mm) where the rules say it must fit; None where
+    /// they make the last smaller than the foot on purpose.
+    pub allowed_press_mm: Option<f64>,
+    pub min_mm: f64,
+    pub at_mm: [f64; 3],
+    pub vertices: usize,
+}
+
+impl RegionClearance {
+    /// Whether the foot fits here as the rules say (always true where they compress it).
+    pub fn met(&self) -> bool {
+        self.allowed_press_mm
+            .is_none_or(|a| self.vertices == 0 || self.min_mm >= -a - FIT_TOL_MM)
+    }
+}
+
+/// Slack of the must-fit check (mm): the last's sections are polygons of 96 points through
+/// hulls of the foot's cuts 150 stations apart, so a surface that follows the foot lies
+/// within about this of it.
+pub const FIT_TOL_MM: f64 = 0.3;
+
+impl Clearance {
+    pub fn region(&self, name: &str) -> Option<&RegionClearance> {
+        self.regions.iter().find(|r| r.region == name)
+    }
+    /// One line for the CLI, the bench and the picture.
+    pub fn summary(&self) -> String {
+        let parts: Vec<String> = self
+            .regions
+            .iter()
+            .filter(|r| r.vertices > 0)
+            .map(|r| {
+                format!(
+                    "{} {:+.2}{}",
+                    r.region,
+                    r.min_mm,
+                    match r.allowed_press_mm {
+                        None => " (pressed by rule)",
+                        Some(_) if !r.met() => " (MISSED)",
+                        Some(_) => "",
+                    }
+                )
+            })
+            .collect();
+        parts.join(", ")
+    }
 }
 
 /// The rule targets for a foot: (rule, quantity, foot value, change, bound, source).
@@ -275,7 +336,7 @@ pub fn customize(
         r.error_mm = v[i] - r.target_mm;
         r.met = r.error_mm.abs() <= r.bound_mm;
     }
-    let clearance = clearance(&foot, &last, &fm);
+    let clearance = clearance(&foot, &last, &nd, rows[2].change_mm);
     Ok(Customized {
         frame_in_world: frame,
         foot,
@@ -291,12 +352,34 @@ pub fn customize(
     })
 }
 
-pub(crate) fn clearance(foot: &TriMesh, last: &TriMesh, fm: &Measures) -> Clearance {
+pub(crate) fn clearance(
+    foot: &TriMesh,
+    last: &TriMesh,
+    nd: &shape::Nodes,
+    waist_change_mm: f64,
+) -> Clearance {
     let bvh = Bvh::new(last);
-    let (mut toe, mut ball, mut heel, mut all) = (f64::MAX, f64::MAX, f64::MAX, f64::MAX);
-    let mut at = [f64::NAN; 3];
-    let xb = fm.b.x.max(fm.c.x);
-    let top = shape::TOP_Z * fm.length;
+    let mut regions = [
+        ("heel allowance", "I-A heel allowance", None),
+        ("heel seat", "I-D, II-H", Some(0.0)),
+        (
+            "midfoot",
+            "I-C, II-G, II-H, IV",
+            Some(0.5 * (-waist_change_mm).max(0.0)),
+        ),
+        ("ball", "II-F (reduced girth)", None),
+        ("toe box", "I-A toe allowance, III", Some(0.0)),
+    ]
+    .map(|(region, rules, allowed_press_mm)| RegionClearance {
+        region,
+        rules,
+        allowed_press_mm,
+        min_mm: f64::INFINITY,
+        at_mm: [f64::NAN; 3],
+        vertices: 0,
+    });
+    let (mut all, mut at) = (f64::INFINITY, [f64::NAN; 3]);
+    let top = shape::TOP_Z * nd.length;
     for p in &foot.vertices {
         if p.z > top - 1.0 {
             continue;
@@ -309,19 +392,34 @@ pub(crate) fn clearance(foot: &TriMesh, last: &TriMesh, fm: &Measures) -> Cleara
             all = c;
             at = [p.x, p.y, p.z];
         }
-        if p.x > xb + 0.04 * fm.length {
-            toe = toe.min(c);
-        } else if p.x > fm.b.x.min(fm.c.x) - 0.05 * fm.length {
-            ball = ball.min(c);
-        } else if p.x < 0.25 * fm.length && p.z < 0.1 * fm.length {
-            heel = heel.min(c);
+        // Under the heel allowance's 45 degree chamfer (with a millimetre's margin).
+        let k = if nd.heel_allowance > 0.0 && p.z < OUTLINE_Z + nd.heel_allowance - p.x + 1.0 {
+            0
+        } else if p.x < nd.heel_window {
+            1
+        } else if p.x < nd.forefoot {
+            2
+        } else if p.x < nd.toe_box {
+            3
+        } else {
+            4
+        };
+        let r = &mut regions[k];
+        r.vertices += 1;
+        if c < r.min_mm {
+            r.min_mm = c;
+            r.at_mm = [p.x, p.y, p.z];
         }
     }
+    let must_fit_margin_mm = regions
+        .iter()
+        .filter(|r| r.vertices > 0)
+        .filter_map(|r| r.allowed_press_mm.map(|a| r.min_mm + a))
+        .fold(f64::INFINITY, f64::min);
     Clearance {
         of: "foot",
-        toe_box_mm: toe,
-        ball_mm: ball,
-        heel_seat_mm: heel,
+        regions: regions.into(),
+        must_fit_margin_mm,
         overall_mm: all,
         worst_at_mm: at,
     }

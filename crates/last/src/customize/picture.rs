@@ -115,13 +115,22 @@ pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
         cv.text(900, y, &s, if r.met { GREEN } else { RED }, 2);
     }
     y += 34;
-    let cl = &c.clearance;
-    for s in [
-        format!("clearance toe {:+.1}", cl.toe_box_mm),
-        format!("ball {:+.1} heel {:+.1}", cl.ball_mm, cl.heel_seat_mm),
-    ] {
-        cv.text(900, y, &s, BLACK, 2);
+    cv.text(
+        900,
+        y,
+        &format!("clearance ({} in last), mm", c.clearance.of),
+        BLACK,
+        2,
+    );
+    for r in c.clearance.regions.iter().filter(|r| r.vertices > 0) {
         y += 24;
+        let s = format!("{:<15}{:+6.1}", r.region, r.min_mm);
+        let colour = match r.allowed_press_mm {
+            None => GREY,
+            Some(_) if r.met() => GREEN,
+            Some(_) => RED,
+        };
+        cv.text(900, y, &s, colour, 2);
     }
     cv.save_png(path)
 }

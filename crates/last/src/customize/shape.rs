@@ -295,6 +295,13 @@ pub struct Nodes {
     pub ankle: f64,
     pub heel_window: f64,
     pub forefoot: f64,
+    /// Where the toe box starts: the heights and widths are the foot's (or more) in front
+    /// of it (rule III: the forefoot as the foot), so the ball girth's reduction ends
+    /// between the ball line and here.
+    pub toe_box: f64,
+    /// The ball line's ends along the axis (MT5 and MT1, whichever is further back first).
+    pub ball_back: f64,
+    pub ball_front: f64,
     pub length: f64,
     pub heel_allowance: f64,
 }
@@ -313,6 +320,13 @@ impl Nodes {
             ankle: (ANKLE_X * l).clamp(m.heel_centre.x + 1.0, INSTEP_X * l - 2.0),
             heel_window: (0.25 * l).min(ANKLE_X * l - 1.0),
             forefoot: (m.b.x.min(m.c.x) - 0.05 * l).max(INSTEP_X * l + 1.0),
+            toe_box: m.b.x.max(m.c.x) + 0.08 * l,
+            ball_back: m
+                .b
+                .x
+                .min(m.c.x)
+                .max((m.b.x.min(m.c.x) - 0.05 * l).max(INSTEP_X * l + 1.0)),
+            ball_front: m.b.x.max(m.c.x),
             length: l,
             heel_allowance: 0.0,
         }
@@ -335,49 +349,130 @@ fn blend(nodes: &[(f64, f64)], x: f64) -> f64 {
     nodes[nodes.len() - 1].1
 }
 
-/// The eight field values: toe extension (mm), width scales at heel, waist, ball, height
-/// scales at the ankle station (and behind it), instep, ball, and the widening of the upper
-/// part of the midfoot (between the heel and the ball).
+/// Number of field values.
+pub const NPARAM: usize = 9;
+
+/// The field values: toe extension (mm); width scales at the heel, waist and ball; the
+/// height scale at the ball; outward offsets over the top (mm) at the heel, ankle and
+/// instep stations; the widening of the upper midfoot (heel window to the ball region, as
+/// a fraction).
 ///
-/// Each value acts where its rule is measured, so the Newton system is well conditioned: the
-/// widening (which the long-heel girth needs: its plane crosses the midfoot's walls at mid
-/// height) is zero over the heel width's window and in front of the instep it fades out
-/// before the ball. It used to act over the whole length, where it also changed the ball
-/// girth, and the solver found a root far from the foot: ball height scaled 0.72 and the upper
-/// part widened 27 % on the 260 mm simulated foot, which put the top of the toe box 9-11 mm
-/// into the foot (docs/method.md section 10).
-pub type Params = [f64; 8];
+/// Where the rules make the last bigger than the foot (heel seat, midfoot, ankle: II-G,
+/// II-H, IV) the girths grow by offsets over the top and a widening above the lower wall,
+/// so a solution with positive values holds the foot. There are more values than rules:
+/// the solver moves them by the least weighted change from the foot's own shape (the
+/// paper's least-change principle, eq. 9, applied to the field), so it spreads an increase
+/// over the mechanisms instead of raising one and taking it back with another. The square
+/// system it replaced (height scales at ankle and instep, one widening) met the long-heel
+/// girth by widening 12-16 % and lowered the instep by 4-6 % to give the instep and ankle
+/// girths back: the instep stood 5-11 mm out of the last (docs/method.md 10.5). The ball
+/// girth (II-F: reduced for men and women) is met by a height scale flat across the ball
+/// line (MT5 to MT1) and back to at least 1 at the toe box, so the toes keep their room
+/// (rule III: the forefoot as the foot).
+pub type Params = [f64; NPARAM];
+
+/// What one unit of each field value moves the surface by (mm), for the least change.
+fn param_scale(nd: &Nodes) -> Params {
+    let w = 0.2 * nd.length;
+    [0.1, w, w, w, w, 1.0, 1.0, 1.0, w]
+}
+
+/// Weight of a section point's offset over the top by its normal's z: none on the flat
+/// bottom (which stays on the glass) and the lower walls, full over the top.
+fn offset_weight(nz: f64) -> f64 {
+    let t = ((nz + 0.1) / 0.7).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// Outward unit normals of a counterclockwise ring (central differences).
+fn ring_normals(ring: &[P2]) -> Vec<P2> {
+    let n = ring.len();
+    (0..n)
+        .map(|i| {
+            let t = ring[(i + 1) % n] - ring[(i + n - 1) % n];
+            let l = t.norm().max(1e-12);
+            P2::new(t.y / l, -t.x / l)
+        })
+        .collect()
+}
 
 /// The deformed closed mesh of the last.
 pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
-    let [ext, syh, syw, syb, sza, szi, szb, kup] = *p;
-    let sy = [(nd.heel, syh), (nd.waist, syw), (nd.ball, syb)];
-    let sz = [(nd.ankle, sza), (nd.instep, szi), (nd.ball, szb)];
-    let ku = [
-        (nd.heel_window, 0.0),
-        (nd.ankle, kup),
-        (nd.instep, kup),
+    let [ext, syh, syw, syb, szb, dh, da, di, kup] = *p;
+    let sy = [
+        (nd.heel, syh),
+        (nd.waist, syw),
+        (nd.ball, syb),
+        (nd.toe_box, syb.max(1.0)),
+    ];
+    let sz = [
+        (nd.forefoot, 1.0),
+        (nd.ball_back, szb),
+        (nd.ball_front, szb),
+        (nd.toe_box, szb.max(1.0)),
+    ];
+    let off = [
+        (nd.heel, dh),
+        (nd.ankle, da),
+        (nd.instep, di),
         (nd.forefoot, 0.0),
+    ];
+    let ku = [
+        (nd.heel_window.min(nd.ankle - 1.0), 0.0),
+        (0.5 * (nd.ankle + nd.instep), kup),
+        (nd.instep, 0.0),
     ];
     let (z0, z1) = (0.5 * ANKLE_Z * nd.length, ANKLE_Z * nd.length);
     let stretch = 1.0 + ext / (nd.tip - nd.stretch_from).max(1.0);
     let mut rings: Vec<Vec<P3>> = Vec::with_capacity(sec.rings.len());
-    for (x, ring) in sec.xs.iter().zip(&sec.rings) {
-        let (fy, fz) = (blend(&sy, *x), blend(&sz, *x));
+    for (k, (x, ring)) in sec.xs.iter().zip(&sec.rings).enumerate() {
+        let (fy, fz, d) = (blend(&sy, *x), blend(&sz, *x), blend(&off, *x));
         let kup = blend(&ku, *x);
         let xn = if *x > nd.stretch_from {
             nd.stretch_from + (x - nd.stretch_from) * stretch
         } else {
             *x
         };
+        // The toe part is stretched forward, so the last at xn holds the foot's section
+        // from x: where the toes widen or rise forward (the hallux's joint, the toe pads)
+        // the foot's own section at xn stood out of it by 3-4 mm. The ring is the hull of
+        // the foot's sections from x to xn.
+        let swept;
+        let ring = if xn > *x + 0.1 {
+            let mut q: Vec<P2> = ring.clone();
+            for (xj, rj) in sec.xs.iter().zip(&sec.rings).skip(k + 1) {
+                if *xj > xn {
+                    break;
+                }
+                q.extend_from_slice(rj);
+            }
+            let h = convex_hull(&q);
+            swept = resample_hull(&h.points, AROUND);
+            &swept
+        } else {
+            ring
+        };
+        let normals = ring_normals(ring);
         let mut pts: Vec<P3> = ring
             .iter()
-            .map(|q| {
+            .zip(&normals)
+            .map(|(q, n)| {
                 let t = ((q.y - z0) / (z1 - z0)).clamp(0.0, 1.0);
                 let up = 1.0 + kup * t * t * (3.0 - 2.0 * t);
-                P3::new(xn, q.x * fy * up, q.y * fz)
+                let w = d * offset_weight(n.y);
+                P3::new(xn, q.x * fy * up + w * n.x, (q.y * fz + w * n.y).max(0.0))
             })
             .collect();
+        // A negative offset (a girth given back) folds the ring at a sharp corner, such as
+        // where the top was cut off (self-intersections at the ankle's top on the FIND
+        // foot); the ring is its own hull again, resampled with the same meaning per point.
+        if d < 0.0 || kup != 0.0 {
+            let h = convex_hull(&pts.iter().map(|q| P2::new(q.y, q.z)).collect::<Vec<_>>());
+            pts = resample_hull(&h.points, AROUND)
+                .into_iter()
+                .map(|q| P3::new(xn, q.x, q.y))
+                .collect();
+        }
         // Heel allowance: lift the bottom behind x = heel_allowance along a 45 degree
         // chamfer, squashing the section from below.
         let zc = OUTLINE_Z + (nd.heel_allowance - xn);
@@ -469,20 +564,25 @@ pub fn solve(
         Ok((m, me, r))
     };
     let f = values(foot);
-    let mut p: Params = [
+    // The neutral field (the foot's own shape) with the toe extension and the width scales
+    // set from their rules, which each have one mechanism of their own.
+    let p0: Params = [
         target[0] - f[0] + nd.heel_allowance,
         1.0 + (target[3] - f[3]) / f[3],
         1.0 + (target[2] - f[2]) / f[2],
         1.0 + (target[1] - f[1]) / f[1],
         1.0,
-        1.0,
-        1.0,
+        0.0,
+        0.0,
+        0.0,
         0.0,
     ];
-    let steps: Params = [0.2, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3];
+    let mut p = p0;
+    let scale = param_scale(nd);
+    let steps: Params = std::array::from_fn(|j| 0.02 / scale[j]);
     let (mut mesh, mut me, mut r) = eval(&p)?;
     if std::env::var_os("FOOTSCAN_DEBUG").is_some() {
-        eprintln!("newton start: r {r:.3?} p {p:.4?}");
+        eprintln!("solve start: r {r:.3?} p {p:.4?}");
     }
     let norm = |r: &[f64; 8]| -> f64 {
         r.iter()
@@ -491,12 +591,12 @@ pub fn solve(
             .sum::<f64>()
             .sqrt()
     };
-    for _it in 0..15 {
+    for _it in 0..20 {
         if r.iter().zip(TOL).all(|(a, t)| a.abs() <= t) {
             return Ok((mesh, me, p, evals));
         }
-        let mut jac = nalgebra::SMatrix::<f64, 8, 8>::zeros();
-        for j in 0..8 {
+        let mut jac = nalgebra::SMatrix::<f64, 8, NPARAM>::zeros();
+        for j in 0..NPARAM {
             let mut q = p;
             q[j] += steps[j];
             let (_, _, rq) = eval(&q)?;
@@ -504,12 +604,20 @@ pub fn solve(
                 jac[(i, j)] = (rq[i] - r[i]) / steps[j];
             }
         }
+        // Least weighted change from the neutral field that meets the linearised rules:
+        // with u = S (p - p0) (millimetres of surface), minimise |u + du| subject to
+        // J S^-1 du = -r, so du = -u + A^T (A A^T)^-1 (A u - r), A = J S^-1.
+        let sinv = nalgebra::SVector::<f64, NPARAM>::from_fn(|j, _| 1.0 / scale[j]);
+        let a = jac * nalgebra::SMatrix::<f64, NPARAM, NPARAM>::from_diagonal(&sinv);
+        let u = nalgebra::SVector::<f64, NPARAM>::from_fn(|j, _| (p[j] - p0[j]) * scale[j]);
         let rv = nalgebra::SVector::<f64, 8>::from(r);
-        let Some(dx) = jac.lu().solve(&(-rv)) else {
+        let Some(y) = (a * a.transpose()).lu().solve(&(a * u - rv)) else {
             return Err(CustomizeError::Infeasible {
                 why: "the rule targets cannot be moved independently (singular Jacobian)".into(),
             });
         };
+        let du = -u + a.transpose() * y;
+        let dx: Params = std::array::from_fn(|j| du[j] / scale[j]);
         let mut lambda = 1.0;
         let n0 = norm(&r);
         loop {
@@ -525,9 +633,11 @@ pub fn solve(
             lambda *= 0.5;
         }
         if std::env::var_os("FOOTSCAN_DEBUG").is_some() {
-            eprintln!("newton: r {r:.3?} p {p:.4?}");
+            eprintln!("solve: r {r:.3?} p {p:.4?}");
         }
-        let bad = p[1..7].iter().any(|s| !(0.5..=2.0).contains(s)) || p[7].abs() > 1.0;
+        let bad = p[1..5].iter().any(|s| !(0.5..=2.0).contains(s))
+            || [5, 6, 7].iter().any(|&j| p[j].abs() > 0.1 * nd.length)
+            || p[8].abs() > 1.0;
         if bad {
             break;
         }
