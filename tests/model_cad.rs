@@ -379,3 +379,52 @@ fn check_grid_bin(path: &Path) {
     println!("grid.bin: {nf} frames x {rows} rows, {accepted} accepted lines, {with_point} points");
     assert!(with_point > 100_000);
 }
+
+/// A real foot: MakeHuman's right foot mesh (../shared/data/feet, or FOOTSCAN_DATA) rendered by
+/// the simulator. Slits part its toes in the outline (the hull bridges them): the model must
+/// be one closed piece from the heel point to the measured toe tip, its STEP one valid solid.
+#[test]
+fn real_foot_mesh_model_is_one_closed_piece_to_the_toe_tip() {
+    let data = std::env::var_os("FOOTSCAN_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| repo().join("../shared/data"));
+    let mesh = data.join("feet/makehuman/makehuman_default_right_foot_cut150mm.stl");
+    assert!(
+        mesh.is_file(),
+        "{} not found (set FOOTSCAN_DATA to the shared data directory)",
+        mesh.display()
+    );
+    let path = repo().join("config/sim.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let edited = text.replace("scene = \"foot\"", "scene = \"mesh\"")
+        + &format!("\n[sim.mesh]\npath = {:?}\nunits = \"mm\"\n", mesh);
+    assert!(edited.contains("scene = \"mesh\""));
+    let cfg = LoadedConfig::parse(&path, edited).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let s = run_scan(&cfg, &ScanOptions::new(dir.path()), |_| {}).expect("scan runs");
+    assert!(s.status.is_usable(), "{}: {:?}", s.status, s.reason);
+    let m: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("measurements.json")).unwrap())
+            .unwrap();
+    let measured = m["foot_length_mm"].as_f64().unwrap();
+    let stl = check_closed(&read_stl(&dir.path().join("model.stl")));
+    let length = stl.max[0] - stl.min[0];
+    println!("makehuman: model {length:.3} mm heel to toe, measured {measured:.3} mm");
+    assert!((length - measured).abs() < 0.5, "{length} vs {measured}");
+    assert!(stl.min[0].abs() < 0.5, "rearmost x {}", stl.min[0]);
+    let out = Command::new(occt_python())
+        .arg(repo().join("scripts/occt_solid.py"))
+        .arg(dir.path().join("model.step"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    println!("OCCT: {text}");
+    assert!(out.status.success(), "OCCT: {text}");
+    let r: serde_json::Value = serde_json::from_str(text.trim()).unwrap();
+    let v = r["volume"].as_f64().unwrap();
+    assert!(
+        (v / stl.volume - 1.0).abs() < 0.01,
+        "STEP {v} vs STL {}",
+        stl.volume
+    );
+}
