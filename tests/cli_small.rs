@@ -301,6 +301,7 @@ fn rescan_keeps_both_scans_measure_out_writes_only_out_and_logs_are_plain() {
         .output()
         .unwrap();
     let said = text(&o);
+    assert_eq!(o.status.code(), Some(1), "a failed scan exits 1\n{said}");
     let json = read(&dest.join("scan.json"));
     let status = json["status"].as_str().unwrap().to_string();
     assert!(

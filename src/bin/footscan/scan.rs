@@ -86,15 +86,22 @@ pub fn run(
         }
     })?;
     match summary.status {
-        ScanStatus::Cancelled | ScanStatus::Failed => {
+        // A failed scan is an error for scripts and the shell (exit 1); a cancelled one
+        // exits 130 like any command stopped by Ctrl-C. Both keep their files and reason.
+        ScanStatus::Failed => bail!(
+            "scan failed: {} ({} frames; the files and the reason are kept in {})",
+            summary.reason.as_deref().unwrap_or("no reason given"),
+            summary.frames,
+            out.display()
+        ),
+        ScanStatus::Cancelled => {
             println!(
-                "scan {}: {} ({} frames; kept in {})",
-                summary.status,
+                "scan cancelled: {} ({} frames; kept in {})",
                 summary.reason.as_deref().unwrap_or(""),
                 summary.frames,
                 out.join("scan.json").display()
             );
-            return Ok(());
+            std::process::exit(130);
         }
         ScanStatus::Rescan | ScanStatus::SideMismatch => bail!(
             "scan {} ({} frames; the files and the reason are kept in {})",
