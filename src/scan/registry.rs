@@ -127,7 +127,7 @@ pub fn registry() -> Registry<Item, ScanContext> {
     );
     r.register(
         "model.bezier",
-        "Bezier-network plantar model from the grid; writes its closed mesh (stl, ply, obj, cell_mm)",
+        "Bezier-network plantar model from the grid; writes the foot model for CAD, one closed solid in the foot frame (stl, ply, obj, step, cell_mm, step_cell_mm)",
         |p, ctx: &ScanContext| {
             let p: ModelParams = params(p)?;
             Ok(Node::stage(ModelStage::new(p, &ctx.out_dir)?))
