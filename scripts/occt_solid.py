@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Read a STEP solid back with OpenCASCADE (OCP) and print what it is as one JSON line.
+"""Read a STEP or IGES solid back with OpenCASCADE (OCP) and print what it is as one JSON line.
 
-usage: occt_solid.py FILE.step
+usage: occt_solid.py FILE.step|FILE.igs
 
 JSON: the OCCT version, whether the file read, BRepCheck_Analyzer validity, counts of solids,
 shells, faces and edges, the edges bounded by other than exactly two faces (0 for a closed
@@ -24,6 +24,7 @@ from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepGProp import BRepGProp
 from OCP.GProp import GProp_GProps
 from OCP.IFSelect import IFSelect_RetDone
+from OCP.IGESControl import IGESControl_Reader
 from OCP.STEPControl import STEPControl_Reader
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL, TopAbs_SOLID
 from OCP.TopExp import TopExp
@@ -43,7 +44,9 @@ def explore(shape, kind):
 
 
 def read(path, out):
-    reader = STEPControl_Reader()
+    is_step = path.lower().endswith((".step", ".stp"))
+    reader = STEPControl_Reader() if is_step else IGESControl_Reader()
+    out["format"] = "STEP" if is_step else "IGES"
     if reader.ReadFile(path) != IFSelect_RetDone:
         out["read"] = False
         return 1

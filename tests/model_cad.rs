@@ -2,8 +2,8 @@
 //! few lines of byte reading here (not the writer's code) must be one closed, consistently
 //! oriented piece in the foot frame (heel point at the origin, x along the axis) whose
 //! heel-to-toe extent is the simulator's foot length within 0.5 mm and whose walls lie on the
-//! measured outline; model.step read back by OpenCASCADE must be one valid closed solid of
-//! the STL's volume within 1 %; `footscan model` refuses cells that would give an empty or
+//! measured outline; model.step (and model.igs on request) read back by OpenCASCADE must be
+//! one valid closed solid of the STL's volume within 1 %; `footscan model` refuses cells that would give an empty or
 //! absurd model, naming the value and the valid range; grid.bin parses by the description in
 //! docs/grid-bin.md alone.
 
@@ -279,8 +279,24 @@ fn simulated_scan_model_is_one_closed_solid_on_the_outline_and_step_reads_back()
     );
     assert!(out.status.success(), "{r}");
 
-    // `footscan model` on the saved scan: the same solid on 1 mm cells, and refusals.
+    // The same solid as IGES (entity 186), on request, read back by OpenCASCADE the same way.
     let d = dir.path().to_str().unwrap();
+    let o = footscan(&["model", "--scan", d, "--out", d, "--formats", "iges"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = Command::new(occt_python())
+        .arg(repo().join("scripts/occt_solid.py"))
+        .arg(dir.path().join("model.igs"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    println!("OCCT (IGES): {text}");
+    assert!(out.status.success(), "OCCT (IGES): {text}");
+    let r: serde_json::Value = serde_json::from_str(text.trim()).unwrap();
+    assert_eq!(r["format"], "IGES");
+    let vi = r["volume"].as_f64().unwrap();
+    assert!((vi / v - 1.0).abs() < 1e-9, "IGES {vi} vs STEP {v}");
+
+    // `footscan model` on the saved scan: the same solid on 1 mm cells, and refusals.
     let o = footscan(&[
         "model",
         "--scan",

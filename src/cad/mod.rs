@@ -17,6 +17,7 @@
 //!   bottom 2 mm below the glass. The gaps are filled once, on [`FILL_CELL_MM`], and other
 //!   cells sample that fill, so the STL and the STEP agree there.
 
+mod iges;
 mod step;
 
 use crate::geom::HeightMap;
@@ -28,6 +29,7 @@ use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
 
+pub use iges::{iges_solid, write_iges_solid};
 pub use step::{faceted_step, write_faceted_step};
 
 /// Smallest model cell (mm): a whole foot on 0.1 mm cells is about 5 million triangles and
@@ -321,6 +323,8 @@ pub struct ModelFiles {
     pub ply: Option<PathBuf>,
     pub obj: Option<PathBuf>,
     pub step: Option<PathBuf>,
+    /// The same solid as the STEP file, as an IGES 5.3 B-rep solid (entity 186).
+    pub iges: Option<PathBuf>,
     pub cell_mm: f64,
     pub step_cell_mm: f64,
 }
@@ -415,13 +419,13 @@ pub fn write_foot_model(
     names: [&'static str; 2],
 ) -> Result<ModelSummary, CadError> {
     check_cell(names[0], files.cell_mm, None)?;
-    if files.step.is_some() {
+    if files.step.is_some() || files.iges.is_some() {
         check_cell(names[1], files.step_cell_mm, None)?;
     }
     let t = Instant::now();
     let (map, m) = measure_grid(grid, Some(net), DEFAULT_CELL_MM)?;
     check_cell(names[0], files.cell_mm, Some(m.ball_width_mm))?;
-    if files.step.is_some() {
+    if files.step.is_some() || files.iges.is_some() {
         check_cell(names[1], files.step_cell_mm, Some(m.ball_width_mm))?;
     }
     let frame = FootFrame::of(&m);
@@ -467,16 +471,21 @@ pub fn write_foot_model(
         }
     }
     let (mut step_faces, mut step_volume) = (None, None);
-    if let Some(p) = &files.step {
+    if files.step.is_some() || files.iges.is_some() {
         let s = on(files.step_cell_mm)?;
-        let faces =
-            write_faceted_step(p, &s, "footscan foot model").map_err(|source| CadError::Write {
-                path: p.clone(),
-                source,
-            })?;
-        step_faces = Some(faces);
+        let err = |p: &PathBuf| {
+            let path = p.clone();
+            move |source| CadError::Write { path, source }
+        };
+        if let Some(p) = &files.step {
+            step_faces = Some(write_faceted_step(p, &s, "footscan foot model").map_err(err(p))?);
+            written.push(p.clone());
+        }
+        if let Some(p) = &files.iges {
+            step_faces = Some(write_iges_solid(p, &s, "footscan foot model").map_err(err(p))?);
+            written.push(p.clone());
+        }
         step_volume = Some(s.mesh().signed_volume());
-        written.push(p.clone());
     }
     let mut ext = [[f64::MAX, f64::MIN]; 3];
     for t in &mesh.triangles {
@@ -513,7 +522,7 @@ pub fn write_foot_model(
         components,
         volume_mm3: mesh.signed_volume(),
         base_z_mm: solid.base_z,
-        step_cell_mm: files.step.as_ref().map(|_| files.step_cell_mm),
+        step_cell_mm: step_volume.map(|_| files.step_cell_mm),
         step_faces,
         step_volume_mm3: step_volume,
         mesh_ms: t.elapsed().as_secs_f64() * 1e3,

@@ -69,12 +69,13 @@ pub fn faceted_step(solid: &OutlineSolid, name: &str) -> (String, usize) {
         }
     }
     let mut faces = Vec::new();
-    let mut face = |w: &mut Data, ids: &[u32]| {
-        let pts: Vec<[f64; 3]> = ids.iter().map(|&k| v[k as usize]).collect();
-        let n = newell(&pts);
+    for f in facets(solid) {
+        let pts: Vec<[f64; 3]> = f.ids.iter().map(|&k| v[k as usize]).collect();
+        let n = f.normal;
         let loop_ = w.add(format!(
             "POLY_LOOP('',({}))",
-            ids.iter()
+            f.ids
+                .iter()
                 .map(|&k| format!("#{}", point[k as usize]))
                 .collect::<Vec<_>>()
                 .join(",")
@@ -99,27 +100,10 @@ pub fn faceted_step(solid: &OutlineSolid, name: &str) -> (String, usize) {
         ));
         let ax = w.add(format!(
             "AXIS2_PLACEMENT_3D('',#{},#{nd},#{xr})",
-            point[ids[0] as usize]
+            point[f.ids[0] as usize]
         ));
         let plane = w.add(format!("PLANE('',#{ax})"));
         faces.push(w.add(format!("FACE_SURFACE('',(#{bound}),#{plane},.T.)")));
-    };
-    for t in &solid.top {
-        face(&mut w, t);
-    }
-    for lp in &solid.loops {
-        for k in 0..lp.len() {
-            let (a, b) = (lp[k], lp[(k + 1) % lp.len()]);
-            face(&mut w, &[a, a + 1, b + 1, b]);
-        }
-    }
-    if solid.loops.len() == 1 {
-        let bottom: Vec<u32> = solid.loops[0].iter().rev().map(|&k| k + 1).collect();
-        face(&mut w, &bottom);
-    } else {
-        for &[a, b, c] in &solid.top {
-            face(&mut w, &[a + 1, c + 1, b + 1]);
-        }
     }
     let count = faces.len();
     let shell = w.add(format!(
@@ -150,6 +134,42 @@ pub fn faceted_step(solid: &OutlineSolid, name: &str) -> (String, usize) {
     }
     out.push_str("ENDSEC;\nEND-ISO-10303-21;\n");
     (out, count)
+}
+
+/// One planar face of the solid: its vertex loop (counterclockwise seen from outside) and
+/// its outward unit normal.
+pub(crate) struct Facet {
+    pub ids: Vec<u32>,
+    pub normal: [f64; 3],
+}
+
+/// The faces of `solid`: the top's triangles, one quad per wall chord, and the bottom as one
+/// polygon (its triangles when the top has more than one boundary loop).
+pub(crate) fn facets(solid: &OutlineSolid) -> Vec<Facet> {
+    let v = &solid.vertices;
+    let mut out = Vec::with_capacity(solid.top.len() + solid.boundary_len() + 1);
+    let mut add = |ids: Vec<u32>| {
+        let pts: Vec<[f64; 3]> = ids.iter().map(|&k| v[k as usize]).collect();
+        let normal = newell(&pts);
+        out.push(Facet { ids, normal });
+    };
+    for t in &solid.top {
+        add(t.to_vec());
+    }
+    for lp in &solid.loops {
+        for k in 0..lp.len() {
+            let (a, b) = (lp[k], lp[(k + 1) % lp.len()]);
+            add(vec![a, a + 1, b + 1, b]);
+        }
+    }
+    if solid.loops.len() == 1 {
+        add(solid.loops[0].iter().rev().map(|&k| k + 1).collect());
+    } else {
+        for &[a, b, c] in &solid.top {
+            add(vec![a + 1, c + 1, b + 1]);
+        }
+    }
+    out
 }
 
 #[derive(Default)]
@@ -203,7 +223,7 @@ fn quoted(s: &str) -> String {
 }
 
 /// A real that reads back to the same f64, always with a decimal point (Part 21).
-fn real(x: f64) -> String {
+pub(crate) fn real(x: f64) -> String {
     if x == 0.0 {
         return "0.".to_string();
     }

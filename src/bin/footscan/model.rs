@@ -23,7 +23,7 @@ pub struct Args {
     /// quarter of the foot's ball width.
     #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     cell_mm: f64,
-    /// Cell of the faceted STEP solid (mm), same range.
+    /// Cell of the STEP (and IGES) solid (mm), same range.
     #[arg(long, default_value_t = DEFAULT_STEP_CELL_MM, allow_negative_numbers = true)]
     step_cell_mm: f64,
     /// Print the summary as JSON.
@@ -37,12 +37,13 @@ enum Format {
     Ply,
     Obj,
     Step,
+    Iges,
 }
 
 pub fn run(a: Args) -> Result<()> {
     // Refuse a hopeless cell before reading the grid; the foot's width is checked after.
     check_cell("--cell-mm", a.cell_mm, None)?;
-    if a.formats.contains(&Format::Step) {
+    if a.formats.contains(&Format::Step) || a.formats.contains(&Format::Iges) {
         check_cell("--step-cell-mm", a.step_cell_mm, None)?;
     }
     let grid_path = a.scan.join("grid.bin");
@@ -56,6 +57,7 @@ pub fn run(a: Args) -> Result<()> {
         ply: want(Format::Ply, "model.ply"),
         obj: want(Format::Obj, "model.obj"),
         step: want(Format::Step, "model.step"),
+        iges: want(Format::Iges, "model.igs"),
         cell_mm: a.cell_mm,
         step_cell_mm: a.step_cell_mm,
     };

@@ -24,6 +24,9 @@ pub struct ModelParams {
     /// The faceted STEP solid; "" to skip it.
     #[serde(default = "default_step")]
     pub step: String,
+    /// The same solid as an IGES B-rep solid; "" (the default) to skip it.
+    #[serde(default)]
+    pub iges: String,
     /// Cell of the grid the mesh is sampled on (mm), in the foot frame.
     #[serde(default = "default_cell")]
     pub cell_mm: f64,
@@ -71,6 +74,7 @@ impl ModelStage {
                 ply: optional(out_dir, "ply", &p.ply)?,
                 obj: optional(out_dir, "obj", &p.obj)?,
                 step: optional(out_dir, "step", &p.step)?,
+                iges: optional(out_dir, "iges", &p.iges)?,
                 cell_mm: p.cell_mm,
                 step_cell_mm: p.step_cell_mm,
             },
