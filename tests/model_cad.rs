@@ -444,3 +444,39 @@ fn real_foot_mesh_model_is_one_closed_piece_to_the_toe_tip() {
         stl.volume
     );
 }
+
+/// The stage refuses the same cells in a config, before anything is scanned.
+#[test]
+fn model_stage_refuses_a_cell_that_would_give_no_model() {
+    let path = repo().join("config/sim.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    for (cell, says) in [
+        ("0.0", "cell_mm = 0:"),
+        ("nan", "cell_mm = NaN:"),
+        ("80.0", "cell_mm = 80:"),
+    ] {
+        let edited = text.replacen(
+            "stl = \"model.stl\"\ncell_mm = 0.5",
+            &format!("stl = \"model.stl\"\ncell_mm = {cell}"),
+            1,
+        );
+        assert_ne!(
+            edited, text,
+            "config/sim.toml's model.bezier stage has moved"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let err = match LoadedConfig::parse(&path, edited) {
+            Err(e) => e.to_string(),
+            Ok(cfg) => match run_scan(&cfg, &ScanOptions::new(dir.path()), |_| {}) {
+                Err(e) => e.to_string(),
+                Ok(s) => format!("{}: {:?}", s.status, s.reason),
+            },
+        };
+        println!("cell_mm = {cell}: {err}");
+        assert!(err.contains("model.bezier"), "{err}");
+        assert!(
+            err.contains(says) && err.contains("between 0.1 and 50.00 mm"),
+            "{err}"
+        );
+    }
+}

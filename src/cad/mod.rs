@@ -82,8 +82,10 @@ pub fn check_cell(
         format!("{why}; it is not a number")
     } else if value < MIN_CELL_MM {
         format!("{why}; finer cells would not fit in memory, and none can be 0 or negative")
+    } else if ball_width_mm.is_some() {
+        format!("{why}; coarser cells leave too few across the foot to model it")
     } else {
-        why
+        format!("{why}; coarser cells leave too few across any foot (the limit is a quarter of its ball width)")
     };
     Err(CadError::Cell {
         name,
