@@ -32,8 +32,8 @@ use std::time::Instant;
 pub use iges::{iges_solid, write_iges_solid};
 pub use step::{faceted_step, write_faceted_step};
 
-/// Smallest model cell (mm): a whole foot on 0.1 mm cells is about 5 million triangles and
-/// 0.5 GB while it is built; finer grids would not fit the scanner's memory.
+/// Smallest model cell (mm): a whole foot on 0.1 mm cells is 7 million triangles and
+/// 0.44 GB while it is built; finer grids would not fit the scanner's memory.
 pub const MIN_CELL_MM: f64 = 0.1;
 /// Largest cell accepted before the foot is measured; after, a quarter of its ball width.
 pub const MAX_CELL_MM: f64 = 50.0;
