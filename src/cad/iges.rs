@@ -5,6 +5,7 @@
 
 use super::step::facets;
 use crate::surface::solid::OutlineSolid;
+use footscan_geom::export::real;
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -300,9 +301,4 @@ fn hollerith(s: &str) -> String {
         return String::new();
     }
     format!("{}H{s}", s.len())
-}
-
-/// A real that reads back to the same f64, with a decimal point and an 'E' exponent if any.
-fn real(x: f64) -> String {
-    super::step::real(x)
 }

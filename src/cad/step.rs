@@ -5,7 +5,9 @@
 //! (or its triangles when the top has more than one loop). All faces sit in one CLOSED_SHELL.
 
 use crate::surface::solid::OutlineSolid;
-use std::fmt::Write as _;
+use footscan_geom::export::step::Document;
+use footscan_geom::export::{real, Header};
+use footscan_geom::P3;
 use std::path::Path;
 
 /// Writes `solid` to `path` as a faceted STEP solid, atomically; returns the face count.
@@ -17,36 +19,11 @@ pub fn write_faceted_step(path: &Path, solid: &OutlineSolid, name: &str) -> std:
 
 /// The STEP text of `solid` and its number of faces.
 pub fn faceted_step(solid: &OutlineSolid, name: &str) -> (String, usize) {
-    let mut w = Data::default();
-    let name = quoted(name);
-    let app = w.add("APPLICATION_CONTEXT('automotive design')".into());
-    w.add(format!(
-        "APPLICATION_PROTOCOL_DEFINITION('international standard','automotive_design',2000,#{app})"
-    ));
-    let pc = w.add(format!("PRODUCT_CONTEXT('',#{app},'mechanical')"));
-    let product = w.add(format!("PRODUCT({name},{name},'',(#{pc}))"));
-    w.add(format!(
-        "PRODUCT_RELATED_PRODUCT_CATEGORY('part',$,(#{product}))"
-    ));
-    let pdf = w.add(format!("PRODUCT_DEFINITION_FORMATION('','',#{product})"));
-    let pdc = w.add(format!(
-        "PRODUCT_DEFINITION_CONTEXT('part definition',#{app},'design')"
-    ));
-    let pd = w.add(format!("PRODUCT_DEFINITION('design','',#{pdf},#{pdc})"));
-    let pds = w.add(format!("PRODUCT_DEFINITION_SHAPE('','',#{pd})"));
-    let mm = w.add("(LENGTH_UNIT()NAMED_UNIT(*)SI_UNIT(.MILLI.,.METRE.))".into());
-    let rad = w.add("(NAMED_UNIT(*)PLANE_ANGLE_UNIT()SI_UNIT($,.RADIAN.))".into());
-    let sr = w.add("(NAMED_UNIT(*)SI_UNIT($,.STERADIAN.)SOLID_ANGLE_UNIT())".into());
-    let unc = w.add(format!(
-        "UNCERTAINTY_MEASURE_WITH_UNIT(LENGTH_MEASURE(1.E-6),#{mm},'distance_accuracy_value','confusion accuracy')"
-    ));
-    let ctx = w.add(format!(
-        "(GEOMETRIC_REPRESENTATION_CONTEXT(3)GLOBAL_UNCERTAINTY_ASSIGNED_CONTEXT((#{unc}))GLOBAL_UNIT_ASSIGNED_CONTEXT((#{mm},#{rad},#{sr}))REPRESENTATION_CONTEXT('',''))"
-    ));
-    let origin = w.add("CARTESIAN_POINT('',(0.,0.,0.))".into());
-    let dz = w.add("DIRECTION('',(0.,0.,1.))".into());
-    let dx = w.add("DIRECTION('',(1.,0.,0.))".into());
-    let axis = w.add(format!("AXIS2_PLACEMENT_3D('',#{origin},#{dz},#{dx})"));
+    let mut w = Document::new(
+        &Header::new(name),
+        "footscan foot model: faceted closed solid, millimetres, foot frame",
+    );
+    let (name, ctx, pds, axis) = (w.name.clone(), w.ctx, w.pds, w.axis);
 
     // Points: every vertex a face uses, once.
     let v = &solid.vertices;
@@ -60,12 +37,7 @@ pub fn faceted_step(solid: &OutlineSolid, name: &str) -> (String, usize) {
     }
     for (k, p) in v.iter().enumerate() {
         if used[k] {
-            point[k] = w.add(format!(
-                "CARTESIAN_POINT('',({},{},{}))",
-                real(p[0]),
-                real(p[1]),
-                real(p[2])
-            ));
+            point[k] = w.point(P3::new(p[0], p[1], p[2]));
         }
     }
     let mut faces = Vec::new();
@@ -120,19 +92,7 @@ pub fn faceted_step(solid: &OutlineSolid, name: &str) -> (String, usize) {
     ));
     w.add(format!("SHAPE_DEFINITION_REPRESENTATION(#{pds},#{rep})"));
 
-    let mut out = String::with_capacity(w.items.iter().map(|s| s.len() + 12).sum::<usize>() + 512);
-    out.push_str("ISO-10303-21;\nHEADER;\n");
-    out.push_str("FILE_DESCRIPTION(('footscan foot model: faceted closed solid, millimetres, foot frame'),'2;1');\n");
-    let _ = writeln!(
-        out,
-        "FILE_NAME({name},'',('footscan'),(''),'footscan {}','footscan','');",
-        env!("CARGO_PKG_VERSION")
-    );
-    out.push_str("FILE_SCHEMA(('AUTOMOTIVE_DESIGN { 1 0 10303 214 1 1 1 1 }'));\nENDSEC;\nDATA;\n");
-    for (i, body) in w.items.iter().enumerate() {
-        wrap_into(&mut out, &format!("#{}={body};", i + 1));
-    }
-    out.push_str("ENDSEC;\nEND-ISO-10303-21;\n");
+    let out = w.finish();
     (out, count)
 }
 
@@ -172,18 +132,6 @@ pub(crate) fn facets(solid: &OutlineSolid) -> Vec<Facet> {
     out
 }
 
-#[derive(Default)]
-struct Data {
-    items: Vec<String>,
-}
-
-impl Data {
-    fn add(&mut self, body: String) -> usize {
-        self.items.push(body);
-        self.items.len()
-    }
-}
-
 /// Unit normal of a planar polygon by Newell's method (robust for any vertex count).
 fn newell(p: &[[f64; 3]]) -> [f64; 3] {
     let mut n = [0.0; 3];
@@ -211,52 +159,6 @@ fn unit(a: [f64; 3]) -> [f64; 3] {
     } else {
         [0.0, 0.0, 1.0]
     }
-}
-
-/// A STEP string literal of printable ASCII, apostrophes and backslashes doubled.
-fn quoted(s: &str) -> String {
-    let clean: String = s
-        .chars()
-        .map(|c| if (' '..='~').contains(&c) { c } else { '?' })
-        .collect();
-    format!("'{}'", clean.replace('\\', "\\\\").replace('\'', "''"))
-}
-
-/// A real that reads back to the same f64, always with a decimal point (Part 21).
-pub(crate) fn real(x: f64) -> String {
-    if x == 0.0 {
-        return "0.".to_string();
-    }
-    let a = x.abs();
-    let mut s = if (1e-4..1e15).contains(&a) {
-        format!("{x}")
-    } else {
-        format!("{x:E}")
-    };
-    match s.find('E') {
-        Some(e) if !s[..e].contains('.') => s.insert(e, '.'),
-        None if !s.contains('.') => s.push('.'),
-        _ => {}
-    }
-    s
-}
-
-/// One instance, broken after commas (outside strings) into lines of about 80 characters.
-fn wrap_into(out: &mut String, entity: &str) {
-    let mut col = 0;
-    let mut in_string = false;
-    for ch in entity.chars() {
-        out.push(ch);
-        col += 1;
-        if ch == '\'' {
-            in_string = !in_string;
-        }
-        if ch == ',' && !in_string && col >= 72 {
-            out.push('\n');
-            col = 0;
-        }
-    }
-    out.push('\n');
 }
 
 #[cfg(test)]

@@ -113,7 +113,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
 
 /// A real number written so that it reads back to the same f64 (shortest round-trip digits)
 /// and always with a decimal point, as both IGES and STEP require for reals.
-pub(crate) fn real(x: f64) -> String {
+pub fn real(x: f64) -> String {
     if x == 0.0 {
         return "0.".to_string();
     }

@@ -57,37 +57,9 @@ pub fn to_string(
     for (k, s) in surfaces.iter().enumerate() {
         check_surface(k, s)?;
     }
-    let name = quoted(&header.name);
-    let mut w = Data::default();
-    let app = w.add("APPLICATION_CONTEXT('automotive design')".into());
-    w.add(format!(
-        "APPLICATION_PROTOCOL_DEFINITION('international standard','automotive_design',2000,#{app})"
-    ));
-    let pc = w.add(format!("PRODUCT_CONTEXT('',#{app},'mechanical')"));
-    let product = w.add(format!("PRODUCT({name},{name},'',(#{pc}))"));
-    w.add(format!(
-        "PRODUCT_RELATED_PRODUCT_CATEGORY('part',$,(#{product}))"
-    ));
-    let pdf = w.add(format!("PRODUCT_DEFINITION_FORMATION('','',#{product})"));
-    let pdc = w.add(format!(
-        "PRODUCT_DEFINITION_CONTEXT('part definition',#{app},'design')"
-    ));
-    let pd = w.add(format!("PRODUCT_DEFINITION('design','',#{pdf},#{pdc})"));
-    let pds = w.add(format!("PRODUCT_DEFINITION_SHAPE('','',#{pd})"));
-    let mm = w.add("(LENGTH_UNIT()NAMED_UNIT(*)SI_UNIT(.MILLI.,.METRE.))".into());
-    let rad = w.add("(NAMED_UNIT(*)PLANE_ANGLE_UNIT()SI_UNIT($,.RADIAN.))".into());
-    let sr = w.add("(NAMED_UNIT(*)SI_UNIT($,.STERADIAN.)SOLID_ANGLE_UNIT())".into());
-    let unc = w.add(format!(
-        "UNCERTAINTY_MEASURE_WITH_UNIT(LENGTH_MEASURE({}),#{mm},'distance_accuracy_value','confusion accuracy')",
-        real(header.resolution_mm)
-    ));
-    let ctx = w.add(format!(
-        "(GEOMETRIC_REPRESENTATION_CONTEXT(3)GLOBAL_UNCERTAINTY_ASSIGNED_CONTEXT((#{unc}))GLOBAL_UNIT_ASSIGNED_CONTEXT((#{mm},#{rad},#{sr}))REPRESENTATION_CONTEXT('',''))"
-    ));
-    let origin = w.point(P3::origin());
-    let z = w.add("DIRECTION('',(0.,0.,1.))".into());
-    let x = w.add("DIRECTION('',(1.,0.,0.))".into());
-    let axis = w.add(format!("AXIS2_PLACEMENT_3D('',#{origin},#{z},#{x})"));
+    let mut doc = Document::new(header, "B-spline curves and surfaces, millimetres");
+    let (name, ctx, pds, axis) = (doc.name.clone(), doc.ctx, doc.pds, doc.axis);
+    let w = &mut doc.data;
     let shape_rep = w.add(format!("SHAPE_REPRESENTATION({name},(#{axis}),#{ctx})"));
     w.add(format!(
         "SHAPE_DEFINITION_REPRESENTATION(#{pds},#{shape_rep})"
@@ -120,31 +92,116 @@ pub fn to_string(
         ));
     }
 
-    let (y, mo, d, h, mi, s) = utc(header.time);
-    let mut out = String::new();
-    out.push_str("ISO-10303-21;\nHEADER;\n");
-    let _ = writeln!(
-        out,
-        "FILE_DESCRIPTION(('B-spline curves and surfaces, millimetres'),'2;1');"
-    );
-    let _ = writeln!(
-        out,
-        "FILE_NAME({},'{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}',({}),({}),'footscan-geom {}','footscan','');",
-        quoted(&format!("{}.step", header.name)),
-        quoted(&header.author),
-        quoted(&header.organization),
-        env!("CARGO_PKG_VERSION")
-    );
-    out.push_str("FILE_SCHEMA(('AUTOMOTIVE_DESIGN { 1 0 10303 214 1 1 1 1 }'));\nENDSEC;\nDATA;\n");
-    for (i, body) in w.items.iter().enumerate() {
-        wrap_into(&mut out, &format!("#{}={body};", i + 1));
-    }
-    out.push_str("ENDSEC;\nEND-ISO-10303-21;\n");
+    let out = doc.finish();
     Ok(out)
 }
 
+/// A STEP document being written: the product boilerplate a CAD tool needs to open the file
+/// as a part (application context and protocol, product, formation, definition, definition
+/// shape, units mm / radian / steradian with the header's resolution as uncertainty, the
+/// part's axis placement) is in place; the caller adds its representation entities and
+/// `finish` wraps everything with the header section. Every STEP file of the project is
+/// written through it (this module's B-spline export, the foot model's faceted solid).
+pub struct Document {
+    data: Data,
+    header: Header,
+    description: String,
+    /// The part's name as a STEP string literal.
+    pub name: String,
+    /// The geometric representation context, the product definition shape and the part's
+    /// axis placement, for the caller's shape representation.
+    pub ctx: usize,
+    pub pds: usize,
+    pub axis: usize,
+}
+
+impl Document {
+    pub fn new(header: &Header, description: &str) -> Document {
+        let name = quoted(&header.name);
+        let mut w = Data::default();
+        let app = w.add("APPLICATION_CONTEXT('automotive design')".into());
+        w.add(format!(
+            "APPLICATION_PROTOCOL_DEFINITION('international standard','automotive_design',2000,#{app})"
+        ));
+        let pc = w.add(format!("PRODUCT_CONTEXT('',#{app},'mechanical')"));
+        let product = w.add(format!("PRODUCT({name},{name},'',(#{pc}))"));
+        w.add(format!(
+            "PRODUCT_RELATED_PRODUCT_CATEGORY('part',$,(#{product}))"
+        ));
+        let pdf = w.add(format!("PRODUCT_DEFINITION_FORMATION('','',#{product})"));
+        let pdc = w.add(format!(
+            "PRODUCT_DEFINITION_CONTEXT('part definition',#{app},'design')"
+        ));
+        let pd = w.add(format!("PRODUCT_DEFINITION('design','',#{pdf},#{pdc})"));
+        let pds = w.add(format!("PRODUCT_DEFINITION_SHAPE('','',#{pd})"));
+        let mm = w.add("(LENGTH_UNIT()NAMED_UNIT(*)SI_UNIT(.MILLI.,.METRE.))".into());
+        let rad = w.add("(NAMED_UNIT(*)PLANE_ANGLE_UNIT()SI_UNIT($,.RADIAN.))".into());
+        let sr = w.add("(NAMED_UNIT(*)SI_UNIT($,.STERADIAN.)SOLID_ANGLE_UNIT())".into());
+        let unc = w.add(format!(
+            "UNCERTAINTY_MEASURE_WITH_UNIT(LENGTH_MEASURE({}),#{mm},'distance_accuracy_value','confusion accuracy')",
+            real(header.resolution_mm)
+        ));
+        let ctx = w.add(format!(
+            "(GEOMETRIC_REPRESENTATION_CONTEXT(3)GLOBAL_UNCERTAINTY_ASSIGNED_CONTEXT((#{unc}))GLOBAL_UNIT_ASSIGNED_CONTEXT((#{mm},#{rad},#{sr}))REPRESENTATION_CONTEXT('',''))"
+        ));
+        let origin = w.point(P3::origin());
+        let z = w.add("DIRECTION('',(0.,0.,1.))".into());
+        let x = w.add("DIRECTION('',(1.,0.,0.))".into());
+        let axis = w.add(format!("AXIS2_PLACEMENT_3D('',#{origin},#{z},#{x})"));
+        Document {
+            data: w,
+            header: header.clone(),
+            description: description.to_string(),
+            name,
+            ctx,
+            pds,
+            axis,
+        }
+    }
+
+    /// Adds one entity instance (without `#n=` and `;`) and returns its number.
+    pub fn add(&mut self, body: String) -> usize {
+        self.data.add(body)
+    }
+
+    pub fn point(&mut self, q: P3) -> usize {
+        self.data.point(q)
+    }
+
+    /// The whole exchange file.
+    pub fn finish(self) -> String {
+        let header = &self.header;
+        let (y, mo, d, h, mi, s) = utc(header.time);
+        let items = &self.data.items;
+        let mut out =
+            String::with_capacity(items.iter().map(|s| s.len() + 12).sum::<usize>() + 512);
+        out.push_str("ISO-10303-21;\nHEADER;\n");
+        let _ = writeln!(
+            out,
+            "FILE_DESCRIPTION(({}),'2;1');",
+            quoted(&self.description)
+        );
+        let _ = writeln!(
+            out,
+            "FILE_NAME({},'{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}',({}),({}),'footscan-geom {}','footscan','');",
+            quoted(&format!("{}.step", header.name)),
+            quoted(&header.author),
+            quoted(&header.organization),
+            env!("CARGO_PKG_VERSION")
+        );
+        out.push_str(
+            "FILE_SCHEMA(('AUTOMOTIVE_DESIGN { 1 0 10303 214 1 1 1 1 }'));\nENDSEC;\nDATA;\n",
+        );
+        for (i, body) in items.iter().enumerate() {
+            wrap_into(&mut out, &format!("#{}={body};", i + 1));
+        }
+        out.push_str("ENDSEC;\nEND-ISO-10303-21;\n");
+        out
+    }
+}
+
 /// A STEP string literal: printable ASCII, apostrophes and backslashes doubled.
-fn quoted(s: &str) -> String {
+pub fn quoted(s: &str) -> String {
     format!("'{}'", ascii(s).replace('\\', "\\\\").replace('\'', "''"))
 }
 
