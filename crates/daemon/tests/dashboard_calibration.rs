@@ -10,12 +10,9 @@
 #[path = "daemon_support/chromium.rs"]
 mod chromium;
 
-use chromium::CHROMIUM;
+use chromium::Browser;
 use serde_json::{json, Value};
-use std::fs::File;
-use std::io::{BufRead, BufReader, Write};
-use std::os::fd::{FromRawFd, IntoRawFd, OwnedFd};
-use std::os::unix::process::CommandExt;
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -98,126 +95,6 @@ fn post(base: &str, path: &str, body: &str) -> Value {
     serde_json::from_str(&text).unwrap()
 }
 
-/// Chromium under the DevTools protocol over a pipe, one page attached.
-struct Browser {
-    _child: Kill,
-    tx: File,
-    rx: BufReader<File>,
-    next_id: u64,
-    session: String,
-}
-
-fn pipe() -> (OwnedFd, OwnedFd) {
-    let mut fds = [0; 2];
-    // SAFETY: pipe2 fills two new descriptors, owned from here on.
-    assert_eq!(unsafe { libc::pipe2(fds.as_mut_ptr(), libc::O_CLOEXEC) }, 0);
-    unsafe { (OwnedFd::from_raw_fd(fds[0]), OwnedFd::from_raw_fd(fds[1])) }
-}
-
-impl Browser {
-    fn launch(profile: &Path, width: u32, height: u32) -> Browser {
-        chromium::require();
-        let (cmd_r, cmd_w) = pipe(); // we write commands, Chromium reads fd 3
-        let (ev_r, ev_w) = pipe(); // Chromium writes fd 4, we read
-        let (a, b) = (cmd_r.into_raw_fd(), ev_w.into_raw_fd());
-        let mut cmd = Command::new(CHROMIUM);
-        cmd.args(chromium::HEADLESS)
-            .args(["--remote-debugging-pipe", "about:blank"])
-            .arg(format!("--user-data-dir={}", profile.display()))
-            .arg(format!("--window-size={width},{height}"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null());
-        // SAFETY: only async-signal-safe dup2 calls between fork and exec.
-        unsafe {
-            cmd.pre_exec(move || {
-                if libc::dup2(a, 3) < 0 || libc::dup2(b, 4) < 0 {
-                    return Err(std::io::Error::last_os_error());
-                }
-                Ok(())
-            });
-        }
-        let child = Kill(cmd.spawn().expect("starting chromium"));
-        // SAFETY: the raw descriptors came from into_raw_fd above; the child has its copies.
-        unsafe {
-            libc::close(a);
-            libc::close(b);
-        }
-        let mut br = Browser {
-            _child: child,
-            tx: File::from(cmd_w),
-            rx: BufReader::new(File::from(ev_r)),
-            next_id: 0,
-            session: String::new(),
-        };
-        let t = br.call(None, "Target.createTarget", json!({"url": "about:blank"}));
-        let target = t["targetId"].as_str().unwrap().to_string();
-        let s = br.call(
-            None,
-            "Target.attachToTarget",
-            json!({"targetId": target, "flatten": true}),
-        );
-        br.session = s["sessionId"].as_str().unwrap().to_string();
-        br.page(
-            "Emulation.setDeviceMetricsOverride",
-            json!({"width": width, "height": height, "deviceScaleFactor": 1, "mobile": false}),
-        );
-        br
-    }
-
-    fn call(&mut self, session: Option<&str>, method: &str, params: Value) -> Value {
-        self.next_id += 1;
-        let id = self.next_id;
-        let mut msg = json!({"id": id, "method": method, "params": params});
-        if let Some(s) = session {
-            msg["sessionId"] = s.into();
-        }
-        let mut bytes = serde_json::to_vec(&msg).unwrap();
-        bytes.push(0);
-        self.tx.write_all(&bytes).unwrap();
-        loop {
-            let mut buf = Vec::new();
-            let n = self.rx.read_until(0, &mut buf).unwrap();
-            assert!(n > 0, "chromium closed the DevTools pipe during {method}");
-            buf.pop();
-            let v: Value = serde_json::from_slice(&buf).unwrap();
-            if v["id"] == id {
-                assert!(v["error"].is_null(), "{method}: {}", v["error"]);
-                return v["result"].clone();
-            }
-        }
-    }
-
-    fn page(&mut self, method: &str, params: Value) -> Value {
-        let s = self.session.clone();
-        self.call(Some(&s), method, params)
-    }
-
-    /// Evaluate `expr` in the page (promises awaited); its value.
-    fn eval(&mut self, expr: &str) -> Value {
-        let r = self.page(
-            "Runtime.evaluate",
-            json!({"expression": expr, "returnByValue": true, "awaitPromise": true}),
-        );
-        assert!(
-            r["exceptionDetails"].is_null(),
-            "{expr}: {}",
-            r["exceptionDetails"]
-        );
-        r["result"]["value"].clone()
-    }
-
-    fn screenshot(&mut self, path: &Path) -> image::RgbImage {
-        use base64::Engine;
-        let r = self.page("Page.captureScreenshot", json!({"format": "png"}));
-        let png = base64::engine::general_purpose::STANDARD
-            .decode(r["data"].as_str().unwrap())
-            .unwrap();
-        std::fs::write(path, &png).unwrap();
-        println!("screenshot {}", path.display());
-        image::load_from_memory(&png).unwrap().to_rgb8()
-    }
-}
-
 /// What the card shows (read from the DOM, as the operator sees it).
 const CARD: &str = r#"(() => {
   const t = (id) => (document.getElementById(id) || {}).textContent || '';
@@ -231,10 +108,6 @@ const CARD: &str = r#"(() => {
     error: document.getElementById('error').hidden ? '' : t('error-text'),
   };
 })()"#;
-
-fn click(b: &mut Browser, id: &str) {
-    b.eval(&format!("document.getElementById('{id}').click()"));
-}
 
 /// Work the wizard until the job ends: confirm each step, repeat a failed one (screenshot
 /// of the first place, the failed check and the first kept review). Returns (confirms,
@@ -273,19 +146,20 @@ fn operate(
         if c["repeat"] == true && c["seenClass"] == "fail" {
             println!("dashboard: {} -> {}", c["step"], c["seen"]);
             if !shots.iter().any(|(n, _)| n == "failed") {
-                let img = b.screenshot(&target_dir().join("dashboard-calibration-failed.png"));
+                let img =
+                    b.screenshot(&target_dir().join("dashboard-calibration-failed.png"), None);
                 shots.push(("failed".into(), img));
             }
             last_step = key;
-            click(b, "cal-repeat");
+            b.click("cal-repeat");
             repeats += 1;
         } else if c["confirm"] == true {
             if c["confirmLabel"] == "Target in place" && !shots.iter().any(|(n, _)| n == "place") {
-                let img = b.screenshot(&target_dir().join("dashboard-calibration-place.png"));
+                let img = b.screenshot(&target_dir().join("dashboard-calibration-place.png"), None);
                 shots.push(("place".into(), img));
             }
             last_step = key;
-            click(b, "cal-confirm");
+            b.click("cal-confirm");
             confirms += 1;
         } else {
             std::thread::sleep(Duration::from_millis(100));
@@ -347,11 +221,11 @@ fn guided_calibration_and_daily_check_in_the_dashboard() {
         .as_f64()
         .unwrap();
     assert!((d_mm - 250.0).abs() < 5.0, "D shown {d_mm}");
-    let img = b.screenshot(&target_dir().join("dashboard-calibration-done.png"));
+    let img = b.screenshot(&target_dir().join("dashboard-calibration-done.png"), None);
     shots.push(("done".into(), img));
 
     // The daily check from its button.
-    click(&mut b, "cal-verify");
+    b.click("cal-verify");
     let (confirms, repeats) = operate(&mut b, &mut shots, Duration::from_secs(120));
     assert_eq!((confirms, repeats), (2, 0), "one step placed and kept");
     let c = b.eval(CARD);
@@ -367,7 +241,7 @@ fn guided_calibration_and_daily_check_in_the_dashboard() {
         "the passing check clears the warning: {c}"
     );
     assert!(c["status"].as_str().unwrap().contains("min old"), "{c}");
-    let img = b.screenshot(&target_dir().join("dashboard-calibration-check.png"));
+    let img = b.screenshot(&target_dir().join("dashboard-calibration-check.png"), None);
     shots.push(("check".into(), img));
 
     // The screenshots are of the page, not blank: the failed check's red text and the PASS
