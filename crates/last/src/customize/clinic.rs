@@ -7,7 +7,7 @@
 
 use super::measure::{measure, Side};
 use super::rules::RuleSet;
-use super::{clearance, foot_in_frame, frame_curves, shape, targets};
+use super::{clearance, foot_in_frame, frame_curves, judge, shape, targets};
 use super::{CustomizeError, Customized, Inputs};
 use footscan_geom::mesh::TriMesh;
 use serde::Deserialize;
@@ -129,12 +129,7 @@ pub fn customize_stock(
     nd.heel_allowance = 0.0;
     let (last, lm, field, evals) = shape::solve(&sec, &nd, &sm, &target, medial)?;
     let (fits, curves) = frame_curves(&sm, &sec.sole_outline(), &lm, &target)?;
-    let v = shape::values(&lm);
-    for (i, r) in rows.iter_mut().enumerate() {
-        r.last_mm = v[i];
-        r.error_mm = v[i] - r.target_mm;
-        r.met = r.error_mm.abs() <= r.bound_mm;
-    }
+    judge(&mut rows, &lm);
     let mut cl = clearance(&stock, &last, &nd, rows[2].change_mm);
     cl.of = "stock last";
     Ok(Customized {

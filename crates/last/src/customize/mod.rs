@@ -330,12 +330,7 @@ pub fn customize(
     let (last, lm, field, evals) = shape::solve(&sec, &nd, &fm, &target, medial)?;
     // Algorithm I on the foot's characteristic curves, Algorithm II onto the last's.
     let (fits, curves) = frame_curves(&fm, &sec.sole_outline(), &lm, &target)?;
-    let v = shape::values(&lm);
-    for (i, r) in rows.iter_mut().enumerate() {
-        r.last_mm = v[i];
-        r.error_mm = v[i] - r.target_mm;
-        r.met = r.error_mm.abs() <= r.bound_mm;
-    }
+    judge(&mut rows, &lm);
     let clearance = clearance(&foot, &last, &nd, rows[2].change_mm);
     Ok(Customized {
         frame_in_world: frame,
@@ -350,6 +345,16 @@ pub fn customize(
         evaluations: evals,
         clearance,
     })
+}
+
+/// Each rule's value cut from the output last, its error and whether it is within bound.
+pub(crate) fn judge(rows: &mut [RuleRow], lm: &Measures) {
+    let v = shape::values(lm);
+    for (r, v) in rows.iter_mut().zip(v) {
+        r.last_mm = v;
+        r.error_mm = v - r.target_mm;
+        r.met = r.error_mm.abs() <= r.bound_mm;
+    }
 }
 
 pub(crate) fn clearance(
