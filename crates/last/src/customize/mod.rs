@@ -383,7 +383,6 @@ pub(crate) fn clearance(
         at_mm: [f64::NAN; 3],
         vertices: 0,
     });
-    let (mut all, mut at) = (f64::INFINITY, [f64::NAN; 3]);
     let top = shape::TOP_Z * nd.length;
     for p in &foot.vertices {
         if p.z > top - 1.0 {
@@ -393,10 +392,6 @@ pub(crate) fn clearance(
             continue;
         };
         let c = -sd.distance;
-        if c < all {
-            all = c;
-            at = [p.x, p.y, p.z];
-        }
         // Under the heel allowance's 45 degree chamfer (with a millimetre's margin).
         let k = if nd.heel_allowance > 0.0 && p.z < OUTLINE_Z + nd.heel_allowance - p.x + 1.0 {
             0
@@ -421,12 +416,18 @@ pub(crate) fn clearance(
         .filter(|r| r.vertices > 0)
         .filter_map(|r| r.allowed_press_mm.map(|a| r.min_mm + a))
         .fold(f64::INFINITY, f64::min);
+    // The overall worst is the worst region's (every counted vertex is in one region).
+    let (overall_mm, worst_at_mm) = regions
+        .iter()
+        .filter(|r| r.vertices > 0)
+        .min_by(|a, b| a.min_mm.total_cmp(&b.min_mm))
+        .map_or((f64::INFINITY, [f64::NAN; 3]), |r| (r.min_mm, r.at_mm));
     Clearance {
         of: "foot",
         regions: regions.into(),
         must_fit_margin_mm,
-        overall_mm: all,
-        worst_at_mm: at,
+        overall_mm,
+        worst_at_mm,
     }
 }
 
