@@ -10,6 +10,7 @@ pub mod calib;
 pub mod detect;
 pub mod geom;
 pub mod io;
+pub mod lastcustom;
 pub mod lastfit;
 pub mod measure;
 pub mod report;

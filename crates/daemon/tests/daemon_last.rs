@@ -2,9 +2,16 @@
 //! `last.adjust` (a real last, read at test time), a whole-foot scan over HTTP, and the last's
 //! files listed with their content types and downloadable beside the scan's; the dashboard
 //! shows deviation.png when the scan has one (tests/dashboard_chromium.rs covers the page).
+//! The same scan then gets the clinic's customized last: the fitter's girths posted with a
+//! stock last of the configured collection, a job that ends with every rule met and the
+//! last's files downloadable; bad requests refused naming the input, a failed job kept with
+//! its reason, a job cut off by a stop read as failed after the restart; in headless
+//! Chromium the Result card shows the job's rules and files and makes another last from its
+//! form (screenshot target/dashboard-last.png).
 
 mod daemon_support;
 
+use daemon_support::chromium::Browser;
 use daemon_support::*;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -20,6 +27,15 @@ fn lasts_dir() -> PathBuf {
 fn a_scan_with_last_adjust_offers_the_adjusted_last() {
     let dir = tempfile::tempdir().unwrap();
     let (cmd, archive) = command(dir.path(), &Opts::default());
+    let stock = dir.path().join("stock");
+    make_stock_collection(&stock);
+    let daemon_cfg = dir.path().join("footscand.toml");
+    let mut cfg = std::fs::read_to_string(&daemon_cfg).unwrap();
+    cfg.push_str(&format!(
+        "\n[lasts]\nstock_dir = {:?}\n",
+        stock.display().to_string()
+    ));
+    std::fs::write(&daemon_cfg, cfg).unwrap();
     // The whole foot (0..320 mm at 1 mm a frame) so it is measured whole, then the last.
     let last = lasts_dir().join("Last_Flat_RoundTip.stl");
     assert!(
@@ -35,7 +51,7 @@ fn a_scan_with_last_adjust_offers_the_adjusted_last() {
             last.display().to_string()
         );
     std::fs::write(dir.path().join("scanner.toml"), cfg).unwrap();
-    let d = Footscand::spawn(cmd, archive, None);
+    let mut d = Footscand::spawn(cmd, archive.clone(), None);
     let id = d.start_scan("last-01");
     let end = d.wait_scan_end(Duration::from_secs(120));
     assert_eq!(end["state"], "complete", "{end}\n{}", d.stderr());
@@ -64,5 +80,263 @@ fn a_scan_with_last_adjust_offers_the_adjusted_last() {
     assert!(
         String::from_utf8_lossy(&igs).contains("128"),
         "IGES with a B-spline surface"
+    );
+    customized_last(&d, &id);
+    dashboard_makes_a_last(&d, &id, dir.path());
+    // A job cut off by a stop reads as failed once the daemon is back.
+    assert!(d.terminate(Duration::from_secs(20)).success());
+    let scan_dir = archive.join(&id);
+    let job_file = scan_dir.join("last-job.json");
+    let mut job: Value = serde_json::from_slice(&std::fs::read(&job_file).unwrap()).unwrap();
+    job["state"] = "running".into();
+    std::fs::write(&job_file, job.to_string()).unwrap();
+    let (cmd, archive) = command_keeping(dir.path());
+    let d = Footscand::spawn(cmd, archive, None);
+    let j = d.get_json(&format!("/api/scans/{id}/last"));
+    assert_eq!(j["state"], "failed", "{j}");
+    assert!(j["reason"].as_str().unwrap().contains("stopped"), "{j}");
+    // The earlier last's files are still there.
+    assert_eq!(
+        d.get(&format!("/api/scans/{id}/last/last.stl")).status(),
+        200
+    );
+}
+
+/// The daemon's command on the configs already in `dir` (the test's own [lasts] kept).
+fn command_keeping(dir: &std::path::Path) -> (std::process::Command, PathBuf) {
+    let cfg = std::fs::read_to_string(dir.join("footscand.toml")).unwrap();
+    let scanner = std::fs::read_to_string(dir.join("scanner.toml")).unwrap();
+    let (cmd, archive) = command(dir, &Opts::default());
+    std::fs::write(dir.join("footscand.toml"), cfg).unwrap();
+    std::fs::write(dir.join("scanner.toml"), scanner).unwrap();
+    (cmd, archive)
+}
+
+/// A stock collection: the whole-foot path's last for the simulator's 240 mm right foot (as
+/// `footscan last customize --foot` makes it), and a file that is not a closed mesh.
+fn make_stock_collection(dir: &std::path::Path) {
+    use footscan_geom::mesh::{Format, TriMesh};
+    use footscan_last::customize::{customize, foot_in_frame, rules::RuleSet, Inputs};
+    use footscan_sim::foot::{Foot, FootParams, MeshResolution};
+    std::fs::create_dir_all(dir).unwrap();
+    let f = Foot::new(FootParams {
+        length_mm: 240.0,
+        ..FootParams::default()
+    })
+    .unwrap();
+    let m = f.mesh(MeshResolution::default());
+    let verts = m
+        .vertices
+        .iter()
+        .map(|v| footscan_geom::P3::new(v[0], v[1], v[2]))
+        .collect();
+    let (foot, frame) =
+        foot_in_frame(TriMesh::new(verts, m.triangles.clone()), "sim foot").unwrap();
+    let inp = Inputs {
+        shoe: footscan_last::customize::rules::Shoe::Dress,
+        wearer: footscan_last::customize::rules::Wearer::Man,
+        heel_mm: 25.0,
+    };
+    let c = customize(foot, frame, &RuleSet::default_rules(), &inp).unwrap();
+    c.last
+        .write(dir.join("sim-240-right.stl"), Format::StlBinary)
+        .unwrap();
+    std::fs::write(dir.join("broken.stl"), b"solid broken\nendsolid broken\n").unwrap();
+    std::fs::write(dir.join("notes.txt"), b"not a last").unwrap();
+}
+
+/// Wait for the scan's last job to end; its record.
+fn wait_last(d: &Footscand, id: &str) -> Value {
+    let t0 = std::time::Instant::now();
+    loop {
+        let j = d.get_json(&format!("/api/scans/{id}/last"));
+        if j["state"] != "running" {
+            return j;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "last job still running: {j}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+fn customized_last(d: &Footscand, id: &str) {
+    let path = format!("/api/scans/{id}/last");
+    // No job yet.
+    let r = d.get(&path);
+    assert_eq!(r.status(), 404);
+    assert!(r.text().unwrap().contains("POST"));
+    // The collection lists the meshes only.
+    let lasts = d.get_json("/api/lasts");
+    let names: Vec<&str> = lasts["lasts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["broken.stl", "sim-240-right.stl"], "{lasts}");
+    // Bad requests: named, nothing started.
+    let girths =
+        r#""girths": {"ball": 260.0, "instep": 248.0, "long_heel": 367.0, "ankle": 200.5}"#;
+    let (s, v) = d.post(&path, r#"{"girths": {"ball": 260.0, "instep": 248.0, "long_heel": 367.0}, "stock": "sim-240-right.stl"}"#);
+    assert_eq!(s, 400, "{v}");
+    assert!(v["error"].as_str().unwrap().contains("ankle"), "{v}");
+    let (s, v) = d.post(&path, r#"{"girths": {"ball": 26.0, "instep": 248.0, "long_heel": 367.0, "ankle": 200.5}, "stock": "sim-240-right.stl"}"#);
+    assert_eq!(s, 400, "{v}");
+    assert!(v["error"].as_str().unwrap().contains("ball = 26 mm"), "{v}");
+    let (s, v) = d.post(
+        &path,
+        &format!(r#"{{{girths}, "stock": "../../etc/passwd"}}"#),
+    );
+    assert_eq!(s, 400, "{v}");
+    let (s, v) = d.post(&path, &format!(r#"{{{girths}, "stock": "nope.stl"}}"#));
+    assert_eq!(s, 400, "{v}");
+    assert!(
+        v["error"].as_str().unwrap().contains("sim-240-right.stl"),
+        "{v}"
+    );
+    let (s, v) = d.post(
+        &path,
+        &format!(r#"{{{girths}, "stock": "sim-240-right.stl", "heel_mm": 300}}"#),
+    );
+    assert_eq!(s, 400, "{v}");
+    assert!(v["error"].as_str().unwrap().contains("heel_mm"), "{v}");
+    assert_eq!(
+        d.get(&path).status(),
+        404,
+        "a refused request starts nothing"
+    );
+    // A stock file that is not a closed mesh: the job fails, kept with its reason.
+    let (s, v) = d.post(&path, &format!(r#"{{{girths}, "stock": "broken.stl"}}"#));
+    assert_eq!(s, 202, "{v}");
+    let j = wait_last(d, id);
+    assert_eq!(j["state"], "failed", "{j}");
+    assert!(j["reason"].as_str().unwrap().contains("broken.stl"), "{j}");
+    // The last.
+    let (s, v) = d.post(
+        &path,
+        &format!(r#"{{{girths}, "stock": "sim-240-right.stl", "shoe": "dress", "wearer": "man", "heel_mm": 25}}"#),
+    );
+    assert_eq!(s, 202, "{v}");
+    assert_eq!(v["state"], "running", "{v}");
+    let j = wait_last(d, id);
+    println!("last job: {j:#}");
+    assert_eq!(j["state"], "done", "{j}");
+    let rules = j["rules"].as_array().unwrap();
+    assert_eq!(rules.len(), 8, "{j}");
+    assert!(rules.iter().all(|r| r["met"] == true), "{j}");
+    let files: Vec<&str> = j["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    assert_eq!(
+        files,
+        [
+            "last.stl",
+            "last.igs",
+            "last.step",
+            "frame.igs",
+            "report.json",
+            "customize.png"
+        ]
+    );
+    // The files as a CAD tool gets them.
+    let get = |name: &str| {
+        let r = d.get(&format!("/api/scans/{id}/last/{name}"));
+        assert_eq!(r.status(), 200, "{name}");
+        (
+            r.headers()["content-type"].to_str().unwrap().to_string(),
+            r.bytes().unwrap().to_vec(),
+        )
+    };
+    let (ty, stl) = get("last.stl");
+    assert_eq!(ty, "model/stl");
+    let rep: Value = serde_json::from_slice(&get("report.json").1).unwrap();
+    let tris = u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize;
+    assert_eq!(stl.len(), 84 + 50 * tris);
+    assert_eq!(rep["last_triangles"].as_u64().unwrap() as usize, tris);
+    assert_eq!(rep["clearance"]["of"], "stock last");
+    for (i, r) in rules.iter().enumerate() {
+        assert_eq!(rep["rules"][i]["last_mm"], r["last_mm"]);
+    }
+    let (ty, step) = get("last.step");
+    assert_eq!(ty, "model/step");
+    assert!(step.starts_with(b"ISO-10303-21;"));
+    let (ty, png) = get("customize.png");
+    assert_eq!(ty, "image/png");
+    assert_eq!(&png[1..4], b"PNG");
+    let r = d.get(&format!("/api/scans/{id}/last/cloud.ply"));
+    assert_eq!(r.status(), 400);
+    assert!(r.text().unwrap().contains("last.stl"));
+}
+
+/// The Result card in Chromium: the job made over HTTP shown (8 rules met, 6 files), then a
+/// last for a sport shoe made from the form.
+fn dashboard_makes_a_last(d: &Footscand, id: &str, dir: &std::path::Path) {
+    const WAIT: Duration = Duration::from_secs(60);
+    let mut b = Browser::launch(&dir.join("profile"), 1280, 2400);
+    b.open(
+        &format!("{}/", d.base),
+        "typeof renderLast === 'function'",
+        WAIT,
+    );
+    b.eval(&format!("loadResult({id:?})"));
+    let done = "(() => { const e = document.getElementById('last-state'); \
+                return !!e && e.dataset.state === 'done'; })()";
+    b.wait_for(done, WAIT);
+    let card = r#"(() => ({
+        rules: [...document.querySelectorAll('#last-rules tbody tr')].map((r) => r.lastChild.textContent),
+        files: [...document.querySelectorAll('#last-files a')].map((a) => a.textContent),
+        stock: [...document.getElementById('last-stock').options].map((o) => o.value),
+        state: document.getElementById('last-state').textContent,
+      }))()"#;
+    let c = b.eval(card);
+    println!("dashboard last card: {c}");
+    assert_eq!(c["rules"].as_array().unwrap().len(), 8, "{c}");
+    assert!(
+        c["rules"].as_array().unwrap().iter().all(|r| r == "yes"),
+        "{c}"
+    );
+    assert_eq!(c["files"].as_array().unwrap().len(), 6, "{c}");
+    assert_eq!(
+        c["stock"],
+        serde_json::json!(["broken.stl", "sim-240-right.stl"]),
+        "{c}"
+    );
+    // Another last from the form: a sport shoe.
+    b.eval(
+        "(() => { const v = (id, x) => { document.getElementById(id).value = x; }; \
+         v('last-ball', '260'); v('last-instep', '248'); v('last-long-heel', '367'); \
+         v('last-ankle', '200.5'); v('last-stock', 'sim-240-right.stl'); v('last-shoe', 'sport'); \
+         v('last-heel', '20'); })()",
+    );
+    b.click("last-make");
+    b.wait_for(
+        "(() => { const e = document.getElementById('last-state'); \
+         return !!e && e.dataset.state === 'done' && e.textContent.includes('sport'); })()",
+        WAIT,
+    );
+    let j = d.get_json(&format!("/api/scans/{id}/last"));
+    assert_eq!(j["request"]["shoe"], "sport", "{j}");
+    assert_eq!(j["request"]["heel_mm"], 20.0, "{j}");
+    assert!(
+        j["rules"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|r| r["met"] == true),
+        "{j}"
+    );
+    b.wait_for(
+        "(() => { const i = document.getElementById('last-picture'); return !!i && i.complete && i.naturalWidth > 0; })()",
+        WAIT,
+    );
+    b.eval("document.getElementById('last').scrollIntoView()");
+    b.screenshot(
+        &daemon_support::chromium::target_png("dashboard-last.png"),
+        Some("last"),
     );
 }

@@ -4,16 +4,12 @@
 
 use anyhow::{anyhow, Result};
 use clap::Parser;
-use footscan_geom::mesh::{TriMesh, Units};
-use footscan_last::customize::clinic::{customize_stock, Plantar, TapeGirths};
-use footscan_last::customize::measure::Side;
+use footscan::lastcustom::{load_stock, plantar_of_scan};
+use footscan_last::customize::clinic::{customize_stock, TapeGirths};
 use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
-use footscan_last::customize::{customize, load_foot, write_outputs_atomic, Inputs};
+use footscan_last::customize::{customize, load_foot, write_outputs_atomic, Inputs, HEEL_RANGE_MM};
 use std::path::PathBuf;
 use std::time::Instant;
-
-/// Heel heights a last is made for (mm): flat to a high dress heel.
-const HEEL_RANGE_MM: (f64, f64) = (0.0, 120.0);
 
 #[derive(Parser)]
 pub struct CustomizeArgs {
@@ -92,9 +88,8 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
             a.stock.as_ref().expect("clap: --scan requires --stock"),
         );
         let g = TapeGirths::load(girths).map_err(|e| anyhow!(e))?;
-        let plantar = read_plantar(scan)?;
-        let (m, _) = TriMesh::load_solid(stock, Units::Auto, None)
-            .map_err(|e| anyhow!("{}: {e}", stock.display()))?;
+        let plantar = plantar_of_scan(scan)?;
+        let m = load_stock(stock)?;
         let t_load = t0.elapsed();
         let t1 = Instant::now();
         let name = stock.display().to_string();
@@ -184,32 +179,6 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
 }
 
 /// A customization error with the foot file in front unless the message names it already.
-/// The plantar figures of a scan directory's measurements.json (docs/method.md section 8).
-fn read_plantar(dir: &std::path::Path) -> Result<Plantar> {
-    let p = dir.join("measurements.json");
-    let text = std::fs::read_to_string(&p).map_err(|e| {
-        anyhow!(
-            "{}: {e} (a scan directory whose pipeline ran measure.foot, or one `footscan measure` has measured)",
-            p.display()
-        )
-    })?;
-    let m: footscan::measure::Measurements =
-        serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", p.display()))?;
-    // Waist width across the axis, between the waist points.
-    let (d, wi, wo) = (m.axis_dir, m.waist_inner, m.waist_outer);
-    let waist = ((wi[0] - wo[0]) * -d[1] + (wi[1] - wo[1]) * d[0]).abs();
-    Ok(Plantar {
-        side: match m.side {
-            footscan::measure::Side::Left => Side::Left,
-            footscan::measure::Side::Right => Side::Right,
-        },
-        length: m.foot_length_mm,
-        ball_width: m.ball_width_mm,
-        waist_width: waist,
-        heel_width: m.heel_width_mm,
-    })
-}
-
 fn named(foot: &std::path::Path, e: footscan_last::customize::CustomizeError) -> anyhow::Error {
     let msg = e.to_string();
     let name = foot.display().to_string();

@@ -7,6 +7,7 @@ mod calibration;
 mod confirm;
 mod fleet;
 mod guard;
+mod lasts;
 mod live;
 mod report;
 mod scans;
@@ -64,7 +65,7 @@ impl From<crate::daemon::DaemonError> for ApiError {
     fn from(e: crate::daemon::DaemonError) -> Self {
         use crate::daemon::DaemonError as E;
         match e {
-            E::Busy(m) | E::NotRunning(m) => ApiError(StatusCode::CONFLICT, m),
+            E::Busy(m) | E::NotRunning(m) | E::Conflict(m) => ApiError(StatusCode::CONFLICT, m),
             E::NotFound(m) => ApiError::not_found(m),
             E::Archive(crate::archive::ArchiveError::NotFound(id)) => {
                 ApiError::not_found(format!("scan {id} is not in the archive"))
@@ -90,6 +91,7 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/app.js", get(dashboard_js))
         .route("/calibration.js", get(dashboard_calibration_js))
         .route("/visits.js", get(dashboard_visits_js))
+        .route("/last.js", get(dashboard_last_js))
         .route("/style.css", get(dashboard_css))
         .route("/api/health", get(health))
         .route("/api/status", get(live::status))
@@ -105,6 +107,9 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/api/visits/{id}/scans", post(visits::add_scan))
         .route("/api/visits/{id}/report.pdf", get(visits::report_pdf))
         .route("/api/scans/{id}/files/{name}", get(scans::download))
+        .route("/api/scans/{id}/last", get(lasts::show).post(lasts::start))
+        .route("/api/scans/{id}/last/{name}", get(lasts::download))
+        .route("/api/lasts", get(lasts::stock))
         .route("/api/preview.png", get(live::preview_png))
         .route("/api/preview/line", get(live::preview_line))
         .route("/api/events", get(live::events))
@@ -185,7 +190,13 @@ async fn auth(State(st): State<AppState>, req: Request, next: Next) -> Response 
     if req.method() == Method::GET
         && matches!(
             path,
-            "/api/health" | "/" | "/app.js" | "/calibration.js" | "/visits.js" | "/style.css"
+            "/api/health"
+                | "/"
+                | "/app.js"
+                | "/calibration.js"
+                | "/visits.js"
+                | "/last.js"
+                | "/style.css"
         )
     {
         return next.run(req).await;
@@ -341,6 +352,13 @@ async fn dashboard_visits_js() -> Response {
     static_file(
         "text/javascript; charset=utf-8",
         include_str!("dashboard/visits.js"),
+    )
+}
+
+async fn dashboard_last_js() -> Response {
+    static_file(
+        "text/javascript; charset=utf-8",
+        include_str!("dashboard/last.js"),
     )
 }
 

@@ -182,14 +182,24 @@ pub async fn download(
     })
     .await
     .map_err(ApiError::internal)??;
-    let mut file = tokio::fs::File::open(&path)
-        .await
-        .map_err(|e| ApiError::not_found(format!("{}: {e}", path.display())))?;
-    let len = file.metadata().await.map_err(ApiError::internal)?.len();
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
+    send_file(&path, &format!("{}-{name}", rec.id), &headers).await
+}
+
+/// A file as a download named `save_as`, whole or the one byte range asked for (a
+/// resumed download of a large cloud).
+pub(super) async fn send_file(
+    path: &std::path::Path,
+    save_as: &str,
+    headers: &axum::http::HeaderMap,
+) -> Result<Response, ApiError> {
+    let mut file = tokio::fs::File::open(path)
+        .await
+        .map_err(|e| ApiError::not_found(format!("{}: {e}", path.display())))?;
+    let len = file.metadata().await.map_err(ApiError::internal)?.len();
     let range = match headers.get(header::RANGE).and_then(|v| v.to_str().ok()) {
         None => None,
         Some(r) => match byte_range(r, len) {
@@ -236,13 +246,13 @@ pub async fn download(
         [
             (
                 header::CONTENT_TYPE,
-                crate::archive::content_type(&name).to_string(),
+                crate::archive::content_type(save_as).to_string(),
             ),
             (header::CONTENT_LENGTH, count.to_string()),
             (header::ACCEPT_RANGES, "bytes".to_string()),
             (
                 header::CONTENT_DISPOSITION,
-                format!("attachment; filename=\"{}-{name}\"", rec.id),
+                format!("attachment; filename=\"{save_as}\""),
             ),
         ],
         Body::from_stream(stream),

@@ -18,6 +18,17 @@ struct File {
     fleet: Option<footscan_fleet::settings::Section>,
     /// Optional: the clinic (its time zone for visits).
     clinic: Option<ClinicSection>,
+    /// Optional: the clinic's customized lasts (the stock collection, the comfort rules).
+    lasts: Option<LastsSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LastsSection {
+    /// The shop's stock lasts (STL, OBJ or PLY files), one of which a last is made from.
+    stock_dir: Option<PathBuf>,
+    /// The comfort rule file (TOML); default: the rules built into footscan.
+    rules: Option<PathBuf>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -73,6 +84,10 @@ pub struct DaemonConfig {
     /// The clinic's time zone (`[clinic] time_zone`; default: the machine's, else UTC):
     /// visits' local times and dates.
     pub clinic_zone: crate::archive::ClinicZone,
+    /// The stock lasts' directory (`[lasts] stock_dir`): none, no last jobs.
+    pub stock_lasts: Option<PathBuf>,
+    /// The comfort rule file (`[lasts] rules`); None: footscan's built-in rules.
+    pub last_rules: Option<PathBuf>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -124,6 +139,7 @@ impl DaemonConfig {
             daemon: d,
             fleet: fleet_section,
             clinic,
+            lasts,
         } = f;
         let clinic_zone = match clinic.and_then(|c| c.time_zone) {
             Some(name) => crate::archive::ClinicZone::named(&name)
@@ -208,6 +224,15 @@ impl DaemonConfig {
             None => None,
         };
         let rel = |p: PathBuf| if p.is_absolute() { p } else { base.join(p) };
+        let (stock_lasts, last_rules) = match lasts {
+            Some(l) => (l.stock_dir.map(rel), l.rules.map(rel)),
+            None => (None, None),
+        };
+        // A rule file with a typo is named at start, not at the first last job.
+        if let Some(r) = &last_rules {
+            footscan_last::customize::rules::RuleSet::load(r)
+                .map_err(|e| invalid(format!("[lasts] rules: {e}")))?;
+        }
         Ok(DaemonConfig {
             path: path.to_owned(),
             bind,
@@ -225,6 +250,8 @@ impl DaemonConfig {
             max_connections_per_client,
             fleet,
             clinic_zone,
+            stock_lasts,
+            last_rules,
         })
     }
 }

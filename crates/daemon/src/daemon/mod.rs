@@ -6,6 +6,7 @@ pub mod config;
 mod fleet;
 pub mod guided;
 mod jobs;
+pub mod lastjob;
 pub mod preflight;
 pub mod preview;
 
@@ -135,6 +136,9 @@ pub enum DaemonError {
     NotFound(String),
     #[error("{0}")]
     NotRunning(String),
+    /// The request does not fit the resource's state (a scan not measured, still running).
+    #[error("{0}")]
+    Conflict(String),
     #[error(transparent)]
     Archive(#[from] ArchiveError),
     #[error("{0}")]
@@ -187,6 +191,7 @@ pub struct Daemon {
     launcher: jobs::Launcher,
     /// The fleet pusher, when [fleet] is on.
     fleet: Option<fleet::Fleet>,
+    last_jobs: lastjob::LastJobs,
 }
 
 impl Daemon {
@@ -268,6 +273,7 @@ impl Daemon {
             launcher: jobs::Launcher::new()
                 .map_err(|e| DaemonError::Setup(format!("cannot start the job launcher: {e}")))?,
             fleet,
+            last_jobs: lastjob::LastJobs::default(),
         }))
     }
 

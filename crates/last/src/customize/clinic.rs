@@ -53,22 +53,33 @@ impl TapeGirths {
                 missing.join(", ")
             )));
         }
-        for (k, v) in all {
-            let v = v.unwrap_or_default();
+        let v = |x: Option<f64>| x.unwrap_or_default();
+        TapeGirths::checked(v(g.ball), v(g.instep), v(g.long_heel), v(g.ankle)).map_err(bad)
+    }
+
+    /// The four girths, each refused (named) outside 120-600 mm.
+    pub fn checked(ball: f64, instep: f64, long_heel: f64, ankle: f64) -> Result<Self, String> {
+        for (k, v) in [
+            ("ball", ball),
+            ("instep", instep),
+            ("long_heel", long_heel),
+            ("ankle", ankle),
+        ] {
             if !(GIRTH_RANGE.0..=GIRTH_RANGE.1).contains(&v) {
-                return Err(bad(format!(
+                return Err(format!(
                     "{k} = {v} mm: a girth is {:.0}-{:.0} mm",
                     GIRTH_RANGE.0, GIRTH_RANGE.1
-                )));
+                ));
             }
         }
         Ok(TapeGirths {
-            ball: g.ball.unwrap_or_default(),
-            instep: g.instep.unwrap_or_default(),
-            long_heel: g.long_heel.unwrap_or_default(),
-            ankle: g.ankle.unwrap_or_default(),
+            ball,
+            instep,
+            long_heel,
+            ankle,
         })
     }
+
     pub fn load(path: &Path) -> Result<TapeGirths, CustomizeError> {
         let text = std::fs::read_to_string(path).map_err(|e| {
             CustomizeError::Rules(format!("{}: cannot read the girths: {e}", path.display()))

@@ -31,6 +31,9 @@ pub struct Inputs {
     pub heel_mm: f64,
 }
 
+/// Heel heights a last is made for (mm): flat to a high dress heel.
+pub const HEEL_RANGE_MM: (f64, f64) = (0.0, 120.0);
+
 /// Foot length range accepted as a foot (mm).
 pub const FOOT_LENGTH_RANGE: (f64, f64) = (100.0, 360.0);
 

@@ -1,0 +1,121 @@
+// The customized last of the scan shown in Result (docs/API.md "Lasts"): the girths a fitter
+// measured with a tape, a stock last of the shop's collection and what the last is for
+// (shoe, wearer, heel) start the job (POST /api/scans/{id}/last); while it runs its record is
+// polled; then every comfort rule (foot, target, the last as cut, met) and the last's files
+// (STL, IGES, STEP, the curve frame, the report, the picture) are shown, or the reason it
+// failed. Uses app.js's helpers (api, el, $, withToken, showError, clearError).
+'use strict';
+
+const LAST_POLL_MS = 500;
+let lastPoll = null; // the timer polling a running job
+let lastScan = null; // the scan the card shows
+
+function lastFileUrl(id, name) {
+  return withToken(`/api/scans/${encodeURIComponent(id)}/last/${encodeURIComponent(name)}`);
+}
+
+/** Show the card for scan `rec` (Result calls this on every scan it loads). */
+async function renderLast(rec) {
+  const box = $('last');
+  if (lastPoll) clearTimeout(lastPoll);
+  lastPoll = null;
+  lastScan = rec.id;
+  const measured = (rec.artifacts || []).some((a) => a.name === 'measurements.json');
+  box.hidden = !measured || rec.status === 'running';
+  if (box.hidden) return;
+  const sel = $('last-stock');
+  try {
+    const { lasts } = await api('GET', '/api/lasts');
+    const had = sel.value;
+    sel.replaceChildren(...lasts.map((l) => el('option', { value: l.name, text: l.name })));
+    if (lasts.some((l) => l.name === had)) sel.value = had;
+    $('last-nostock').hidden = lasts.length > 0;
+    $('last-nostock').textContent = lasts.length ? '' : 'The stock collection is empty.';
+    $('last-form').hidden = lasts.length === 0;
+  } catch (e) {
+    // 501: no [lasts] stock_dir in the daemon config: say so instead of a form.
+    $('last-nostock').textContent = e.message;
+    $('last-nostock').hidden = false;
+    $('last-form').hidden = true;
+  }
+  await lastShowJob(rec.id);
+}
+
+async function lastShowJob(id) {
+  if (id !== lastScan) return;
+  const out = $('last-job');
+  let job = null;
+  try {
+    job = await api('GET', `/api/scans/${encodeURIComponent(id)}/last`);
+  } catch (e) {
+    if (e.status !== 404) showError(e);
+  }
+  out.replaceChildren();
+  $('last-make').disabled = job !== null && job.state === 'running';
+  if (!job) {
+    out.append(el('p', { class: 'small', text: 'No last made for this scan yet.' }));
+    return;
+  }
+  const when = job.finished ? `, ${job.seconds.toFixed(2)} s` : '';
+  const r = job.request;
+  out.append(el('p', { id: 'last-state', class: 'small', 'data-state': job.state,
+    text: `Last ${job.state}${when}: stock ${r.stock}, ${r.shoe} for a ${r.wearer}, heel ${r.heel_mm} mm` }));
+  if (job.state === 'running') {
+    lastPoll = setTimeout(() => lastShowJob(id), LAST_POLL_MS);
+    return;
+  }
+  if (job.state === 'failed') {
+    out.append(el('p', { class: 'warn', id: 'last-reason', text: job.reason || 'failed' }));
+  }
+  if (job.rules && job.rules.length) {
+    const t = el('table', { class: 'data', id: 'last-rules' },
+      el('caption', { text: 'Comfort rules (the last measured by cutting its mesh)' }),
+      el('thead', {}, el('tr', {}, ...['Rule', 'Quantity', 'Foot', 'Target', 'Last', 'Met'].map((h) => el('th', { scope: 'col', text: h })))));
+    const tb = el('tbody');
+    for (const x of job.rules) {
+      tb.append(el('tr', {},
+        el('td', { text: x.rule }), el('td', { text: x.quantity.replace(/_/g, ' ') }),
+        el('td', { class: 'num', text: x.foot_mm.toFixed(1) }), el('td', { class: 'num', text: x.target_mm.toFixed(1) }),
+        el('td', { class: 'num', text: x.last_mm.toFixed(1) }),
+        el('td', { class: x.met ? 'ok' : 'bad', text: x.met ? 'yes' : `no (${x.error_mm.toFixed(2)})` })));
+    }
+    t.append(tb);
+    out.append(t);
+  }
+  if (job.clearance) {
+    out.append(el('p', { class: 'small', text: `Stock last inside the customized one (mm): ${job.clearance}` }));
+  }
+  if (job.state === 'done' && job.files.length) {
+    const span = el('span', { class: 'files', id: 'last-files' });
+    job.files.forEach((n, i) => {
+      if (i) span.append(' · ');
+      span.append(el('a', { href: lastFileUrl(id, n), download: n, text: n }));
+    });
+    out.append(el('p', { class: 'small' }, 'Last files: ', span));
+    if (job.files.includes('customize.png')) {
+      out.append(el('img', { id: 'last-picture', alt: 'Side and top views of the stock and the customized last', src: lastFileUrl(id, 'customize.png') + (lastFileUrl(id, '').includes('?') ? '&' : '?') + 't=' + encodeURIComponent(job.finished || '') }));
+    }
+  }
+}
+
+$('last-form').addEventListener('submit', async (ev) => {
+  ev.preventDefault();
+  const id = lastScan;
+  if (!id) return;
+  const num = (k) => Number($(`last-${k}`).value);
+  const body = {
+    girths: { ball: num('ball'), instep: num('instep'), long_heel: num('long-heel'), ankle: num('ankle') },
+    stock: $('last-stock').value,
+    shoe: $('last-shoe').value,
+    wearer: $('last-wearer').value,
+    heel_mm: num('heel'),
+  };
+  $('last-make').disabled = true;
+  try {
+    await api('POST', `/api/scans/${encodeURIComponent(id)}/last`, body);
+    clearError('POST /api/scans');
+  } catch (e) {
+    showError(e);
+  }
+  await lastShowJob(id);
+});

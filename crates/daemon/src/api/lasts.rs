@@ -1,0 +1,76 @@
+//! The clinic's customized last (docs/API.md, "Lasts"): the stock collection, a scan's last
+//! job (posted with the fitter's girths) and the last's files.
+
+use super::scans::{body, send_file};
+use super::{ApiError, AppState};
+use crate::archive::ScanId;
+use crate::daemon::lastjob::LastRequest;
+use axum::extract::rejection::JsonRejection;
+use axum::extract::{Path, State};
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+
+fn parse_id(id: &str) -> Result<ScanId, ApiError> {
+    ScanId::parse(id).map_err(|e| ApiError::bad_request(e.to_string()))
+}
+
+/// `GET /api/lasts`: the stock lasts a last can be made from.
+pub async fn stock(State(st): State<AppState>) -> Result<Response, ApiError> {
+    let d = st.daemon.clone();
+    let lasts = tokio::task::spawn_blocking(move || d.stock_lasts())
+        .await
+        .map_err(ApiError::internal)??;
+    Ok(Json(serde_json::json!({ "lasts": lasts })).into_response())
+}
+
+/// `POST /api/scans/{id}/last`: start making the scan's last (202 with the job record).
+pub async fn start(
+    State(st): State<AppState>,
+    Path(id): Path<String>,
+    b: Result<Json<LastRequest>, JsonRejection>,
+) -> Result<Response, ApiError> {
+    let id = parse_id(&id)?;
+    let req = body(b)?;
+    let d = st.daemon.clone();
+    let job = tokio::task::spawn_blocking(move || d.start_last(&id, req))
+        .await
+        .map_err(ApiError::internal)??;
+    Ok((StatusCode::ACCEPTED, Json(job)).into_response())
+}
+
+/// `GET /api/scans/{id}/last`: the scan's last job (running, done with its rules and files,
+/// or failed with its reason).
+pub async fn show(
+    State(st): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let id = parse_id(&id)?;
+    let d = st.daemon.clone();
+    let rid = id.clone();
+    let job = tokio::task::spawn_blocking(move || d.last_job(&rid))
+        .await
+        .map_err(ApiError::internal)??;
+    match job {
+        Some(j) => Ok(Json(j).into_response()),
+        None => Err(ApiError::not_found(format!(
+            "scan {id} has no last yet: POST /api/scans/{id}/last with the girths and a stock \
+             last"
+        ))),
+    }
+}
+
+/// `GET /api/scans/{id}/last/{name}`: one file of the scan's last.
+pub async fn download(
+    State(st): State<AppState>,
+    Path((id, name)): Path<(String, String)>,
+    headers: axum::http::HeaderMap,
+) -> Result<Response, ApiError> {
+    let id = parse_id(&id)?;
+    let d = st.daemon.clone();
+    let (rid, rname) = (id.clone(), name.clone());
+    let path = tokio::task::spawn_blocking(move || d.last_file(&rid, &rname))
+        .await
+        .map_err(ApiError::internal)??;
+    send_file(&path, &format!("{id}-{name}"), &headers).await
+}

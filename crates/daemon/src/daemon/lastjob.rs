@@ -1,0 +1,382 @@
+//! The clinic's customized last as a job of the daemon (docs/API.md, "Lasts"): a measured
+//! scan, the girths a fitter posts with it and a stock last from the configured collection
+//! become the last's files in the scan's directory (`last/`, replaced as a whole once every
+//! file is written), with the job's record beside them (`last-job.json`: the request, the
+//! state, the figures, and the reason when it failed; a failed job leaves an earlier last as
+//! it was). One job at a time, on the HTTP runtime's blocking threads: they run at its lower
+//! priority, so making a last never takes the CPU from a scan.
+
+use super::{Daemon, DaemonError};
+use crate::archive::{Record, ScanId, Status};
+use footscan::lastcustom::{customize_scan, STOCK_EXTENSIONS};
+use footscan_last::customize::clinic::TapeGirths;
+use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
+use footscan_last::customize::{write_outputs_atomic, Inputs, HEEL_RANGE_MM, OUTPUT_FILES};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// The job's record in the scan's directory.
+pub const JOB_FILE: &str = "last-job.json";
+/// The directory of the last's files in the scan's directory.
+pub const LAST_DIR: &str = "last";
+/// Reason a job gets when the daemon stopped during it (found at the next look).
+pub const INTERRUPTED: &str = "footscand stopped while the last was being made; post it again";
+
+/// The girths a fitter measured with a tape (mm).
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Girths {
+    pub ball: f64,
+    pub instep: f64,
+    pub long_heel: f64,
+    pub ankle: f64,
+}
+
+fn default_shoe() -> Shoe {
+    Shoe::Dress
+}
+fn default_wearer() -> Wearer {
+    Wearer::Man
+}
+fn default_heel_mm() -> f64 {
+    25.0
+}
+
+/// What a clinic posts for a scan's last (`POST /api/scans/{id}/last`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LastRequest {
+    pub girths: Girths,
+    /// A file of the stock collection (`GET /api/lasts`), for the scanned foot's side.
+    pub stock: String,
+    #[serde(default = "default_shoe")]
+    pub shoe: Shoe,
+    #[serde(default = "default_wearer")]
+    pub wearer: Wearer,
+    #[serde(default = "default_heel_mm")]
+    pub heel_mm: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LastState {
+    Running,
+    Done,
+    Failed,
+}
+
+/// One rule's line as the dashboard shows it (the whole table is in last/report.json).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct RuleLine {
+    pub rule: String,
+    pub quantity: String,
+    pub foot_mm: f64,
+    pub target_mm: f64,
+    pub last_mm: f64,
+    pub error_mm: f64,
+    pub met: bool,
+}
+
+/// A scan's last job as recorded in `last-job.json` and shown by the API.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct LastJob {
+    pub scan: String,
+    pub state: LastState,
+    pub request: LastRequest,
+    pub started: String,
+    pub finished: Option<String>,
+    pub seconds: Option<f64>,
+    /// Why it failed: the input named and what would be valid.
+    pub reason: Option<String>,
+    pub rules: Vec<RuleLine>,
+    /// The clearance line (region by region) and whether the stock last stands inside the
+    /// customized one where the rules say it must.
+    pub clearance: Option<String>,
+    pub fits: Option<bool>,
+    /// The files of `last/`, downloadable at `/api/scans/{id}/last/{name}`.
+    pub files: Vec<String>,
+}
+
+/// The scan whose last is being made (one at a time).
+#[derive(Default)]
+pub(super) struct LastJobs {
+    running: Mutex<Option<String>>,
+}
+
+/// A stock last of the collection.
+#[derive(Clone, Debug, Serialize)]
+pub struct StockLast {
+    pub name: String,
+    pub bytes: u64,
+}
+
+/// Whether `name` can be a stock last's file: an artifact name with a mesh extension.
+fn stock_name_ok(name: &str) -> bool {
+    footscan::io::is_artifact_name(name)
+        && name
+            .rsplit_once('.')
+            .is_some_and(|(_, e)| STOCK_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+}
+
+impl Daemon {
+    fn stock_dir(&self) -> Result<&Path, DaemonError> {
+        self.config.stock_lasts.as_deref().ok_or_else(|| {
+            DaemonError::Unsupported(format!(
+                "no stock lasts: set `stock_dir` in [lasts] of {} to the directory of the \
+                 shop's lasts (STL, OBJ or PLY)",
+                self.config.path.display()
+            ))
+        })
+    }
+
+    /// The stock collection: every mesh file in `[lasts] stock_dir`, by name.
+    pub fn stock_lasts(&self) -> Result<Vec<StockLast>, DaemonError> {
+        let dir = self.stock_dir()?;
+        let rd = std::fs::read_dir(dir)
+            .map_err(|e| DaemonError::Unavailable(format!("stock lasts {}: {e}", dir.display())))?;
+        let mut out: Vec<StockLast> = rd
+            .flatten()
+            .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
+            .filter_map(|e| {
+                let name = e.file_name().to_string_lossy().into_owned();
+                let bytes = e.metadata().ok()?.len();
+                stock_name_ok(&name).then_some(StockLast { name, bytes })
+            })
+            .collect();
+        out.sort_by(|a, b| a.name.cmp(&b.name));
+        Ok(out)
+    }
+
+    /// The path of stock last `name`: a regular file directly in the collection.
+    fn stock_path(&self, name: &str) -> Result<PathBuf, DaemonError> {
+        let dir = self.stock_dir()?;
+        let listed = || {
+            self.stock_lasts()
+                .map(|v| v.into_iter().map(|s| s.name).collect::<Vec<_>>().join(", "))
+                .unwrap_or_default()
+        };
+        if !stock_name_ok(name) {
+            return Err(DaemonError::BadRequest(format!(
+                "stock {:?}: must be a file of the stock collection ({}), one of: {}",
+                name.chars().take(80).collect::<String>(),
+                STOCK_EXTENSIONS.join(", "),
+                listed()
+            )));
+        }
+        let p = dir.join(name);
+        if !p.symlink_metadata().is_ok_and(|m| m.is_file()) {
+            return Err(DaemonError::BadRequest(format!(
+                "stock {name:?} is not in the stock collection {}; it has: {}",
+                dir.display(),
+                listed()
+            )));
+        }
+        Ok(p)
+    }
+
+    /// The scan's record and directory, refused unless it ended and was measured.
+    fn measured_scan(&self, id: &ScanId) -> Result<(Record, PathBuf), DaemonError> {
+        let rec = self.archive.get(id)?;
+        let dir = self
+            .archive
+            .checked_dir(&rec)
+            .ok_or_else(|| DaemonError::NotFound(format!("scan {id}: its directory is missing")))?;
+        if rec.status == Status::Running {
+            return Err(DaemonError::Conflict(format!(
+                "scan {id} is still running: a last is made from a finished scan"
+            )));
+        }
+        if self
+            .archive
+            .artifact_path(&rec, "measurements.json")
+            .is_none()
+        {
+            return Err(DaemonError::Conflict(format!(
+                "scan {id} ({}) has no measurements.json: a last needs a measured foot",
+                rec.status.as_str()
+            )));
+        }
+        Ok((rec, dir))
+    }
+
+    /// Check a request and start its job; the job's record says `running` until it ends.
+    /// Everything the request names is checked here, so a bad one is a 400, not a job that
+    /// fails.
+    pub fn start_last(
+        self: &std::sync::Arc<Self>,
+        id: &ScanId,
+        req: LastRequest,
+    ) -> Result<LastJob, DaemonError> {
+        let (_, dir) = self.measured_scan(id)?;
+        let g = req.girths;
+        let girths = TapeGirths::checked(g.ball, g.instep, g.long_heel, g.ankle)
+            .map_err(|e| DaemonError::BadRequest(format!("girths: {e}")))?;
+        if !(HEEL_RANGE_MM.0..=HEEL_RANGE_MM.1).contains(&req.heel_mm) {
+            return Err(DaemonError::BadRequest(format!(
+                "heel_mm = {}: a heel is {:.0}-{:.0} mm high",
+                req.heel_mm, HEEL_RANGE_MM.0, HEEL_RANGE_MM.1
+            )));
+        }
+        let stock = self.stock_path(&req.stock)?;
+        let rules = match &self.config.last_rules {
+            Some(p) => RuleSet::load(p).map_err(DaemonError::Setup)?,
+            None => RuleSet::default_rules(),
+        };
+        {
+            let mut running = self.last_jobs.running.lock().unwrap();
+            if let Some(other) = running.as_ref() {
+                return Err(DaemonError::Busy(format!(
+                    "a last is being made for scan {other}: one at a time, post again when \
+                     it has ended"
+                )));
+            }
+            *running = Some(id.to_string());
+        }
+        let job = LastJob {
+            scan: id.to_string(),
+            state: LastState::Running,
+            request: req.clone(),
+            started: footscan::util::now_rfc3339(),
+            finished: None,
+            seconds: None,
+            reason: None,
+            rules: Vec::new(),
+            clearance: None,
+            fits: None,
+            files: Vec::new(),
+        };
+        if let Err(e) = write_job(&dir, &job) {
+            *self.last_jobs.running.lock().unwrap() = None;
+            return Err(e);
+        }
+        let inp = Inputs {
+            shoe: req.shoe,
+            wearer: req.wearer,
+            heel_mm: req.heel_mm,
+        };
+        let d = self.clone();
+        let first = job.clone();
+        let run = move || {
+            let t0 = Instant::now();
+            let mut job = job;
+            let made = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                make_last(&dir, &girths, &stock, &rules, &inp, &mut job)
+            }))
+            .unwrap_or_else(|_| {
+                Err("the customization panicked (a defect: please report it)".into())
+            });
+            job.seconds = Some(t0.elapsed().as_secs_f64());
+            job.finished = Some(footscan::util::now_rfc3339());
+            match made {
+                Ok(()) => job.state = LastState::Done,
+                Err(why) => {
+                    tracing::warn!("scan {}: last failed: {why}", job.scan);
+                    job.state = LastState::Failed;
+                    job.reason = Some(why);
+                }
+            }
+            if let Err(e) = write_job(&dir, &job) {
+                tracing::error!("scan {}: cannot record its last job: {e}", job.scan);
+            }
+            *d.last_jobs.running.lock().unwrap() = None;
+        };
+        match tokio::runtime::Handle::try_current() {
+            // The runtime's blocking threads run at its lower priority (main.rs).
+            Ok(h) => drop(h.spawn_blocking(run)),
+            Err(_) => drop(std::thread::spawn(run)),
+        }
+        Ok(first)
+    }
+
+    /// The scan's last job (None when none was posted). A job recorded as running that this
+    /// daemon is not running was cut off by a stop: it reads, and is recorded, as failed.
+    pub fn last_job(&self, id: &ScanId) -> Result<Option<LastJob>, DaemonError> {
+        let rec = self.archive.get(id)?;
+        let Some(dir) = self.archive.checked_dir(&rec) else {
+            return Err(DaemonError::NotFound(format!(
+                "scan {id}: its directory is missing"
+            )));
+        };
+        let p = dir.join(JOB_FILE);
+        let bytes = match std::fs::read(&p) {
+            Ok(b) => b,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(DaemonError::Setup(format!("{}: {e}", p.display()))),
+        };
+        let mut job: LastJob = serde_json::from_slice(&bytes)
+            .map_err(|e| DaemonError::Setup(format!("{}: {e}", p.display())))?;
+        let ours = self.last_jobs.running.lock().unwrap().as_deref() == Some(id.as_str());
+        if job.state == LastState::Running && !ours {
+            job.state = LastState::Failed;
+            job.reason = Some(INTERRUPTED.into());
+            write_job(&dir, &job)?;
+        }
+        Ok(Some(job))
+    }
+
+    /// The path of file `name` of the scan's last.
+    pub fn last_file(&self, id: &ScanId, name: &str) -> Result<PathBuf, DaemonError> {
+        if !OUTPUT_FILES.contains(&name) {
+            return Err(DaemonError::BadRequest(format!(
+                "file {:?}: a last has {}",
+                name.chars().take(80).collect::<String>(),
+                OUTPUT_FILES.join(", ")
+            )));
+        }
+        let rec = self.archive.get(id)?;
+        let p = self
+            .archive
+            .checked_dir(&rec)
+            .map(|d| d.join(LAST_DIR).join(name))
+            .filter(|p| p.symlink_metadata().is_ok_and(|m| m.is_file()))
+            .ok_or_else(|| {
+                DaemonError::NotFound(format!(
+                    "scan {id} has no last file {name:?}: post a last job first \
+                     (POST /api/scans/{id}/last)"
+                ))
+            })?;
+        Ok(p)
+    }
+}
+
+/// The job's work: customize, write `last/` all or nothing, fill the record's figures.
+fn make_last(
+    dir: &Path,
+    girths: &TapeGirths,
+    stock: &Path,
+    rules: &RuleSet,
+    inp: &Inputs,
+    job: &mut LastJob,
+) -> Result<(), String> {
+    let c = customize_scan(dir, girths, stock, rules, inp).map_err(|e| e.to_string())?;
+    job.rules = c
+        .rules
+        .iter()
+        .map(|r| RuleLine {
+            rule: r.rule.into(),
+            quantity: r.quantity.into(),
+            foot_mm: r.foot_mm,
+            target_mm: r.target_mm,
+            last_mm: r.last_mm,
+            error_mm: r.error_mm,
+            met: r.met,
+        })
+        .collect();
+    job.clearance = Some(c.clearance.summary());
+    job.fits = Some(c.clearance.regions.iter().all(|r| r.met()));
+    let files = write_outputs_atomic(&c, inp, &dir.join(LAST_DIR)).map_err(|e| e.to_string())?;
+    job.files = files
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
+    Ok(())
+}
+
+fn write_job(dir: &Path, job: &LastJob) -> Result<(), DaemonError> {
+    let p = dir.join(JOB_FILE);
+    let j = serde_json::to_vec_pretty(job).expect("a job record serialises");
+    footscan::io::write_atomic(&p, &j)
+        .map_err(|e| DaemonError::Setup(format!("cannot write {}: {e}", p.display())))
+}

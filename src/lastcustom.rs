@@ -1,0 +1,122 @@
+//! A saved scan as the foot of the clinic's customized last: the plantar figures of its
+//! measurements.json, the girths a fitter measured with a tape, and a stock last from the
+//! shop's collection, customized by the comfort rules
+//! ([`footscan_last::customize::clinic`], docs/method.md 10.7). `footscan last customize
+//! --scan` and footscand's last job share it, so both read a scan the same way.
+
+use crate::measure::Measurements;
+use footscan_geom::mesh::{TriMesh, Units};
+use footscan_last::customize::clinic::{customize_stock, Plantar, TapeGirths};
+use footscan_last::customize::measure::Side;
+use footscan_last::customize::rules::RuleSet;
+use footscan_last::customize::{CustomizeError, Customized, Inputs};
+use std::path::{Path, PathBuf};
+
+/// Why a scan could not be customized into a last; every variant names its input.
+#[derive(Debug, thiserror::Error)]
+pub enum ClinicLastError {
+    #[error(
+        "scan {}: no measurements.json: a customized last needs a measured foot (a scan whose \
+         pipeline ran measure.foot, or `footscan measure --scan {}`)",
+        dir.display(), dir.display()
+    )]
+    NoMeasurements { dir: PathBuf },
+    #[error("{}", prefixed(path, why))]
+    Input { path: PathBuf, why: String },
+    #[error("{}", named(stock, source))]
+    Customize {
+        stock: PathBuf,
+        source: Box<CustomizeError>,
+    },
+}
+
+/// `why` with the file in front unless it names it already.
+fn prefixed(path: &Path, why: &str) -> String {
+    let name = path.display().to_string();
+    if why.contains(&name) {
+        why.to_string()
+    } else {
+        format!("{name}: {why}")
+    }
+}
+
+fn named(stock: &Path, e: &CustomizeError) -> String {
+    prefixed(stock, &e.to_string())
+}
+
+/// The plantar figures the rules need from a scan's measurements (docs/method.md section 8).
+pub fn plantar_of(m: &Measurements) -> Plantar {
+    // Waist width across the axis, between the waist points.
+    let (d, wi, wo) = (m.axis_dir, m.waist_inner, m.waist_outer);
+    let waist = ((wi[0] - wo[0]) * -d[1] + (wi[1] - wo[1]) * d[0]).abs();
+    Plantar {
+        side: match m.side {
+            crate::measure::Side::Left => Side::Left,
+            crate::measure::Side::Right => Side::Right,
+        },
+        length: m.foot_length_mm,
+        ball_width: m.ball_width_mm,
+        waist_width: waist,
+        heel_width: m.heel_width_mm,
+    }
+}
+
+/// The plantar figures of a scan directory's measurements.json.
+pub fn plantar_of_scan(dir: &Path) -> Result<Plantar, ClinicLastError> {
+    let p = dir.join("measurements.json");
+    let text = match std::fs::read_to_string(&p) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(ClinicLastError::NoMeasurements { dir: dir.into() })
+        }
+        Err(e) => {
+            return Err(ClinicLastError::Input {
+                path: p,
+                why: e.to_string(),
+            })
+        }
+    };
+    let m: Measurements = serde_json::from_str(&text).map_err(|e| ClinicLastError::Input {
+        path: p.clone(),
+        why: format!("not the measurements of a scan: {e}"),
+    })?;
+    Ok(plantar_of(&m))
+}
+
+/// Mesh formats a stock last is read from.
+pub const STOCK_EXTENSIONS: [&str; 3] = ["stl", "obj", "ply"];
+
+/// Read a stock last: a closed mesh (STL, OBJ or PLY; millimetres or metres, z up).
+pub fn load_stock(path: &Path) -> Result<TriMesh, ClinicLastError> {
+    let (m, _) =
+        TriMesh::load_solid(path, Units::Auto, None).map_err(|e| ClinicLastError::Input {
+            path: path.into(),
+            why: e.to_string(),
+        })?;
+    Ok(m)
+}
+
+/// The clinic's last for the scan in `dir`: its plantar figures and `girths` applied to
+/// the rules, the stock last at `stock` deformed to the targets. Nothing is written.
+pub fn customize_scan(
+    dir: &Path,
+    girths: &TapeGirths,
+    stock: &Path,
+    rules: &RuleSet,
+    inp: &Inputs,
+) -> Result<Customized, ClinicLastError> {
+    let plantar = plantar_of_scan(dir)?;
+    let m = load_stock(stock)?;
+    customize_stock(
+        m,
+        &stock.display().to_string(),
+        &plantar,
+        girths,
+        rules,
+        inp,
+    )
+    .map_err(|source| ClinicLastError::Customize {
+        stock: stock.into(),
+        source: Box::new(source),
+    })
+}
