@@ -163,6 +163,64 @@ const BAND: f64 = 0.06;
 const SOLE_CLOSE: f64 = 8.0;
 const SOLE_SMOOTH: f64 = 3.0;
 
+/// Where the forefoot's plan-view convexity starts (fraction of the foot length from the heel
+/// point: just behind the fifth metatarsal head).
+const FOREFOOT: f64 = 0.62;
+
+/// In front of `from` a last's bottom holds every toe and is convex in plan view: the band's
+/// edges there become the convex hull of their corners (the separate toes' sections left a
+/// stepped lateral edge and slots between the toes).
+fn convex_forefoot(
+    xs: &[f64],
+    band: Vec<Option<(f64, f64)>>,
+    from: f64,
+) -> Vec<Option<(f64, f64)>> {
+    let corners: Vec<P2> = xs
+        .iter()
+        .zip(&band)
+        .filter(|(x, _)| **x >= from)
+        .filter_map(|(x, b)| b.map(|(l, h)| [P2::new(*x, l), P2::new(*x, h)]))
+        .flatten()
+        .collect();
+    let hull = convex_hull(&corners);
+    if hull.points.len() < 3 {
+        return band;
+    }
+    xs.iter()
+        .zip(band)
+        .map(|(x, b)| {
+            let b = b?;
+            if *x < from {
+                return Some(b);
+            }
+            Some(vertical_extent(&hull.points, *x).unwrap_or(b))
+        })
+        .collect()
+}
+
+/// The lowest and highest y where the vertical line at `x` meets a convex polygon.
+fn vertical_extent(h: &[P2], x: f64) -> Option<(f64, f64)> {
+    let mut out: Option<(f64, f64)> = None;
+    for (i, a) in h.iter().enumerate() {
+        let b = h[(i + 1) % h.len()];
+        let (lo, hi) = (a.x.min(b.x), a.x.max(b.x));
+        if x < lo || x > hi {
+            continue;
+        }
+        let y = if hi - lo < 1e-12 {
+            a.y.min(b.y)
+        } else {
+            a.y + (b.y - a.y) * (x - a.x) / (b.x - a.x)
+        };
+        let y2 = if hi - lo < 1e-12 { a.y.max(b.y) } else { y };
+        out = Some(match out {
+            None => (y.min(y2), y.max(y2)),
+            Some((l, u)) => (l.min(y).min(y2), u.max(y).max(y2)),
+        });
+    }
+    out
+}
+
 impl Sections {
     /// The sole outline of the foot standing on the glass, at the outline height: the
     /// bottom bands' lowest y from heel to toe, then their highest back (a closed loop).
@@ -206,10 +264,21 @@ impl Sections {
             let zl = q.iter().map(|r| r.y).fold(f64::MAX, f64::min);
             let zt = q.iter().map(|r| r.y).fold(f64::MIN, f64::max);
             let zb = zl + (BAND * (zt - zl)).max(OUTLINE_Z);
-            let (yl, yh) = q
-                .iter()
-                .filter(|r| r.y <= zb)
-                .fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.x), b.max(r.x)));
+            // Where the tape's section (the hull) crosses the band's top: unlike the extent
+            // of the points inside the band, this moves continuously as a raised wall (the
+            // arch's medial side 2-5 mm above the glass, a lifted toe) rises through the
+            // band's top. The points' extent jumped from the wall to the lateral half there
+            // and left a notch in the outline at the medial waist.
+            let h = convex_hull(q);
+            let (yl, yh) = match (zb < zt && h.points.len() >= 3)
+                .then(|| crossings(&h.points, zb))
+                .flatten()
+            {
+                Some([a, b]) => (a.1.x.min(b.1.x), a.1.x.max(b.1.x)),
+                None => q
+                    .iter()
+                    .fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.x), b.max(r.x))),
+            };
             if yh > yl {
                 band[k] = Some((yl, yh));
             }
@@ -253,6 +322,7 @@ impl Sections {
                 (yh > yl).then_some((yl, yh))
             })
             .collect();
+        let smooth = convex_forefoot(&xs, smooth, FOREFOOT * length);
         let mut keep_x = Vec::new();
         let mut rings = Vec::new();
         let mut sole = Vec::new();
