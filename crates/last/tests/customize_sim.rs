@@ -76,3 +76,97 @@ fn simulated_feet() {
         }
     }
 }
+
+/// The clinic path with a stock last that has toe spring and a raised heel, as shop lasts
+/// do: the simulator's 240 mm foot's last raised by a known bottom curve (20 mm at the heel
+/// end falling to 0 at 0.3 L, 12 mm toe spring rising from 0.7 L). It is laid flat by the
+/// curve it finds, customized for a 250 mm foot (every rule met, as with the flat stock
+/// last), and the output raised back: its bottom under the tread stays on the glass, and
+/// the heel and toe stand where the stock's curve puts them.
+#[test]
+fn clinic_stock_last_with_toe_spring_and_heel() {
+    use footscan_last::customize::clinic::{customize_stock, Plantar, TapeGirths};
+    use footscan_last::customize::measure::Side as LastSide;
+    let rules = RuleSet::default_rules();
+    let inp = Inputs {
+        shoe: Shoe::Dress,
+        wearer: Wearer::Man,
+        heel_mm: 25.0,
+    };
+    let (m, _) = sim_foot(240.0, Side::Right);
+    let (foot, frame) = foot_in_frame(m, "sim").unwrap();
+    let flat = customize(foot, frame, &rules, &inp).unwrap().last;
+    let bb = flat.bbox();
+    let len = bb.max.x - bb.min.x;
+    let raise = |x: f64| {
+        let t = (x - bb.min.x) / len;
+        if t < 0.3 {
+            20.0 * (1.0 - t / 0.3)
+        } else if t > 0.7 {
+            12.0 * ((t - 0.7) / 0.3).powi(2)
+        } else {
+            0.0
+        }
+    };
+    let mut stock = flat.clone();
+    for v in &mut stock.vertices {
+        v.z += raise(v.x);
+    }
+    let plantar = Plantar {
+        side: LastSide::Right,
+        length: 250.0,
+        ball_width: 99.99,
+        waist_width: 58.42,
+        heel_width: 62.5,
+    };
+    let girths = TapeGirths::checked(260.0, 248.0, 367.0, 200.5).unwrap();
+    let c = customize_stock(stock, "raised stock", &plantar, &girths, &rules, &inp).unwrap();
+    for r in &c.rules {
+        println!(
+            "  {:5} {:16} foot {:7.2} target {:7.2} last {:7.2} err {:+.3}",
+            r.rule, r.quantity, r.foot_mm, r.target_mm, r.last_mm, r.error_mm
+        );
+        assert!(r.met, "{} {}: {:+.3} mm", r.rule, r.quantity, r.error_mm);
+    }
+    let curve = c
+        .bottom_curve
+        .as_ref()
+        .expect("the stock last was laid flat");
+    // The curve found against the one applied, where the sections' lowest points are the
+    // bottom (0.2-0.9 L; the ends are extrapolated).
+    let x0 = curve[0][0];
+    let worst = curve
+        .iter()
+        .filter(|p| (0.2..=0.9).contains(&((p[0] - x0) / len)))
+        .map(|p| (p[1] - raise(p[0] - x0 + bb.min.x)).abs())
+        .fold(0.0, f64::max);
+    println!(
+        "bottom curve: {} samples, worst {worst:.3} mm off the applied one",
+        curve.len()
+    );
+    assert!(worst < 1.0, "bottom curve off by {worst:.3} mm");
+    // The output raised back: lowest point of the last's sections at 0.5 L on the glass,
+    // at 0.1 L and 0.95 L raised like the stock's.
+    let lb = c.last.bbox();
+    let low_at = |t: f64| {
+        let x = lb.min.x + t * (lb.max.x - lb.min.x);
+        c.last
+            .vertices
+            .iter()
+            .filter(|v| (v.x - x).abs() < 2.0)
+            .map(|v| v.z)
+            .fold(f64::MAX, f64::min)
+    };
+    let (heel, tread, toe) = (low_at(0.1), low_at(0.5), low_at(0.95));
+    println!("last bottom: 0.1 L {heel:.2} mm, 0.5 L {tread:.2} mm, 0.95 L {toe:.2} mm");
+    assert!(tread.abs() < 1.0, "tread {tread:.2} mm off the glass");
+    assert!(
+        (heel - 20.0 * (1.0 - 0.1 / 0.3)).abs() < 2.0,
+        "heel {heel:.2}"
+    );
+    assert!(
+        (toe - 12.0 * (0.25f64 / 0.3).powi(2)).abs() < 2.0,
+        "toe {toe:.2}"
+    );
+    c.last.check().expect("closed");
+}

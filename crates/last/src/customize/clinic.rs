@@ -109,7 +109,13 @@ pub fn customize_stock(
     rules: &RuleSet,
     inp: &Inputs,
 ) -> Result<Customized, CustomizeError> {
-    let (stock, mut frame) = foot_in_frame(stock, name)?;
+    let (mut stock, mut frame) = foot_in_frame(stock, name)?;
+    // A shop's last has toe spring and a raised heel: laid flat by its bottom curve, its
+    // 1.5 mm outline is its whole bottom again, as on the lasts the whole-foot path makes.
+    let bottom = BottomCurve::of(&stock).filter(|b| b.rise() > FLAT_TOL_MM);
+    if let Some(b) = &bottom {
+        shear(&mut stock, |x| -b.at(x));
+    }
     // The side a foot's frame finds from where the toes reach furthest says little on a
     // last (its toe is one smooth tip; two real lasts read "left" both as given and
     // mirrored): the stock last is taken to be for the scanned foot's side.
@@ -143,6 +149,26 @@ pub fn customize_stock(
     judge(&mut rows, &lm);
     let mut cl = clearance(&stock, &last, &nd, rows[2].change_mm);
     cl.of = "stock last";
+    let (mut last, mut stock, mut curves) = (last, stock, curves);
+    if let Some(b) = &bottom {
+        // Raised back: the last's x mapped onto the stock's by their extents (the toe
+        // stretch and the length change move the bottom's features with them).
+        let (s, l) = (stock.bbox(), last.bbox());
+        let k = (s.max.x - s.min.x) / (l.max.x - l.min.x);
+        let on_stock = |x: f64| s.min.x + (x - l.min.x) * k;
+        shear(&mut last, |x| b.at(on_stock(x)));
+        shear(&mut stock, |x| b.at(x));
+        for (_, c) in &mut curves.last {
+            for p in &mut c.points {
+                p.z += b.at(on_stock(p.x));
+            }
+        }
+        for (_, c) in &mut curves.foot {
+            for p in &mut c.points {
+                p.z += b.at(p.x);
+            }
+        }
+    }
     Ok(Customized {
         frame_in_world: frame,
         foot: stock,
@@ -155,5 +181,90 @@ pub fn customize_stock(
         field,
         evaluations: evals,
         clearance: cl,
+        bottom_curve: bottom.map(|b| b.samples()),
     })
+}
+
+/// A bottom that rises less than this anywhere (mm) is taken as flat.
+const FLAT_TOL_MM: f64 = 0.5;
+/// The part of the length whose sections' lowest points are the bottom curve (fractions from
+/// the heel end): behind and in front of it the lowest point is the heel's and the toe's
+/// rounding, so the curve is carried on along its end slopes there.
+const BOTTOM_SPAN: (f64, f64) = (0.15, 0.9);
+
+/// A last's bottom curve in its frame: the height of the lowest point of its section at
+/// every millimetre along x, smoothed over +-5 mm.
+struct BottomCurve {
+    x0: f64,
+    z: Vec<f64>,
+}
+
+impl BottomCurve {
+    fn of(m: &TriMesh) -> Option<BottomCurve> {
+        let bb = m.bbox();
+        let len = bb.max.x - bb.min.x;
+        let n = len.floor() as usize + 1;
+        let xs: Vec<f64> = (0..n).map(|i| bb.min.x + i as f64).collect();
+        let low: Vec<Option<f64>> = super::shape::station_points(m, &xs, f64::MAX)
+            .iter()
+            .map(|q| q.iter().map(|p| p.y).reduce(f64::min))
+            .collect();
+        let (a, b) = (
+            (BOTTOM_SPAN.0 * len) as usize,
+            ((BOTTOM_SPAN.1 * len) as usize).min(n.saturating_sub(1)),
+        );
+        if b < a + 20 {
+            return None;
+        }
+        let mut z = vec![0.0; n];
+        for (i, zi) in z.iter_mut().enumerate().take(b + 1).skip(a) {
+            let near: Vec<f64> = (i.saturating_sub(5).max(a)..=(i + 5).min(b))
+                .filter_map(|j| low[j])
+                .collect();
+            if near.is_empty() {
+                return None;
+            }
+            *zi = near.iter().sum::<f64>() / near.len() as f64;
+        }
+        // Carried on along the slopes of the span's last 10 mm.
+        let back = (z[a + 10] - z[a]) / 10.0;
+        let front = (z[b] - z[b - 10]) / 10.0;
+        for i in 0..a {
+            z[i] = z[a] - back * (a - i) as f64;
+        }
+        for i in b + 1..n {
+            z[i] = z[b] + front * (i - b) as f64;
+        }
+        Some(BottomCurve { x0: bb.min.x, z })
+    }
+
+    fn at(&self, x: f64) -> f64 {
+        let t = (x - self.x0).clamp(0.0, (self.z.len() - 1) as f64);
+        let i = (t.floor() as usize).min(self.z.len() - 2);
+        let f = t - i as f64;
+        self.z[i] * (1.0 - f) + self.z[i + 1] * f
+    }
+
+    /// How far the bottom rises above its lowest point.
+    fn rise(&self) -> f64 {
+        let lo = self.z.iter().copied().fold(f64::MAX, f64::min);
+        let hi = self.z.iter().copied().fold(f64::MIN, f64::max);
+        hi - lo
+    }
+
+    fn samples(&self) -> Vec<[f64; 2]> {
+        self.z
+            .iter()
+            .enumerate()
+            .step_by(5)
+            .map(|(i, z)| [self.x0 + i as f64, *z])
+            .collect()
+    }
+}
+
+/// Move every vertex up by `dz(x)`.
+fn shear(m: &mut TriMesh, dz: impl Fn(f64) -> f64) {
+    for v in &mut m.vertices {
+        v.z += dz(v.x);
+    }
 }

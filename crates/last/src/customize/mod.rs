@@ -94,6 +94,10 @@ pub struct Customized {
     /// Smallest clearance of foot vertices inside the last (negative: the foot presses
     /// out through the last), overall and by region.
     pub clearance: Clearance,
+    /// Clinic path with a stock last that has toe spring or a raised heel: its bottom curve
+    /// (x, height above the glass, mm), by which it was laid flat for the rules and the
+    /// output raised back (the rules' values are those of the last laid flat).
+    pub bottom_curve: Option<Vec<[f64; 2]>>,
 }
 
 /// How far the foot stands inside the last, region by region (negative: the foot presses
@@ -347,6 +351,7 @@ pub fn customize(
         field,
         evaluations: evals,
         clearance,
+        bottom_curve: None,
     })
 }
 
@@ -645,6 +650,8 @@ struct Report<'a> {
     field: shape::Params,
     mesh_evaluations: usize,
     last_triangles: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    bottom_curve: Option<&'a [[f64; 2]]>,
 }
 
 /// Write last.stl, last.igs, last.step, frame.igs, report.json and customize.png into `dir`.
@@ -692,6 +699,7 @@ pub fn write_outputs(c: &Customized, inp: &Inputs, dir: &Path) -> Result<(), Cus
         field: c.field,
         mesh_evaluations: c.evaluations,
         last_triangles: c.last.triangles.len(),
+        bottom_curve: c.bottom_curve.as_deref(),
     };
     let p = dir.join("report.json");
     let j = serde_json::to_string_pretty(&rep).map_err(|e| out(&p, e.to_string()))?;

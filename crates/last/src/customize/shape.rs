@@ -36,7 +36,7 @@ pub struct Sections {
 /// The section segments of the mesh by the planes x = xs[k], clipped to z <= `top` (one
 /// segment per crossed triangle, as (y, z) pairs; the part above the top is cut off at the
 /// top, so a section's top edge is where the foot crosses the top, not its widest point).
-fn station_points(m: &TriMesh, xs: &[f64], top: f64) -> Vec<Vec<P2>> {
+pub(crate) fn station_points(m: &TriMesh, xs: &[f64], top: f64) -> Vec<Vec<P2>> {
     let mut out = vec![Vec::new(); xs.len()];
     for t in &m.triangles {
         let v = t.map(|i| m.vertices[i as usize]);
