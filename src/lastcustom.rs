@@ -49,6 +49,21 @@ pub fn plantar_of(m: &Measurements) -> Plantar {
     // Waist width across the axis, between the waist points.
     let (d, wi, wo) = (m.axis_dir, m.waist_inner, m.waist_outer);
     let waist = ((wi[0] - wo[0]) * -d[1] + (wi[1] - wo[1]) * d[0]).abs();
+    // The footprint in the foot's frame: x along the axis from the heel point, y across it,
+    // positive on the side of the first metatarsal head (medial).
+    let h = m.heel_point;
+    let across = |p: [f64; 2]| (p[0] - h[0]) * -d[1] + (p[1] - h[1]) * d[0];
+    let medial = if across(m.mt1_head) >= 0.0 { 1.0 } else { -1.0 };
+    let frame = |p: &[f64; 2]| {
+        [
+            (p[0] - h[0]) * d[0] + (p[1] - h[1]) * d[1],
+            medial * across(*p),
+        ]
+    };
+    let footprint = std::iter::once(&m.outline)
+        .chain(&m.toe_outlines)
+        .map(|l| l.iter().map(frame).collect())
+        .collect();
     Plantar {
         side: match m.side {
             crate::measure::Side::Left => Side::Left,
@@ -58,6 +73,7 @@ pub fn plantar_of(m: &Measurements) -> Plantar {
         ball_width: m.ball_width_mm,
         waist_width: waist,
         heel_width: m.heel_width_mm,
+        footprint,
     }
 }
 

@@ -699,5 +699,9 @@ fn clinic_scan_girths_and_stock_last() {
             rules[i]["quantity"]
         );
     }
-    assert_eq!(rep["clearance"]["of"], "stock last");
+    // The foot we have is the scan's footprint: its clearance inside the last's bottom.
+    assert_eq!(rep["clearance"]["of"], "footprint");
+    let regions = rep["clearance"]["regions"].as_array().unwrap();
+    let toe_box = regions.iter().find(|r| r["region"] == "toe box").unwrap();
+    assert!(toe_box["vertices"].as_u64().unwrap() > 100, "{toe_box}");
 }

@@ -258,7 +258,7 @@ fn customized_last(d: &Footscand, id: &str) {
     let tris = u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize;
     assert_eq!(stl.len(), 84 + 50 * tris);
     assert_eq!(rep["last_triangles"].as_u64().unwrap() as usize, tris);
-    assert_eq!(rep["clearance"]["of"], "stock last");
+    assert_eq!(rep["clearance"]["of"], "footprint");
     for (i, r) in rules.iter().enumerate() {
         assert_eq!(rep["rules"][i]["last_mm"], r["last_mm"]);
     }

@@ -118,6 +118,7 @@ fn clinic_stock_last_with_toe_spring_and_heel() {
         ball_width: 99.99,
         waist_width: 58.42,
         heel_width: 62.5,
+        footprint: Vec::new(),
     };
     let girths = TapeGirths::checked(260.0, 248.0, 367.0, 200.5).unwrap();
     let c = customize_stock(stock, "raised stock", &plantar, &girths, &rules, &inp).unwrap();

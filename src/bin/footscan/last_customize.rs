@@ -149,8 +149,13 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
     }
     let cl = &c.clearance;
     println!(
-        "clearance ({} inside the last, below its top, mm): {}; overall {:+.2} at ({:.1}, {:.1}, {:.1}); {}",
+        "clearance ({} inside the last, {}, mm): {}; overall {:+.2} at ({:.1}, {:.1}, {:.1}); {}",
         cl.of,
+        if cl.of == "footprint" {
+            "its bottom outline at 1.5 mm"
+        } else {
+            "below its top"
+        },
         cl.summary(),
         cl.overall_mm,
         cl.worst_at_mm[0],

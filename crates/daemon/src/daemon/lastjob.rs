@@ -91,8 +91,8 @@ pub struct LastJob {
     /// Why it failed: the input named and what would be valid.
     pub reason: Option<String>,
     pub rules: Vec<RuleLine>,
-    /// The clearance line (region by region) and whether the stock last stands inside the
-    /// customized one where the rules say it must.
+    /// The clearance line (region by region: the scan's footprint inside the last's bottom
+    /// outline) and whether it lies inside where the rules say the foot must fit.
     pub clearance: Option<String>,
     pub fits: Option<bool>,
     /// The files of `last/`, downloadable at `/api/scans/{id}/last/{name}`.
@@ -364,7 +364,11 @@ fn make_last(
             met: r.met,
         })
         .collect();
-    job.clearance = Some(c.clearance.summary());
+    job.clearance = Some(format!(
+        "{} inside the last: {}",
+        c.clearance.of,
+        c.clearance.summary()
+    ));
     job.fits = Some(c.clearance.regions.iter().all(|r| r.met()));
     let files = write_outputs_atomic(&c, inp, &dir.join(LAST_DIR)).map_err(|e| e.to_string())?;
     job.files = files

@@ -7,7 +7,7 @@
 
 use super::measure::{measure, Side};
 use super::rules::RuleSet;
-use super::{clearance, foot_in_frame, frame_curves, judge, shape, targets};
+use super::{clearance, foot_in_frame, footprint_clearance, frame_curves, judge, shape, targets};
 use super::{CustomizeError, Customized, Inputs};
 use footscan_geom::mesh::TriMesh;
 use serde::Deserialize;
@@ -89,13 +89,17 @@ impl TapeGirths {
 }
 
 /// The plantar scan's figures the rules need (docs/method.md section 8).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Plantar {
     pub side: Side,
     pub length: f64,
     pub ball_width: f64,
     pub waist_width: f64,
     pub heel_width: f64,
+    /// The footprint (the body's and the toes' outlines) in the foot's frame: x along the
+    /// axis from the heel point, y positive on the medial side (mm). The clearance is
+    /// measured on it; empty: the stock last's own clearance inside the new one instead.
+    pub footprint: Vec<Vec<[f64; 2]>>,
 }
 
 /// The stock last (a closed world mesh, z up) deformed so its measured values meet the rules
@@ -136,7 +140,7 @@ pub fn customize_stock(
     fm.instep_girth = girths.instep;
     fm.long_heel_girth = girths.long_heel;
     fm.ankle_girth = girths.ankle;
-    let (mut rows, _heel_allow) = targets(rules, inp, &fm);
+    let (mut rows, heel_allow) = targets(rules, inp, &fm);
     let target: [f64; 8] = std::array::from_fn(|i| rows[i].target_mm);
     let sec = shape::Sections::of_foot(&stock, sm.length, sm.sole_from());
     let mut nd = shape::Nodes::of(&sm);
@@ -147,8 +151,24 @@ pub fn customize_stock(
     let (last, lm, field, evals) = shape::solve(&sec, &nd, &sm, &target, medial)?;
     let (fits, curves) = frame_curves(&sm, &sec.sole_outline(), &lm, &target)?;
     judge(&mut rows, &lm);
-    let mut cl = clearance(&stock, &last, &nd, rows[2].change_mm);
-    cl.of = "stock last";
+    // The foot we have is its footprint: it must lie inside the last's bottom where the rules
+    // say the foot must fit (the frame's medial side is +y or -y by the side).
+    let cl = if foot.footprint.is_empty() {
+        let mut cl = clearance(&stock, &last, &nd, rows[2].change_mm);
+        cl.of = "stock last";
+        cl
+    } else {
+        let fp: Vec<Vec<[f64; 2]>> = foot
+            .footprint
+            .iter()
+            .map(|l| l.iter().map(|p| [p[0], p[1] * medial]).collect())
+            .collect();
+        // The foot's heel stands behind the last's bottom by the heel allowance (rule I-A):
+        // that part of the footprint is outside by rule.
+        let mut at_foot = nd;
+        at_foot.heel_allowance = heel_allow;
+        footprint_clearance(&fp, &lm.outline, &at_foot, rows[2].change_mm)
+    };
     let (mut last, mut stock, mut curves) = (last, stock, curves);
     if let Some(b) = &bottom {
         // Raised back: the last's x mapped onto the stock's by their extents (the toe

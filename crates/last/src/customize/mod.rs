@@ -17,8 +17,8 @@ pub use error::CustomizeError;
 use curves::{fit_loop, least_change, Constraint, FitRecord};
 use footscan_geom::mesh::{Bvh, Format, TriMesh, Units};
 use footscan_geom::nurbs::NurbsCurve;
-use footscan_geom::P3;
-use measure::{find_frame, measure, FootFrame, Measures, OUTLINE_Z};
+use footscan_geom::{P2, P3};
+use measure::{find_frame, measure, FootFrame, Loop3, Measures, OUTLINE_Z};
 use rules::{RuleSet, Shoe, Wearer};
 use serde::Serialize;
 use std::path::Path;
@@ -365,14 +365,9 @@ pub(crate) fn judge(rows: &mut [RuleRow], lm: &Measures) {
     }
 }
 
-pub(crate) fn clearance(
-    foot: &TriMesh,
-    last: &TriMesh,
-    nd: &shape::Nodes,
-    waist_change_mm: f64,
-) -> Clearance {
-    let bvh = Bvh::new(last);
-    let mut regions = [
+/// The regions of a clearance, in the order [`region_of`] numbers them.
+fn clearance_regions(waist_change_mm: f64) -> [RegionClearance; 5] {
+    [
         ("heel allowance", "I-A heel allowance", None),
         ("heel seat", "I-D, II-H", Some(0.0)),
         (
@@ -390,7 +385,63 @@ pub(crate) fn clearance(
         min_mm: f64::INFINITY,
         at_mm: [f64::NAN; 3],
         vertices: 0,
-    });
+    })
+}
+
+/// The region of a point of the foot frame (x along the axis, z up).
+fn region_of(nd: &shape::Nodes, x: f64, z: f64) -> usize {
+    // Under the heel allowance's 45 degree chamfer (with a millimetre's margin).
+    if nd.heel_allowance > 0.0 && z < OUTLINE_Z + nd.heel_allowance - x + 1.0 {
+        0
+    } else if x < nd.heel_window {
+        1
+    } else if x < nd.forefoot {
+        2
+    } else if x < nd.toe_box {
+        3
+    } else {
+        4
+    }
+}
+
+/// The clearance from the regions' smallest figures.
+fn clearance_of(of: &'static str, regions: [RegionClearance; 5]) -> Clearance {
+    let must_fit_margin_mm = regions
+        .iter()
+        .filter(|r| r.vertices > 0)
+        .filter_map(|r| r.allowed_press_mm.map(|a| r.min_mm + a))
+        .fold(f64::INFINITY, f64::min);
+    // The overall worst is the worst region's (every counted point is in one region).
+    let (overall_mm, worst_at_mm) = regions
+        .iter()
+        .filter(|r| r.vertices > 0)
+        .min_by(|a, b| a.min_mm.total_cmp(&b.min_mm))
+        .map_or((f64::INFINITY, [f64::NAN; 3]), |r| (r.min_mm, r.at_mm));
+    Clearance {
+        of,
+        regions: regions.into(),
+        must_fit_margin_mm,
+        overall_mm,
+        worst_at_mm,
+    }
+}
+
+fn note(r: &mut RegionClearance, c: f64, at: [f64; 3]) {
+    r.vertices += 1;
+    if c < r.min_mm {
+        r.min_mm = c;
+        r.at_mm = at;
+    }
+}
+
+pub(crate) fn clearance(
+    foot: &TriMesh,
+    last: &TriMesh,
+    nd: &shape::Nodes,
+    waist_change_mm: f64,
+) -> Clearance {
+    let bvh = Bvh::new(last);
+    let mut regions = clearance_regions(waist_change_mm);
     let top = shape::TOP_Z * nd.length;
     for p in &foot.vertices {
         if p.z > top - 1.0 {
@@ -399,44 +450,49 @@ pub(crate) fn clearance(
         let Some(sd) = bvh.signed_distance(p) else {
             continue;
         };
-        let c = -sd.distance;
-        // Under the heel allowance's 45 degree chamfer (with a millimetre's margin).
-        let k = if nd.heel_allowance > 0.0 && p.z < OUTLINE_Z + nd.heel_allowance - p.x + 1.0 {
-            0
-        } else if p.x < nd.heel_window {
-            1
-        } else if p.x < nd.forefoot {
-            2
-        } else if p.x < nd.toe_box {
-            3
-        } else {
-            4
-        };
-        let r = &mut regions[k];
-        r.vertices += 1;
-        if c < r.min_mm {
-            r.min_mm = c;
-            r.at_mm = [p.x, p.y, p.z];
+        note(
+            &mut regions[region_of(nd, p.x, p.z)],
+            -sd.distance,
+            [p.x, p.y, p.z],
+        );
+    }
+    clearance_of("foot", regions)
+}
+
+/// The clinic path's clearance: no whole foot, so the scanned footprint (its body and toe
+/// outlines, foot frame) against the last's bottom outline at 1.5 mm, point by point (inside:
+/// the distance to the outline; outside: its negative).
+pub(crate) fn footprint_clearance(
+    footprint: &[Vec<[f64; 2]>],
+    last_outline: &[Loop3],
+    nd: &shape::Nodes,
+    waist_change_mm: f64,
+) -> Clearance {
+    let mut regions = clearance_regions(waist_change_mm);
+    let loops: Vec<footscan_geom::polygon::Polygon> = last_outline
+        .iter()
+        .map(|l| {
+            footscan_geom::polygon::Polygon::new(l.iter().map(|p| P2::new(p.x, p.y)).collect())
+        })
+        .collect();
+    for p in footprint.iter().flatten() {
+        let q = P2::new(p[0], p[1]);
+        let inside = loops.iter().any(|l| l.contains(&q));
+        let d = loops
+            .iter()
+            .map(|l| l.distance_to_boundary(&q))
+            .fold(f64::INFINITY, f64::min);
+        if !d.is_finite() {
+            continue;
         }
+        let c = if inside { d } else { -d };
+        note(
+            &mut regions[region_of(nd, p[0], OUTLINE_Z)],
+            c,
+            [p[0], p[1], OUTLINE_Z],
+        );
     }
-    let must_fit_margin_mm = regions
-        .iter()
-        .filter(|r| r.vertices > 0)
-        .filter_map(|r| r.allowed_press_mm.map(|a| r.min_mm + a))
-        .fold(f64::INFINITY, f64::min);
-    // The overall worst is the worst region's (every counted vertex is in one region).
-    let (overall_mm, worst_at_mm) = regions
-        .iter()
-        .filter(|r| r.vertices > 0)
-        .min_by(|a, b| a.min_mm.total_cmp(&b.min_mm))
-        .map_or((f64::INFINITY, [f64::NAN; 3]), |r| (r.min_mm, r.at_mm));
-    Clearance {
-        of: "foot",
-        regions: regions.into(),
-        must_fit_margin_mm,
-        overall_mm,
-        worst_at_mm,
-    }
+    clearance_of("footprint", regions)
 }
 
 /// One characteristic curve: name, type (I-IV), foot cut, last cut, girth target.

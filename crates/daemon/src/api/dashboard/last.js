@@ -83,7 +83,7 @@ async function lastShowJob(id) {
     out.append(t);
   }
   if (job.clearance) {
-    out.append(el('p', { class: 'small', text: `Stock last inside the customized one (mm): ${job.clearance}` }));
+    out.append(el('p', { class: 'small', text: `Clearance (mm), ${job.clearance}` }));
   }
   if (job.state === 'done' && job.files.length) {
     const span = el('span', { class: 'files', id: 'last-files' });
