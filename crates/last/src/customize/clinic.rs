@@ -153,16 +153,16 @@ pub fn customize_stock(
     judge(&mut rows, &lm);
     // The foot we have is its footprint: it must lie inside the last's bottom where the rules
     // say the foot must fit (the frame's medial side is +y or -y by the side).
-    let cl = if foot.footprint.is_empty() {
+    let fp: Vec<Vec<[f64; 2]>> = foot
+        .footprint
+        .iter()
+        .map(|l| l.iter().map(|p| [p[0], p[1] * medial]).collect())
+        .collect();
+    let cl = if fp.is_empty() {
         let mut cl = clearance(&stock, &last, &nd, rows[2].change_mm);
         cl.of = "stock last";
         cl
     } else {
-        let fp: Vec<Vec<[f64; 2]>> = foot
-            .footprint
-            .iter()
-            .map(|l| l.iter().map(|p| [p[0], p[1] * medial]).collect())
-            .collect();
         // The foot's heel stands behind the last's bottom by the heel allowance (rule I-A):
         // that part of the footprint is outside by rule.
         let mut at_foot = nd;
@@ -202,6 +202,7 @@ pub fn customize_stock(
         evaluations: evals,
         clearance: cl,
         bottom_curve: bottom.map(|b| b.samples()),
+        footprint: fp,
     })
 }
 

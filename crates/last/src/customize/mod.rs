@@ -98,6 +98,8 @@ pub struct Customized {
     /// (x, height above the glass, mm), by which it was laid flat for the rules and the
     /// output raised back (the rules' values are those of the last laid flat).
     pub bottom_curve: Option<Vec<[f64; 2]>>,
+    /// Clinic path: the scan's footprint in the last's frame (drawn in the top view).
+    pub footprint: Vec<Vec<[f64; 2]>>,
 }
 
 /// How far the foot stands inside the last, region by region (negative: the foot presses
@@ -352,6 +354,7 @@ pub fn customize(
         evaluations: evals,
         clearance,
         bottom_curve: None,
+        footprint: Vec::new(),
     })
 }
 

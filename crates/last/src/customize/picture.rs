@@ -60,6 +60,10 @@ pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
     for l in outline(&c.last, &pz, |p| (p.x, p.y)) {
         cv.polyline(&top, &l, true, BLACK, 2);
     }
+    for l in &c.footprint {
+        let l: Vec<(f64, f64)> = l.iter().map(|p| (p[0], p[1])).collect();
+        cv.polyline(&top, &l, true, BLUE, 1);
+    }
     for (i, (_, k)) in c.curves.last.iter().enumerate() {
         let pts: Vec<P3> = (0..=400).map(|j| k.point(j as f64 / 400.0)).collect();
         let col = [RED, BLUE, BLUE, BLUE, GREEN, RED][i];
@@ -90,17 +94,22 @@ pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
         20,
         14,
         // The clinic path has no foot mesh: the grey one is the stock last.
-        &format!(
-            "side: {} grey, last black, last frame curves coloured",
-            c.clearance.of
-        ),
+        if c.footprint.is_empty() && c.clearance.of == "foot" {
+            "side: foot grey, last black, last frame curves coloured"
+        } else {
+            "side: stock last grey, last black, last frame curves coloured"
+        },
         BLACK,
         2,
     );
     cv.text(
         20,
         450,
-        "top: sole outlines at 1.5 mm, points O A P B C D E",
+        if c.footprint.is_empty() {
+            "top: sole outlines at 1.5 mm, points O A P B C D E"
+        } else {
+            "top: outlines at 1.5 mm, scanned footprint blue"
+        },
         BLACK,
         2,
     );
@@ -118,7 +127,7 @@ pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
     cv.text(
         900,
         y,
-        &format!("clearance ({} in last), mm", c.clearance.of),
+        &format!("clearance ({}), mm", c.clearance.of),
         BLACK,
         2,
     );
