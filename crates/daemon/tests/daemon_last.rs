@@ -115,7 +115,7 @@ fn command_keeping(dir: &std::path::Path) -> (std::process::Command, PathBuf) {
 /// A stock collection: the whole-foot path's last for the simulator's 240 mm right foot (as
 /// `footscan last customize --foot` makes it), and a file that is not a closed mesh.
 fn make_stock_collection(dir: &std::path::Path) {
-    use footscan_geom::mesh::{Format, TriMesh};
+    use footscan_geom::mesh::Format;
     use footscan_last::customize::{customize, foot_in_frame, rules::RuleSet, Inputs};
     use footscan_sim::foot::{Foot, FootParams, MeshResolution};
     std::fs::create_dir_all(dir).unwrap();
@@ -125,13 +125,7 @@ fn make_stock_collection(dir: &std::path::Path) {
     })
     .unwrap();
     let m = f.mesh(MeshResolution::default());
-    let verts = m
-        .vertices
-        .iter()
-        .map(|v| footscan_geom::P3::new(v[0], v[1], v[2]))
-        .collect();
-    let (foot, frame) =
-        foot_in_frame(TriMesh::new(verts, m.triangles.clone()), "sim foot").unwrap();
+    let (foot, frame) = foot_in_frame(m.tri_mesh(), "sim foot").unwrap();
     let inp = Inputs {
         shoe: footscan_last::customize::rules::Shoe::Dress,
         wearer: footscan_last::customize::rules::Wearer::Man,

@@ -3,7 +3,6 @@
 //! cut independently, the last closed.
 
 use footscan_geom::mesh::TriMesh;
-use footscan_geom::P3;
 use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
 use footscan_last::customize::{customize, foot_in_frame, write_outputs, Inputs};
 use footscan_sim::foot::{Foot, FootParams, MeshResolution, Side};
@@ -16,12 +15,7 @@ fn sim_foot(l: f64, side: Side) -> (TriMesh, footscan_sim::foot::FootMeshTruth) 
     })
     .unwrap();
     let m = f.mesh(MeshResolution::default());
-    let verts = m
-        .vertices
-        .iter()
-        .map(|v| P3::new(v[0], v[1], v[2]))
-        .collect();
-    (TriMesh::new(verts, m.triangles.clone()), m.truth)
+    (m.tri_mesh(), m.truth)
 }
 
 #[test]

@@ -25,6 +25,18 @@ pub struct FootMesh {
     pub truth: FootMeshTruth,
 }
 
+impl FootMesh {
+    /// The mesh as the geometry layer's triangle mesh (what the mesh stages read).
+    pub fn tri_mesh(&self) -> footscan_geom::mesh::TriMesh {
+        let verts = self
+            .vertices
+            .iter()
+            .map(|v| footscan_geom::P3::new(v[0], v[1], v[2]))
+            .collect();
+        footscan_geom::mesh::TriMesh::new(verts, self.triangles.clone())
+    }
+}
+
 /// Analytic truth of the mesh (world mm; points [x, y, z]).
 #[derive(Clone, Debug)]
 pub struct FootMeshTruth {

@@ -6,7 +6,6 @@
 
 use anyhow::{anyhow, Result};
 use footscan_geom::mesh::{TriMesh, Units};
-use footscan_geom::P3;
 use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
 use footscan_last::customize::{customize, foot_in_frame, Customized, Inputs};
 use footscan_sim::foot::{Foot, FootParams, MeshResolution, Side};
@@ -31,13 +30,7 @@ fn sim_foot(length: f64, side: Side) -> Result<TriMesh> {
         ..FootParams::default()
     })
     .map_err(|e| anyhow!("sim foot: {e}"))?;
-    let m = f.mesh(MeshResolution::default());
-    let v = m
-        .vertices
-        .iter()
-        .map(|v| P3::new(v[0], v[1], v[2]))
-        .collect();
-    Ok(TriMesh::new(v, m.triangles.clone()))
+    Ok(f.mesh(MeshResolution::default()).tri_mesh())
 }
 
 struct Row {

@@ -3,8 +3,7 @@
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
-use footscan_geom::mesh::{Format, TriMesh};
-use footscan_geom::P3;
+use footscan_geom::mesh::Format;
 use footscan_sim::foot::{Foot, FootParams, MeshResolution, Side};
 use serde_json::json;
 use std::path::PathBuf;
@@ -89,12 +88,7 @@ fn foot(a: FootArgs) -> Result<()> {
         stations: a.stations,
         around: a.around,
     });
-    let verts = m
-        .vertices
-        .iter()
-        .map(|v| P3::new(v[0], v[1], v[2]))
-        .collect();
-    let mesh = TriMesh::new(verts, m.triangles.clone());
+    let mesh = m.tri_mesh();
     mesh.check()
         .map_err(|d| anyhow::anyhow!("sim foot: the mesh is not closed: {d}"))?;
     let t = &m.truth;
