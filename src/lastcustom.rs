@@ -31,7 +31,7 @@ pub enum ClinicLastError {
 }
 
 /// `why` with the file in front unless it names it already.
-fn prefixed(path: &Path, why: &str) -> String {
+pub fn prefixed(path: &Path, why: &str) -> String {
     let name = path.display().to_string();
     if why.contains(&name) {
         why.to_string()

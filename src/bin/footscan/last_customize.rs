@@ -185,11 +185,5 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
 
 /// A customization error with the foot file in front unless the message names it already.
 fn named(foot: &std::path::Path, e: footscan_last::customize::CustomizeError) -> anyhow::Error {
-    let msg = e.to_string();
-    let name = foot.display().to_string();
-    if msg.contains(&name) {
-        anyhow!(msg)
-    } else {
-        anyhow!("{name}: {msg}")
-    }
+    anyhow!(footscan::lastcustom::prefixed(foot, &e.to_string()))
 }

@@ -1,19 +1,14 @@
 //! The clinic's customized last (docs/API.md, "Lasts"): the stock collection, a scan's last
 //! job (posted with the fitter's girths) and the last's files.
 
-use super::scans::{body, send_file};
+use super::scans::{body, parse_id, send_file};
 use super::{ApiError, AppState};
-use crate::archive::ScanId;
 use crate::daemon::lastjob::LastRequest;
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use axum::Json;
-
-fn parse_id(id: &str) -> Result<ScanId, ApiError> {
-    ScanId::parse(id).map_err(|e| ApiError::bad_request(e.to_string()))
-}
 
 /// `GET /api/lasts`: the stock lasts a last can be made from.
 pub async fn stock(State(st): State<AppState>) -> Result<Response, ApiError> {

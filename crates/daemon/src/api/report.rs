@@ -31,20 +31,7 @@ pub(super) fn scan_input(
     d: &crate::daemon::Daemon,
     id: &ScanId,
 ) -> Result<footscan::report::ReportInput, ApiError> {
-    let a = &d.archive;
-    let rec = a.get(id).map_err(crate::daemon::DaemonError::from)?;
-    let dir = a
-        .checked_dir(&rec)
-        .ok_or_else(|| ApiError::not_found(format!("scan {id}: its directory is missing")))?;
-    if a.artifact_path(&rec, "measurements.json").is_none() {
-        return Err(ApiError(
-            StatusCode::CONFLICT,
-            format!(
-                "scan {id} ({}) has no measurements.json: a report needs a measured foot",
-                rec.status.as_str()
-            ),
-        ));
-    }
+    let (rec, dir) = d.measured_scan(id, "a report")?;
     let mut input = footscan::report::ReportInput::from_scan_dir(&dir)
         .map_err(|e| ApiError::internal(format!("{e:#}")))?;
     input.title = rec.id.clone();

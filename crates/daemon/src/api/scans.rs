@@ -40,7 +40,7 @@ pub fn body<T>(b: Result<Json<T>, JsonRejection>) -> Result<T, ApiError> {
     }
 }
 
-fn parse_id(id: &str) -> Result<ScanId, ApiError> {
+pub(super) fn parse_id(id: &str) -> Result<ScanId, ApiError> {
     ScanId::parse(id).map_err(|e| ApiError::bad_request(e.to_string()))
 }
 

@@ -7,7 +7,7 @@
 //! priority, so making a last never takes the CPU from a scan.
 
 use super::{Daemon, DaemonError};
-use crate::archive::{Record, ScanId, Status};
+use crate::archive::{ScanId, Status};
 use footscan::lastcustom::{customize_scan, STOCK_EXTENSIONS};
 use footscan_last::customize::clinic::TapeGirths;
 use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
@@ -176,31 +176,6 @@ impl Daemon {
         Ok(p)
     }
 
-    /// The scan's record and directory, refused unless it ended and was measured.
-    fn measured_scan(&self, id: &ScanId) -> Result<(Record, PathBuf), DaemonError> {
-        let rec = self.archive.get(id)?;
-        let dir = self
-            .archive
-            .checked_dir(&rec)
-            .ok_or_else(|| DaemonError::NotFound(format!("scan {id}: its directory is missing")))?;
-        if rec.status == Status::Running {
-            return Err(DaemonError::Conflict(format!(
-                "scan {id} is still running: a last is made from a finished scan"
-            )));
-        }
-        if self
-            .archive
-            .artifact_path(&rec, "measurements.json")
-            .is_none()
-        {
-            return Err(DaemonError::Conflict(format!(
-                "scan {id} ({}) has no measurements.json: a last needs a measured foot",
-                rec.status.as_str()
-            )));
-        }
-        Ok((rec, dir))
-    }
-
     /// Check a request and start its job; the job's record says `running` until it ends.
     /// Everything the request names is checked here, so a bad one is a 400, not a job that
     /// fails.
@@ -209,7 +184,12 @@ impl Daemon {
         id: &ScanId,
         req: LastRequest,
     ) -> Result<LastJob, DaemonError> {
-        let (_, dir) = self.measured_scan(id)?;
+        let (rec, dir) = self.measured_scan(id, "a last")?;
+        if rec.status == Status::Running {
+            return Err(DaemonError::Conflict(format!(
+                "scan {id} is still running: a last is made from a finished scan"
+            )));
+        }
         let g = req.girths;
         let girths = TapeGirths::checked(g.ball, g.instep, g.long_heel, g.ankle)
             .map_err(|e| DaemonError::BadRequest(format!("girths: {e}")))?;

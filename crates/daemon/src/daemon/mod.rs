@@ -277,6 +277,31 @@ impl Daemon {
         }))
     }
 
+    /// A scan's record and directory, refused (409) unless it has measurements.json: what
+    /// `need` (a report, a last) is made from.
+    pub fn measured_scan(
+        &self,
+        id: &crate::archive::ScanId,
+        need: &str,
+    ) -> Result<(crate::archive::Record, PathBuf), DaemonError> {
+        let rec = self.archive.get(id)?;
+        let dir = self
+            .archive
+            .checked_dir(&rec)
+            .ok_or_else(|| DaemonError::NotFound(format!("scan {id}: its directory is missing")))?;
+        if self
+            .archive
+            .artifact_path(&rec, "measurements.json")
+            .is_none()
+        {
+            return Err(DaemonError::Conflict(format!(
+                "scan {id} ({}) has no measurements.json: {need} needs a measured foot",
+                rec.status.as_str()
+            )));
+        }
+        Ok((rec, dir))
+    }
+
     pub fn subscribe(&self) -> broadcast::Receiver<Event> {
         self.events.subscribe()
     }

@@ -200,25 +200,22 @@ fn convex_forefoot(
 
 /// The lowest and highest y where the vertical line at `x` meets a convex polygon.
 fn vertical_extent(h: &[P2], x: f64) -> Option<(f64, f64)> {
-    let mut out: Option<(f64, f64)> = None;
+    let mut ys = Vec::new();
     for (i, a) in h.iter().enumerate() {
         let b = h[(i + 1) % h.len()];
-        let (lo, hi) = (a.x.min(b.x), a.x.max(b.x));
-        if x < lo || x > hi {
+        if x < a.x.min(b.x) || x > a.x.max(b.x) {
             continue;
         }
-        let y = if hi - lo < 1e-12 {
-            a.y.min(b.y)
+        if (b.x - a.x).abs() < 1e-12 {
+            // An edge along the line: both of its ends.
+            ys.extend([a.y, b.y]);
         } else {
-            a.y + (b.y - a.y) * (x - a.x) / (b.x - a.x)
-        };
-        let y2 = if hi - lo < 1e-12 { a.y.max(b.y) } else { y };
-        out = Some(match out {
-            None => (y.min(y2), y.max(y2)),
-            Some((l, u)) => (l.min(y).min(y2), u.max(y).max(y2)),
-        });
+            ys.push(a.y + (b.y - a.y) * (x - a.x) / (b.x - a.x));
+        }
     }
-    out
+    let lo = ys.iter().copied().reduce(f64::min)?;
+    let hi = ys.iter().copied().reduce(f64::max)?;
+    Some((lo, hi))
 }
 
 impl Sections {

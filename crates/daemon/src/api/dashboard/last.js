@@ -93,7 +93,10 @@ async function lastShowJob(id) {
     });
     out.append(el('p', { class: 'small' }, 'Last files: ', span));
     if (job.files.includes('customize.png')) {
-      out.append(el('img', { id: 'last-picture', alt: 'Side and top views of the stock and the customized last', src: lastFileUrl(id, 'customize.png') + (lastFileUrl(id, '').includes('?') ? '&' : '?') + 't=' + encodeURIComponent(job.finished || '') }));
+      // The job's end time in the URL: a new last's picture is not taken from the cache.
+      const png = lastFileUrl(id, 'customize.png');
+      const src = png + (png.includes('?') ? '&' : '?') + 't=' + encodeURIComponent(job.finished || '');
+      out.append(el('img', { id: 'last-picture', alt: 'Side and top views of the stock and the customized last', src }));
     }
   }
 }
