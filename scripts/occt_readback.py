@@ -16,36 +16,16 @@ face's or edge's own parameter range, and the evaluated points.
 Test-time only: crates/geom/tests/export_occt.rs runs it in the venv scripts/setup.sh makes.
 """
 
-import json
-import os
 import sys
-from importlib import metadata
 
 from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve
-from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepTools import BRepTools
 from OCP.Geom import Geom_BSplineCurve, Geom_BSplineSurface, Geom_RectangularTrimmedSurface, Geom_TrimmedCurve
-from OCP.IFSelect import IFSelect_RetDone
-from OCP.IGESControl import IGESControl_Reader
-from OCP.STEPControl import STEPControl_Reader
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL
-from OCP.TopExp import TopExp
 from OCP.TopoDS import TopoDS
 
-try:  # OCCT 8 bindings name the map templates by their parameters
-    from OCP.collections import IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeAncestors
-    from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
-except ImportError:  # OCCT 7 bindings
-    from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape as ShapeAncestors
-    from OCP.TopTools import TopTools_IndexedMapOfShape as ShapeMap
-
-
-def explore(shape, kind):
-    """Distinct sub-shapes of one kind (a seam edge counts once), in the reader's order."""
-    m = ShapeMap()
-    TopExp.MapShapes_s(shape, kind, m)
-    return [m.FindKey(i) for i in range(1, m.Extent() + 1)]
+from occt_common import edge_faces, explore, load, print_json
 
 
 def xyz(p):
@@ -116,35 +96,16 @@ def main(argv):
             continue
         xs = [float(x) for x in a.split(",")]
         (pairs if len(xs) == 2 else params).append(tuple(xs) if len(xs) == 2 else xs[0])
-    out = {"file": path, "occt": metadata.version("cadquery-ocp-novtk")}
-    # OCCT's messenger writes progress to stdout; keep stdout for the JSON alone.
-    json_out = os.fdopen(os.dup(1), "w")
-    os.dup2(2, 1)
-    try:
-        code = read(path, pairs, params, unit, out)
-    finally:
-        sys.stdout.flush()
-    json_out.write(json.dumps(out) + "\n")
-    json_out.flush()
-    return code
+    return print_json(path, lambda out: read(path, pairs, params, unit, out))
 
 
 def read(path, pairs, params, unit, out):
-    is_step = path.lower().endswith((".step", ".stp"))
-    reader = STEPControl_Reader() if is_step else IGESControl_Reader()
-    out["format"] = "STEP" if is_step else "IGES"
-    if reader.ReadFile(path) != IFSelect_RetDone:
-        out["read"] = False
+    shape = load(path, out)
+    if shape is None:
         return 1
-    out["read"] = True
-    out["roots"] = reader.NbRootsForTransfer()
-    out["transferred"] = reader.TransferRoots()
-    shape = reader.OneShape()
-    out["valid"] = bool(BRepCheck_Analyzer(shape).IsValid())
     faces = explore(shape, TopAbs_FACE)
     edges = explore(shape, TopAbs_EDGE)
-    owners = ShapeAncestors()
-    TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, owners)
+    owners = edge_faces(shape)
     free = [e for e in edges if owners.FindFromKey(e).Size() == 0]
     out.update(faces=len(faces), edges=len(edges), free_edges=len(free), shells=len(explore(shape, TopAbs_SHELL)))
     out["surfaces"] = [surface_info(TopoDS.Face(f), pairs, unit) for f in faces]

@@ -12,52 +12,25 @@ Test-time only: tests/model_cad.rs runs it in the venv scripts/setup.sh makes
 (target/venv-occt).
 """
 
-import json
-import os
 import sys
-from importlib import metadata
 
 from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Tool
 from OCP.BRepBndLib import BRepBndLib
-from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepGProp import BRepGProp
 from OCP.GProp import GProp_GProps
-from OCP.IFSelect import IFSelect_RetDone
-from OCP.IGESControl import IGESControl_Reader
-from OCP.STEPControl import STEPControl_Reader
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL, TopAbs_SOLID
-from OCP.TopExp import TopExp
 
-try:  # OCCT 8 bindings name the map templates by their parameters
-    from OCP.collections import IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeAncestors
-    from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
-except ImportError:  # OCCT 7 bindings
-    from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape as ShapeAncestors
-    from OCP.TopTools import TopTools_IndexedMapOfShape as ShapeMap
-
-
-def explore(shape, kind):
-    m = ShapeMap()
-    TopExp.MapShapes_s(shape, kind, m)
-    return [m.FindKey(i) for i in range(1, m.Extent() + 1)]
+from occt_common import edge_faces, explore, load, print_json
 
 
 def read(path, out):
-    is_step = path.lower().endswith((".step", ".stp"))
-    reader = STEPControl_Reader() if is_step else IGESControl_Reader()
-    out["format"] = "STEP" if is_step else "IGES"
-    if reader.ReadFile(path) != IFSelect_RetDone:
-        out["read"] = False
+    shape = load(path, out)
+    if shape is None:
         return 1
-    out["read"] = True
-    reader.TransferRoots()
-    shape = reader.OneShape()
-    out["valid"] = bool(BRepCheck_Analyzer(shape).IsValid())
     solids, shells = explore(shape, TopAbs_SOLID), explore(shape, TopAbs_SHELL)
     faces, edges = explore(shape, TopAbs_FACE), explore(shape, TopAbs_EDGE)
-    owners = ShapeAncestors()
-    TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, owners)
+    owners = edge_faces(shape)
     not_two = sum(1 for i in range(1, owners.Extent() + 1) if owners.FindFromIndex(i).Size() != 2)
     out.update(
         solids=len(solids), shells=len(shells), faces=len(faces), edges=len(edges),
@@ -79,17 +52,7 @@ def main(argv):
     if len(argv) != 2:
         print(__doc__, file=sys.stderr)
         return 2
-    out = {"file": argv[1], "occt": metadata.version("cadquery-ocp-novtk")}
-    # OCCT's messenger writes progress to stdout; keep stdout for the JSON alone.
-    json_out = os.fdopen(os.dup(1), "w")
-    os.dup2(2, 1)
-    try:
-        code = read(argv[1], out)
-    finally:
-        sys.stdout.flush()
-    json_out.write(json.dumps(out) + "\n")
-    json_out.flush()
-    return code
+    return print_json(argv[1], lambda out: read(argv[1], out))
 
 
 if __name__ == "__main__":
