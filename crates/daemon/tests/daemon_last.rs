@@ -112,7 +112,7 @@ fn command_keeping(dir: &std::path::Path) -> (std::process::Command, PathBuf) {
     (cmd, archive)
 }
 
-/// A stock collection: the whole-foot path's last for the simulator's 240 mm right foot (as
+/// A stock collection: the whole-foot path's last for the simulator's 245 mm right foot (as
 /// `footscan last customize --foot` makes it), and a file that is not a closed mesh.
 fn make_stock_collection(dir: &std::path::Path) {
     use footscan_geom::mesh::Format;
@@ -120,7 +120,7 @@ fn make_stock_collection(dir: &std::path::Path) {
     use footscan_sim::foot::{Foot, FootParams, MeshResolution};
     std::fs::create_dir_all(dir).unwrap();
     let f = Foot::new(FootParams {
-        length_mm: 240.0,
+        length_mm: 245.0,
         ..FootParams::default()
     })
     .unwrap();
@@ -133,7 +133,7 @@ fn make_stock_collection(dir: &std::path::Path) {
     };
     let c = customize(foot, frame, &RuleSet::default_rules(), &inp).unwrap();
     c.last
-        .write(dir.join("sim-240-right.stl"), Format::StlBinary)
+        .write(dir.join("sim-245-right.stl"), Format::StlBinary)
         .unwrap();
     std::fs::write(dir.join("broken.stl"), b"solid broken\nendsolid broken\n").unwrap();
     std::fs::write(dir.join("notes.txt"), b"not a last").unwrap();
@@ -169,14 +169,14 @@ fn customized_last(d: &Footscand, id: &str) {
         .iter()
         .map(|l| l["name"].as_str().unwrap())
         .collect();
-    assert_eq!(names, ["broken.stl", "sim-240-right.stl"], "{lasts}");
+    assert_eq!(names, ["broken.stl", "sim-245-right.stl"], "{lasts}");
     // Bad requests: named, nothing started.
     let girths =
         r#""girths": {"ball": 260.0, "instep": 248.0, "long_heel": 367.0, "ankle": 200.5}"#;
-    let (s, v) = d.post(&path, r#"{"girths": {"ball": 260.0, "instep": 248.0, "long_heel": 367.0}, "stock": "sim-240-right.stl"}"#);
+    let (s, v) = d.post(&path, r#"{"girths": {"ball": 260.0, "instep": 248.0, "long_heel": 367.0}, "stock": "sim-245-right.stl"}"#);
     assert_eq!(s, 400, "{v}");
     assert!(v["error"].as_str().unwrap().contains("ankle"), "{v}");
-    let (s, v) = d.post(&path, r#"{"girths": {"ball": 26.0, "instep": 248.0, "long_heel": 367.0, "ankle": 200.5}, "stock": "sim-240-right.stl"}"#);
+    let (s, v) = d.post(&path, r#"{"girths": {"ball": 26.0, "instep": 248.0, "long_heel": 367.0, "ankle": 200.5}, "stock": "sim-245-right.stl"}"#);
     assert_eq!(s, 400, "{v}");
     assert!(v["error"].as_str().unwrap().contains("ball = 26 mm"), "{v}");
     let (s, v) = d.post(
@@ -187,12 +187,12 @@ fn customized_last(d: &Footscand, id: &str) {
     let (s, v) = d.post(&path, &format!(r#"{{{girths}, "stock": "nope.stl"}}"#));
     assert_eq!(s, 400, "{v}");
     assert!(
-        v["error"].as_str().unwrap().contains("sim-240-right.stl"),
+        v["error"].as_str().unwrap().contains("sim-245-right.stl"),
         "{v}"
     );
     let (s, v) = d.post(
         &path,
-        &format!(r#"{{{girths}, "stock": "sim-240-right.stl", "heel_mm": 300}}"#),
+        &format!(r#"{{{girths}, "stock": "sim-245-right.stl", "heel_mm": 300}}"#),
     );
     assert_eq!(s, 400, "{v}");
     assert!(v["error"].as_str().unwrap().contains("heel_mm"), "{v}");
@@ -210,7 +210,7 @@ fn customized_last(d: &Footscand, id: &str) {
     // The last.
     let (s, v) = d.post(
         &path,
-        &format!(r#"{{{girths}, "stock": "sim-240-right.stl", "shoe": "dress", "wearer": "man", "heel_mm": 25}}"#),
+        &format!(r#"{{{girths}, "stock": "sim-245-right.stl", "shoe": "dress", "wearer": "man", "heel_mm": 25}}"#),
     );
     assert_eq!(s, 202, "{v}");
     assert_eq!(v["state"], "running", "{v}");
@@ -297,14 +297,14 @@ fn dashboard_makes_a_last(d: &Footscand, id: &str, dir: &std::path::Path) {
     assert_eq!(c["files"].as_array().unwrap().len(), 6, "{c}");
     assert_eq!(
         c["stock"],
-        serde_json::json!(["broken.stl", "sim-240-right.stl"]),
+        serde_json::json!(["broken.stl", "sim-245-right.stl"]),
         "{c}"
     );
     // Another last from the form: a sport shoe.
     b.eval(
         "(() => { const v = (id, x) => { document.getElementById(id).value = x; }; \
          v('last-ball', '260'); v('last-instep', '248'); v('last-long-heel', '367'); \
-         v('last-ankle', '200.5'); v('last-stock', 'sim-240-right.stl'); v('last-shoe', 'sport'); \
+         v('last-ankle', '200.5'); v('last-stock', 'sim-245-right.stl'); v('last-shoe', 'sport'); \
          v('last-heel', '20'); })()",
     );
     b.click("last-make");

@@ -536,18 +536,28 @@ impl Foot {
             return Vec::new();
         }
         let n = ((hi - lo) / 0.5).ceil().max(2.0) as usize;
+        let y_at = |i: usize| {
+            if i == n {
+                hi
+            } else {
+                lo + (hi - lo) * i as f64 / n as f64
+            }
+        };
         let mut sole: Vec<Option<f64>> = (0..=n)
-            .map(|i| {
-                let y = lo + (hi - lo) * i as f64 / n as f64;
-                self.height_foot_frame(xf, y)
-            })
+            .map(|i| self.height_foot_frame(xf, y_at(i)))
             .collect();
-        // The extreme points are on the outline: use the outline height there if the
-        // evaluation fell just outside.
+        // The extreme points are on the outline. Where the evaluation there falls outside
+        // by rounding, it is taken a hair inside: the outline height includes the arch's
+        // lift, so a constant edge height would hang a zero-thickness fin from the medial
+        // arch down to the glass (it did, up to 15.8 mm tall, wherever the rounding fell
+        // outside).
         let edge_h = (self.p.edge_radius_mm - self.p.press_mm).max(0.0);
-        for i in [0, n] {
+        for (i, inward) in [(0, 1.0), (n, -1.0)] {
             if sole[i].is_none() {
-                sole[i] = Some(edge_h);
+                sole[i] = [1e-9, 1e-6, 1e-3]
+                    .iter()
+                    .find_map(|e| self.height_foot_frame(xf, y_at(i) + inward * e))
+                    .or(Some(edge_h));
             }
         }
         // Bridge gaps linearly.
@@ -570,7 +580,7 @@ impl Foot {
         let mut pts: Vec<[f64; 3]> = sole
             .iter()
             .enumerate()
-            .map(|(i, z)| [xf, lo + (hi - lo) * i as f64 / n as f64, z.unwrap()])
+            .map(|(i, z)| [xf, y_at(i), z.unwrap()])
             .collect();
         let (zl, zh) = (pts[0][2], pts[n][2]);
         let top = self.dorsum_height(xf).max(zl.max(zh) + 1.0);

@@ -243,3 +243,34 @@ fn validation_names_key_and_range() {
     assert_eq!(p.side, Side::Left);
     assert!(toml::from_str::<FootParams>("lenght_mm = 240.0").is_err());
 }
+
+/// The sole of a section meets its side wall at the outline's own height: where the
+/// evaluation on the outline fell outside by rounding, the medial end used to take the
+/// flat edge height, and a zero-thickness fin up to 15.8 mm tall hung from the arch at the
+/// stations where that happened (the customized last's midfoot clearance read -4 to -11 mm
+/// against it).
+#[test]
+fn sections_have_no_fin_at_the_arch() {
+    for length_mm in [230.0, 260.0, 290.0] {
+        let f = Foot::new(FootParams {
+            length_mm,
+            ..FootParams::default()
+        })
+        .unwrap();
+        for k in 0..1500 {
+            let xf = length_mm * (0.15 + 0.5 * k as f64 / 1500.0);
+            let s = f.section(xf);
+            // The sole: the leading run of points with increasing y (0.5 mm apart; the
+            // edge's rounding steps up to 2.2 mm, the fin was 15.8 mm).
+            let n = s.windows(2).take_while(|w| w[1][1] > w[0][1]).count();
+            let step = s[..=n]
+                .windows(2)
+                .map(|w| (w[1][2] - w[0][2]).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                step < 4.0,
+                "L {length_mm}: section at x' {xf:.3} jumps {step:.2} mm along its sole"
+            );
+        }
+    }
+}
