@@ -2,7 +2,7 @@
 //! job (posted with the fitter's girths) and the last's files.
 
 use super::scans::{body, parse_id, send_file};
-use super::{ApiError, AppState};
+use super::{blocking, ApiError, AppState};
 use crate::daemon::lastjob::LastRequest;
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Path, State};
@@ -13,9 +13,7 @@ use axum::Json;
 /// `GET /api/lasts`: the stock lasts a last can be made from.
 pub async fn stock(State(st): State<AppState>) -> Result<Response, ApiError> {
     let d = st.daemon.clone();
-    let lasts = tokio::task::spawn_blocking(move || d.stock_lasts())
-        .await
-        .map_err(ApiError::internal)??;
+    let lasts = blocking(move || Ok(d.stock_lasts()?)).await?;
     Ok(Json(serde_json::json!({ "lasts": lasts })).into_response())
 }
 
@@ -28,9 +26,7 @@ pub async fn start(
     let id = parse_id(&id)?;
     let req = body(b)?;
     let d = st.daemon.clone();
-    let job = tokio::task::spawn_blocking(move || d.start_last(&id, req))
-        .await
-        .map_err(ApiError::internal)??;
+    let job = blocking(move || Ok(d.start_last(&id, req)?)).await?;
     Ok((StatusCode::ACCEPTED, Json(job)).into_response())
 }
 
@@ -43,9 +39,7 @@ pub async fn show(
     let id = parse_id(&id)?;
     let d = st.daemon.clone();
     let rid = id.clone();
-    let job = tokio::task::spawn_blocking(move || d.last_job(&rid))
-        .await
-        .map_err(ApiError::internal)??;
+    let job = blocking(move || Ok(d.last_job(&rid)?)).await?;
     match job {
         Some(j) => Ok(Json(j).into_response()),
         None => Err(ApiError::not_found(format!(
@@ -64,8 +58,6 @@ pub async fn download(
     let id = parse_id(&id)?;
     let d = st.daemon.clone();
     let (rid, rname) = (id.clone(), name.clone());
-    let path = tokio::task::spawn_blocking(move || d.last_file(&rid, &rname))
-        .await
-        .map_err(ApiError::internal)??;
+    let path = blocking(move || Ok(d.last_file(&rid, &rname)?)).await?;
     send_file(&path, &format!("{id}-{name}"), &headers).await
 }

@@ -6,8 +6,8 @@
 //! Every visit in an answer carries `started_local` and `time_zone` (the clinic's, from the
 //! daemon config) beside the stored UTC `started`; `?date=` is the clinic's local date.
 
-use super::scans::body;
-use super::{ApiError, AppState};
+use super::scans::{body, parse_id};
+use super::{blocking, ApiError, AppState};
 use crate::archive::{Record, ScanId, VisitError};
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Path, Query, State};
@@ -52,18 +52,6 @@ fn notes_ok(n: &str) -> Result<(), ApiError> {
         )));
     }
     Ok(())
-}
-
-fn id(s: &str) -> Result<ScanId, ApiError> {
-    ScanId::parse(s).map_err(|e| ApiError::bad_request(e.to_string()))
-}
-
-async fn blocking<T: Send + 'static>(
-    f: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
-) -> Result<T, ApiError> {
-    tokio::task::spawn_blocking(f)
-        .await
-        .map_err(ApiError::internal)?
 }
 
 #[derive(Deserialize)]
@@ -140,7 +128,7 @@ pub async fn show(
     State(st): State<AppState>,
     Path(vid): Path<String>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let vid = id(&vid)?;
+    let vid = parse_id(&vid)?;
     let d = st.daemon.clone();
     blocking(move || {
         let v = d.archive.visit(&vid)?;
@@ -169,7 +157,7 @@ pub async fn set_notes(
     Path(vid): Path<String>,
     b: Result<Json<Notes>, JsonRejection>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let vid = id(&vid)?;
+    let vid = parse_id(&vid)?;
     let n = body(b)?.notes;
     notes_ok(&n)?;
     let d = st.daemon.clone();
@@ -188,8 +176,8 @@ pub async fn add_scan(
     Path(vid): Path<String>,
     b: Result<Json<AddScan>, JsonRejection>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let vid = id(&vid)?;
-    let sid = id(&body(b)?.scan)?;
+    let vid = parse_id(&vid)?;
+    let sid = parse_id(&body(b)?.scan)?;
     let d = st.daemon.clone();
     let v = blocking(move || Ok(d.archive.add_visit_scan(&vid, &sid)?)).await?;
     Ok(Json(st.daemon.config.clinic_zone.visit_json(&v)))
@@ -199,7 +187,7 @@ pub async fn delete(
     State(st): State<AppState>,
     Path(vid): Path<String>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let vid = id(&vid)?;
+    let vid = parse_id(&vid)?;
     let d = st.daemon.clone();
     let key = vid.to_string();
     let scans = blocking(move || Ok(d.archive.delete_visit(&vid)?)).await?;
@@ -225,7 +213,7 @@ pub async fn correct(
     Path(sid): Path<String>,
     b: Result<Json<Correction>, JsonRejection>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let sid = id(&sid)?;
+    let sid = parse_id(&sid)?;
     let c = body(b)?;
     if let Some(s) = &c.subject {
         subject_ok("subject", s)?;
@@ -282,7 +270,7 @@ pub async fn report_pdf(
     State(st): State<AppState>,
     Path(vid): Path<String>,
 ) -> Result<Response, ApiError> {
-    let vid = id(&vid)?;
+    let vid = parse_id(&vid)?;
     let d = st.daemon.clone();
     let name = format!("{vid}-visit-report.pdf");
     let bytes = blocking(move || {
@@ -294,7 +282,7 @@ pub async fn report_pdf(
                     format!("visit {vid} has no {side} foot yet: add its scan first"),
                 )
             })?;
-            super::report::scan_input(&d, &id(s)?)
+            super::report::scan_input(&d, &parse_id(s)?)
         };
         let (l, r) = (foot(&v.left, "left")?, foot(&v.right, "right")?);
         // The clinic's date of the visit.
