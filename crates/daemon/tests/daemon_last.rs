@@ -126,11 +126,7 @@ fn make_stock_collection(dir: &std::path::Path) {
     .unwrap();
     let m = f.mesh(MeshResolution::default());
     let (foot, frame) = foot_in_frame(m.tri_mesh(), "sim foot").unwrap();
-    let inp = Inputs {
-        shoe: footscan_last::customize::rules::Shoe::Dress,
-        wearer: footscan_last::customize::rules::Wearer::Man,
-        heel_mm: 25.0,
-    };
+    let inp = Inputs::default();
     let c = customize(foot, frame, &RuleSet::default_rules(), &inp).unwrap();
     c.last
         .write(dir.join("sim-245-right.stl"), Format::StlBinary)
@@ -141,18 +137,11 @@ fn make_stock_collection(dir: &std::path::Path) {
 
 /// Wait for the scan's last job to end; its record.
 fn wait_last(d: &Footscand, id: &str) -> Value {
-    let t0 = std::time::Instant::now();
-    loop {
-        let j = d.get_json(&format!("/api/scans/{id}/last"));
-        if j["state"] != "running" {
-            return j;
-        }
-        assert!(
-            t0.elapsed() < Duration::from_secs(120),
-            "last job still running: {j}"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    d.wait_json(
+        &format!("/api/scans/{id}/last"),
+        Duration::from_secs(120),
+        |j| j["state"] != "running",
+    )
 }
 
 fn customized_last(d: &Footscand, id: &str) {

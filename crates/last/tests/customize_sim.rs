@@ -3,7 +3,7 @@
 //! cut independently, the last closed.
 
 use footscan_geom::mesh::TriMesh;
-use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
+use footscan_last::customize::rules::RuleSet;
 use footscan_last::customize::{customize, foot_in_frame, write_outputs, Inputs};
 use footscan_sim::foot::{Foot, FootParams, MeshResolution, Side};
 
@@ -21,11 +21,7 @@ fn sim_foot(l: f64, side: Side) -> (TriMesh, footscan_sim::foot::FootMeshTruth) 
 #[test]
 fn simulated_feet() {
     let rules = RuleSet::default_rules();
-    let inp = Inputs {
-        shoe: Shoe::Dress,
-        wearer: Wearer::Man,
-        heel_mm: 25.0,
-    };
+    let inp = Inputs::default();
     for l in [230.0, 260.0, 290.0] {
         for side in [Side::Right, Side::Left] {
             let (m, truth) = sim_foot(l, side);
@@ -85,11 +81,7 @@ fn clinic_stock_last_with_toe_spring_and_heel() {
     use footscan_last::customize::clinic::{customize_stock, Plantar, TapeGirths};
     use footscan_last::customize::measure::Side as LastSide;
     let rules = RuleSet::default_rules();
-    let inp = Inputs {
-        shoe: Shoe::Dress,
-        wearer: Wearer::Man,
-        heel_mm: 25.0,
-    };
+    let inp = Inputs::default();
     let (m, _) = sim_foot(240.0, Side::Right);
     let (foot, frame) = foot_in_frame(m, "sim").unwrap();
     let flat = customize(foot, frame, &rules, &inp).unwrap().last;

@@ -6,7 +6,7 @@
 
 use anyhow::{anyhow, Result};
 use footscan_geom::mesh::{TriMesh, Units};
-use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
+use footscan_last::customize::rules::RuleSet;
 use footscan_last::customize::{customize, foot_in_frame, Customized, Inputs};
 use footscan_sim::foot::{Foot, FootParams, MeshResolution, Side};
 use serde_json::json;
@@ -71,11 +71,7 @@ fn one(name: String, world: TriMesh, rules: &RuleSet, inp: &Inputs, repeats: usi
 
 pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
     let rules = RuleSet::default_rules();
-    let inp = Inputs {
-        shoe: Shoe::Dress,
-        wearer: Wearer::Man,
-        heel_mm: 25.0,
-    };
+    let inp = Inputs::default();
     let mut rows = Vec::new();
     for l in [230.0, 260.0, 290.0] {
         for (side, s) in [(Side::Right, "right"), (Side::Left, "left")] {

@@ -24,31 +24,22 @@ pub const LAST_DIR: &str = "last";
 /// Reason a job gets when the daemon stopped during it (found at the next look).
 pub const INTERRUPTED: &str = "footscand stopped while the last was being made; post it again";
 
-/// The girths a fitter measured with a tape (mm).
-#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Girths {
-    pub ball: f64,
-    pub instep: f64,
-    pub long_heel: f64,
-    pub ankle: f64,
-}
-
 fn default_shoe() -> Shoe {
-    Shoe::Dress
+    Inputs::default().shoe
 }
 fn default_wearer() -> Wearer {
-    Wearer::Man
+    Inputs::default().wearer
 }
 fn default_heel_mm() -> f64 {
-    25.0
+    Inputs::default().heel_mm
 }
 
 /// What a clinic posts for a scan's last (`POST /api/scans/{id}/last`).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LastRequest {
-    pub girths: Girths,
+    /// The girths a fitter measured with a tape (mm).
+    pub girths: TapeGirths,
     /// A file of the stock collection (`GET /api/lasts`), for the scanned foot's side.
     pub stock: String,
     #[serde(default = "default_shoe")]

@@ -223,17 +223,26 @@ impl Footscand {
         events
     }
 
-    /// Poll /api/status until the scan is no longer running (or `limit`); the final scan.
-    pub fn wait_scan_end(&self, limit: Duration) -> Value {
+    /// Poll GET `path` every 100 ms until `done` holds for its JSON (or `limit`: a failed
+    /// assertion naming the path and its last answer); that answer.
+    pub fn wait_json(&self, path: &str, limit: Duration, done: impl Fn(&Value) -> bool) -> Value {
         let t0 = Instant::now();
         loop {
-            let s = self.get_json("/api/status");
-            if s["scan"]["state"] != "running" {
-                return s["scan"].clone();
+            let v = self.get_json(path);
+            if done(&v) {
+                return v;
             }
-            assert!(t0.elapsed() < limit, "scan still running after {limit:?}");
+            assert!(
+                t0.elapsed() < limit,
+                "GET {path}: still not done after {limit:?}: {v}"
+            );
             std::thread::sleep(Duration::from_millis(100));
         }
+    }
+
+    /// Poll /api/status until the scan is no longer running (or `limit`); the final scan.
+    pub fn wait_scan_end(&self, limit: Duration) -> Value {
+        self.wait_json("/api/status", limit, |s| s["scan"]["state"] != "running")["scan"].clone()
     }
 
     /// The record of scan `id` (with artifacts, summary, measurements).

@@ -10,11 +10,13 @@ use super::rules::RuleSet;
 use super::{clearance, foot_in_frame, footprint_clearance, frame_curves, judge, shape, targets};
 use super::{CustomizeError, Customized, Inputs};
 use footscan_geom::mesh::TriMesh;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// The four girths a fitter measures with a tape (mm).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// The four girths a fitter measures with a tape (mm); the daemon's last request carries
+/// them as JSON.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct TapeGirths {
     pub ball: f64,
     pub instep: f64,

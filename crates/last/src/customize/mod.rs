@@ -31,6 +31,18 @@ pub struct Inputs {
     pub heel_mm: f64,
 }
 
+impl Default for Inputs {
+    /// A men's dress last with a 25 mm heel: what the CLI and footscand assume when a
+    /// request does not say.
+    fn default() -> Self {
+        Inputs {
+            shoe: Shoe::Dress,
+            wearer: Wearer::Man,
+            heel_mm: 25.0,
+        }
+    }
+}
+
 /// Heel heights a last is made for (mm): flat to a high dress heel.
 pub const HEEL_RANGE_MM: (f64, f64) = (0.0, 120.0);
 
