@@ -14,6 +14,7 @@ from importlib import metadata
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.IGESControl import IGESControl_Reader
+from OCP.Interface import Interface_Static
 from OCP.STEPControl import STEPControl_Reader
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE
 from OCP.TopExp import TopExp
@@ -45,6 +46,13 @@ def load(path, out):
     roots, transferred, valid (BRepCheck_Analyzer)."""
     is_step = path.lower().endswith((".step", ".stp"))
     reader = STEPControl_Reader() if is_step else IGESControl_Reader()
+    if not is_step:
+        # B-spline curves are taken whole, as written. OpenCASCADE's default (1) cuts them
+        # at every C0 knot into separate edges: a frame curve with knots of multiplicity 3
+        # at its corners (the flat bottom's edges) would read as four or five curves. Set
+        # after the reader exists: creating one resets the IGES statics.
+        Interface_Static.SetIVal_s("read.iges.bspline.continuity", 0)
+        out["iges_bspline_continuity"] = 0
     out["format"] = "STEP" if is_step else "IGES"
     if reader.ReadFile(path) != IFSelect_RetDone:
         out["read"] = False

@@ -93,7 +93,9 @@ impl Polyline {
         self.point_at_with(&cum, s)
     }
 
-    fn point_at_with(&self, cum: &[f64], s: f64) -> P3 {
+    /// [`Polyline::point_at`] with the [`Polyline::cumulative_lengths`] computed once by the
+    /// caller (many points along one polyline).
+    pub fn point_at_with(&self, cum: &[f64], s: f64) -> P3 {
         let total = *cum.last().unwrap_or(&0.0);
         if self.points.len() < 2 || total == 0.0 {
             return self.points[0];

@@ -2,7 +2,8 @@
 
 use footscan_geom::nurbs::fit::{
     fit_adaptive, fit_closed_adaptive, interpolate, interpolate_closed, interpolate_with,
-    least_squares, parameters,
+    least_squares, least_squares_closed_residuals, least_squares_closed_with_knots, parameters,
+    solve_cyclic_band_spd,
 };
 use footscan_geom::nurbs::{FitOptions, Param};
 use footscan_geom::{P3, V3};
@@ -152,4 +153,83 @@ fn bad_fit_input_is_an_error() {
     assert!(e.to_string().contains("coincide"), "{e}");
     let e = interpolate(&pts[..1], 3, Param::ChordLength).unwrap_err();
     assert!(e.to_string().contains("at least 2"), "{e}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(60))]
+
+    /// The cyclic band solver against nalgebra's dense LU on random SPD cyclic band
+    /// matrices (B^T B for a random cyclic band B, plus a ridge), n from 2p + 2 up.
+    #[test]
+    fn cyclic_band_solve_matches_a_dense_solve(seed in any::<u64>(), p in 1usize..5, extra in 0usize..40) {
+        let n = 2 * p + 2 + extra;
+        let w = 2 * p + 1;
+        let mut s = seed;
+        let mut next = || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        // B: row i non-zero at columns i..=i + p/2 (mod n), so B^T B stays within +-p.
+        let h = p / 2;
+        let mut bm = nalgebra::DMatrix::<f64>::zeros(n, n);
+        for i in 0..n {
+            for k in 0..=h {
+                bm[(i, (i + k) % n)] = next() - 0.3;
+            }
+        }
+        let a = bm.transpose() * &bm + nalgebra::DMatrix::<f64>::identity(n, n) * 0.05;
+        let mut band = vec![0.0; n * w];
+        for i in 0..n {
+            for (o, slot) in band[i * w..(i + 1) * w].iter_mut().enumerate() {
+                *slot = a[(i, (i + n + o - p) % n)];
+            }
+        }
+        let b: Vec<f64> = (0..n * 3).map(|_| next() * 10.0 - 5.0).collect();
+        let x = solve_cyclic_band_spd(&band, n, p, b.clone(), 3, "test").unwrap();
+        let bd = nalgebra::DMatrix::from_row_slice(n, 3, &b);
+        let xd = a.clone().lu().solve(&bd).unwrap();
+        for i in 0..n {
+            for c in 0..3 {
+                prop_assert!((x[i * 3 + c] - xd[(i, c)]).abs() < 1e-8 * (1.0 + xd[(i, c)].abs()),
+                    "x[{i}][{c}] {} dense {}", x[i * 3 + c], xd[(i, c)]);
+            }
+        }
+    }
+}
+
+#[test]
+fn cyclic_band_solve_reports_a_singular_matrix() {
+    // A 10 x 10 cyclic band (p = 2) whose first row is zero.
+    let (n, p) = (10, 2);
+    let w = 2 * p + 1;
+    let mut band = vec![0.0; n * w];
+    for i in 0..n {
+        band[i * w + p] = 1.0;
+    }
+    band[p] = 0.0;
+    let e = solve_cyclic_band_spd(&band, n, p, vec![1.0; n], 1, "singular test").unwrap_err();
+    assert!(e.to_string().contains("singular test"), "{e}");
+}
+
+/// The residuals the closed least squares returns are the distances to the curve it returns,
+/// with knots of multiplicity 3 (corners) among the period's.
+#[test]
+fn closed_least_squares_residuals_are_the_curve_distances() {
+    let pts = girth(300, 60.0, 40.0);
+    let params = parameters(&pts, Param::ChordLength, true).unwrap();
+    let mut period: Vec<f64> = (0..40).map(|j| params[j * 300 / 40]).collect();
+    period.extend([params[150], params[150]]);
+    period.sort_by(f64::total_cmp);
+    let (c, res) = least_squares_closed_residuals(&pts, &params, 3, &period).unwrap();
+    let c2 = least_squares_closed_with_knots(&pts, &params, 3, &period).unwrap();
+    assert_eq!(c, c2);
+    assert_eq!(res.len(), pts.len());
+    let worst = pts
+        .iter()
+        .zip(&params)
+        .zip(&res)
+        .map(|((q, &u), r)| ((c.point(u) - q).norm() - r).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-9, "residuals differ from evaluation by {worst}");
+    assert!(res.iter().cloned().fold(0.0, f64::max) < 0.05);
 }

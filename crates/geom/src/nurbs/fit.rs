@@ -84,7 +84,7 @@ pub fn averaged_knots(params: &[f64], degree: usize) -> Vec<f64> {
 /// corners when periodic; [`SparseRows::solve`] exploits that to run in time linear in the
 /// size (for a fixed band), where a dense solve would be cubic.
 #[derive(Debug, Clone)]
-pub(crate) struct SparseRows {
+pub struct SparseRows {
     n: usize,
     rows: Vec<Vec<(usize, f64)>>,
 }
@@ -111,7 +111,7 @@ impl WorkRow {
 }
 
 impl SparseRows {
-    pub(crate) fn new(n: usize) -> Self {
+    pub fn new(n: usize) -> Self {
         SparseRows {
             n,
             rows: vec![Vec::new(); n],
@@ -119,7 +119,7 @@ impl SparseRows {
     }
 
     /// A[i][j] += v.
-    pub(crate) fn add(&mut self, i: usize, j: usize, v: f64) {
+    pub fn add(&mut self, i: usize, j: usize, v: f64) {
         let row = &mut self.rows[i];
         match row.iter_mut().find(|e| e.0 == j) {
             Some(e) => e.1 += v,
@@ -157,7 +157,7 @@ impl SparseRows {
     /// non-zero in the column. The wrapped-corner columns are kept as a dense tail of every
     /// row and solved last as a small dense system (the bordered form of a cyclic band), so
     /// the work is O(n (b^2 + b t + t^2) + t^3) for band width b, tail t, per right-hand side.
-    pub(crate) fn solve(self, b: Vec<f64>, nrhs: usize, what: &'static str) -> Result<Vec<f64>> {
+    pub fn solve(self, b: Vec<f64>, nrhs: usize, what: &'static str) -> Result<Vec<f64>> {
         let n = self.n;
         let scale = self
             .rows
@@ -462,8 +462,10 @@ fn periodic_basis(
     let u = super::norm_param(u, (a, b), true);
     let span = find_span(nu + p - 1, p, u, knots);
     basis_funs(span, u, p, knots, out_b);
-    for j in 0..=p {
-        out_idx[j] = (span - p + j) % nu;
+    let mut i = (span - p) % nu;
+    for slot in out_idx.iter_mut().take(p + 1) {
+        *slot = i;
+        i = if i + 1 == nu { 0 } else { i + 1 };
     }
 }
 
@@ -781,10 +783,22 @@ pub fn least_squares_closed_with_knots(
     degree: usize,
     period: &[f64],
 ) -> Result<NurbsCurve> {
+    least_squares_closed_residuals(points, params, degree, period).map(|r| r.0)
+}
+
+/// [`least_squares_closed_with_knots`] and the distance of every point from the curve at its
+/// parameter, from the basis values the fit computed anyway (an adaptive fit needs both
+/// every round; evaluating the curve again cost a third of a round).
+pub fn least_squares_closed_residuals(
+    points: &[P3],
+    params: &[f64],
+    degree: usize,
+    period: &[f64],
+) -> Result<(NurbsCurve, Vec<f64>)> {
     let m = points.len();
     let p = degree;
     let nu = period.len();
-    if nu < p + 1 || nu > m {
+    if nu < p + 1 || nu > m || params.len() != m {
         return Err(NurbsError::Invalid {
             what: "closed least squares",
             reason: format!(
@@ -794,24 +808,181 @@ pub fn least_squares_closed_with_knots(
         });
     }
     let knots = periodic_full_knots(period, p, 1.0);
-    let mut ata = SparseRows::new(nu);
     let mut atb = vec![0.0; nu * 3];
-    let mut idx = vec![0usize; p + 1];
-    let mut nb = vec![0.0; p + 1];
+    // Every point's p + 1 basis values and indices, kept for the residuals.
+    let mut idx = vec![0usize; m * (p + 1)];
+    let mut nb = vec![0.0; m * (p + 1)];
+    // The normal matrix is a symmetric positive definite cyclic band (the p + 1 functions
+    // live on consecutive indices): summed into a dense band, row r's offsets -p..=p at
+    // r * w + p + offset, and solved as one (see [`solve_cyclic_band_spd`]). Up to 2p + 1
+    // unknowns the offsets alias and the general sparse solver takes the rows.
+    let w = 2 * p + 1;
+    let mut band = vec![0.0; if nu > w { nu * w } else { 0 }];
+    let mut ata = SparseRows::new(if band.is_empty() { nu } else { 0 });
     for k in 0..m {
-        periodic_basis(params[k], p, &knots, nu, &mut idx, &mut nb);
+        let (ix, bx) = (
+            &mut idx[k * (p + 1)..(k + 1) * (p + 1)],
+            &mut nb[k * (p + 1)..(k + 1) * (p + 1)],
+        );
+        periodic_basis(params[k], p, &knots, nu, ix, bx);
         let q = points[k];
         for j in 0..=p {
             for l in 0..=p {
-                ata.add(idx[j], idx[l], nb[j] * nb[l]);
+                let v = bx[j] * bx[l];
+                if band.is_empty() {
+                    ata.add(ix[j], ix[l], v);
+                } else {
+                    // Consecutive indices (mod nu): index l sits l - j after index j.
+                    band[ix[j] * w + p + l - j] += v;
+                }
             }
-            atb[idx[j] * 3] += nb[j] * q.x;
-            atb[idx[j] * 3 + 1] += nb[j] * q.y;
-            atb[idx[j] * 3 + 2] += nb[j] * q.z;
+            atb[ix[j] * 3] += bx[j] * q.x;
+            atb[ix[j] * 3 + 1] += bx[j] * q.y;
+            atb[ix[j] * 3 + 2] += bx[j] * q.z;
         }
     }
-    let x = ata.solve(atb, 3, "closed least squares")?;
-    periodic_curve(p, period, 1.0, &from_rows(&x))
+    let x = if band.is_empty() {
+        ata.solve(atb, 3, "closed least squares")?
+    } else {
+        solve_cyclic_band_spd(&band, nu, p, atb, 3, "closed least squares")?
+    };
+    let x = from_rows(&x);
+    let res = (0..m)
+        .map(|k| {
+            let mut acc = crate::V3::zeros();
+            for j in 0..=p {
+                acc += nb[k * (p + 1) + j] * x[idx[k * (p + 1) + j]].coords;
+            }
+            (P3::from(acc) - points[k]).norm()
+        })
+        .collect();
+    Ok((periodic_curve(p, period, 1.0, &x)?, res))
+}
+
+/// Solve A x = b for a symmetric positive definite cyclic band matrix: row r's entries at
+/// columns r - p ..= r + p (mod n) in `band[r * (2p + 1) + p + offset]`, n > 2p + 1, `b`
+/// row-major n x nrhs. The last p unknowns are the border: the leading n - p block is a
+/// plain band (its wrapped entries all reach the border), factored by banded Cholesky, and
+/// the border is solved from its p x p Schur complement; O(n p^2) with no allocation per
+/// row, where the general sparse elimination took half a least-squares round.
+pub fn solve_cyclic_band_spd(
+    band: &[f64],
+    n: usize,
+    p: usize,
+    b: Vec<f64>,
+    nrhs: usize,
+    what: &'static str,
+) -> Result<Vec<f64>> {
+    let w = 2 * p + 1;
+    assert!(n > w && band.len() == n * w && b.len() == n * nrhs);
+    let a = |i: usize, j: usize| -> f64 {
+        let mut d = j as isize - i as isize;
+        let (ni, pi) = (n as isize, p as isize);
+        if d > pi {
+            d -= ni;
+        } else if d < -pi {
+            d += ni;
+        }
+        if d.abs() > pi {
+            0.0
+        } else {
+            band[i * w + (pi + d) as usize]
+        }
+    };
+    let scale = band.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let singular = |reason: String| NurbsError::Singular { what, reason };
+    if scale == 0.0 || !scale.is_finite() {
+        return Err(singular("zero or non-finite matrix".into()));
+    }
+    let n1 = n - p;
+    // Banded Cholesky of the leading block: l[i * (p + 1) + (k + p - i)] = L(i, k).
+    let lw = p + 1;
+    let mut l = vec![0.0; n1 * lw];
+    for i in 0..n1 {
+        for j in i.saturating_sub(p)..=i {
+            let mut sum = a(i, j);
+            for k in i.saturating_sub(p)..j {
+                sum -= l[i * lw + k + p - i] * l[j * lw + k + p - j];
+            }
+            if i == j {
+                if sum <= 1e-14 * scale {
+                    return Err(singular(format!(
+                        "{n} x {n} system: pivot {sum:e} in column {i} (parameters and knots do not fit)"
+                    )));
+                }
+                l[i * lw + p] = sum.sqrt();
+            } else {
+                l[i * lw + j + p - i] = sum / l[j * lw + p];
+            }
+        }
+    }
+    // Right-hand sides of the leading block: the border columns C, then b1.
+    let nr = p + nrhs;
+    let mut y = vec![0.0; n1 * nr];
+    for i in 0..n1 {
+        for c in 0..p {
+            y[i * nr + c] = a(i, n1 + c);
+        }
+        y[i * nr + p..(i + 1) * nr].copy_from_slice(&b[i * nrhs..(i + 1) * nrhs]);
+    }
+    for i in 0..n1 {
+        for k in i.saturating_sub(p)..i {
+            let f = l[i * lw + k + p - i];
+            for c in 0..nr {
+                y[i * nr + c] -= f * y[k * nr + c];
+            }
+        }
+        let d = l[i * lw + p];
+        for c in 0..nr {
+            y[i * nr + c] /= d;
+        }
+    }
+    for i in (0..n1).rev() {
+        for k in i + 1..(i + p + 1).min(n1) {
+            let f = l[k * lw + i + p - k];
+            for c in 0..nr {
+                y[i * nr + c] -= f * y[k * nr + c];
+            }
+        }
+        let d = l[i * lw + p];
+        for c in 0..nr {
+            y[i * nr + c] /= d;
+        }
+    }
+    // Border: (D - C^T Y) x2 = b2 - C^T z.
+    let s = nalgebra::DMatrix::from_fn(p, p, |r, c| {
+        a(n1 + r, n1 + c) - (0..n1).map(|i| a(i, n1 + r) * y[i * nr + c]).sum::<f64>()
+    });
+    let rhs = nalgebra::DMatrix::from_fn(p, nrhs, |r, c| {
+        b[(n1 + r) * nrhs + c]
+            - (0..n1)
+                .map(|i| a(i, n1 + r) * y[i * nr + p + c])
+                .sum::<f64>()
+    });
+    let x2 = s.lu().solve(&rhs).ok_or_else(|| {
+        singular(format!(
+            "{n} x {n} system has no unique solution (parameters and knots do not fit)"
+        ))
+    })?;
+    let mut x = vec![0.0; n * nrhs];
+    for i in 0..n1 {
+        for c in 0..nrhs {
+            let mut v = y[i * nr + p + c];
+            for r in 0..p {
+                v -= y[i * nr + r] * x2[(r, c)];
+            }
+            x[i * nrhs + c] = v;
+        }
+    }
+    for r in 0..p {
+        for c in 0..nrhs {
+            x[(n1 + r) * nrhs + c] = x2[(r, c)];
+        }
+    }
+    if x.iter().any(|v| !v.is_finite()) {
+        return Err(singular("solution is not finite".into()));
+    }
+    Ok(x)
 }
 
 /// Adaptive least-squares fit of a closed loop (girths, sections): a periodic curve with

@@ -621,50 +621,42 @@ fn conform(
             why: format!("{nfree} control points: too few to deform"),
         });
     }
-    // Arc length of the foot curve at each node (fraction of the whole).
-    let ns = 4000;
-    let us: Vec<f64> = (0..=ns)
-        .map(|i| a + (b - a) * i as f64 / ns as f64)
-        .collect();
-    let pts: Vec<P3> = us.iter().map(|&u| c.point(u)).collect();
-    let mut cum = vec![0.0];
-    for w in pts.windows(2) {
-        cum.push(cum.last().unwrap() + (w[1] - w[0]).norm());
+    // Arc length of the foot curve at each node (fraction of the whole): chords through
+    // eight samples between consecutive nodes.
+    let sub = 8;
+    let mut cum = vec![0.0; k + 1];
+    let mut prev = c.point(node_u[0]);
+    for i in 0..k {
+        let (u0, mut u1) = (node_u[i], node_u[(i + 1) % k]);
+        if u1 < u0 {
+            u1 += b - a;
+        }
+        let mut acc = 0.0;
+        for j in 1..=sub {
+            let q = c.point(u0 + (u1 - u0) * j as f64 / sub as f64);
+            acc += (q - prev).norm();
+            prev = q;
+        }
+        cum[i + 1] = cum[i] + acc;
     }
-    let total = *cum.last().unwrap();
-    let frac_at = |u: f64| {
-        let j = us.partition_point(|&x| x < u).min(ns);
-        cum[j] / total
-    };
-    let u_start = node_u[0];
-    let node_s: Vec<f64> = node_u
-        .iter()
-        .map(|&u| (frac_at(u) - frac_at(u_start)).rem_euclid(1.0))
-        .collect();
+    let total = cum[k];
+    let node_s: Vec<f64> = cum[..k].iter().map(|&x| x / total).collect();
     // The target by arc length from the point nearest the curve's start, in the curve's
     // direction.
     let pl = footscan_geom::polyline::Polyline::closed(target.to_vec());
-    let m = 4000;
-    let mut tp = pl.resample(m).points;
-    if tp.len() > m {
-        tp.truncate(m);
-    }
-    let m = tp.len();
-    let p0 = c.point(u_start);
-    let i0 = (0..m)
-        .min_by(|&i, &j| (tp[i] - p0).norm().total_cmp(&(tp[j] - p0).norm()))
-        .unwrap();
-    tp.rotate_left(i0);
+    let tcum = pl.cumulative_lengths();
+    let tlen = *tcum.last().unwrap();
+    let p0 = c.point(node_u[0]);
+    let s0 = pl.closest_point(&p0).map_or(0.0, |q| q.arc_length);
     let ahead = c.point(node_u[1]);
-    let j1 = ((node_s[1] * m as f64) as usize).clamp(1, m - 1);
-    if (tp[j1] - ahead).norm() > (tp[m - j1] - ahead).norm() {
-        tp[1..].reverse();
-    }
+    let fwd = (pl.point_at_with(&tcum, s0 + node_s[1] * tlen) - ahead).norm()
+        <= (pl.point_at_with(&tcum, s0 - node_s[1] * tlen) - ahead).norm();
+    let sign = if fwd { 1.0 } else { -1.0 };
     let cons: Vec<Constraint> = node_u
         .iter()
         .zip(&node_s)
         .map(|(&u, &sf)| {
-            let q = tp[((sf * m as f64).round() as usize) % m];
+            let q = pl.point_at_with(&tcum, s0 + sign * sf * tlen);
             Constraint {
                 name,
                 u,
