@@ -623,11 +623,9 @@ fn rules_default_and_sim_foot_missing_dir() {
 
 /// The clinic's way: a simulated plantar scan of ours (a 250 mm right foot), the girths a
 /// fitter measured with a tape (those of the simulator's 250 mm foot, rounded) and a stock
-/// last (the whole-foot path's last for a 245 mm foot; with the 240 and 238 mm ones, made
-/// since the simulator's arch lost its fin, the clinic solve does not converge: its heel
-/// offset runs to -14 mm and the bottom length jumps 2-4 mm between steps, docs/method.md
-/// 10.7). The stock last deformed: every rule
-/// met on last.stl cut here, the plantar figures within 0.5 mm of the simulator's foot.
+/// last (the whole-foot path's last for a 245 mm foot; crates/last/tests/customize_sim.rs
+/// solves the 238 and 240 mm ones too). The stock last deformed: every rule met on last.stl
+/// cut here, the plantar figures within 0.5 mm of the simulator's foot.
 /// Girths missing from the tape file are named, nothing written.
 #[test]
 fn clinic_scan_girths_and_stock_last() {

@@ -160,3 +160,44 @@ fn clinic_stock_last_with_toe_spring_and_heel() {
     );
     c.last.check().expect("closed");
 }
+
+/// Flat stock lasts made from the simulator's 238 and 240 mm feet, customized for the
+/// default simulated scan's plantar figures and tape girths (250 mm foot): every rule met.
+/// Both failed before the stock's chamfer was laid again through its own heel point: the
+/// sections' flat band had turned it into a terrace at the outline's 1.5 mm, so the heel
+/// point jumped 4.5 mm between Newton steps (bottom length and long-heel girth off by
+/// 2-2.5 mm).
+#[test]
+fn clinic_flat_stock_lasts_shorter_than_the_foot() {
+    use footscan_last::customize::clinic::{customize_stock, Plantar, TapeGirths};
+    use footscan_last::customize::measure::Side as LastSide;
+    let rules = RuleSet::default_rules();
+    let inp = Inputs::default();
+    let plantar = Plantar {
+        side: LastSide::Right,
+        length: 250.0,
+        ball_width: 99.99,
+        waist_width: 58.42,
+        heel_width: 62.5,
+        footprint: Vec::new(),
+    };
+    let girths = TapeGirths::checked(260.0, 248.0, 367.0, 200.5).unwrap();
+    for l in [238.0, 240.0] {
+        let (m, _) = sim_foot(l, Side::Right);
+        let (foot, frame) = foot_in_frame(m, "sim").unwrap();
+        let stock = customize(foot, frame, &rules, &inp).unwrap().last;
+        let c = customize_stock(stock, "flat stock", &plantar, &girths, &rules, &inp)
+            .unwrap_or_else(|e| panic!("{l} mm stock: {e}"));
+        for r in &c.rules {
+            println!(
+                "  {l} {:5} {:16} target {:7.2} last {:7.2} err {:+.3}",
+                r.rule, r.quantity, r.target_mm, r.last_mm, r.error_mm
+            );
+            assert!(
+                r.met,
+                "{l}: {} {}: {:+.3} mm",
+                r.rule, r.quantity, r.error_mm
+            );
+        }
+    }
+}

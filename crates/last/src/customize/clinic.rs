@@ -146,10 +146,20 @@ pub fn customize_stock(
     let target: [f64; 8] = std::array::from_fn(|i| rows[i].target_mm);
     let sec = shape::Sections::of_foot(&stock, sm.length, sm.sole_from());
     let mut nd = shape::Nodes::of(&sm);
-    // Stations of the rules at the foot's length; the stock last has its own heel
-    // allowance already (its heel point is the last's), so no chamfer.
+    // Stations of the rules at the foot's length. The stock last has its heel allowance
+    // already (its heel point is the last's); its chamfer is laid again through its own heel
+    // point, a no-op where the heel already rises clear of it. Without it, the sections'
+    // flat band turned a simulated stock's 45 degree chamfer into a terrace at the outline's
+    // 1.5 mm, the heel point jumped 4.5 mm between Newton steps and the solve failed (240 and
+    // 238 mm stocks for a 250 mm scan: bottom length and long-heel girth off by 2-2.5 mm).
     nd.length = foot.length;
-    nd.heel_allowance = 0.0;
+    nd.heel_allowance = sm
+        .outline
+        .iter()
+        .flatten()
+        .map(|p| p.x)
+        .fold(f64::INFINITY, f64::min)
+        .max(0.0);
     let (last, lm, field, evals) = shape::solve(&sec, &nd, &sm, &target, medial)?;
     let (fits, curves) = frame_curves(&sm, &sec.sole_outline(), &lm, &target)?;
     judge(&mut rows, &lm);

@@ -633,8 +633,10 @@ pub fn solve(
     let f = values(foot);
     // The neutral field (the foot's own shape) with the toe extension and the width scales
     // set from their rules, which each have one mechanism of their own.
+    // The toe extension: the bottom runs from the heel point (the foot's, or the chamfer's
+    // foot where that lies further forward) to the toe.
     let p0: Params = [
-        target[0] - f[0] + nd.heel_allowance,
+        target[0] - f[0] + foot.o.x.max(nd.heel_allowance) - foot.o.x,
         1.0 + (target[3] - f[3]) / f[3],
         1.0 + (target[2] - f[2]) / f[2],
         1.0 + (target[1] - f[1]) / f[1],
