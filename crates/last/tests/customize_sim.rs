@@ -59,6 +59,24 @@ fn simulated_feet() {
             assert!(mid.min_mm > -1.5, "midfoot {mid:?}");
             let toe = c.clearance.region("toe box").unwrap();
             assert!(toe.min_mm > -2.0, "toe box {toe:?}");
+            // The toe is round in plan: the last's bottom 2 mm behind its end is under half
+            // as wide as at the foot's toe tip (the stretched toes' hull ended square: 33.6 of 56.7 mm on the 230 mm foot).
+            let bottom_width = |x: f64| {
+                let (lo, hi) = c
+                    .last
+                    .vertices
+                    .iter()
+                    .filter(|v| v.z < 3.0 && (v.x - x).abs() < 1.0)
+                    .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v.y), b.max(v.y)));
+                hi - lo
+            };
+            let end = c.last.bbox().max.x;
+            let (at_tip, near_end) = (bottom_width(fm.a.x), bottom_width(end - 2.0));
+            println!("  toe: bottom {at_tip:.1} mm wide at the foot's tip, {near_end:.1} mm 2 mm from the end");
+            assert!(
+                near_end < 0.5 * at_tip,
+                "square toe: {near_end:.1} of {at_tip:.1} mm"
+            );
             for r in &c.rules {
                 assert!(r.met, "{} {} err {}", r.rule, r.quantity, r.error_mm);
             }
@@ -154,8 +172,12 @@ fn clinic_stock_last_with_toe_spring_and_heel() {
         (heel - 20.0 * (1.0 - 0.1 / 0.3)).abs() < 2.0,
         "heel {heel:.2}"
     );
+    // The toe stands lower than the applied spring (8.33 mm at 0.95 L): the bottom curve is
+    // found up to 0.9 L, smoothed over +-5 mm, and carried on straight (docs/method.md
+    // 10.7). 6.35 mm with the square-toed stock, 6.26 since the whole-foot path (which made
+    // this stock) rounds its toe in plan; the bound was 2.0 mm, 0.02 mm above the first.
     assert!(
-        (toe - 12.0 * (0.25f64 / 0.3).powi(2)).abs() < 2.0,
+        (toe - 12.0 * (0.25f64 / 0.3).powi(2)).abs() < 2.5,
         "toe {toe:.2}"
     );
     c.last.check().expect("closed");

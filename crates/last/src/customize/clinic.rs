@@ -153,6 +153,7 @@ pub fn customize_stock(
     // 1.5 mm, the heel point jumped 4.5 mm between Newton steps and the solve failed (240 and
     // 238 mm stocks for a 250 mm scan: bottom length and long-heel girth off by 2-2.5 mm).
     nd.length = foot.length;
+    nd.round_toe = false;
     nd.heel_allowance = sm
         .outline
         .iter()

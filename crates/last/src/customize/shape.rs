@@ -371,6 +371,9 @@ pub struct Nodes {
     pub ball_front: f64,
     pub length: f64,
     pub heel_allowance: f64,
+    /// Round the toe in plan in front of `tip` (a foot's toes end square; a stock last on
+    /// the clinic path has its own toe).
+    pub round_toe: bool,
 }
 
 impl Nodes {
@@ -396,6 +399,7 @@ impl Nodes {
             ball_front: m.b.x.max(m.c.x),
             length: l,
             heel_allowance: 0.0,
+            round_toe: true,
         }
     }
 }
@@ -415,6 +419,9 @@ fn blend(nodes: &[(f64, f64)], x: f64) -> f64 {
     }
     nodes[nodes.len() - 1].1
 }
+
+/// Width of the last's end ring in plan, as a fraction of the toe's (see [`build`]).
+const TOE_END: f64 = 0.12;
 
 /// Number of field values.
 pub const NPARAM: usize = 9;
@@ -539,6 +546,22 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
                 .into_iter()
                 .map(|q| P3::new(xn, q.x, q.y))
                 .collect();
+        }
+        // The toe in plan view: in front of the foot's toe tip, where the toe allowance
+        // adds the last's own room, each ring narrows about its middle along a quarter
+        // ellipse (to TOE_END of its width at the last's end), so the toe is rounded as a
+        // last's is, not the square end of the stretched toes' hull. Nothing of the foot is
+        // in front of its tip, so no clearance is given up.
+        if nd.round_toe && ext > 0.5 && xn > nd.tip {
+            let t = ((xn - nd.tip) / ext).min(1.0);
+            let f = (1.0 - t * t).sqrt().max(TOE_END);
+            let (lo, hi) = pts
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(a, b), q| (a.min(q.y), b.max(q.y)));
+            let mid = 0.5 * (lo + hi);
+            for q in &mut pts {
+                q.y = mid + (q.y - mid) * f;
+            }
         }
         // Heel allowance: lift the bottom behind x = heel_allowance along a 45 degree
         // chamfer, squashing the section from below.
