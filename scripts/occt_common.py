@@ -41,19 +41,19 @@ def edge_faces(shape):
     return owners
 
 
-def load(path, out):
+def load(path, out, whole_curves=False):
     """The file's shape, or None when it does not read. Records in `out`: format, read,
-    roots, transferred, valid (BRepCheck_Analyzer)."""
+    roots, transferred, valid (BRepCheck_Analyzer). `whole_curves`: IGES B-spline curves
+    are taken whole, as written; OpenCASCADE's default (read.iges.bspline.continuity = 1),
+    which a CAD user gets, cuts them at every C0 knot into separate edges (a frame curve
+    with knots of multiplicity 3 at the flat bottom's corners reads as four or five)."""
     is_step = path.lower().endswith((".step", ".stp"))
     reader = STEPControl_Reader() if is_step else IGESControl_Reader()
-    if not is_step:
-        # B-spline curves are taken whole, as written. OpenCASCADE's default (1) cuts them
-        # at every C0 knot into separate edges: a frame curve with knots of multiplicity 3
-        # at its corners (the flat bottom's edges) would read as four or five curves. Set
-        # after the reader exists: creating one resets the IGES statics.
+    out["format"] = "STEP" if is_step else "IGES"
+    if not is_step and whole_curves:
+        # Set after the reader exists: creating one resets the IGES statics.
         Interface_Static.SetIVal_s("read.iges.bspline.continuity", 0)
         out["iges_bspline_continuity"] = 0
-    out["format"] = "STEP" if is_step else "IGES"
     if reader.ReadFile(path) != IFSelect_RetDone:
         out["read"] = False
         return None

@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
 """Read an IGES or STEP file back with OpenCASCADE (OCP) and print what it found as JSON.
 
-usage: occt_readback.py FILE.igs|FILE.step [--unit] [U,V ...] [U ...]
+usage: occt_readback.py FILE.igs|FILE.step [--unit] [--whole-curves] [U,V ...] [U ...]
 
 Each U,V pair is evaluated on every face's surface, each single U on every free edge's
 curve (an edge that bounds no face). With --unit the parameters are fractions of each
-entity's own parameter domain (0 = start, 1 = end) instead of absolute values.
+entity's own parameter domain (0 = start, 1 = end) instead of absolute values. With
+--whole-curves an IGES B-spline curve is read as one edge even where it has C0 knots
+(OpenCASCADE's default, which a CAD user sees, cuts it there).
 
 The JSON has: the OCCT version, whether the file read, BRepCheck_Analyzer validity, counts
 of faces, edges, free edges and shells, and per face ("surfaces") and per free edge
@@ -90,17 +92,18 @@ def main(argv):
         return 2
     path, rest = argv[1], argv[2:]
     unit = "--unit" in rest
+    whole = "--whole-curves" in rest
     pairs, params = [], []
     for a in rest:
-        if a == "--unit":
+        if a in ("--unit", "--whole-curves"):
             continue
         xs = [float(x) for x in a.split(",")]
         (pairs if len(xs) == 2 else params).append(tuple(xs) if len(xs) == 2 else xs[0])
-    return print_json(path, lambda out: read(path, pairs, params, unit, out))
+    return print_json(path, lambda out: read(path, pairs, params, unit, whole, out))
 
 
-def read(path, pairs, params, unit, out):
-    shape = load(path, out)
+def read(path, pairs, params, unit, whole, out):
+    shape = load(path, out, whole_curves=whole)
     if shape is None:
         return 1
     faces = explore(shape, TopAbs_FACE)

@@ -77,9 +77,10 @@ pub fn fit_loop(
 /// the glass, where the leg is cut off, the toe pads' creases in the side profile) get a knot
 /// of multiplicity p, so the curve may turn there with C0 continuity; a cubic forced round
 /// them needs a control point per data point nearby (the 260 mm foot's side profile ended in
-/// interpolation through all 595 points). A bad span too sparse to split has the nearest
-/// splittable spans split instead, the reach widening until one is found (their basis
-/// functions reach into it); when none is left, the loop is interpolated.
+/// interpolation through all 595 points). A bad span too sparse to split has its nearest
+/// splittable neighbours within p spans split instead (their basis functions reach into
+/// it); when none is left, the stretch between its corners is interpolated on its own, and
+/// only a loop without corners is interpolated whole (docs/method.md 10.2).
 pub fn fit_closed_split(
     points: &[P3],
     opts: &FitOptions,
