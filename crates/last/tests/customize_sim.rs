@@ -18,6 +18,26 @@ fn sim_foot(l: f64, side: Side) -> (TriMesh, footscan_sim::foot::FootMeshTruth) 
     (m.tri_mesh(), m.truth)
 }
 
+/// The clinic's input for the default simulated scan (a 250 mm right foot): its plantar
+/// figures and the girths a fitter would tape (the simulator's, rounded).
+fn scan_of_250_mm_foot() -> (
+    footscan_last::customize::clinic::Plantar,
+    footscan_last::customize::clinic::TapeGirths,
+) {
+    use footscan_last::customize::clinic::{Plantar, TapeGirths};
+    use footscan_last::customize::measure::Side as LastSide;
+    let plantar = Plantar {
+        side: LastSide::Right,
+        length: 250.0,
+        ball_width: 99.99,
+        waist_width: 58.42,
+        heel_width: 62.5,
+        footprint: Vec::new(),
+    };
+    let girths = TapeGirths::checked(260.0, 248.0, 367.0, 200.5).unwrap();
+    (plantar, girths)
+}
+
 #[test]
 fn simulated_feet() {
     let rules = RuleSet::default_rules();
@@ -96,8 +116,7 @@ fn simulated_feet() {
 /// the heel and toe stand where the stock's curve puts them.
 #[test]
 fn clinic_stock_last_with_toe_spring_and_heel() {
-    use footscan_last::customize::clinic::{customize_stock, Plantar, TapeGirths};
-    use footscan_last::customize::measure::Side as LastSide;
+    use footscan_last::customize::clinic::customize_stock;
     let rules = RuleSet::default_rules();
     let inp = Inputs::default();
     let (m, _) = sim_foot(240.0, Side::Right);
@@ -119,15 +138,7 @@ fn clinic_stock_last_with_toe_spring_and_heel() {
     for v in &mut stock.vertices {
         v.z += raise(v.x);
     }
-    let plantar = Plantar {
-        side: LastSide::Right,
-        length: 250.0,
-        ball_width: 99.99,
-        waist_width: 58.42,
-        heel_width: 62.5,
-        footprint: Vec::new(),
-    };
-    let girths = TapeGirths::checked(260.0, 248.0, 367.0, 200.5).unwrap();
+    let (plantar, girths) = scan_of_250_mm_foot();
     let c = customize_stock(stock, "raised stock", &plantar, &girths, &rules, &inp).unwrap();
     for r in &c.rules {
         println!(
@@ -191,19 +202,10 @@ fn clinic_stock_last_with_toe_spring_and_heel() {
 /// 2-2.5 mm).
 #[test]
 fn clinic_flat_stock_lasts_shorter_than_the_foot() {
-    use footscan_last::customize::clinic::{customize_stock, Plantar, TapeGirths};
-    use footscan_last::customize::measure::Side as LastSide;
+    use footscan_last::customize::clinic::customize_stock;
     let rules = RuleSet::default_rules();
     let inp = Inputs::default();
-    let plantar = Plantar {
-        side: LastSide::Right,
-        length: 250.0,
-        ball_width: 99.99,
-        waist_width: 58.42,
-        heel_width: 62.5,
-        footprint: Vec::new(),
-    };
-    let girths = TapeGirths::checked(260.0, 248.0, 367.0, 200.5).unwrap();
+    let (plantar, girths) = scan_of_250_mm_foot();
     for l in [238.0, 240.0] {
         let (m, _) = sim_foot(l, Side::Right);
         let (foot, frame) = foot_in_frame(m, "sim").unwrap();

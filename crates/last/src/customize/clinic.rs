@@ -144,7 +144,8 @@ pub fn customize_stock(
     fm.ankle_girth = girths.ankle;
     let (mut rows, heel_allow) = targets(rules, inp, &fm);
     let target: [f64; 8] = std::array::from_fn(|i| rows[i].target_mm);
-    let sec = shape::Sections::of_foot(&stock, sm.length, sm.sole_from());
+    let heel_point = sm.sole_from();
+    let sec = shape::Sections::of_foot(&stock, sm.length, heel_point);
     let mut nd = shape::Nodes::of(&sm);
     // Stations of the rules at the foot's length. The stock last has its heel allowance
     // already (its heel point is the last's); its chamfer is laid again through its own heel
@@ -154,13 +155,7 @@ pub fn customize_stock(
     // 238 mm stocks for a 250 mm scan: bottom length and long-heel girth off by 2-2.5 mm).
     nd.length = foot.length;
     nd.round_toe = false;
-    nd.heel_allowance = sm
-        .outline
-        .iter()
-        .flatten()
-        .map(|p| p.x)
-        .fold(f64::INFINITY, f64::min)
-        .max(0.0);
+    nd.heel_allowance = heel_point.max(0.0);
     let (last, lm, field, evals) = shape::solve(&sec, &nd, &sm, &target, medial)?;
     let (fits, curves) = frame_curves(&sm, &sec.sole_outline(), &lm, &target)?;
     judge(&mut rows, &lm);

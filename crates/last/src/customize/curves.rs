@@ -440,7 +440,8 @@ pub fn least_change(
     let nu = if c.periodic { n - p } else { n };
     let (a, b) = c.domain();
     let m = cons.len();
-    let mut r = DMatrix::<f64>::zeros(m, nu);
+    // R's non-zeros (row, unique control point, value): p + 1 per constraint.
+    let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(m * (p + 1));
     for (k, cs) in cons.iter().enumerate() {
         let u = if c.periodic {
             a + (cs.u - a).rem_euclid(b - a)
@@ -453,34 +454,37 @@ pub fn least_change(
             continue;
         }
         for (j, v) in ders[cs.order].iter().enumerate() {
-            r[(k, (span - p + j) % nu)] += v;
+            entries.push((k, (span - p + j) % nu, *v));
         }
     }
+    // The change of each unique control point (row i of `delta`), given to its wrapped copies.
+    let moved = |delta: &dyn Fn(usize) -> V3| {
+        let mut out = c.clone();
+        for i in 0..n {
+            out.points[i] += delta(i % nu);
+        }
+        out
+    };
     // As many constraints as free control points (the collocation the frame uses): R is
     // square, R^T (R R^T)^-1 = R^-1, and R is a cyclic band, so eq. 9 is one sparse solve
     // in time linear in the size. Should R be singular, the dense path below names the
     // constraint.
     if m == nu {
         let mut sr = footscan_geom::nurbs::fit::SparseRows::new(nu);
-        for (k, row) in r.row_iter().enumerate() {
-            for (j, &v) in row.iter().enumerate() {
-                if v != 0.0 {
-                    sr.add(k, j, v);
-                }
-            }
+        for &(k, j, v) in &entries {
+            sr.add(k, j, v);
         }
         let rhs: Vec<f64> = cons
             .iter()
             .flat_map(|c| [c.delta.x, c.delta.y, c.delta.z])
             .collect();
         if let Ok(x) = sr.solve(rhs, 3, "least change") {
-            let mut out = c.clone();
-            for i in 0..n {
-                let j = i % nu;
-                out.points[i] += V3::new(x[3 * j], x[3 * j + 1], x[3 * j + 2]);
-            }
-            return Ok(out);
+            return Ok(moved(&|j| V3::new(x[3 * j], x[3 * j + 1], x[3 * j + 2])));
         }
+    }
+    let mut r = DMatrix::<f64>::zeros(m, nu);
+    for &(k, j, v) in &entries {
+        r[(k, j)] += v;
     }
     // Rank check: a Cholesky factor whose pivots stay clear of zero; only when it fails is
     // the set searched (incrementally) for the constraint that depends on the ones before.
@@ -512,12 +516,9 @@ pub fn least_change(
         });
     };
     let delta = r.transpose() * chol.solve(&dp);
-    let mut out = c.clone();
-    for i in 0..n {
-        let d = delta.row(i % nu);
-        out.points[i] += V3::new(d[0], d[1], d[2]);
-    }
-    Ok(out)
+    Ok(moved(&|j| {
+        V3::new(delta[(j, 0)], delta[(j, 1)], delta[(j, 2)])
+    }))
 }
 
 /// Parameter of the curve point closest to `q`.
