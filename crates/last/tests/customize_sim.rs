@@ -66,19 +66,21 @@ fn simulated_feet() {
             }
             println!("  clearance {}", c.clearance.summary());
             assert!((fm.length - truth.length_mm).abs() < 0.5, "length");
-            // Where the rules say the foot must fit: the heel seat holds it (it stood 2.3 mm
-            // out on the 230 mm foot under the old field); the toe box within 2 mm (3-5 mm
-            // before the swept toe rings; the target is FIT_TOL_MM, not met yet: the
-            // hallux's side, docs/method.md 10.5). The midfoot within 1.5 mm (-0.98 to
-            // -1.07 measured: the width scale at the waist goes below 1 to give back what
-            // the upper widening adds to the plan waist; -4 to -11 mm before the
-            // simulator's arch lost the fin it hung down to the glass).
-            let heel = c.clearance.region("heel seat").unwrap();
-            assert!(heel.met(), "heel seat {heel:?}");
-            let mid = c.clearance.region("midfoot").unwrap();
-            assert!(mid.min_mm > -1.5, "midfoot {mid:?}");
-            let toe = c.clearance.region("toe box").unwrap();
-            assert!(toe.min_mm > -2.0, "toe box {toe:?}");
+            // Where the rules say the foot must fit (heel seat, midfoot, toe box) it does,
+            // within FIT_TOL_MM. Measured before this held: midfoot -0.9 to -1.0 mm (the
+            // upper widening widened the plan waist and the waist scale went below 1 to
+            // give it back, pressing the arch's wall), toe box -1.15 to -1.48 mm (the back
+            // of the hallux rose between two stations, under the ruling between their
+            // rings), heel seat -2.3 mm on the 230 mm foot under an older field.
+            for name in ["heel seat", "midfoot", "toe box"] {
+                let r = c.clearance.region(name).unwrap();
+                assert!(r.vertices > 0 && r.met(), "{name} {r:?}");
+            }
+            assert!(
+                c.clearance.must_fit_margin_mm >= -footscan_last::customize::FIT_TOL_MM,
+                "{}",
+                c.clearance.summary()
+            );
             // The toe is round in plan: the last's bottom 2 mm behind its end is under half
             // as wide as at the foot's toe tip (the stretched toes' hull ended square: 33.6 of 56.7 mm on the 230 mm foot).
             let bottom_width = |x: f64| {
