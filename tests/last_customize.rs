@@ -212,6 +212,24 @@ fn check_cut(out_dir: &Path) -> serde_json::Value {
             })
             .collect::<Vec<_>>()
     );
+    // A last whose bottom follows a raised arch (report.json's bottom_curve: x, height
+    // samples) is laid flat by that curve before it is cut: the rules' values are those of
+    // the last standing flat.
+    let mut last = last;
+    if let Some(curve) = rep["bottom_curve"].as_array() {
+        let c: Vec<(f64, f64)> = curve
+            .iter()
+            .map(|p| (p[0].as_f64().unwrap(), p[1].as_f64().unwrap()))
+            .collect();
+        let at = |x: f64| {
+            let i = c.partition_point(|p| p.0 < x).clamp(1, c.len() - 1);
+            let ((x0, z0), (x1, z1)) = (c[i - 1], c[i]);
+            z0 + (z1 - z0) * ((x - x0) / (x1 - x0)).clamp(0.0, 1.0)
+        };
+        for v in &mut last.vertices {
+            v.z -= at(v.x);
+        }
+    }
     let rules = rep["rules"].as_array().unwrap();
     let l = rules[0]["foot_mm"].as_f64().unwrap();
     let side = rep["frame"]["side"].as_str().unwrap();
@@ -554,6 +572,48 @@ fn real_feet_customized_and_cut_independently() {
         println!("{out}");
         let rep = check_cut(&out_dir);
         assert_eq!(rep["frame"]["side"], *side, "{f}");
+        // These feet were scanned without weight on them: the midfoot stands 2-9 mm above
+        // the plane through heel and ball. The last's bottom follows that arch (a flat one
+        // filled it, and the girth rules then pressed the FIND foot's instep 6.6 mm).
+        let curve: Vec<(f64, f64)> = rep["bottom_curve"]
+            .as_array()
+            .unwrap_or_else(|| panic!("{f}: no bottom curve under the raised midfoot"))
+            .iter()
+            .map(|p| (p[0].as_f64().unwrap(), p[1].as_f64().unwrap()))
+            .collect();
+        let (xr, rise) = curve
+            .iter()
+            .copied()
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap();
+        let last = TriMesh::read(out_dir.join("last.stl")).unwrap();
+        let low = last
+            .vertices
+            .iter()
+            .filter(|v| (v.x - xr).abs() < 3.0)
+            .map(|v| v.z)
+            .fold(f64::MAX, f64::min);
+        println!("{f}: bottom rises {rise:.2} mm at x {xr:.1}, the last's lowest there {low:.2}");
+        assert!(rise > 2.0, "{f}: bottom curve rises {rise:.2} mm");
+        assert!(
+            (low - rise).abs() < 1.0,
+            "{f}: last's bottom {low:.2}, curve {rise:.2}"
+        );
+        let region = |name: &str| {
+            rep["clearance"]["regions"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|r| r["region"] == name)
+                .unwrap()["min_mm"]
+                .as_f64()
+                .unwrap()
+        };
+        if i == 0 {
+            // Measured -1.36 mm (the must-fit target, -0.3 mm, is not met yet).
+            let mid = region("midfoot");
+            assert!(mid > -2.0, "{f}: midfoot clearance {mid:.2} mm");
+        }
     }
 }
 

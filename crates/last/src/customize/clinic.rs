@@ -5,6 +5,7 @@
 //! are applied to the foot's values, and the stock last is deformed by the same solved field
 //! as on the whole-foot path until its cut values are the targets (docs/method.md 10.7).
 
+use super::bottom::{shear, BottomCurve, FLAT_TOL_MM};
 use super::measure::{measure, Side};
 use super::rules::RuleSet;
 use super::{clearance, foot_in_frame, footprint_clearance, frame_curves, judge, shape, targets};
@@ -145,7 +146,7 @@ pub fn customize_stock(
     let (mut rows, heel_allow) = targets(rules, inp, &fm);
     let target: [f64; 8] = std::array::from_fn(|i| rows[i].target_mm);
     let heel_point = sm.sole_from();
-    let sec = shape::Sections::of_foot(&stock, sm.length, heel_point);
+    let sec = shape::Sections::of_foot(&stock, sm.length, heel_point, &|_| 0.0);
     let mut nd = shape::Nodes::of(&sm);
     // Stations of the rules at the foot's length. The stock last has its heel allowance
     // already (its heel point is the last's); its chamfer is laid again through its own heel
@@ -213,88 +214,4 @@ pub fn customize_stock(
         bottom_curve: bottom.map(|b| b.samples()),
         footprint: fp,
     })
-}
-
-/// A bottom that rises less than this anywhere (mm) is taken as flat.
-const FLAT_TOL_MM: f64 = 0.5;
-/// The part of the length whose sections' lowest points are the bottom curve (fractions from
-/// the heel end): behind and in front of it the lowest point is the heel's and the toe's
-/// rounding, so the curve is carried on along its end slopes there.
-const BOTTOM_SPAN: (f64, f64) = (0.15, 0.9);
-
-/// A last's bottom curve in its frame: the height of the lowest point of its section at
-/// every millimetre along x, smoothed over +-5 mm.
-struct BottomCurve {
-    x0: f64,
-    z: Vec<f64>,
-}
-
-impl BottomCurve {
-    fn of(m: &TriMesh) -> Option<BottomCurve> {
-        let bb = m.bbox();
-        let len = bb.max.x - bb.min.x;
-        let n = len.floor() as usize + 1;
-        let xs: Vec<f64> = (0..n).map(|i| bb.min.x + i as f64).collect();
-        let low: Vec<Option<f64>> = super::shape::station_points(m, &xs, f64::MAX)
-            .iter()
-            .map(|q| q.iter().map(|p| p.y).reduce(f64::min))
-            .collect();
-        let (a, b) = (
-            (BOTTOM_SPAN.0 * len) as usize,
-            ((BOTTOM_SPAN.1 * len) as usize).min(n.saturating_sub(1)),
-        );
-        if b < a + 20 {
-            return None;
-        }
-        let mut z = vec![0.0; n];
-        for (i, zi) in z.iter_mut().enumerate().take(b + 1).skip(a) {
-            let near: Vec<f64> = (i.saturating_sub(5).max(a)..=(i + 5).min(b))
-                .filter_map(|j| low[j])
-                .collect();
-            if near.is_empty() {
-                return None;
-            }
-            *zi = near.iter().sum::<f64>() / near.len() as f64;
-        }
-        // Carried on along the slopes of the span's last 10 mm.
-        let back = (z[a + 10] - z[a]) / 10.0;
-        let front = (z[b] - z[b - 10]) / 10.0;
-        for i in 0..a {
-            z[i] = z[a] - back * (a - i) as f64;
-        }
-        for i in b + 1..n {
-            z[i] = z[b] + front * (i - b) as f64;
-        }
-        Some(BottomCurve { x0: bb.min.x, z })
-    }
-
-    fn at(&self, x: f64) -> f64 {
-        let t = (x - self.x0).clamp(0.0, (self.z.len() - 1) as f64);
-        let i = (t.floor() as usize).min(self.z.len() - 2);
-        let f = t - i as f64;
-        self.z[i] * (1.0 - f) + self.z[i + 1] * f
-    }
-
-    /// How far the bottom rises above its lowest point.
-    fn rise(&self) -> f64 {
-        let lo = self.z.iter().copied().fold(f64::MAX, f64::min);
-        let hi = self.z.iter().copied().fold(f64::MIN, f64::max);
-        hi - lo
-    }
-
-    fn samples(&self) -> Vec<[f64; 2]> {
-        self.z
-            .iter()
-            .enumerate()
-            .step_by(5)
-            .map(|(i, z)| [self.x0 + i as f64, *z])
-            .collect()
-    }
-}
-
-/// Move every vertex up by `dz(x)`.
-fn shear(m: &mut TriMesh, dz: impl Fn(f64) -> f64) {
-    for v in &mut m.vertices {
-        v.z += dz(v.x);
-    }
 }

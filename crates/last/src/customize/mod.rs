@@ -5,6 +5,8 @@
 //! Method: docs/method.md section 10; paper: "Adaptive deformation of characteristic NURBS
 //! curves for customized shoe-last" (Ren, Wang, Liu, Luo, 2013).
 
+mod bottom;
+use bottom::{raise, shear, BottomCurve, FLAT_TOL_MM};
 pub mod clinic;
 pub mod curves;
 mod error;
@@ -106,9 +108,10 @@ pub struct Customized {
     /// Smallest clearance of foot vertices inside the last (negative: the foot presses
     /// out through the last), overall and by region.
     pub clearance: Clearance,
-    /// Clinic path with a stock last that has toe spring or a raised heel: its bottom curve
-    /// (x, height above the glass, mm), by which it was laid flat for the rules and the
-    /// output raised back (the rules' values are those of the last laid flat).
+    /// The bottom curve (x, height above the glass, every millimetre) by which the last was
+    /// raised after it was made flat; the rules' values are those of the last laid flat by
+    /// it. Clinic path: a stock last with toe spring or a raised heel. Whole-foot path: a
+    /// foot whose midfoot does not reach the glass, the last's bottom following its arch.
     pub bottom_curve: Option<Vec<[f64; 2]>>,
     /// Clinic path: the scan's footprint in the last's frame (drawn in the top view).
     pub footprint: Vec<Vec<[f64; 2]>>,
@@ -157,7 +160,7 @@ impl RegionClearance {
     }
 }
 
-/// Slack of the must-fit check (mm): the last's sections are polygons of 96 points through
+/// Slack of the must-fit check (mm): the last's sections are polygons of 128 points through
 /// hulls of the foot's cuts 150 stations apart, so a surface that follows the foot lies
 /// within about this of it.
 pub const FIT_TOL_MM: f64 = 0.3;
@@ -344,14 +347,40 @@ pub fn customize(
     }
     let (mut rows, heel_allow) = targets(rules, inp, &fm);
     let target: [f64; 8] = std::array::from_fn(|i| rows[i].target_mm);
-    let sec = shape::Sections::of_foot(&foot, fm.length, fm.sole_from());
+    // A foot whose midfoot does not reach the glass (scanned without weight on it) is laid
+    // flat by the curve under its arch, the last made on the flat foot and raised back: its
+    // bottom then follows the arch (a shank), where a flat bottom filled the gap, the
+    // girths outgrew the rules by 3-20 mm and the solver gave them back over the instep,
+    // pressing the dorsum 3-7 mm (docs/method.md 10.5). The rules' values are those of the
+    // last laid flat, as on the clinic path; the foot's are the foot's own.
+    let bottom = BottomCurve::under_arch(&foot).filter(|b| b.rise() > FLAT_TOL_MM);
+    let lift = |x: f64| bottom.as_ref().map_or(0.0, |b| b.at(x));
+    let sec = shape::Sections::of_foot(&foot, fm.length, fm.sole_from(), &lift);
     // The surface: the field solved so the cut last meets every rule.
     let mut nd = shape::Nodes::of(&fm);
     nd.heel_allowance = heel_allow;
-    let (last, lm, field, evals) = shape::solve(&sec, &nd, &fm, &target, medial)?;
-    // Algorithm I on the foot's characteristic curves, Algorithm II onto the last's.
-    let (fits, curves) = frame_curves(&fm, &sec.sole_outline(), &lm, &target)?;
+    let (mut last, lm, field, evals) = shape::solve(&sec, &nd, &fm, &target, medial)?;
     judge(&mut rows, &lm);
+    // Raised back (the arch lies behind the toe stretch, so the last's x there is the
+    // foot's), and the last's curves with it: Algorithm II moves the foot's own curves onto
+    // the last as it is.
+    let mut outline = sec.sole_outline();
+    let mut on_last = lm.clone();
+    if bottom.is_some() {
+        shear(&mut last, lift);
+        raise(&mut outline, lift);
+        for l in on_last.outline.iter_mut().chain([
+            &mut on_last.ball,
+            &mut on_last.instep,
+            &mut on_last.long_heel,
+            &mut on_last.ankle,
+            &mut on_last.profile,
+        ]) {
+            raise(l, lift);
+        }
+    }
+    // Algorithm I on the foot's characteristic curves, Algorithm II onto the last's.
+    let (fits, curves) = frame_curves(&fm, &outline, &on_last, &target)?;
     let clearance = clearance(&foot, &last, &nd, rows[2].change_mm);
     Ok(Customized {
         frame_in_world: frame,
@@ -365,7 +394,7 @@ pub fn customize(
         field,
         evaluations: evals,
         clearance,
-        bottom_curve: None,
+        bottom_curve: bottom.map(|b| b.samples()),
         footprint: Vec::new(),
     })
 }

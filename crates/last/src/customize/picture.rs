@@ -57,7 +57,10 @@ pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
     for l in outline(&c.foot, &pz, |p| (p.x, p.y)) {
         cv.polyline(&top, &l, true, GREY, 1);
     }
-    for l in outline(&c.last, &pz, |p| (p.x, p.y)) {
+    // The last's outline as its rules were measured: laid flat by its bottom curve, if it
+    // has one (a cut of the raised last at 1.5 mm misses the raised waist).
+    for l in &c.last_measures.outline {
+        let l: Vec<(f64, f64)> = l.iter().map(|p| (p.x, p.y)).collect();
         cv.polyline(&top, &l, true, BLACK, 2);
     }
     for l in &c.footprint {
@@ -106,7 +109,7 @@ pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
         20,
         450,
         if c.footprint.is_empty() {
-            "top: sole outlines at 1.5 mm, points O A P B C D E"
+            "top: sole outlines at 1.5 mm (last laid flat), points O A P B C D E"
         } else {
             "top: outlines at 1.5 mm, scanned footprint blue"
         },

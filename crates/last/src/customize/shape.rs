@@ -85,7 +85,7 @@ const SUB: usize = 4;
 /// behind the next station) stood out of the last. With each ring holding the foot over
 /// half an interval either side, every section between stations lies in both neighbouring
 /// rings up to the quarter-interval change of the foot.
-fn between_stations(m: &TriMesh, xs: &[f64], top: f64) -> Vec<Vec<P2>> {
+fn between_stations(m: &TriMesh, xs: &[f64], top: f64, drop: &dyn Fn(f64) -> f64) -> Vec<Vec<P2>> {
     let mut sub = Vec::with_capacity(2 * SUB * xs.len());
     let mut owner = Vec::with_capacity(sub.capacity());
     for (k, w) in xs.windows(2).enumerate() {
@@ -101,7 +101,11 @@ fn between_stations(m: &TriMesh, xs: &[f64], top: f64) -> Vec<Vec<P2>> {
             });
         }
     }
-    let cuts = station_points(m, &sub, top);
+    let mut cuts = station_points(m, &sub, top);
+    for (x, q) in sub.iter().zip(&mut cuts) {
+        let dz = drop(*x);
+        q.iter_mut().for_each(|p| p.y -= dz);
+    }
     let mut out = vec![Vec::new(); xs.len()];
     for (c, (a, b)) in cuts.into_iter().zip(owner) {
         if a != b {
@@ -272,7 +276,16 @@ impl Sections {
     /// Cut the framed foot at cosine-spaced stations from heel to toe. `bottom_from`: where
     /// the foot's own sole outline starts (its rearmost point at 1.5 mm); the flat bottom
     /// starts there, so a rounded heel keeps its shape (no box behind it).
-    pub fn of_foot(foot: &TriMesh, length: f64, bottom_from: f64) -> Sections {
+    ///
+    /// `drop(x)`: how far the section at x is lowered after it is cut at the last's top (the
+    /// curve under a raised arch, see `bottom.rs`; zero for a foot standing on the glass), so
+    /// the sections are those of the foot laid flat, each with the foot's own top.
+    pub fn of_foot(
+        foot: &TriMesh,
+        length: f64,
+        bottom_from: f64,
+        drop: &dyn Fn(f64) -> f64,
+    ) -> Sections {
         let bb = foot.bbox();
         let (x0, x1) = (bb.min.x, bb.max.x);
         let xs: Vec<f64> = (0..STATIONS)
@@ -282,8 +295,12 @@ impl Sections {
             })
             .collect();
         let top = TOP_Z * length;
-        let pts = station_points(foot, &xs, top);
-        let between = between_stations(foot, &xs, top);
+        let mut pts = station_points(foot, &xs, top);
+        for (x, q) in xs.iter().zip(&mut pts) {
+            let dz = drop(*x);
+            q.iter_mut().for_each(|p| p.y -= dz);
+        }
+        let between = between_stations(foot, &xs, top, drop);
         // A last stands on a flat bottom: each section's lower band (the lowest BAND of its
         // height) is carried down to the glass. On a pressed foot this widens the bottom a
         // little; raised toes or a hanging heel get a flat bottom under them, and the
@@ -615,15 +632,12 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
                 let w = d * offset_weight(n.y);
                 let y = q.x * fy;
                 let m = y * kup * t * t * (3.0 - 2.0 * t);
-                P3::new(
-                    xn,
-                    if nd.widen_in_plan {
-                        saturate(y, m, ylo, yhi)
-                    } else {
-                        y + m
-                    } + w * n.x,
-                    (q.y * fz + w * n.y).max(0.0),
-                )
+                let y = if nd.widen_in_plan {
+                    saturate(y, m, ylo, yhi)
+                } else {
+                    y + m
+                } + w * n.x;
+                P3::new(xn, y, (q.y * fz + w * n.y).max(0.0))
             })
             .collect();
         // A negative offset (a girth given back) folds the ring at a sharp corner, such as
