@@ -821,10 +821,10 @@ pub fn solve(
             return Ok((mesh, me, p, evals));
         }
         // Widths left (the rest nearly met): each has its own scale and a width is nearly
-        // proportional to it, so one evaluation corrects them (a width is a smallest or largest breadth
-        // over a range of stations, not smooth where that station jumps, and the
-        // finite-difference Newton steps crept there for ten iterations on the template
-        // foot).
+        // proportional to it, so one evaluation corrects them (a width is a smallest or
+        // largest breadth over a range of stations, not smooth where that station jumps,
+        // and the finite-difference Newton steps crept there for ten iterations on the
+        // template foot).
         if [0, 4, 5, 6, 7]
             .into_iter()
             .all(|i| r[i].abs() <= WIDTH_STEP_SLACK * TOL[i])
