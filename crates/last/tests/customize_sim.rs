@@ -18,6 +18,15 @@ fn sim_foot(l: f64, side: Side) -> (TriMesh, footscan_sim::foot::FootMeshTruth) 
     (m.tri_mesh(), m.truth)
 }
 
+/// The lowest vertex of a mesh within 2 mm of the plane at `x` along the axis.
+fn lowest_near(m: &TriMesh, x: f64) -> f64 {
+    m.vertices
+        .iter()
+        .filter(|v| (v.x - x).abs() < 2.0)
+        .map(|v| v.z)
+        .fold(f64::MAX, f64::min)
+}
+
 /// The clinic's input for the default simulated scan (a 250 mm right foot): its plantar
 /// figures and the girths a fitter would tape (the simulator's, rounded).
 fn scan_of_250_mm_foot() -> (
@@ -169,13 +178,7 @@ fn lifted_midfoot_gets_a_bottom_that_follows_it() {
         rise > 4.0,
         "bottom curve rises {rise:.2} mm under a 6 mm bump"
     );
-    let low = c
-        .last
-        .vertices
-        .iter()
-        .filter(|v| (v.x - xr).abs() < 2.0)
-        .map(|v| v.z)
-        .fold(f64::MAX, f64::min);
+    let low = lowest_near(&c.last, xr);
     println!("  the last's bottom there: {low:.2} mm");
     assert!((low - rise).abs() < 1.0, "last's bottom at {low:.2} mm");
     for r in &c.rules {
@@ -246,15 +249,7 @@ fn clinic_stock_last_with_toe_spring_and_heel() {
     // The output raised back: lowest point of the last's sections at 0.5 L on the glass,
     // at 0.1 L and 0.95 L raised like the stock's.
     let lb = c.last.bbox();
-    let low_at = |t: f64| {
-        let x = lb.min.x + t * (lb.max.x - lb.min.x);
-        c.last
-            .vertices
-            .iter()
-            .filter(|v| (v.x - x).abs() < 2.0)
-            .map(|v| v.z)
-            .fold(f64::MAX, f64::min)
-    };
+    let low_at = |t: f64| lowest_near(&c.last, lb.min.x + t * (lb.max.x - lb.min.x));
     let (heel, tread, toe) = (low_at(0.1), low_at(0.5), low_at(0.95));
     println!("last bottom: 0.1 L {heel:.2} mm, 0.5 L {tread:.2} mm, 0.95 L {toe:.2} mm");
     assert!(tread.abs() < 1.0, "tread {tread:.2} mm off the glass");

@@ -664,7 +664,8 @@ pub fn least_squares(
     least_squares_with_knots(points, params, p, &knots)
 }
 
-fn errors(c: &NurbsCurve, points: &[P3], params: &[f64]) -> Vec<f64> {
+/// Distance of every data point from the curve at its parameter.
+pub fn errors(c: &NurbsCurve, points: &[P3], params: &[f64]) -> Vec<f64> {
     points
         .iter()
         .zip(params)
@@ -672,7 +673,8 @@ fn errors(c: &NurbsCurve, points: &[P3], params: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-fn stats(e: &[f64]) -> (f64, f64) {
+/// Largest and root-mean-square of the errors.
+pub fn error_stats(e: &[f64]) -> (f64, f64) {
     let max = e.iter().fold(0.0f64, |m, &x| m.max(x));
     let rms = (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt();
     (max, rms)
@@ -730,7 +732,7 @@ pub fn fit_adaptive(points: &[P3], opts: &FitOptions) -> Result<FitReport> {
     loop {
         let c = least_squares_with_knots(points, &params, p, &knots)?;
         let e = errors(&c, points, &params);
-        let (max, rms) = stats(&e);
+        let (max, rms) = error_stats(&e);
         let nc = c.points.len();
         let done = max <= opts.tolerance || nc >= cap;
         let distinct: Vec<f64> = c.span_breaks();
@@ -749,7 +751,7 @@ pub fn fit_adaptive(points: &[P3], opts: &FitOptions) -> Result<FitReport> {
                 // No span can take another knot with data on both sides: the data is too
                 // sparse for the tolerance, so interpolate it (error zero at the points).
                 let c = interpolate_with(points, &params, p, None)?;
-                let (max, rms) = stats(&errors(&c, points, &params));
+                let (max, rms) = error_stats(&errors(&c, points, &params));
                 return Ok(FitReport {
                     control_points: c.points.len(),
                     curve: c,
@@ -925,29 +927,28 @@ pub fn solve_cyclic_band_spd(
         }
         y[i * nr + p..(i + 1) * nr].copy_from_slice(&b[i * nrhs..(i + 1) * nrhs]);
     }
+    // Row i of y less f times row k, then row i divided by L(i, i).
+    let sub = |y: &mut [f64], i: usize, k: usize, f: f64| {
+        for c in 0..nr {
+            y[i * nr + c] -= f * y[k * nr + c];
+        }
+    };
+    let div = |y: &mut [f64], i: usize| {
+        let d = l[i * lw + p];
+        y[i * nr..(i + 1) * nr].iter_mut().for_each(|v| *v /= d);
+    };
+    // L z = y forward, then L^T x = z backward.
     for i in 0..n1 {
         for k in i.saturating_sub(p)..i {
-            let f = l[i * lw + k + p - i];
-            for c in 0..nr {
-                y[i * nr + c] -= f * y[k * nr + c];
-            }
+            sub(&mut y, i, k, l[i * lw + k + p - i]);
         }
-        let d = l[i * lw + p];
-        for c in 0..nr {
-            y[i * nr + c] /= d;
-        }
+        div(&mut y, i);
     }
     for i in (0..n1).rev() {
         for k in i + 1..(i + p + 1).min(n1) {
-            let f = l[k * lw + i + p - k];
-            for c in 0..nr {
-                y[i * nr + c] -= f * y[k * nr + c];
-            }
+            sub(&mut y, i, k, l[k * lw + i + p - k]);
         }
-        let d = l[i * lw + p];
-        for c in 0..nr {
-            y[i * nr + c] /= d;
-        }
+        div(&mut y, i);
     }
     // Border: (D - C^T Y) x2 = b2 - C^T z.
     let s = nalgebra::DMatrix::from_fn(p, p, |r, c| {
@@ -1010,7 +1011,7 @@ pub fn fit_closed_adaptive(points: &[P3], opts: &FitOptions) -> Result<FitReport
     loop {
         let c = least_squares_closed_with_knots(points, &params, p, &period)?;
         let e = errors(&c, points, &params);
-        let (max, rms) = stats(&e);
+        let (max, rms) = error_stats(&e);
         let nu = period.len();
         let done = max <= opts.tolerance || nu >= cap;
         let mut distinct = period.clone();
@@ -1030,7 +1031,7 @@ pub fn fit_closed_adaptive(points: &[P3], opts: &FitOptions) -> Result<FitReport
             None if max > opts.tolerance && nu < cap && cap >= m => {
                 // Too sparse for another knot with data on both sides: interpolate.
                 let c = interpolate_closed_with(points, &params, p)?;
-                let (max, rms) = stats(&errors(&c, points, &params));
+                let (max, rms) = error_stats(&errors(&c, points, &params));
                 return Ok(FitReport {
                     control_points: c.points.len() - c.degree,
                     curve: c,

@@ -144,9 +144,8 @@ pub fn fit_closed_split(
             return Ok((r, stats));
         }
         let (c, e) = fit::least_squares_closed_residuals(points, &params, p, &period)?;
-        let max = e.iter().fold(0.0f64, |a, &x| a.max(x));
+        let (max, rms) = fit::error_stats(&e);
         if max <= opts.tolerance {
-            let rms = (e.iter().map(|x| x * x).sum::<f64>() / m as f64).sqrt();
             stats.inserted = period.len() - p * corners.len() - start;
             let r = fit::FitReport {
                 control_points: period.len(),
@@ -392,13 +391,7 @@ fn interpolate_report(
     tol: f64,
 ) -> footscan_geom::nurbs::Result<fit::FitReport> {
     let c = fit::interpolate_closed_with(points, &params, p)?;
-    let e: Vec<f64> = points
-        .iter()
-        .zip(&params)
-        .map(|(q, &u)| (c.point(u) - q).norm())
-        .collect();
-    let max = e.iter().fold(0.0f64, |a, &x| a.max(x));
-    let rms = (e.iter().map(|x| x * x).sum::<f64>() / points.len() as f64).sqrt();
+    let (max, rms) = fit::error_stats(&fit::errors(&c, points, &params));
     Ok(fit::FitReport {
         control_points: points.len(),
         curve: c,

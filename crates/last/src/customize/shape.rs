@@ -74,6 +74,21 @@ pub(crate) fn station_points(m: &TriMesh, xs: &[f64], top: f64) -> Vec<Vec<P2>> 
     out
 }
 
+/// [`station_points`], each section then lowered by `drop(x)` (see [`Sections::of_foot`]).
+fn lowered_station_points(
+    m: &TriMesh,
+    xs: &[f64],
+    top: f64,
+    drop: &dyn Fn(f64) -> f64,
+) -> Vec<Vec<P2>> {
+    let mut pts = station_points(m, xs, top);
+    for (x, q) in xs.iter().zip(&mut pts) {
+        let dz = drop(*x);
+        q.iter_mut().for_each(|p| p.y -= dz);
+    }
+    pts
+}
+
 /// Cuts between stations per station interval (see [`between_stations`]).
 const SUB: usize = 4;
 
@@ -101,11 +116,7 @@ fn between_stations(m: &TriMesh, xs: &[f64], top: f64, drop: &dyn Fn(f64) -> f64
             });
         }
     }
-    let mut cuts = station_points(m, &sub, top);
-    for (x, q) in sub.iter().zip(&mut cuts) {
-        let dz = drop(*x);
-        q.iter_mut().for_each(|p| p.y -= dz);
-    }
+    let cuts = lowered_station_points(m, &sub, top, drop);
     let mut out = vec![Vec::new(); xs.len()];
     for (c, (a, b)) in cuts.into_iter().zip(owner) {
         if a != b {
@@ -295,11 +306,7 @@ impl Sections {
             })
             .collect();
         let top = TOP_Z * length;
-        let mut pts = station_points(foot, &xs, top);
-        for (x, q) in xs.iter().zip(&mut pts) {
-            let dz = drop(*x);
-            q.iter_mut().for_each(|p| p.y -= dz);
-        }
+        let pts = lowered_station_points(foot, &xs, top, drop);
         let between = between_stations(foot, &xs, top, drop);
         // A last stands on a flat bottom: each section's lower band (the lowest BAND of its
         // height) is carried down to the glass. On a pressed foot this widens the bottom a
