@@ -85,6 +85,22 @@ proptest! {
         prop_assert_eq!(c.point(1.0), pts[n - 1]);
     }
 
+    /// As many control points as data points (or one fewer) is where a knot rule that does
+    /// not average put knots a hair from the data and the system went singular.
+    #[test]
+    fn least_squares_with_as_many_control_points_as_data(seed in any::<u64>(), n in 6usize..80, p in 1usize..6, fewer in 0usize..2) {
+        let pts = random_walk(seed, n);
+        let t = parameters(&pts, Param::ChordLength, false).unwrap();
+        let nc = (n - fewer).max(p + 1);
+        let c = least_squares(&pts, &t, p, nc).unwrap();
+        c.validate().unwrap();
+        if nc == n {
+            for (q, u) in pts.iter().zip(&t) {
+                prop_assert!((c.point(*u) - q).norm() < 1e-6, "{} mm", (c.point(*u) - q).norm());
+            }
+        }
+    }
+
     #[test]
     fn adaptive_fit_meets_tolerance(seed in any::<u64>(), n in 10usize..200, tol in 0.01f64..0.5) {
         // A smooth curve sampled densely (a foot outline is smooth at this scale).
@@ -112,6 +128,28 @@ proptest! {
         prop_assert!(r.met, "max {} > {tol} with {} control points", r.max_error, r.control_points);
         prop_assert!(r.curve.periodic);
         r.curve.validate().unwrap();
+    }
+}
+
+/// Degree 4 near interpolation: the smallest cases a sweep found singular (64 points, 64
+/// and 63 control points) and one of the size of CI's failure (a 76 x 76 system, so 78
+/// control points).
+#[test]
+fn least_squares_near_interpolation_is_not_singular() {
+    for (n, nc) in [(64, 64), (64, 63), (79, 78)] {
+        let pts = random_walk(0, n);
+        let t = parameters(&pts, Param::ChordLength, false).unwrap();
+        let c = least_squares(&pts, &t, 4, nc).unwrap();
+        let worst = pts
+            .iter()
+            .zip(&t)
+            .map(|(q, u)| (c.point(*u) - q).norm())
+            .fold(0.0, f64::max);
+        // Interpolation when the counts match; one control point fewer stays within the walk's step.
+        assert!(
+            worst < if nc == n { 1e-6 } else { 15.0 },
+            "{n} points, {nc} control points: {worst} mm"
+        );
     }
 }
 
