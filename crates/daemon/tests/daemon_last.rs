@@ -100,6 +100,30 @@ fn a_scan_with_last_adjust_offers_the_adjusted_last() {
         d.get(&format!("/api/scans/{id}/last/last.stl")).status(),
         200
     );
+    // A visit holding the scan is not deleted while a last is being made for it: the job
+    // writes its files into the scan's directory when it ends, which brought the deleted
+    // scan's directory back.
+    let (s, visit) = d.post("/api/visits", r#"{"patient": "last-01"}"#);
+    assert_eq!(s, 201, "{visit}");
+    let vid = visit["id"].as_str().unwrap().to_string();
+    let (s, v) = d.post(
+        &format!("/api/visits/{vid}/scans"),
+        &format!(r#"{{"scan": "{id}"}}"#),
+    );
+    assert_eq!(s, 200, "{v}");
+    let (s, v) = d.post(
+        &format!("/api/scans/{id}/last"),
+        r#"{"girths": {"ball": 260.0, "instep": 248.0, "long_heel": 367.0, "ankle": 200.5}, "stock": "sim-245-right.stl"}"#,
+    );
+    assert_eq!(s, 202, "{v}");
+    let (s, v) = d.delete(&format!("/api/visits/{vid}"));
+    assert_eq!(s, 409, "{v}");
+    assert!(v["error"].as_str().unwrap().contains(&id), "{v}");
+    assert_eq!(wait_last(&d, &id)["state"], "done");
+    let (s, v) = d.delete(&format!("/api/visits/{vid}"));
+    assert_eq!(s, 200, "{v}");
+    assert_eq!(v["scans_deleted"][0], id.as_str(), "{v}");
+    assert!(!scan_dir.exists(), "{} is back", scan_dir.display());
 }
 
 /// The daemon's command on the configs already in `dir` (the test's own [lasts] kept).

@@ -21,17 +21,6 @@ fn scan(d: &Footscand, subject: &str, side: &str) -> String {
     id
 }
 
-fn delete(d: &Footscand, path: &str) -> (u16, Value) {
-    let r = d
-        .client
-        .delete(d.url(path))
-        .header("content-type", "application/json")
-        .send()
-        .unwrap();
-    let s = r.status().as_u16();
-    (s, serde_json::from_str(&r.text().unwrap()).unwrap())
-}
-
 #[test]
 fn a_visit_holds_both_feet_and_is_deleted_with_them() {
     let tmp = tempfile::tempdir().unwrap();
@@ -142,7 +131,7 @@ fn a_visit_holds_both_feet_and_is_deleted_with_them() {
     assert_eq!(d.get("/api/visits?date=yesterday").status(), 400);
 
     // Deleted on request: the visit, both scans' directories and index rows; logged.
-    let (s, v) = delete(&d, &format!("/api/visits/{vid}"));
+    let (s, v) = d.delete(&format!("/api/visits/{vid}"));
     assert_eq!(s, 200, "{v}");
     assert_eq!(v["scans_deleted"].as_array().unwrap().len(), 2, "{v}");
     assert!(!d.archive.join(&left).exists() && !d.archive.join(&right).exists());
@@ -153,7 +142,7 @@ fn a_visit_holds_both_feet_and_is_deleted_with_them() {
         log.contains(&vid) && log.contains("P-0007") && log.contains(&left),
         "{log}"
     );
-    let (s, _) = delete(&d, &format!("/api/visits/{vid}"));
+    let (s, _) = d.delete(&format!("/api/visits/{vid}"));
     assert_eq!(s, 404);
 }
 

@@ -109,7 +109,8 @@ pub async fn guard(State(st): State<AppState>, req: Request, next: Next) -> Resp
                 ));
             }
         }
-        // POST is the API's only state-changing method; others end in 405 below.
+        // POST is the one state-changing method a cross-site form or a no-preflight fetch
+        // can send; DELETE (a visit) needs a CORS preflight, which this daemon never grants.
         let json = *req.method() != Method::POST
             || req
                 .headers()

@@ -190,7 +190,7 @@ pub async fn delete(
     let vid = parse_id(&vid)?;
     let d = st.daemon.clone();
     let key = vid.to_string();
-    let scans = blocking(move || Ok(d.archive.delete_visit(&vid)?)).await?;
+    let scans = blocking(move || Ok(d.delete_visit(&vid)?)).await?;
     Ok(Json(
         serde_json::json!({"deleted": key, "scans_deleted": scans}),
     ))

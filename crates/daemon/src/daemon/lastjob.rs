@@ -7,7 +7,7 @@
 //! priority, so making a last never takes the CPU from a scan.
 
 use super::{Daemon, DaemonError};
-use crate::archive::{ScanId, Status};
+use crate::archive::{ScanId, Status, VisitError};
 use footscan::lastcustom::{customize_scan, STOCK_EXTENSIONS};
 use footscan_last::customize::clinic::TapeGirths;
 use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
@@ -285,6 +285,24 @@ impl Daemon {
             write_job(&dir, &job)?;
         }
         Ok(Some(job))
+    }
+
+    /// Delete a visit with its scans, unless a last is being made for one of them: the job
+    /// writes its files into the scan's directory when it ends and would bring the deleted
+    /// scan's directory back. The running slot is held while deleting, so no job starts on
+    /// a scan being deleted.
+    pub fn delete_visit(&self, vid: &ScanId) -> Result<Vec<String>, VisitError> {
+        let running = self.last_jobs.running.lock().unwrap();
+        if let Some(scan) = running.as_deref() {
+            let v = self.archive.visit(vid)?;
+            if [&v.left, &v.right].into_iter().flatten().any(|s| s == scan) {
+                return Err(VisitError::Conflict(format!(
+                    "a last is being made for scan {scan} of visit {vid}: delete the visit \
+                     when it has ended (GET /api/scans/{scan}/last)"
+                )));
+            }
+        }
+        self.archive.delete_visit(vid)
     }
 
     /// The path of file `name` of the scan's last.

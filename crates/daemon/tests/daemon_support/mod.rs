@@ -165,11 +165,25 @@ impl Footscand {
     }
 
     pub fn post(&self, path: &str, body: &str) -> (u16, Value) {
-        let mut r = self
+        let r = self
             .client
             .post(self.url(path))
             .header("content-type", "application/json")
             .body(body.to_string());
+        self.send_json("POST", path, r)
+    }
+
+    pub fn delete(&self, path: &str) -> (u16, Value) {
+        self.send_json("DELETE", path, self.client.delete(self.url(path)))
+    }
+
+    /// Send a request with the token, if any; its status and JSON body.
+    fn send_json(
+        &self,
+        method: &str,
+        path: &str,
+        mut r: reqwest::blocking::RequestBuilder,
+    ) -> (u16, Value) {
         if let Some(t) = &self.token {
             r = r.bearer_auth(t);
         }
@@ -177,7 +191,7 @@ impl Footscand {
         let status = r.status().as_u16();
         let text = r.text().unwrap();
         let v = serde_json::from_str(&text)
-            .unwrap_or_else(|e| panic!("POST {path}: not JSON ({e}): {text:?}"));
+            .unwrap_or_else(|e| panic!("{method} {path}: not JSON ({e}): {text:?}"));
         (status, v)
     }
 
