@@ -83,7 +83,8 @@ fn cut_last(m: &TriMesh, l: f64, side: &str) -> [f64; 8] {
     let heel = in_x(0.0, 0.25 * l)
         .max_by(|u, v| (u.2 - u.1).total_cmp(&(v.2 - v.1)))
         .unwrap();
-    let hc = 0.5 * (heel.3.x + heel.4.x);
+    // The waist: in front of the heel centre and of the heel's quarter.
+    let hc = (0.5 * (heel.3.x + heel.4.x)).max(0.25 * l);
     let d = in_x(hc, b.x).map(|r| r.2).fold(f64::MAX, f64::min);
     let e = in_x(hc, c.x).map(|r| r.1).fold(f64::MIN, f64::max);
     let ball = Plane::with_axis(
@@ -330,6 +331,34 @@ fn simulated_foot_customized_and_cut_independently() {
     }
     let rep = check_cut(&out_dir);
     frame_agrees_with_last(&out_dir, &rep);
+    // The 1.5 mm outline turns smoothly: its total turning over chords of 2 mm is one turn,
+    // the waist's inward bend and back, and the facets' noise (2.35 turns measured). With
+    // the toes' gaps left in the outline (a zigzag toe, the bottom's closing window shrunk
+    // at the toe's end) it was 2.96.
+    let last = TriMesh::read(out_dir.join("last.stl")).unwrap();
+    let loops = last.section(&Plane::axis_aligned(2, 1.5));
+    let ring = loops.iter().max_by_key(|p| p.points.len()).unwrap();
+    let mut pts: Vec<P2> = vec![P2::new(ring.points[0].x, ring.points[0].y)];
+    for q in &ring.points[1..] {
+        let q = P2::new(q.x, q.y);
+        if (q - pts[pts.len() - 1]).norm() >= 2.0 {
+            pts.push(q);
+        }
+    }
+    let n = pts.len();
+    let turning: f64 = (0..n)
+        .map(|i| {
+            let (a, b, c) = (pts[(i + n - 1) % n], pts[i], pts[(i + 1) % n]);
+            let (u, v) = (b - a, c - b);
+            u.perp(&v).atan2(u.dot(&v)).abs()
+        })
+        .sum::<f64>()
+        / std::f64::consts::TAU;
+    println!("outline: {n} chords of 2 mm, total turning {turning:.2} turns");
+    assert!(
+        turning < 2.6,
+        "outline turns {turning:.2} times: it zigzags"
+    );
 }
 
 /// frame.igs read back by OpenCASCADE (scripts/occt_readback.py in the venv scripts/setup.sh
@@ -542,16 +571,32 @@ fn bad_inputs_are_named_and_nothing_is_written() {
 #[test]
 fn real_feet_customized_and_cut_independently() {
     let base = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/feet");
+    // Per foot the least clearance allowed in the heel seat, midfoot and toe box (mm): the
+    // figures measured (2026-11-25, in the comments) less 0.2-0.4 mm. The must-fit target,
+    // -0.3 mm, is not met on all of them yet (docs/method.md 10.5); these hold what has been
+    // reached. Before the heel's squared back, the leg's plan widths, the waist at the heel
+    // centre and the toe box's scales were mended they were -0.62/-1.58/-0.35,
+    // -3.52/-4.57/-1.11 and -1.40/-2.06/-0.25; before the unloaded soles' rounded bottom
+    // corners, the offsets kept off the plan extremes and four points per wall piece,
+    // -0.28/-1.21/-0.10, -0.18/-2.58/-0.64 and -0.31/-0.27/-0.23.
     let feet = [
-        ("find_template/template_mm.stl", "left"),
-        ("find_lowres/find_demo_template.obj", "left"),
+        // -0.28/-0.32/-0.10
+        ("find_template/template_mm.stl", "left", [-0.5, -0.5, -0.4]),
+        // -0.05/-1.53/-0.67
+        (
+            "find_lowres/find_demo_template.obj",
+            "left",
+            [-0.4, -1.9, -1.0],
+        ),
+        // -0.08/-0.36/-0.22
         (
             "makehuman/makehuman_default_right_foot_cut150mm.stl",
             "right",
+            [-0.4, -0.6, -0.5],
         ),
     ];
     let dir = tempfile::tempdir().unwrap();
-    for (i, (f, side)) in feet.iter().enumerate() {
+    for (i, (f, side, least)) in feet.iter().enumerate() {
         let foot = base.join(f);
         if !foot.exists() {
             eprintln!("{} absent: skipped", foot.display());
@@ -609,10 +654,13 @@ fn real_feet_customized_and_cut_independently() {
                 .as_f64()
                 .unwrap()
         };
-        if i == 0 {
-            // Measured -1.36 mm (the must-fit target, -0.3 mm, is not met yet).
-            let mid = region("midfoot");
-            assert!(mid > -2.0, "{f}: midfoot clearance {mid:.2} mm");
+        for (name, least) in ["heel seat", "midfoot", "toe box"].into_iter().zip(least) {
+            let c = region(name);
+            println!("{f}: {name} clearance {c:.2} mm");
+            assert!(
+                c > *least,
+                "{f}: {name} clearance {c:.2} mm (at least {least})"
+            );
         }
     }
 }

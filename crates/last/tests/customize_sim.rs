@@ -123,17 +123,12 @@ fn simulated_feet() {
     }
 }
 
-/// The clinic path with a stock last that has toe spring and a raised heel, as shop lasts
-/// do: the simulator's 240 mm foot's last raised by a known bottom curve (20 mm at the heel
-/// end falling to 0 at 0.3 L, 12 mm toe spring rising from 0.7 L). It is laid flat by the
-/// curve it finds, customized for a 250 mm foot (every rule met, as with the flat stock
-/// last), and the output raised back: its bottom under the tread stays on the glass, and
-/// the heel and toe stand where the stock's curve puts them.
 /// A foot whose midfoot does not reach the glass, as a foot scanned without weight on it:
 /// the simulated 260 mm foot with its midfoot lifted by a known bump (6 mm at its top). The
 /// curve under the arch stays under the bump and rises most of it, the last's bottom follows
-/// it, every rule is met and the foot fits where the rules say it must to within 0.6 mm. (With a flat bottom filling the gap the real feet's instep stood 6.6
-/// mm out; docs/method.md 10.5.)
+/// it, every rule is met and the foot fits where the rules say it must to within 0.6 mm.
+/// (With a flat bottom filling the gap the real feet's instep stood 6.6 mm out;
+/// docs/method.md 10.5.)
 #[test]
 fn lifted_midfoot_gets_a_bottom_that_follows_it() {
     let rules = RuleSet::default_rules();
@@ -196,6 +191,12 @@ fn lifted_midfoot_gets_a_bottom_that_follows_it() {
     );
 }
 
+/// The clinic path with a stock last that has toe spring and a raised heel, as shop lasts
+/// do: the simulator's 240 mm foot's last raised by a known bottom curve (20 mm at the heel
+/// end falling to 0 at 0.3 L, 12 mm toe spring rising from 0.7 L). It is laid flat by the
+/// curve it finds, customized for a 250 mm foot (every rule met, as with the flat stock
+/// last), and the output raised back: its bottom under the tread stays on the glass, and
+/// the heel and toe stand where the stock's curve puts them.
 #[test]
 fn clinic_stock_last_with_toe_spring_and_heel() {
     use footscan_last::customize::clinic::customize_stock;

@@ -72,9 +72,10 @@ impl BottomCurve {
     /// sections' lowest points (the lowest within ARCH_SMOOTH_MM, averaged over as much
     /// again, never above the section's own lowest point; this lags a 6 mm arch by 1.1 mm
     /// at its top, the mean alone by much less, but the solve then did not converge on the
-    /// lifted simulated foot: the heel offset and heel width traded for 40 steps). A foot scanned without weight
-    /// on it (the real feet in the benchmark) has its whole midfoot 2-9 mm above the plane
-    /// through heel and ball; laid flat by this curve it stands like a foot on the glass.
+    /// lifted simulated foot: the heel offset and heel width traded for 40 steps). A foot
+    /// scanned without weight on it (the real feet in the benchmark) has its whole midfoot
+    /// 2-9 mm above the plane through heel and ball; laid flat by this curve it stands like a
+    /// foot on the glass.
     pub(crate) fn under_arch(m: &TriMesh) -> Option<BottomCurve> {
         let (x0, len, low) = lowest_per_mm(m);
         let n = low.len();

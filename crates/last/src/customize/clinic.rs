@@ -155,8 +155,7 @@ pub fn customize_stock(
     // 1.5 mm, the heel point jumped 4.5 mm between Newton steps and the solve failed (240 and
     // 238 mm stocks for a 250 mm scan: bottom length and long-heel girth off by 2-2.5 mm).
     nd.length = foot.length;
-    nd.round_toe = false;
-    nd.widen_in_plan = false;
+    nd.holds_foot = false;
     nd.heel_allowance = heel_point.max(0.0);
     let (last, lm, field, evals) = shape::solve(&sec, &nd, &sm, &target, medial)?;
     let (fits, curves) = frame_curves(&sm, &sec.sole_outline(), &lm, &target)?;

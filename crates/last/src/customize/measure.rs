@@ -11,11 +11,12 @@
 //! Definitions (L = foot length):
 //! - sole outline: the section 1.5 mm above the lowest point; heel point O and toe tip A are
 //!   its rearmost and foremost points, length = A.x - O.x;
-//! - plan half-widths: extremes of y over the whole mesh, per station x (cuts x = const);
+//! - plan half-widths: extremes of y per station x (cuts x = const) below the last's top (TOP_Z);
 //! - MT1 (B) / MT5 (C): most medial / lateral plan points with x in [0.55 L, 0.85 L];
 //!   ball width = |B.y| + |C.y| (their distances from the axis);
 //! - waist inner D / outer E: the smallest medial / lateral half-width between the heel
-//!   centre station and B (resp. C); waist width = |D.y| + |E.y|;
+//!   centre station (or L / 4, whichever is further forward) and B (resp. C); waist width =
+//!   |D.y| + |E.y|;
 //! - heel width: the largest breadth over x in [0, L / 4]; the heel centre is its midpoint;
 //! - axis: through the heel centre and the point of segment BC 46 % of the way from B (where
 //!   the second metatarsal lies in the simulator and in typical feet), found by iteration;
@@ -141,9 +142,12 @@ pub struct PlanProfile {
 }
 
 impl PlanProfile {
-    /// Cut every triangle by the planes x = x0 + k step (the mesh sliced once, in O(triangles
-    /// + crossings)).
-    pub fn new(m: &TriMesh, step: f64) -> PlanProfile {
+    /// Cut every triangle by the planes x = x0 + k step, the mesh sliced once in
+    /// O(triangles and crossings), keeping the sections below `top`: a foot's plan widths are
+    /// those a last cut off at its top can have. On the real feet with a leg the heel's
+    /// widest breadth was the malleoli's or the leg's, 87-149 mm up, and the heel width rule
+    /// asked the last for 4.6 mm more heel than the foot has below the last's top.
+    pub fn new(m: &TriMesh, step: f64, top: f64) -> PlanProfile {
         let bb = m.bbox();
         let x0 = (bb.min.x / step).floor() * step;
         let n = ((bb.max.x - x0) / step).ceil() as usize + 1;
@@ -157,18 +161,29 @@ impl PlanProfile {
             let k1 = (((xmax - x0) / step).floor() as usize).min(n - 1);
             for k in k0..=k1 {
                 let x = x0 + k as f64 * step;
+                let mut seg = [P3::origin(); 3];
+                let mut n = 0;
                 for e in 0..3 {
                     let (p, q) = (v[e], v[(e + 1) % 3]);
                     if (p.x - x) * (q.x - x) > 0.0 || p.x == q.x {
                         continue;
                     }
                     let s = (x - p.x) / (q.x - p.x);
-                    let r = p + (q - p) * s;
+                    seg[n] = p + (q - p) * s;
+                    n += 1;
+                }
+                // The section segment clipped to z <= top (its extremes are its ends).
+                if n == 2 && (seg[0].z > top) != (seg[1].z > top) {
+                    let (a, b) = if seg[0].z > top { (1, 0) } else { (0, 1) };
+                    let s = (top - seg[a].z) / (seg[b].z - seg[a].z);
+                    seg[b] = seg[a] + (seg[b] - seg[a]) * s;
+                }
+                for r in seg[..n].iter().filter(|r| r.z <= top) {
                     if lo[k].is_none_or(|o| r.y < o.y) {
-                        lo[k] = Some(r);
+                        lo[k] = Some(*r);
                     }
                     if hi[k].is_none_or(|o| r.y > o.y) {
-                        hi[k] = Some(r);
+                        hi[k] = Some(*r);
                     }
                 }
             }
@@ -339,7 +354,7 @@ pub fn find_frame(world: &TriMesh, name: &str) -> Result<FootFrame, CustomizeErr
         if it == 0 {
             frame.side = toe_side(&m, o.x, l);
         }
-        let plan = PlanProfile::new(&m, PLAN_STEP);
+        let plan = PlanProfile::new(&m, PLAN_STEP, TOP_Z * l);
         let s = frame.medial_sign();
         let (Some(b), Some(cc), Some((hl, hm))) = (
             plan.extreme(o.x + 0.55 * l, o.x + 0.85 * l, s),
@@ -400,7 +415,7 @@ pub fn plan_ends(m: &TriMesh) -> (P3, P3) {
 /// Which side is medial: the toes reach furthest on the hallux's side. Splits the front
 /// (x > 0.8 L) at the middle of the ball breadth and compares how far forward each half goes.
 fn toe_side(m: &TriMesh, x0: f64, l: f64) -> Side {
-    let plan = PlanProfile::new(m, PLAN_STEP);
+    let plan = PlanProfile::new(m, PLAN_STEP, TOP_Z * l);
     let r = plan.range(x0 + 0.6 * l, x0 + 0.8 * l);
     let (mut lo, mut hi) = (f64::MAX, f64::MIN);
     for k in r {
@@ -519,7 +534,7 @@ pub fn measure(m: &TriMesh, l_ref: Option<f64>, medial: f64) -> Result<Measures,
     } else {
         f64::INFINITY
     };
-    let plan = PlanProfile::new(m, PLAN_STEP);
+    let plan = PlanProfile::new(m, PLAN_STEP, top);
     let s = medial;
     let b = plan
         .extreme(0.55 * l, 0.85 * l, s)
@@ -529,11 +544,16 @@ pub fn measure(m: &TriMesh, l_ref: Option<f64>, medial: f64) -> Result<Measures,
         .ok_or("no ball region")?;
     let (hlo, hhi) = plan.widest(0.0, 0.25 * l).ok_or("no heel region")?;
     let heel_centre = P3::new(0.5 * (hlo.x + hhi.x), 0.5 * (hlo.y + hhi.y), 0.0);
+    // The waist lies in front of the heel's quarter: on feet whose sides only widen from
+    // the heel forward (the low-poly FIND foot) the narrowest half-widths behind it were at
+    // the heel centre, so the waist width rule and the heel width rule pulled on the same
+    // stations and the solver narrowed the waist 6 % to give back what the heel's rule added.
+    let waist_from = heel_centre.x.max(0.25 * l);
     let d = plan
-        .narrowest(heel_centre.x, b.x, s)
+        .narrowest(waist_from, b.x, s)
         .ok_or("no waist region")?;
     let e = plan
-        .narrowest(heel_centre.x, c.x, -s)
+        .narrowest(waist_from, c.x, -s)
         .ok_or("no waist region")?;
     let p = plan.extreme(0.85 * l, l + 1.0, s).unwrap_or(a);
     let (heel_m, heel_l) = if s > 0.0 { (hhi, hlo) } else { (hlo, hhi) };

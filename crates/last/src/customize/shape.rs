@@ -151,7 +151,9 @@ fn along(path: &[P2], n: usize, out: &mut Vec<P2>) {
 /// Points of the bottom chain of a ring and of each wall piece beside it (see
 /// [`resample_hull`]).
 pub const BOTTOM: usize = 24;
-const WALL: usize = 2;
+/// Two left the chords across a rounded corner (a low-poly heel's, an unloaded sole's) up to
+/// 0.3 mm inside the foot: the MakeHuman heel seat at -0.31 mm, now -0.08.
+const WALL: usize = 4;
 /// Heights above a section's lowest point (mm) that bound its bottom chain (the corners of a
 /// flat bottom lie within it) and the wall pieces beside it (twice the outline height).
 const CORNER_Z: f64 = 0.05;
@@ -211,6 +213,9 @@ fn resample_hull(h: &[P2], n: usize) -> Vec<P2> {
 /// Fraction of a section's height (its lowest point to the last's top) whose extent is
 /// carried down to the glass as the flat bottom.
 const BAND: f64 = 0.06;
+/// An unloaded foot's bottom corners: radius in band heights, points per corner.
+const CORNER_BANDS: f64 = 2.0;
+const CORNER_POINTS: usize = 6;
 /// Half-widths of the closing and of the running mean smoothing the bottom's edges along
 /// the axis (mm).
 const SOLE_CLOSE: f64 = 8.0;
@@ -317,13 +322,23 @@ impl Sections {
         // edges are smoothed along the axis (scan noise made the outline a staircase).
         // Behind the foot's own outline the heel keeps its curve.
         let mut band: Vec<Option<(f64, f64)>> = vec![None; xs.len()];
+        let mut corner = vec![0.0; xs.len()];
+        let unloaded = xs.iter().any(|x| drop(*x) > 0.0);
         for (k, (x, q)) in xs.iter().zip(&pts).enumerate() {
             if *x < bottom_from || q.len() < 3 {
                 continue;
             }
             let zl = q.iter().map(|r| r.y).fold(f64::MAX, f64::min);
             let zt = q.iter().map(|r| r.y).fold(f64::MIN, f64::max);
-            let zb = zl + (BAND * (zt - zl)).max(OUTLINE_Z);
+            // At the back of the sole the band's height grows from the outline's (1.5 mm)
+            // one for one with the distance from the sole's rear end: a full band there
+            // carried the heel's rounded flanks (5-6 mm up) to the glass and squared the
+            // heel's back edge.
+            let zb = zl
+                + (BAND * (zt - zl))
+                    .max(OUTLINE_Z)
+                    .min(OUTLINE_Z + x - bottom_from);
+            corner[k] = zb - zl;
             // Where the tape's section (the hull) crosses the band's top: unlike the extent
             // of the points inside the band, this moves continuously as a raised wall (the
             // arch's medial side 2-5 mm above the glass, a lifted toe) rises through the
@@ -348,9 +363,21 @@ impl Sections {
         // within SOLE_CLOSE, then the narrowest of those) fills dips shorter than twice
         // SOLE_CLOSE and keeps every bulge; a running mean over SOLE_SMOOTH then removes scan
         // noise.
+        // Near the heel's end of the bottom the windows shrink to the distance from that end:
+        // a window cut off by the end took the widest band over the next SOLE_CLOSE as the
+        // end's own, which squared the heel (a straight back edge 37-42 mm long where the
+        // foot's is round, 9 mm of long-heel girth on the low-poly FIND foot). At the toe's
+        // end the full windows stay: shrunk there, they left the gaps between the toes in
+        // the outline (a zigzag toe on the simulated feet).
         let (xs_, band_) = (&xs, &band);
-        let window = |k: usize, w: f64| {
-            (0..xs_.len()).filter(move |&j| (xs_[j] - xs_[k]).abs() <= w && band_[j].is_some())
+        let xb0 = band
+            .iter()
+            .zip(&xs)
+            .find(|(b, _)| b.is_some())
+            .map_or(f64::MIN, |(_, x)| *x);
+        let window = move |k: usize, w: f64| {
+            let r = w.min(xs_[k] - xb0);
+            (0..xs_.len()).filter(move |&j| (xs_[j] - xs_[k]).abs() <= r && band_[j].is_some())
         };
         let dil: Vec<Option<(f64, f64)>> = (0..xs.len())
             .map(|k| {
@@ -386,11 +413,26 @@ impl Sections {
         let mut keep_x = Vec::new();
         let mut rings = Vec::new();
         let mut sole = Vec::new();
-        for (((x, mut q), b), near) in xs.iter().zip(pts).zip(smooth).zip(between) {
+        // Sections too small for a ring of their own at the heel's end (slivers of a leg that
+        // leans back at the last's top: 0.7 mm behind the heel on the FIND foot) go into the
+        // first ring, which stands at the first of them: the last's back then holds them.
+        let mut behind: Vec<P2> = Vec::new();
+        let mut behind_x: Option<f64> = None;
+        for ((((x, mut q), b), near), r) in xs.iter().zip(pts).zip(smooth).zip(between).zip(corner)
+        {
+            q.extend(near);
+            if rings.is_empty() {
+                if !q.is_empty() {
+                    behind_x.get_or_insert(*x);
+                }
+                q.append(&mut behind);
+            }
             if q.len() < 3 {
+                if rings.is_empty() {
+                    behind = q;
+                }
                 continue;
             }
-            q.extend(near);
             // The closing above fills dips in the band's edges; at the concave plan waist it
             // carried the medial edge out past the foot's own wall (0.25 mm on the simulated
             // feet), which widened the plan waist, and the solver's waist scale then pressed
@@ -403,15 +445,43 @@ impl Sections {
                 (f64::MIN, f64::MAX)
             };
             if let Some((yl, yh)) = b.map(|(l, h)| (l.max(qlo), h.min(qhi))) {
-                q.push(P2::new(yl, 0.0));
-                q.push(P2::new(yh, 0.0));
+                // On a foot scanned without weight on it (laid flat by a curve under its
+                // arch) the bottom's corners are rounded, radius twice the band's height:
+                // its sole is round across, so square corners held no foot and added to
+                // every girth (FIND: the instep 2.7 mm over the rules before the solver,
+                // which gave it back by pressing the instep's sides 1.2 mm). Where the
+                // foot fills a corner its own points keep it. Radius 1, 2 and 3 bands
+                // (two points per wall piece): midfoot clearance -0.30, -0.26, -0.30 mm
+                // (FIND), -2.14, -1.52, -1.03 (low-poly FIND), -0.38, -0.35, -0.65
+                // (MakeHuman). A foot standing on the glass keeps square corners, its band
+                // being its spread sole (rounded, the 290 mm left simulated foot's midfoot
+                // went from -0.16 to -0.27 mm).
+                let r = (CORNER_BANDS * r).min(0.5 * (yh - yl));
+                if unloaded && r > 0.1 {
+                    for i in 0..=CORNER_POINTS {
+                        let a = std::f64::consts::FRAC_PI_2 * i as f64 / CORNER_POINTS as f64;
+                        let (dy, dz) = (r * (1.0 - a.cos()), r * (1.0 - a.sin()));
+                        q.push(P2::new(yl + dy, dz));
+                        q.push(P2::new(yh - dy, dz));
+                    }
+                } else {
+                    q.push(P2::new(yl, 0.0));
+                    q.push(P2::new(yh, 0.0));
+                }
                 sole.push((*x, yl, yh));
             }
             let h = convex_hull(&q);
             if h.points.len() < 3 || h.area() < 0.5 {
+                if rings.is_empty() {
+                    behind = h.points;
+                }
                 continue;
             }
-            keep_x.push(*x);
+            keep_x.push(if rings.is_empty() {
+                behind_x.unwrap_or(*x)
+            } else {
+                *x
+            });
             rings.push(resample_hull(&h.points, AROUND));
         }
         Sections {
@@ -446,14 +516,16 @@ pub struct Nodes {
     pub ball_front: f64,
     pub length: f64,
     pub heel_allowance: f64,
-    /// Round the toe in plan in front of `tip` (a foot's toes end square; a stock last on
-    /// the clinic path has its own toe).
-    pub round_toe: bool,
-    /// Keep the upper midfoot's widening inside each section's plan extent (see
-    /// [`saturate`]): where a foot must fit inside the last. A stock last on the clinic
-    /// path has little room between its upper sides and its plan extent, and its girths
-    /// need the widening about the axis (its clearance is the footprint's, at the bottom).
-    pub widen_in_plan: bool,
+    /// The sections are a foot's, which must fit inside the last (the whole-foot path), not
+    /// a stock last's (the clinic path). A foot's last gets a toe rounded in plan in front of
+    /// `tip` (a foot's toes end square; a stock last has its own toe); its upper midfoot's
+    /// widening stays inside each section's plan extent (see [`saturate`]; a stock last has
+    /// little room between its upper sides and its plan extent, and its girths need the
+    /// widening about the axis, its clearance being the footprint's, at the bottom); and its
+    /// heel offset over the top is held at zero or more (see [`solve`]: the neutral last
+    /// holds the foot, so a negative one presses it; a stock last may need to give girth
+    /// back at the heel).
+    pub holds_foot: bool,
 }
 
 impl Nodes {
@@ -479,8 +551,7 @@ impl Nodes {
             ball_front: m.b.x.max(m.c.x),
             length: l,
             heel_allowance: 0.0,
-            round_toe: true,
-            widen_in_plan: true,
+            holds_foot: true,
         }
     }
 }
@@ -533,9 +604,13 @@ fn param_scale(nd: &Nodes) -> Params {
 }
 
 /// Weight of a section point's offset over the top by its normal's z: none on the flat
-/// bottom (which stays on the glass) and the lower walls, full over the top.
+/// bottom (which stays on the glass) and the walls up to the widest point (normal level),
+/// full over the top. So an offset hardly moves a section's plan extreme: when it did
+/// (weight 0.06 at a level normal), the width scales took the wider plan back by pulling in
+/// the lower walls, which hold no offset (simulated feet: midfoot -0.18 to -0.24 mm, now
+/// -0.09 to -0.17 with this alone).
 fn offset_weight(nz: f64) -> f64 {
-    let t = ((nz + 0.1) / 0.7).clamp(0.0, 1.0);
+    let t = (nz / 0.6).clamp(0.0, 1.0);
     t * t * (3.0 - 2.0 * t)
 }
 
@@ -569,8 +644,13 @@ fn ring_normals(ring: &[P2]) -> Vec<P2> {
 /// The deformed closed mesh of the last.
 pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
     let [ext, syh, syw, syb, szb, dh, da, di, kup] = *p;
+    // The heel's width scale ends at the heel window, where the waist's starts (the waist
+    // is measured in front of it), so the heel width and waist width rules pull on
+    // separate stations.
+    let hw = nd.heel_window.max(nd.heel + 0.5).min(nd.waist - 0.5);
     let sy = [
         (nd.heel, syh),
+        (hw, syw),
         (nd.waist, syw),
         (nd.ball, syb),
         (nd.toe_box, syb.max(1.0)),
@@ -596,13 +676,16 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
     let stretch = 1.0 + ext / (nd.tip - nd.stretch_from).max(1.0);
     let mut rings: Vec<Vec<P3>> = Vec::with_capacity(sec.rings.len());
     for (k, (x, ring)) in sec.xs.iter().zip(&sec.rings).enumerate() {
-        let (fy, fz, d) = (blend(&sy, *x), blend(&sz, *x), blend(&off, *x));
-        let kup = blend(&ku, *x);
         let xn = if *x > nd.stretch_from {
             nd.stretch_from + (x - nd.stretch_from) * stretch
         } else {
             *x
         };
+        // The scales where the ring ends up: a ring stretched into the toe box holds the
+        // foot's sections from x to xn, so the ball's reduced height taken from x pressed the
+        // hallux's top 1.1 mm at the toe box (low-poly FIND), where rule III wants the foot.
+        let (fy, fz, d) = (blend(&sy, xn), blend(&sz, xn), blend(&off, *x));
+        let kup = blend(&ku, *x);
         // The toe part is stretched forward, so the last at xn holds the foot's section
         // from x: where the toes widen or rise forward (the hallux's joint, the toe pads)
         // the foot's own section at xn stood out of it by 3-4 mm. The ring is the hull of
@@ -639,11 +722,16 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
                 let w = d * offset_weight(n.y);
                 let y = q.x * fy;
                 let m = y * kup * t * t * (3.0 - 2.0 * t);
-                let y = if nd.widen_in_plan {
-                    saturate(y, m, ylo, yhi)
+                // Between the heel window and the ball the offsets' sideways moves saturate
+                // inside the plan extent with the widening: the plan waist is the rules'
+                // (I-C), and any growth of it the waist scale takes back from the walls.
+                let y = if !nd.holds_foot {
+                    y + m + w * n.x
+                } else if *x > hw && *x < nd.ball {
+                    saturate(y, m + w * n.x, ylo, yhi)
                 } else {
-                    y + m
-                } + w * n.x;
+                    saturate(y, m, ylo, yhi) + w * n.x
+                };
                 P3::new(xn, y, (q.y * fz + w * n.y).max(0.0))
             })
             .collect();
@@ -662,7 +750,7 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
         // ellipse (to TOE_END of its width at the last's end), so the toe is rounded as a
         // last's is, not the square end of the stretched toes' hull. Nothing of the foot is
         // in front of its tip, so no clearance is given up.
-        if nd.round_toe && ext > 0.5 && xn > nd.tip {
+        if nd.holds_foot && ext > 0.5 && xn > nd.tip {
             let t = ((xn - nd.tip) / ext).min(1.0);
             let f = (1.0 - t * t).sqrt().max(TOE_END);
             let (lo, hi) = pts
@@ -746,6 +834,39 @@ const TOL: [f64; 8] = [0.05, 0.05, 0.05, 0.05, 0.15, 0.15, 0.15, 0.15];
 /// tolerances (at 1 the 290 mm simulated feet took 107 evaluations, at 2 they take 79).
 const WIDTH_STEP_SLACK: f64 = 2.0;
 
+/// The heel offset's place in the field: it only grows where the foot must fit (see [`solve`]).
+const HEEL_OFFSET: usize = 5;
+
+/// The least weighted change (surface millimetres) from `u` that meets the linearised rules
+/// A du = -r, with field value `held` (if any) brought to zero and left out: du = -u +
+/// A^T (A A^T)^-1 (A u - r) over the rest. None when the rest cannot move the rules
+/// independently.
+fn least_change(
+    a: &nalgebra::SMatrix<f64, 8, NPARAM>,
+    u: &nalgebra::SVector<f64, NPARAM>,
+    r: &[f64; 8],
+    held: Option<usize>,
+) -> Option<nalgebra::SVector<f64, NPARAM>> {
+    let (mut af, mut uf) = (*a, *u);
+    let mut rv = nalgebra::SVector::<f64, 8>::from(*r);
+    if let Some(j) = held {
+        // Its move to zero (-u_j) is made and taken out of the system.
+        rv -= a.column(j) * u[j];
+        af.column_mut(j).fill(0.0);
+        uf[j] = 0.0;
+        let sv = af.singular_values();
+        if sv.min() < 1e-3 * sv.max() {
+            return None;
+        }
+    }
+    let y = (af * af.transpose()).lu().solve(&(af * uf - rv))?;
+    let mut du = -uf + af.transpose() * y;
+    if let Some(j) = held {
+        du[j] = -u[j];
+    }
+    Some(du)
+}
+
 /// Steps of the solver at most (finite-difference, carried-on and width-only alike).
 const MAX_STEPS: usize = 40;
 
@@ -796,7 +917,8 @@ pub fn solve(
     let scale = param_scale(nd);
     let steps: Params = std::array::from_fn(|j| FD_MM / scale[j]);
     let (mut mesh, mut me, mut r) = eval(&p)?;
-    if std::env::var_os("FOOTSCAN_DEBUG").is_some() {
+    let debug = std::env::var_os("FOOTSCAN_DEBUG").is_some();
+    if debug {
         eprintln!("solve start: r {r:.3?} p {p:.4?}");
     }
     let norm = |r: &[f64; 8]| -> f64 {
@@ -814,6 +936,7 @@ pub fn solve(
     // just taken (one evaluation per step instead of ten).
     let mut jac: Option<Jac> = None;
     let mut fresh = false;
+    let mut bounded = nd.holds_foot;
     // Broyden's update of A by the step `dp` (field units) that changed the values by `dr`.
     let broyden = |a: &mut Jac, dp: &Params, dr: &[f64; 8]| {
         let s = nalgebra::SVector::<f64, NPARAM>::from_fn(|j, _| dp[j] * scale[j]);
@@ -873,9 +996,27 @@ pub fn solve(
         // Least weighted change from the neutral field that meets the linearised rules:
         // with u = S (p - p0) (millimetres of surface), minimise |u + du| subject to
         // A du = -r, so du = -u + A^T (A A^T)^-1 (A u - r).
+        // Where the foot must fit, the heel offset only grows the last (the neutral field
+        // holds the foot): when the step would take it below zero it is held at zero and the
+        // rest solved again. Unbounded, the solver gave back the FIND foot's instep and
+        // ankle excess (4 and 2 mm over the rules at the start) partly with a heel offset of
+        // -2.4 mm, which pressed the back of the heel 1.3 mm at the last's top; held, the
+        // ankle's and instep's own offsets do it (that heel seat from -1.30 to -0.62 mm).
         let u = nalgebra::SVector::<f64, NPARAM>::from_fn(|j, _| (p[j] - p0[j]) * scale[j]);
-        let rv = nalgebra::SVector::<f64, 8>::from(r);
-        let Some(y) = (a * a.transpose()).lu().solve(&(a * u - rv)) else {
+        let free = least_change(&a, &u, &r, None);
+        let mut held = false;
+        let step = match free {
+            Some(du) if bounded && p[HEEL_OFFSET] + du[HEEL_OFFSET] / scale[HEEL_OFFSET] < 0.0 => {
+                // Without the heel offset the rest may not meet the rules: the bound goes.
+                let fixed = least_change(&a, &u, &r, Some(HEEL_OFFSET));
+                held = fixed.is_some();
+                bounded = held;
+                fixed.or(free)
+            }
+            other => other,
+        }
+        .map(|du| -> Params { std::array::from_fn(|j| du[j] / scale[j]) });
+        let Some(dx) = step else {
             if !fresh {
                 jac = None;
                 continue;
@@ -884,8 +1025,6 @@ pub fn solve(
                 why: "the rule targets cannot be moved independently (singular Jacobian)".into(),
             });
         };
-        let du = -u + a.transpose() * y;
-        let dx: Params = std::array::from_fn(|j| du[j] / scale[j]);
         let mut lambda = 1.0;
         let n0 = norm(&r);
         let (q, mq, meq, rq) = loop {
@@ -903,6 +1042,15 @@ pub fn solve(
             jac = None;
             continue;
         }
+        // Stuck against the bound with a fresh Jacobian: the rules cannot be met with the
+        // heel only growing, so the bound goes and the solve goes on from here; the
+        // clearance then reports any press.
+        if bounded && fresh && n1 > 0.8 * n0 && held {
+            bounded = false;
+            if debug {
+                eprintln!("solve: heel offset bound released at r {r:.3?}");
+            }
+        }
         let mut a = a;
         broyden(
             &mut a,
@@ -913,7 +1061,7 @@ pub fn solve(
         jac = (n1 < 0.5 * n0).then_some(a);
         fresh = false;
         (p, mesh, me, r) = (q, mq, meq, rq);
-        if std::env::var_os("FOOTSCAN_DEBUG").is_some() {
+        if debug {
             eprintln!("solve: r {r:.3?} p {p:.4?}");
         }
         let bad = p[1..5].iter().any(|s| !(0.5..=2.0).contains(s))
