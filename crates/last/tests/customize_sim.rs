@@ -180,7 +180,7 @@ fn lifted_midfoot_gets_a_bottom_that_follows_it() {
         assert!(r.met, "{} {}: {:+.3} mm", r.rule, r.quantity, r.error_mm);
     }
     println!("  clearance {}", c.clearance.summary());
-    // Measured -0.43 mm in the midfoot (the standing foot: -0.24): the curve lags the bump
+    // Measured -0.41 mm in the midfoot (the standing foot: -0.10): the curve lags the bump
     // by 1.1 mm at its top, so the laid-flat midfoot still hangs that far over the flat
     // bottom's fill. The must-fit target (FIT_TOL_MM) is not met here yet; this bounds what
     // is.

@@ -19,7 +19,7 @@ use footscan_geom::polygon::convex_hull;
 use footscan_geom::{P2, P3};
 
 /// Number of stations along the axis and points around each section.
-pub const STATIONS: usize = 150;
+pub const STATIONS: usize = 250;
 pub const AROUND: usize = 128;
 pub use super::measure::TOP_Z;
 
@@ -516,6 +516,11 @@ pub struct Nodes {
     pub ball_front: f64,
     pub length: f64,
     pub heel_allowance: f64,
+    /// The long-heel girth's plane in the side view: through the heel point on the glass
+    /// (x) and rising by `long_heel_slope` per mm to the instep's top (see [`build`]: the
+    /// ankle's offset grows the last above it only).
+    pub heel_point: f64,
+    pub long_heel_slope: f64,
     /// The sections are a foot's, which must fit inside the last (the whole-foot path), not
     /// a stock last's (the clinic path). A foot's last gets a toe rounded in plan in front of
     /// `tip` (a foot's toes end square; a stock last has its own toe); its upper midfoot's
@@ -551,6 +556,8 @@ impl Nodes {
             ball_front: m.b.x.max(m.c.x),
             length: l,
             heel_allowance: 0.0,
+            heel_point: m.o.x,
+            long_heel_slope: m.instep_top.z / (m.instep_top.x - m.o.x).max(1.0),
             holds_foot: true,
         }
     }
@@ -571,6 +578,10 @@ fn blend(nodes: &[(f64, f64)], x: f64) -> f64 {
     }
     nodes[nodes.len() - 1].1
 }
+
+/// Height above the long-heel girth's plane over which the ankle's offset comes in
+/// (fraction of the foot length).
+const ANKLE_RAMP: f64 = 0.03;
 
 /// Width of the last's end ring in plan, as a fraction of the toe's (see [`build`]).
 const TOE_END: f64 = 0.12;
@@ -661,12 +672,20 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
         (nd.ball_front, szb),
         (nd.toe_box, szb.max(1.0)),
     ];
+    // The ankle's offset is blended on its own: on a foot's last it grows the last only
+    // above the long-heel girth's plane (the ankle girth's top, over the ankle's front
+    // fold), so it meets the ankle girth rule without growing the long-heel girth, which
+    // the heel's and instep's offsets meet. Growing both, it made the low-poly FIND foot's
+    // long-heel girth 5 mm too big for an ankle 5.6 mm short, and the solver gave that back
+    // by narrowing the upper midfoot (kup -3.8 %), which pressed the foot 1.5 mm.
     let off = [
         (nd.heel, dh),
-        (nd.ankle, da),
+        (nd.ankle, 0.0),
         (nd.instep, di),
         (nd.forefoot, 0.0),
     ];
+    let off_ankle = [(nd.heel, 0.0), (nd.ankle, da), (nd.instep, 0.0)];
+    let ramp = ANKLE_RAMP * nd.length;
     let ku = [
         (nd.heel_window.min(nd.ankle - 1.0), 0.0),
         (0.5 * (nd.ankle + nd.instep), kup),
@@ -674,17 +693,34 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
     ];
     let (z0, z1) = (0.5 * ANKLE_Z * nd.length, ANKLE_Z * nd.length);
     let stretch = 1.0 + ext / (nd.tip - nd.stretch_from).max(1.0);
+    let xns: Vec<f64> = sec
+        .xs
+        .iter()
+        .map(|&x| {
+            if x > nd.stretch_from {
+                nd.stretch_from + (x - nd.stretch_from) * stretch
+            } else {
+                x
+            }
+        })
+        .collect();
     let mut rings: Vec<Vec<P3>> = Vec::with_capacity(sec.rings.len());
     for (k, (x, ring)) in sec.xs.iter().zip(&sec.rings).enumerate() {
-        let xn = if *x > nd.stretch_from {
-            nd.stretch_from + (x - nd.stretch_from) * stretch
-        } else {
-            *x
-        };
+        let xn = xns[k];
         // The scales where the ring ends up: a ring stretched into the toe box holds the
         // foot's sections from x to xn, so the ball's reduced height taken from x pressed the
         // hallux's top 1.1 mm at the toe box (low-poly FIND), where rule III wants the foot.
         let (fy, fz, d) = (blend(&sy, xn), blend(&sz, xn), blend(&off, *x));
+        let da = blend(&off_ankle, *x);
+        let zp = nd.long_heel_slope * (x - nd.heel_point);
+        let above = |z: f64| {
+            if nd.holds_foot {
+                let t = ((z - zp) / ramp).clamp(0.0, 1.0);
+                t * t * (3.0 - 2.0 * t)
+            } else {
+                1.0
+            }
+        };
         let kup = blend(&ku, *x);
         // The toe part is stretched forward, so the last at xn holds the foot's section
         // from x: where the toes widen or rise forward (the hallux's joint, the toe pads)
@@ -693,8 +729,13 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
         let swept;
         let ring = if xn > *x + 0.1 {
             let mut q: Vec<P2> = ring.clone();
+            // Up to halfway to the next ring's place: the tube is ruled between rings, and
+            // a ring holding the foot only up to its own place left the toes' top (the
+            // low-poly FIND foot's, raised 60 mm up near the tip) 0.67 mm out between two
+            // stretched rings.
+            let reach = 0.5 * (xn + xns[(k + 1).min(xns.len() - 1)]);
             for (xj, rj) in sec.xs.iter().zip(&sec.rings).skip(k + 1) {
-                if *xj > xn {
+                if *xj > reach {
                     break;
                 }
                 q.extend_from_slice(rj);
@@ -719,7 +760,7 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
             .zip(&normals)
             .map(|(q, n)| {
                 let t = ((q.y - z0) / (z1 - z0)).clamp(0.0, 1.0);
-                let w = d * offset_weight(n.y);
+                let w = (d + da * above(q.y)) * offset_weight(n.y);
                 let y = q.x * fy;
                 let m = y * kup * t * t * (3.0 - 2.0 * t);
                 // Between the heel window and the ball the offsets' sideways moves saturate
@@ -738,7 +779,7 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
         // A negative offset (a girth given back) folds the ring at a sharp corner, such as
         // where the top was cut off (self-intersections at the ankle's top on the FIND
         // foot); the ring is its own hull again, resampled with the same meaning per point.
-        if d < 0.0 || kup != 0.0 {
+        if d < 0.0 || d + da < 0.0 || kup != 0.0 {
             let h = convex_hull(&pts.iter().map(|q| P2::new(q.y, q.z)).collect::<Vec<_>>());
             pts = resample_hull(&h.points, AROUND)
                 .into_iter()
@@ -920,6 +961,10 @@ pub fn solve(
     let debug = std::env::var_os("FOOTSCAN_DEBUG").is_some();
     if debug {
         eprintln!("solve start: r {r:.3?} p {p:.4?}");
+        eprintln!(
+            "foot d {:.2?} e {:.2?} / neutral d {:.2?} e {:.2?}",
+            foot.d, foot.e, me.d, me.e
+        );
     }
     let norm = |r: &[f64; 8]| -> f64 {
         r.iter()
