@@ -572,29 +572,24 @@ fn bad_inputs_are_named_and_nothing_is_written() {
 fn real_feet_customized_and_cut_independently() {
     let base = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/feet");
     // Per foot the least clearance allowed in the heel seat, midfoot and toe box (mm): the
-    // must-fit target, -0.3 mm, where it is met with room (measured figures in the comments,
-    // 2026-11-25), else the figure less 0.06-0.13 mm; docs/method.md 10.5 says why MakeHuman's
-    // midfoot misses. History: before the heel's squared back, the leg's plan widths, the waist
-    // at the heel centre and the toe box's scales were mended, -0.62/-1.58/-0.35,
-    // -3.52/-4.57/-1.11 and -1.40/-2.06/-0.25; before the unloaded soles' rounded bottom
-    // corners, the offsets kept off the plan extremes and four points per wall piece,
-    // -0.28/-1.21/-0.10, -0.18/-2.58/-0.64 and -0.31/-0.27/-0.23; before the ankle's offset
-    // above the long-heel plane, the stretched rings' reach and 250 stations,
+    // must-fit target, -0.3 mm, met on each (measured 2026-11-25 in the comments). History:
+    // before the heel's squared back, the leg's plan widths, the waist at the heel centre and
+    // the toe box's scales were mended, -0.62/-1.58/-0.35, -3.52/-4.57/-1.11 and
+    // -1.40/-2.06/-0.25; before the unloaded soles' rounded bottom corners, the offsets kept
+    // off the plan extremes and four points per wall piece, -0.28/-1.21/-0.10,
+    // -0.18/-2.58/-0.64 and -0.31/-0.27/-0.23; before the ankle's offset above the long-heel
+    // plane, the stretched rings' reach, 250 stations and the rings' sharp corners kept,
     // -0.28/-0.32/-0.10, -0.05/-1.53/-0.67 and -0.08/-0.36/-0.22.
     let feet = [
-        // -0.22/-0.24/-0.06
-        ("find_template/template_mm.stl", "left", [-0.3, -0.3, -0.3]),
-        // -0.13/-0.29/-0.17
-        (
-            "find_lowres/find_demo_template.obj",
-            "left",
-            [-0.3, -0.35, -0.3],
-        ),
-        // -0.11/-0.32/-0.06
+        // -0.19/-0.22/+0.00
+        ("find_template/template_mm.stl", "left", [-0.3; 3]),
+        // -0.00/-0.21/-0.02
+        ("find_lowres/find_demo_template.obj", "left", [-0.3; 3]),
+        // -0.02/-0.18/-0.02
         (
             "makehuman/makehuman_default_right_foot_cut150mm.stl",
             "right",
-            [-0.3, -0.45, -0.3],
+            [-0.3; 3],
         ),
     ];
     let dir = tempfile::tempdir().unwrap();

@@ -126,7 +126,7 @@ fn simulated_feet() {
 /// A foot whose midfoot does not reach the glass, as a foot scanned without weight on it:
 /// the simulated 260 mm foot with its midfoot lifted by a known bump (6 mm at its top). The
 /// curve under the arch stays under the bump and rises most of it, the last's bottom follows
-/// it, every rule is met and the foot fits where the rules say it must to within 0.6 mm.
+/// it, every rule is met and the foot fits where the rules say it must to within 0.45 mm.
 /// (With a flat bottom filling the gap the real feet's instep stood 6.6 mm out;
 /// docs/method.md 10.5.)
 #[test]
@@ -180,12 +180,12 @@ fn lifted_midfoot_gets_a_bottom_that_follows_it() {
         assert!(r.met, "{} {}: {:+.3} mm", r.rule, r.quantity, r.error_mm);
     }
     println!("  clearance {}", c.clearance.summary());
-    // Measured -0.41 mm in the midfoot (the standing foot: -0.10): the curve lags the bump
+    // Measured -0.34 mm in the midfoot (the standing foot: -0.05): the curve lags the bump
     // by 1.1 mm at its top, so the laid-flat midfoot still hangs that far over the flat
     // bottom's fill. The must-fit target (FIT_TOL_MM) is not met here yet; this bounds what
     // is.
     assert!(
-        c.clearance.must_fit_margin_mm >= -0.6,
+        c.clearance.must_fit_margin_mm >= -0.45,
         "{}",
         c.clearance.summary()
     );
