@@ -6,6 +6,7 @@
 
 use anyhow::{anyhow, Result};
 use footscan_geom::mesh::{TriMesh, Units};
+use footscan_last::customize::landmarks::{pair_with, read_keypoints, LandmarkPair};
 use footscan_last::customize::rules::RuleSet;
 use footscan_last::customize::{customize, foot_in_frame, Customized, Inputs};
 use footscan_sim::foot::{Foot, FootParams, MeshResolution, Side};
@@ -23,6 +24,16 @@ const REAL: [(&str, &str); 3] = [
     ),
 ];
 
+/// Annotated landmarks of a real foot: its OBJ (vertex ids index it; millimetres per unit),
+/// the keypoints table and its row. The FIND template's STL is its OBJ in millimetres.
+const KEYPOINTS: [(&str, &str, &str, &str, f64); 1] = [(
+    "feet/find_template/template_mm.stl",
+    "feet/find_template/template.obj",
+    "feet/find_template/keypoints.csv",
+    "FIND",
+    1000.0,
+)];
+
 fn sim_foot(length: f64, side: Side) -> Result<TriMesh> {
     let f = Foot::new(FootParams {
         length_mm: length,
@@ -39,6 +50,7 @@ struct Row {
     frame_ms: f64,
     customize_ms: f64,
     curve_ms: f64,
+    landmarks: Vec<LandmarkPair>,
 }
 
 fn one(name: String, world: TriMesh, rules: &RuleSet, inp: &Inputs, repeats: usize) -> Result<Row> {
@@ -63,6 +75,7 @@ fn one(name: String, world: TriMesh, rules: &RuleSet, inp: &Inputs, repeats: usi
                 frame_ms,
                 customize_ms,
                 curve_ms,
+                landmarks: Vec::new(),
             });
         }
     }
@@ -91,7 +104,13 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
             "{} ({side})",
             Path::new(f).file_name().unwrap().to_string_lossy()
         );
-        rows.push(one(name, m, &rules, &inp, repeats)?);
+        let mut row = one(name, m, &rules, &inp, repeats)?;
+        for (_, obj, csv, model, scale) in KEYPOINTS.iter().filter(|k| k.0 == f) {
+            let kp = read_keypoints(&data.join(obj), &data.join(csv), model, *scale)
+                .map_err(|e| anyhow!("{e}"))?;
+            row.landmarks = pair_with(&row.c.foot_measures, &row.c.frame_in_world, &kp);
+        }
+        rows.push(row);
     }
     if json_out {
         let j: Vec<_> = rows
@@ -106,6 +125,10 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
                     "customize_ms": r.customize_ms,
                     "slowest_curve_fit_deform_ms": r.curve_ms,
                     "mesh_evaluations": r.c.evaluations,
+                    "landmarks_vs_keypoints": r.landmarks.iter().map(|p| json!({
+                        "ours": p.ours, "theirs": p.theirs, "dx_mm": p.dx, "dy_mm": p.dy,
+                        "compared": p.compared,
+                    })).collect::<Vec<_>>(),
                 })
             })
             .collect();
@@ -172,6 +195,27 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
                 })
                 .collect();
         println!("  fit+deform: {}", per.join(", "));
+        if !r.landmarks.is_empty() {
+            let l: Vec<String> = r
+                .landmarks
+                .iter()
+                .map(|p| {
+                    format!(
+                        "{} - {} {:+.2} (along {:+.2}, across {:+.2})",
+                        p.ours,
+                        p.theirs,
+                        p.error(),
+                        p.dx,
+                        p.dy
+                    )
+                })
+                .collect();
+            println!(
+                "  landmarks vs keypoints.csv, mm (ours - theirs in the coordinate the \
+                 definitions share): {}",
+                l.join(", ")
+            );
+        }
     }
     let n = rows.len() as f64;
     let mean = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).sum::<f64>() / n;

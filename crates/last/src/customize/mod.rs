@@ -10,6 +10,7 @@ use bottom::{raise, shear, BottomCurve, FLAT_TOL_MM};
 pub mod clinic;
 pub mod curves;
 mod error;
+pub mod landmarks;
 pub mod measure;
 pub mod rules;
 pub mod shape;
@@ -747,6 +748,39 @@ struct Report<'a> {
     last_triangles: usize,
     #[serde(skip_serializing_if = "Option::is_none")]
     bottom_curve: Option<&'a [[f64; 2]]>,
+    foot_points: FootPoints,
+}
+
+/// The foot's characteristic points in its frame (mm; docs/method.md 10.1 defines them), so a
+/// last maker or a test can compare them with landmarks of their own.
+#[derive(Serialize)]
+struct FootPoints {
+    heel_point_o: [f64; 3],
+    toe_tip_a: [f64; 3],
+    hallux_p: [f64; 3],
+    mt1_b: [f64; 3],
+    mt5_c: [f64; 3],
+    waist_inner_d: [f64; 3],
+    waist_outer_e: [f64; 3],
+    heel_centre: [f64; 3],
+    instep_top: [f64; 3],
+}
+
+impl FootPoints {
+    fn of(m: &Measures) -> FootPoints {
+        let a = |p: &footscan_geom::P3| [p.x, p.y, p.z];
+        FootPoints {
+            heel_point_o: a(&m.o),
+            toe_tip_a: a(&m.a),
+            hallux_p: a(&m.p),
+            mt1_b: a(&m.b),
+            mt5_c: a(&m.c),
+            waist_inner_d: a(&m.d),
+            waist_outer_e: a(&m.e),
+            heel_centre: a(&m.heel_centre),
+            instep_top: a(&m.instep_top),
+        }
+    }
 }
 
 /// Write last.stl, last.igs, last.step, frame.igs, report.json and customize.png into `dir`.
@@ -795,6 +829,7 @@ pub fn write_outputs(c: &Customized, inp: &Inputs, dir: &Path) -> Result<(), Cus
         mesh_evaluations: c.evaluations,
         last_triangles: c.last.triangles.len(),
         bottom_curve: c.bottom_curve.as_deref(),
+        foot_points: FootPoints::of(&c.foot_measures),
     };
     let p = dir.join("report.json");
     let j = serde_json::to_string_pretty(&rep).map_err(|e| out(&p, e.to_string()))?;
