@@ -267,10 +267,19 @@ impl Archive {
     }
 
     /// Delete a visit with its scans' directories (and their index rows); logged. Returns the
-    /// scans deleted.
-    pub fn delete_visit(&self, id: &ScanId) -> Result<Vec<String>, VisitError> {
+    /// scans deleted. Unless `refuse` gives a reason for the visit as it stands (read once,
+    /// under the lock that orders visit writes, so a scan put in meanwhile is seen): then a
+    /// [`VisitError::Conflict`] with that reason, and nothing is deleted.
+    pub fn delete_visit(
+        &self,
+        id: &ScanId,
+        refuse: impl Fn(&Visit) -> Option<String>,
+    ) -> Result<Vec<String>, VisitError> {
         let _one = VISITS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
         let v = self.visit(id)?;
+        if let Some(why) = refuse(&v) {
+            return Err(VisitError::Conflict(why));
+        }
         let mut deleted = Vec::new();
         for sid in [&v.left, &v.right].into_iter().flatten() {
             let Ok(sid) = ScanId::parse(sid) else {

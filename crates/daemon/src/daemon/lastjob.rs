@@ -293,16 +293,19 @@ impl Daemon {
     /// a scan being deleted.
     pub fn delete_visit(&self, vid: &ScanId) -> Result<Vec<String>, VisitError> {
         let running = self.last_jobs.running.lock().unwrap();
-        if let Some(scan) = running.as_deref() {
-            let v = self.archive.visit(vid)?;
-            if [&v.left, &v.right].into_iter().flatten().any(|s| s == scan) {
-                return Err(VisitError::Conflict(format!(
-                    "a last is being made for scan {scan} of visit {vid}: delete the visit \
-                     when it has ended (GET /api/scans/{scan}/last)"
-                )));
-            }
-        }
-        self.archive.delete_visit(vid)
+        self.archive.delete_visit(vid, |v| {
+            let scan = running.as_deref()?;
+            [&v.left, &v.right]
+                .into_iter()
+                .flatten()
+                .any(|s| s == scan)
+                .then(|| {
+                    format!(
+                        "a last is being made for scan {scan} of visit {vid}: delete the \
+                         visit when it has ended (GET /api/scans/{scan}/last)"
+                    )
+                })
+        })
     }
 
     /// The path of file `name` of the scan's last.
