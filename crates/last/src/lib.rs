@@ -17,3 +17,10 @@ pub mod blend;
 pub mod customize;
 pub mod draw;
 pub mod join;
+
+/// The cubic ramp 3 s^2 - 2 s^3 from 0 at s <= 0 to 1 at s >= 1, level at both ends: the
+/// smooth transition the stages' fields and weights share.
+pub(crate) fn smoothstep(s: f64) -> f64 {
+    let s = s.clamp(0.0, 1.0);
+    s * s * (3.0 - 2.0 * s)
+}

@@ -3,6 +3,7 @@
 
 use super::outline;
 use super::{AdjustError, Adjustment, HeightGrid, LastBottom};
+use crate::smoothstep;
 use footscan_geom::mesh::{LoadReport, TriMesh, Units};
 use footscan_geom::{P3, V3};
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -364,11 +365,6 @@ const BLUR_CELL_MM: f64 = 2.0;
 const BLUR_PER_MM: f64 = 1.0;
 const BLUR_MIN_MM: f64 = 3.0;
 const BLUR_RAMP_MM: f64 = 8.0;
-
-fn smoothstep(s: f64) -> f64 {
-    let s = s.clamp(0.0, 1.0);
-    s * s * (3.0 - 2.0 * s)
-}
 
 /// A vector field on a grid with its summed-area table: box means of any half-width in O(1),
 /// continuous in the box's centre and size (the table is interpolated bilinearly).

@@ -57,7 +57,7 @@ impl Weight {
             Weight::Morph => 1.0,
             Weight::Extension => 0.0,
             Weight::Linear => s,
-            Weight::Poly => s * s * (3.0 - 2.0 * s),
+            Weight::Poly => crate::smoothstep(s),
             Weight::Table(rows) => table_at(rows, t),
         }
     }

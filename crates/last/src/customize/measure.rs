@@ -141,6 +141,30 @@ pub struct PlanProfile {
     pub hi: Vec<Option<P3>>,
 }
 
+/// Where the plane x = `x` cuts triangle `v`, below `top`: the ends of the section segment,
+/// the part above the top cut off where it crosses it (each point handed to `out`). The plan
+/// profile and the last's stations cut the same way through it.
+pub(crate) fn cut_below(v: &[P3; 3], x: f64, top: f64, mut out: impl FnMut(P3)) {
+    let mut seg = [P3::origin(); 3];
+    let mut n = 0;
+    for e in 0..3 {
+        let (p, q) = (v[e], v[(e + 1) % 3]);
+        if (p.x - x) * (q.x - x) > 0.0 || p.x == q.x {
+            continue;
+        }
+        seg[n] = p + (q - p) * ((x - p.x) / (q.x - p.x));
+        n += 1;
+    }
+    if n == 2 && (seg[0].z > top) != (seg[1].z > top) {
+        let (a, b) = if seg[0].z > top { (1, 0) } else { (0, 1) };
+        let s = (top - seg[a].z) / (seg[b].z - seg[a].z);
+        seg[b] = seg[a] + (seg[b] - seg[a]) * s;
+    }
+    for r in seg[..n].iter().filter(|r| r.z <= top) {
+        out(*r);
+    }
+}
+
 impl PlanProfile {
     /// Cut every triangle by the planes x = x0 + k step, the mesh sliced once in
     /// O(triangles and crossings), keeping the sections below `top`: a foot's plan widths are
@@ -160,32 +184,15 @@ impl PlanProfile {
             let k0 = ((xmin - x0) / step).ceil().max(0.0) as usize;
             let k1 = (((xmax - x0) / step).floor() as usize).min(n - 1);
             for k in k0..=k1 {
-                let x = x0 + k as f64 * step;
-                let mut seg = [P3::origin(); 3];
-                let mut n = 0;
-                for e in 0..3 {
-                    let (p, q) = (v[e], v[(e + 1) % 3]);
-                    if (p.x - x) * (q.x - x) > 0.0 || p.x == q.x {
-                        continue;
-                    }
-                    let s = (x - p.x) / (q.x - p.x);
-                    seg[n] = p + (q - p) * s;
-                    n += 1;
-                }
-                // The section segment clipped to z <= top (its extremes are its ends).
-                if n == 2 && (seg[0].z > top) != (seg[1].z > top) {
-                    let (a, b) = if seg[0].z > top { (1, 0) } else { (0, 1) };
-                    let s = (top - seg[a].z) / (seg[b].z - seg[a].z);
-                    seg[b] = seg[a] + (seg[b] - seg[a]) * s;
-                }
-                for r in seg[..n].iter().filter(|r| r.z <= top) {
+                // The section segment's ends are its extremes.
+                cut_below(&v, x0 + k as f64 * step, top, |r| {
                     if lo[k].is_none_or(|o| r.y < o.y) {
-                        lo[k] = Some(*r);
+                        lo[k] = Some(r);
                     }
                     if hi[k].is_none_or(|o| r.y > o.y) {
-                        hi[k] = Some(*r);
+                        hi[k] = Some(r);
                     }
-                }
+                });
             }
         }
         PlanProfile { x0, step, lo, hi }

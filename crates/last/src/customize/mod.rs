@@ -361,8 +361,7 @@ pub fn customize(
     let mut nd = shape::Nodes::of(&fm);
     nd.heel_allowance = heel_allow;
     // The long-heel plane of the foot laid flat (its instep top lowered with its section).
-    nd.long_heel_slope =
-        (fm.instep_top.z - lift(fm.instep_top.x)) / (fm.instep_top.x - fm.o.x).max(1.0);
+    nd.instep_top.1 -= lift(nd.instep_top.0);
     let (mut last, lm, field, evals) = shape::solve(&sec, &nd, &fm, &target, medial)?;
     judge(&mut rows, &lm);
     // Raised back (the arch lies behind the toe stretch, so the last's x there is the

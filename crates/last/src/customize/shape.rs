@@ -12,8 +12,9 @@
 //! about its centroid and the stations are parallel planes in order, so the tube cannot
 //! intersect itself.
 
-use super::measure::{measure, Measures, ANKLE_X, ANKLE_Z, INSTEP_X, OUTLINE_Z};
+use super::measure::{cut_below, measure, Measures, ANKLE_X, ANKLE_Z, INSTEP_X, OUTLINE_Z};
 use super::CustomizeError;
+use crate::smoothstep;
 use footscan_geom::mesh::TriMesh;
 use footscan_geom::polygon::convex_hull;
 use footscan_geom::{P2, P3};
@@ -44,31 +45,8 @@ pub(crate) fn station_points(m: &TriMesh, xs: &[f64], top: f64) -> Vec<Vec<P2>> 
         let xmax = v.iter().map(|p| p.x).fold(f64::MIN, f64::max);
         let k0 = xs.partition_point(|&x| x < xmin);
         let k1 = xs.partition_point(|&x| x <= xmax);
-        for k in k0..k1 {
-            let x = xs[k];
-            let mut seg: Vec<P2> = Vec::with_capacity(3);
-            for e in 0..3 {
-                let (p, q) = (v[e], v[(e + 1) % 3]);
-                if (p.x - x) * (q.x - x) > 0.0 || p.x == q.x {
-                    continue;
-                }
-                let s = (x - p.x) / (q.x - p.x);
-                let r = p + (q - p) * s;
-                seg.push(P2::new(r.y, r.z));
-            }
-            if seg.len() < 2 {
-                continue;
-            }
-            let (a, b) = (seg[0], seg[1]);
-            if a.y <= top {
-                out[k].push(a);
-            }
-            if b.y <= top {
-                out[k].push(b);
-            }
-            if (a.y - top) * (b.y - top) < 0.0 {
-                out[k].push(a + (b - a) * ((top - a.y) / (b.y - a.y)));
-            }
+        for (x, o) in xs[k0..k1].iter().zip(&mut out[k0..k1]) {
+            cut_below(&v, *x, top, |r| o.push(P2::new(r.y, r.z)));
         }
     }
     out
@@ -115,11 +93,12 @@ fn between_stations(m: &TriMesh, xs: &[f64], top: f64, drop: &dyn Fn(f64) -> f64
         out[station(v.x)].push(P2::new(v.y, v.z - drop(v.x)));
     }
     for t in &m.triangles {
-        for e in 0..3 {
-            let (p, q) = (
-                m.vertices[t[e] as usize],
-                m.vertices[t[(e + 1) % 3] as usize],
-            );
+        // Each edge once: a closed mesh's edge is in two triangles, once each way.
+        for (i, j) in (0..3)
+            .map(|e| (t[e], t[(e + 1) % 3]))
+            .filter(|(i, j)| i < j)
+        {
+            let (p, q) = (m.vertices[i as usize], m.vertices[j as usize]);
             if (p.z - top) * (q.z - top) < 0.0 {
                 let r = p + (q - p) * ((top - p.z) / (q.z - p.z));
                 out[station(r.x)].push(P2::new(r.y, top - drop(r.x)));
@@ -550,11 +529,11 @@ pub struct Nodes {
     pub ball_front: f64,
     pub length: f64,
     pub heel_allowance: f64,
-    /// The long-heel girth's plane in the side view: through the heel point on the glass
-    /// (x) and rising by `long_heel_slope` per mm to the instep's top (see [`build`]: the
-    /// ankle's offset grows the last above it only).
+    /// The long-heel girth's plane in the side view: from the heel point on the glass (x) to
+    /// the instep's top (x, z) (see [`build`]: the ankle's offset grows the last above it
+    /// only).
     pub heel_point: f64,
-    pub long_heel_slope: f64,
+    pub instep_top: (f64, f64),
     /// The sections are a foot's, which must fit inside the last (the whole-foot path), not
     /// a stock last's (the clinic path). A foot's last gets a toe rounded in plan in front of
     /// `tip` (a foot's toes end square; a stock last has its own toe); its upper midfoot's
@@ -591,7 +570,7 @@ impl Nodes {
             length: l,
             heel_allowance: 0.0,
             heel_point: m.o.x,
-            long_heel_slope: m.instep_top.z / (m.instep_top.x - m.o.x).max(1.0),
+            instep_top: (m.instep_top.x, m.instep_top.z),
             holds_foot: true,
         }
     }
@@ -605,9 +584,7 @@ fn blend(nodes: &[(f64, f64)], x: f64) -> f64 {
     for w in nodes.windows(2) {
         let ((xa, va), (xb, vb)) = (w[0], w[1]);
         if x <= xb {
-            let t = ((x - xa) / (xb - xa)).clamp(0.0, 1.0);
-            let s = t * t * (3.0 - 2.0 * t);
-            return va + (vb - va) * s;
+            return va + (vb - va) * smoothstep((x - xa) / (xb - xa));
         }
     }
     nodes[nodes.len() - 1].1
@@ -655,8 +632,7 @@ fn param_scale(nd: &Nodes) -> Params {
 /// the lower walls, which hold no offset (simulated feet: midfoot -0.18 to -0.24 mm, now
 /// -0.09 to -0.17 with this alone).
 fn offset_weight(nz: f64) -> f64 {
-    let t = (nz / 0.6).clamp(0.0, 1.0);
-    t * t * (3.0 - 2.0 * t)
+    smoothstep(nz / 0.6)
 }
 
 /// Move `y` by `m` across the section, saturating at the section's plan extent [lo, hi]:
@@ -720,6 +696,7 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
     ];
     let off_ankle = [(nd.heel, 0.0), (nd.ankle, da), (nd.instep, 0.0)];
     let ramp = ANKLE_RAMP * nd.length;
+    let long_heel_slope = nd.instep_top.1 / (nd.instep_top.0 - nd.heel_point).max(1.0);
     let ku = [
         (nd.heel_window.min(nd.ankle - 1.0), 0.0),
         (0.5 * (nd.ankle + nd.instep), kup),
@@ -746,11 +723,10 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
         // hallux's top 1.1 mm at the toe box (low-poly FIND), where rule III wants the foot.
         let (fy, fz, d) = (blend(&sy, xn), blend(&sz, xn), blend(&off, *x));
         let da = blend(&off_ankle, *x);
-        let zp = nd.long_heel_slope * (x - nd.heel_point);
+        let zp = long_heel_slope * (x - nd.heel_point);
         let above = |z: f64| {
             if nd.holds_foot {
-                let t = ((z - zp) / ramp).clamp(0.0, 1.0);
-                t * t * (3.0 - 2.0 * t)
+                smoothstep((z - zp) / ramp)
             } else {
                 1.0
             }
@@ -793,10 +769,9 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
             .iter()
             .zip(&normals)
             .map(|(q, n)| {
-                let t = ((q.y - z0) / (z1 - z0)).clamp(0.0, 1.0);
                 let w = (d + da * above(q.y)) * offset_weight(n.y);
                 let y = q.x * fy;
-                let m = y * kup * t * t * (3.0 - 2.0 * t);
+                let m = y * kup * smoothstep((q.y - z0) / (z1 - z0));
                 // Between the heel window and the ball the offsets' sideways moves saturate
                 // inside the plan extent with the widening: the plan waist is the rules'
                 // (I-C), and any growth of it the waist scale takes back from the walls.
