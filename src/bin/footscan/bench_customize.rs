@@ -14,25 +14,30 @@ use serde_json::json;
 use std::path::Path;
 use std::time::Instant;
 
-/// The real feet of the data directory (relative to it) and their sides.
-const REAL: [(&str, &str); 3] = [
-    ("feet/find_template/template_mm.stl", "left"),
-    ("feet/find_lowres/find_demo_template.obj", "left"),
+/// Annotated landmarks of a real foot: its OBJ (vertex ids index it; millimetres per unit),
+/// the keypoints table and its row.
+type Keypoints = (&'static str, &'static str, &'static str, f64);
+
+/// The real feet of the data directory (relative to it), their sides and landmarks, if any
+/// (the FIND template's STL is its OBJ in millimetres).
+const REAL: [(&str, &str, Option<Keypoints>); 3] = [
+    (
+        "feet/find_template/template_mm.stl",
+        "left",
+        Some((
+            "feet/find_template/template.obj",
+            "feet/find_template/keypoints.csv",
+            "FIND",
+            1000.0,
+        )),
+    ),
+    ("feet/find_lowres/find_demo_template.obj", "left", None),
     (
         "feet/makehuman/makehuman_default_right_foot_cut150mm.stl",
         "right",
+        None,
     ),
 ];
-
-/// Annotated landmarks of a real foot: its OBJ (vertex ids index it; millimetres per unit),
-/// the keypoints table and its row. The FIND template's STL is its OBJ in millimetres.
-const KEYPOINTS: [(&str, &str, &str, &str, f64); 1] = [(
-    "feet/find_template/template_mm.stl",
-    "feet/find_template/template.obj",
-    "feet/find_template/keypoints.csv",
-    "FIND",
-    1000.0,
-)];
 
 fn sim_foot(length: f64, side: Side) -> Result<TriMesh> {
     let f = Foot::new(FootParams {
@@ -92,7 +97,7 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
             rows.push(one(format!("sim {l:.0} {s}"), m, &rules, &inp, repeats)?);
         }
     }
-    for (f, side) in REAL {
+    for (f, side, keypoints) in REAL {
         let p = data.join(f);
         if !p.exists() {
             eprintln!("{}: absent, skipped", p.display());
@@ -105,8 +110,8 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
             Path::new(f).file_name().unwrap().to_string_lossy()
         );
         let mut row = one(name, m, &rules, &inp, repeats)?;
-        for (_, obj, csv, model, scale) in KEYPOINTS.iter().filter(|k| k.0 == f) {
-            let kp = read_keypoints(&data.join(obj), &data.join(csv), model, *scale)
+        if let Some((obj, csv, model, scale)) = keypoints {
+            let kp = read_keypoints(&data.join(obj), &data.join(csv), model, scale)
                 .map_err(|e| anyhow!("{e}"))?;
             row.landmarks = pair_with(&row.c.foot_measures, &row.c.frame_in_world, &kp);
         }
@@ -125,10 +130,7 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
                     "customize_ms": r.customize_ms,
                     "slowest_curve_fit_deform_ms": r.curve_ms,
                     "mesh_evaluations": r.c.evaluations,
-                    "landmarks_vs_keypoints": r.landmarks.iter().map(|p| json!({
-                        "ours": p.ours, "theirs": p.theirs, "dx_mm": p.dx, "dy_mm": p.dy,
-                        "compared": p.compared,
-                    })).collect::<Vec<_>>(),
+                    "landmarks_vs_keypoints": r.landmarks,
                 })
             })
             .collect();

@@ -9,6 +9,7 @@
 
 use super::measure::{FootFrame, Measures};
 use footscan_geom::P3;
+use serde::Serialize;
 use std::path::Path;
 
 /// One annotated landmark, in the mesh file's coordinates scaled to millimetres.
@@ -81,13 +82,15 @@ pub fn read_keypoints(
 }
 
 /// One characteristic point against its annotated counterpart, in the foot's frame (mm).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize)]
 pub struct LandmarkPair {
     /// Ours (docs/method.md 10.1) and the annotation's name.
     pub ours: &'static str,
     pub theirs: &'static str,
     /// Ours minus theirs, along the axis and across it.
+    #[serde(rename = "dx_mm")]
     pub dx: f64,
+    #[serde(rename = "dy_mm")]
     pub dy: f64,
     /// Which of them the definitions make comparable: "x" (an extreme along the axis) or
     /// "y" (a plan extreme across it).
