@@ -280,7 +280,7 @@ fn loop_case(
     ratios.sort_by(f64::total_cmp);
     let at = |q: f64| {
         ratios
-            .get((q * (ratios.len() - 1) as f64).round() as usize)
+            .get((q * ratios.len().saturating_sub(1) as f64).round() as usize)
             .copied()
     };
     let (rmin, median, rmax) = (
