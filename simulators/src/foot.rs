@@ -62,10 +62,12 @@
 
 pub mod mesh;
 mod model;
+mod population;
 mod truth;
 
 pub use mesh::{FootMesh, FootMeshTruth, MeshResolution};
-pub use model::{Foot, FootParams, Side, ToePad};
+pub use model::{Foot, FootParams, FootShape, Side, ToePad};
+pub use population::{population, PopulationFoot, KINDS};
 pub use truth::FootTruth;
 
 #[cfg(test)]

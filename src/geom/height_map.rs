@@ -68,6 +68,27 @@ impl HeightMap {
             .then_some((i as usize, j as usize))
     }
 
+    /// A height field sampled at the cell centres of the box [x0, x1] x [y0, y1] (NaN where
+    /// `h` has no height): how the simulator's analytic surfaces become maps for tests.
+    pub fn sampled(
+        [x0, y0]: [f64; 2],
+        [x1, y1]: [f64; 2],
+        cell_mm: f64,
+        h: impl Fn(f64, f64) -> Option<f64>,
+    ) -> Self {
+        let nx = ((x1 - x0) / cell_mm) as usize;
+        let ny = ((y1 - y0) / cell_mm) as usize;
+        let mut m = HeightMap::new(x0, y0, cell_mm, nx, ny);
+        for j in 0..ny {
+            for i in 0..nx {
+                if let Some(z) = h(m.x(i), m.y(j)) {
+                    m.set(i, j, z);
+                }
+            }
+        }
+        m
+    }
+
     /// Cells with a height.
     pub fn valid_count(&self) -> usize {
         self.z.iter().filter(|z| z.is_finite()).count()

@@ -3,6 +3,7 @@
 
 use super::fit::{fit_circle, local_quadratic, peak_vertex};
 use super::outline::{line_crossings, regions, simplify, Region};
+use super::profile::{peaks, pick, valleys, Profiles};
 use super::MeasureError;
 use crate::geom::HeightMap;
 use serde::{Deserialize, Serialize};
@@ -77,6 +78,179 @@ const ARCH_SLOPE_FALLBACK: [f64; 4] = [0.2, 0.3, 0.4, 0.5];
 const ARCH_FIT_RADIUS: f64 = 1.0;
 /// Depth of the body front used to locate its most anterior point (mm).
 const FRONT_DEPTH: f64 = 3.0;
+/// Side profile stations (mm) and the least prominence of a head or depth of a waist (mm):
+/// the outline's steps are 0.1 mm and the smoothing leaves wiggles of about 0.1 mm.
+const PROFILE_STEP: f64 = 0.25;
+const MIN_PROMINENCE: f64 = 0.5;
+/// Where the heads are sought, as fractions of the length from the heel point (first,
+/// fifth), and where they are plausible (docs/method.md section 8.2).
+const MT1_WINDOW: (f64, f64) = (0.50, 0.88);
+const MT5_WINDOW: (f64, f64) = (0.50, 0.85);
+const HEADS_PLAUSIBLE: (f64, f64) = (0.60, 0.80);
+/// The second metatarsal head's place on the ball line, as a fraction of the way from the
+/// first head to the fifth (the simulator's foot has it at 0.46; real feet 0.35-0.5).
+const MT2_ON_BALL_LINE: f64 = 0.46;
+/// Where a foot has its first and fifth metatarsal heads and its inner and outer waists
+/// (fractions of the length): only to choose between bulges (or hollows) within `TIE_MM` of
+/// each other's height.
+const PRIOR: (f64, f64, f64, f64) = (0.72, 0.64, 0.42, 0.35);
+const TIE_MM: f64 = 2.0;
+/// The waists are sought from a fifth of the length (or the heel centre) to a tenth of the
+/// length behind the head.
+const WAIST_FROM: f64 = 0.20;
+const WAIST_BEHIND_HEAD: f64 = 0.10;
+/// A heel breadth this close to the end of the rear quarter (mm) is the foot still widening.
+const HEEL_EDGE_MM: f64 = 3.0;
+/// Plausible widths over the length, and the arch height under which the arch lies on the
+/// glass (mm).
+const BALL_RATIO: (f64, f64) = (0.33, 0.47);
+const HEEL_RATIO: (f64, f64) = (0.20, 0.32);
+const FLAT_ARCH_MM: f64 = 2.0;
+
+fn missing_landmark(what: &'static str) -> MeasureError {
+    MeasureError::Landmark {
+        what,
+        why: "no outline point in its search region".into(),
+    }
+}
+
+/// Where the side profiles put the metatarsal heads and the waists: stations along the axis
+/// (mm from the heel point) and the heads' points at their profile values.
+struct Heads {
+    mt1: [f64; 2],
+    mt5: [f64; 2],
+    /// The stretch of each side around its station where the profile stays within
+    /// `MIN_PROMINENCE` of it (mm from the heel point): the extreme is refined there.
+    mt1_x: (f64, f64),
+    mt5_x: (f64, f64),
+    waist_inner_x: (f64, f64),
+    waist_outer_x: (f64, f64),
+}
+
+/// The stations around `k` where `y` stays within `tol` of `y[k]` on the far side of it
+/// (below a peak when `peak`, above a valley otherwise), as positions (mm).
+fn basin(prof: &Profiles, y: &[f64], k: usize, tol: f64, peak: bool) -> (f64, f64) {
+    let near = |j: usize| {
+        let d = if peak { y[k] - y[j] } else { y[j] - y[k] };
+        y[j].is_finite() && d <= tol
+    };
+    let (mut a, mut b) = (k, k);
+    while a > 0 && near(a - 1) {
+        a -= 1;
+    }
+    while b + 1 < y.len() && near(b + 1) {
+        b += 1;
+    }
+    (prof.x(a) - 0.5, prof.x(b) + 0.5)
+}
+
+impl Heads {
+    /// The heads as the most prominent peaks of the medial and lateral profiles in the
+    /// forefoot, the waists as the deepest valleys between the heel centre and each head;
+    /// where a side has no such peak or valley (a border running straight, or still rising
+    /// toward the heel) the extreme in the window is taken and a warning says so.
+    fn find(
+        bo: &[[f64; 2]],
+        tips: &[&[[f64; 2]]],
+        centre: [f64; 2],
+        radius: f64,
+        u: [f64; 2],
+        sign: f64,
+        warnings: &mut Vec<String>,
+    ) -> Option<Heads> {
+        let m = [sign * -u[1], sign * u[0]];
+        let heel = add_scaled(centre, u, -radius);
+        let length = tips
+            .iter()
+            .flat_map(|o| o.iter())
+            .map(|&p| dot(sub(p, heel), u))
+            .fold(f64::NEG_INFINITY, f64::max);
+        if length.is_nan() || length <= 4.0 * radius.max(1.0) {
+            return None;
+        }
+        let prof = Profiles::of(&[bo], heel, u, m, length, PROFILE_STEP);
+        let k = |f: f64| prof.index(f * length);
+        let pct = |k: usize| 100.0 * prof.x(k) / length;
+        let extreme_in = |y: &[f64], k0: usize, k1: usize, hi: bool| {
+            (k0..=k1.min(y.len() - 1))
+                .filter(|&j| y[j].is_finite())
+                .max_by(|&a, &b| {
+                    let o = y[a].total_cmp(&y[b]);
+                    if hi {
+                        o
+                    } else {
+                        o.reverse()
+                    }
+                })
+        };
+        let mut head = |y: &[f64], win: (f64, f64), prior: f64, name: &str, border: &str| {
+            let found = peaks(y, k(win.0), k(win.1), MIN_PROMINENCE);
+            match pick(y, &found, k(prior), TIE_MM) {
+                Some(p) => Some(p.k),
+                None => {
+                    let j = extreme_in(y, k(win.0), k(win.1), true)?;
+                    warnings.push(format!(
+                        "{name} head: the {border} border has no prominence between {:.0} % and \
+                         {:.0} % of the length (it runs straight or widens toward the heel); \
+                         taken at its {border}-most point there, {:.0} % of the length",
+                        100.0 * win.0,
+                        100.0 * win.1,
+                        pct(j)
+                    ));
+                    Some(j)
+                }
+            }
+        };
+        let k1 = head(&prof.med, MT1_WINDOW, PRIOR.0, "first metatarsal", "medial")?;
+        let k5 = head(
+            &prof.lat,
+            MT5_WINDOW,
+            PRIOR.1,
+            "fifth metatarsal",
+            "lateral",
+        )?;
+        // The waists lie in the midfoot: behind the head by a tenth of the length, in front
+        // of the heel's own bulge and of a fifth of the length.
+        let kc = prof.index(radius.max(WAIST_FROM * length));
+        let mut waist = |y: &[f64], kh: usize, prior: f64, name: &str| {
+            let kh = kh.saturating_sub(k(WAIST_BEHIND_HEAD));
+            if kh <= kc + 1 {
+                return Some(kc);
+            }
+            let found = valleys(y, kc, kh, MIN_PROMINENCE);
+            let neg: Vec<f64> = y.iter().map(|v| -v).collect();
+            match pick(&neg, &found, k(prior), TIE_MM) {
+                Some(p) => Some(p.k),
+                None => {
+                    let j = extreme_in(y, kc, kh, false)?;
+                    warnings.push(format!(
+                        "{name} waist: the border does not curve in between the heel and the \
+                         metatarsal head (a flat or full midfoot); taken at its narrowest point \
+                         there, {:.0} % of the length",
+                        pct(j)
+                    ));
+                    Some(j)
+                }
+            }
+        };
+        let ki = waist(&prof.med, k1, PRIOR.2, "inner")?;
+        let ko = waist(&prof.lat, k5, PRIOR.3, "outer")?;
+        let at = |k: usize, w: f64| add_scaled(add_scaled(heel, u, prof.x(k)), m, w);
+        Some(Heads {
+            mt1: at(k1, prof.med[k1]),
+            mt5: at(k5, -prof.lat[k5]),
+            mt1_x: basin(&prof, &prof.med, k1, MIN_PROMINENCE, true),
+            mt5_x: basin(&prof, &prof.lat, k5, MIN_PROMINENCE, true),
+            waist_inner_x: basin(&prof, &prof.med, ki, MIN_PROMINENCE, false),
+            waist_outer_x: basin(&prof, &prof.lat, ko, MIN_PROMINENCE, false),
+        })
+    }
+
+    /// Where the second metatarsal head lies on the line from the first head to the fifth.
+    fn mt2_on_ball_line(&self) -> [f64; 2] {
+        add_scaled(self.mt1, sub(self.mt5, self.mt1), MT2_ON_BALL_LINE)
+    }
+}
 
 fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
     a[0] * b[0] + a[1] * b[1]
@@ -183,24 +357,37 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         .collect();
     toes.sort_by(|a, b| b.area_mm2.total_cmp(&a.area_mm2));
 
-    // Axis: heel circle centre to the body front, iterated to the fixed point.
-    let mut band = 0.12 * extent;
-    let mut centre = body.centroid;
-    let mut radius = 0.0;
-    let mut front = body.centroid;
-    for it in 0..60 {
+    // Axis: heel circle centre to the body front, iterated to the fixed point. Toes joined to
+    // the ball (a weight-bearing foot seen from below: no toe pad stands apart) put the body
+    // front on a toe, so there the axis runs to the second metatarsal head's place on the ball
+    // line instead (below).
+    let joined = toes.is_empty();
+    let tips: Vec<&[[f64; 2]]> = std::iter::once(bo.as_slice())
+        .chain(toes.iter().map(|t| t.outline.as_slice()))
+        .collect();
+    let heel_circle = |u: [f64; 2], band: f64| {
         let s_min = bo.iter().map(|&p| dot(p, u)).fold(f64::INFINITY, f64::min);
         let heel: Vec<[f64; 2]> = bo
             .iter()
             .copied()
             .filter(|&p| dot(p, u) <= s_min + band)
             .collect();
-        let (c, r) = fit_circle(&heel).ok_or_else(|| MeasureError::Landmark {
+        fit_circle(&heel).ok_or_else(|| MeasureError::Landmark {
             what: "heel centre",
             why: format!("{} heel outline points do not fit a circle", heel.len()),
-        })?;
+        })
+    };
+    let mut band = 0.12 * extent;
+    let mut centre = body.centroid;
+    let mut radius = 0.0;
+    let mut front = body.centroid;
+    for it in 0..60 {
+        let (c, r) = heel_circle(u, band)?;
         (centre, radius, band) = (c, r, r.min(0.3 * extent));
         front = extreme(bo, u, FRONT_DEPTH, true, |_| true).expect("non-empty outline");
+        if joined {
+            break;
+        }
         let nu = unit(sub(front, centre));
         let change = (nu[0] * u[1] - nu[1] * u[0]).abs();
         u = nu;
@@ -210,13 +397,38 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
     }
 
     // Medial side: the hallux side, else the higher midfoot.
-    let left = perp(u);
     let sign = match toes.first() {
-        Some(h) => dot(sub(h.centroid, centre), left).signum(),
+        Some(h) => dot(sub(h.centroid, centre), perp(u)).signum(),
         None => arch_side(map, &body, centre, u, extent),
     };
-    let m = [sign * left[0], sign * left[1]];
     let side = if sign > 0.0 { Side::Right } else { Side::Left };
+    let mut warnings = Vec::new();
+
+    // The metatarsal heads from the side profiles; with joined toes the axis follows them.
+    let mut heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut Vec::new());
+    if joined {
+        for _ in 0..30 {
+            let Some(h) = &heads else { break };
+            let (c, r) = heel_circle(u, band)?;
+            (centre, radius, band) = (c, r, r.min(0.3 * extent));
+            let nu = unit(sub(h.mt2_on_ball_line(), centre));
+            let change = (nu[0] * u[1] - nu[1] * u[0]).abs();
+            u = nu;
+            heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut Vec::new());
+            if change < 1e-9 {
+                break;
+            }
+        }
+        warnings.push(
+            "the toes are joined to the ball in the footprint (no toe stands apart): the axis \
+             runs to the second metatarsal head's place on the ball line, the arch index's \
+             thirds include the toes' contact and there is no hallux point"
+                .to_string(),
+        );
+    }
+    let heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut warnings)
+        .ok_or_else(|| missing_landmark("metatarsal heads"))?;
+    let m = [sign * -u[1], sign * u[0]];
 
     // Rearmost point of the heel circle along the axis (on the axis by construction).
     let heel_point = add_scaled(centre, u, -radius);
@@ -232,27 +444,24 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
     let yl = |p: [f64; 2]| dot(sub(p, heel_point), m);
     let to_world = |x: f64, y: f64| add_scaled(add_scaled(heel_point, u, x), m, y);
     let length = xl(toe_tip);
-    let missing = |what: &'static str| MeasureError::Landmark {
-        what,
-        why: "no outline point in its search region".into(),
-    };
+    let missing = missing_landmark;
     let neg_m = [-m[0], -m[1]];
-    let mt1 =
-        extreme(bo, m, 0.7, false, |p| xl(p) >= 0.4 * length).ok_or_else(|| missing("MT1 head"))?;
-    let mt5 = extreme(bo, neg_m, 0.7, false, |p| xl(p) >= 0.4 * length)
-        .ok_or_else(|| missing("MT5 head"))?;
+    // Each extreme refined on the outline near the station the profile found it at.
+    let near = |r: (f64, f64)| move |p: [f64; 2]| (r.0..=r.1).contains(&xl(p));
+    let mt1 = extreme(bo, m, 0.7, false, near(heads.mt1_x)).ok_or_else(|| missing("MT1 head"))?;
+    let mt5 =
+        extreme(bo, neg_m, 0.7, false, near(heads.mt5_x)).ok_or_else(|| missing("MT5 head"))?;
     let ball_width = yl(mt1) - yl(mt5);
     // The axis passes through the heel centre; coordinates relative to the heel point,
     // which lies on it.
     let yc = yl(centre);
     let mt2 = to_world(xl(mt1), yc);
-    let xc = xl(centre);
     let waist_inner = extreme(bo, neg_m, 0.5, false, |p| {
-        yl(p) > yc && (xc..=xl(mt1)).contains(&xl(p))
+        yl(p) > yc && near(heads.waist_inner_x)(p)
     })
     .ok_or_else(|| missing("inner waist point"))?;
     let waist_outer = extreme(bo, m, 0.5, false, |p| {
-        yl(p) < yc && (xc..=xl(mt5)).contains(&xl(p))
+        yl(p) < yc && near(heads.waist_outer_x)(p)
     })
     .ok_or_else(|| missing("outer waist point"))?;
 
@@ -271,8 +480,8 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
     );
     let (midfoot_inner, midfoot_outer) = (add_scaled(mid, m, t_hi), add_scaled(mid, m, t_lo));
 
-    let (heel_width, hw_in, hw_out) =
-        heel_width(bo, map.cell_mm, length, to_world, m).ok_or_else(|| missing("heel width"))?;
+    let (heel_width, hw_in, hw_out) = heel_width(bo, map.cell_mm, length, radius, to_world, m)
+        .ok_or_else(|| missing("heel width"))?;
 
     let hallux_point = match toes.first() {
         Some(h) => extreme(&h.outline, m, 1.0, false, |_| true).expect("non-empty outline"),
@@ -283,7 +492,6 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
     // The arch: where the medial midfoot faces the glass; on a foot that bears no weight the
     // whole vault may slope more, and a looser limit is taken (said in the warnings) rather
     // than losing every other measurement and the side with it.
-    let mut warnings = Vec::new();
     let mut arch = arch_height(map, &body, x_front, &xl, &yl, yc, ARCH_SLOPE);
     for limit in ARCH_SLOPE_FALLBACK {
         if arch.is_some() {
@@ -307,6 +515,72 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         return Err(missing("contact area"));
     }
 
+    // Plausibility: a figure that breaks what holds for feet is said, never passed on silently.
+    let frac = |p: [f64; 2]| xl(p) / length;
+    for (name, p) in [("first", mt1), ("fifth", mt5)] {
+        let f = frac(p);
+        if !(HEADS_PLAUSIBLE.0..=HEADS_PLAUSIBLE.1).contains(&f) {
+            warnings.push(format!(
+                "the {name} metatarsal head is at {:.0} % of the length from the heel; heads lie \
+                 between {:.0} % and {:.0} %: the ball width and the axis may be wrong",
+                100.0 * f,
+                100.0 * HEADS_PLAUSIBLE.0,
+                100.0 * HEADS_PLAUSIBLE.1
+            ));
+        }
+    }
+    let forefoot = Profiles::of(&tips, heel_point, u, m, length, PROFILE_STEP);
+    let (kf0, kf1) = (forefoot.index(0.5 * length), forefoot.index(0.9 * length));
+    if let Some((x, b)) = (kf0..=kf1)
+        .map(|k| (forefoot.x(k), forefoot.breadth(k)))
+        .filter(|(_, b)| b.is_finite())
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+    {
+        if b > ball_width + 1.0 {
+            warnings.push(format!(
+                "the forefoot is {b:.1} mm wide at {:.0} % of the length, wider than the ball \
+                 ({ball_width:.1} mm between the metatarsal heads): the heads may be misplaced",
+                100.0 * x / length
+            ));
+        }
+    }
+    for (name, w, h) in [("inner", waist_inner, mt1), ("outer", waist_outer, mt5)] {
+        if xl(w) > xl(h) - 0.05 * length {
+            warnings.push(format!(
+                "the {name} waist point ({:.0} % of the length) is not behind its metatarsal head \
+                 ({:.0} %)",
+                100.0 * frac(w),
+                100.0 * frac(h)
+            ));
+        }
+    }
+    let midfoot_width = t_hi - t_lo;
+    if heel_width >= ball_width || midfoot_width > ball_width + 1.0 {
+        warnings.push(format!(
+            "the widths are out of order: heel {heel_width:.1}, mid-foot {midfoot_width:.1}, \
+             ball {ball_width:.1} mm (a foot is widest at the ball)"
+        ));
+    }
+    for (name, w, (lo, hi)) in [
+        ("ball", ball_width, BALL_RATIO),
+        ("heel", heel_width, HEEL_RATIO),
+    ] {
+        let r = w / length;
+        if !(lo..=hi).contains(&r) {
+            warnings.push(format!(
+                "the {name} width is {:.2} of the length ({w:.1} of {length:.1} mm); feet have \
+                 {lo:.2} to {hi:.2}",
+                r
+            ));
+        }
+    }
+    if arch_height < FLAT_ARCH_MM {
+        warnings.push(format!(
+            "arch height {arch_height:.1} mm: the medial midfoot lies on the glass (a flat foot, \
+             or an arch the scan did not see); judge the arch by eye"
+        ));
+    }
+
     Ok(Measurements {
         side,
         heel_point,
@@ -321,7 +595,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         ball_width_mm: ball_width,
         waist_inner,
         waist_outer,
-        midfoot_width_mm: t_hi - t_lo,
+        midfoot_width_mm: midfoot_width,
         midfoot_inner,
         midfoot_outer,
         heel_width_mm: heel_width,
@@ -366,11 +640,15 @@ fn arch_side(map: &HeightMap, body: &Region, c: [f64; 2], u: [f64; 2], extent: f
 }
 
 /// Maximum breadth perpendicular to the axis over the rear quarter, on side profiles
-/// smoothed over +-2 mm. Returns (width, medial end, lateral end).
+/// smoothed over +-2 mm; where the foot still widens at the quarter (no heel bulge: many
+/// real feet widen steadily from heel to ball), the breadth through the heel centre
+/// (`x_centre` from the heel point) instead, so the figure stays the heel's own. Returns
+/// (width, medial end, lateral end).
 fn heel_width(
     bo: &[[f64; 2]],
     cell: f64,
     length: f64,
+    x_centre: f64,
     to_world: impl Fn(f64, f64) -> [f64; 2],
     m: [f64; 2],
 ) -> Option<(f64, [f64; 2], [f64; 2])> {
@@ -390,19 +668,27 @@ fn heel_width(
             lat.push(ts.iter().copied().fold(f64::INFINITY, f64::min));
         }
     }
+    let at = |x: f64| {
+        Some((
+            local_quadratic(&xs, &med, x, 2.0)?,
+            local_quadratic(&xs, &lat, x, 2.0)?,
+        ))
+    };
     let mut best: Option<(f64, f64, f64, f64)> = None;
     for &x in xs.iter().filter(|&&x| x <= length / 4.0) {
-        let (Some(a), Some(b)) = (
-            local_quadratic(&xs, &med, x, 2.0),
-            local_quadratic(&xs, &lat, x, 2.0),
-        ) else {
+        let Some((a, b)) = at(x) else {
             continue;
         };
         if best.is_none_or(|bw| a - b > bw.0) {
             best = Some((a - b, x, a, b));
         }
     }
-    let (w, x, a, b) = best?;
+    let (mut w, mut x, mut a, mut b) = best?;
+    if x > length / 4.0 - HEEL_EDGE_MM {
+        x = x_centre;
+        (a, b) = at(x)?;
+        w = a - b;
+    }
     Some((w, to_world(x, a), to_world(x, b)))
 }
 

@@ -66,6 +66,7 @@
 mod fit;
 mod foot;
 mod outline;
+mod profile;
 mod rasterize;
 mod scanned;
 mod truth;

@@ -35,6 +35,84 @@ pub struct FootParams {
     pub press_mm: f64,
     /// Edge rounding radius (mm): [1, 10].
     pub edge_radius_mm: f64,
+    /// The shape's variations within a population (defaults: the reference foot).
+    pub shape: FootShape,
+}
+
+/// How one foot differs from the reference foot in shape: where its metatarsal heads are,
+/// how deep its waists are, how long its toes, how far its toes lean out (hallux valgus) and
+/// whether its toes lie joined to the ball (a weight-bearing foot seen from below). Every
+/// variation keeps the definitions of the module doc exact: each metatarsal head stays the
+/// extreme of its side and each waist the narrowest point between heel and head.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct FootShape {
+    /// First metatarsal head station x' / L: [0.66, 0.76].
+    pub mt1_x_ratio: f64,
+    /// Fifth metatarsal head station x' / L: [0.58, 0.70].
+    pub mt5_x_ratio: f64,
+    /// Medial waist half-width / heel half-width: [0.70, 0.98]; near 1 the medial border runs
+    /// straight from heel to ball (a collapsed arch), low it curves in (a high arch).
+    pub medial_waist_ratio: f64,
+    /// Lateral waist half-width / heel half-width: [0.80, 0.99].
+    pub lateral_waist_ratio: f64,
+    /// Front of the body (toe-less sole) x' / L: [0.76, 0.84]; the toes fill the rest, so a
+    /// low value is a foot with long toes.
+    pub body_front_ratio: f64,
+    /// Hallux valgus: the toe pads lean toward the lateral side by this much at the hallux
+    /// (mm, less on the lesser toes) and the first metatarsal head stands out by 0.3 of it
+    /// (the bunion): [0, 10].
+    pub hallux_valgus_mm: f64,
+    /// The toe pads reach back into the ball (weight-bearing: the footprint is one region).
+    pub toes_joined: bool,
+}
+
+impl Default for FootShape {
+    fn default() -> Self {
+        FootShape {
+            mt1_x_ratio: 0.72,
+            mt5_x_ratio: 0.64,
+            medial_waist_ratio: 0.92,
+            lateral_waist_ratio: 0.95,
+            body_front_ratio: 0.80,
+            hallux_valgus_mm: 0.0,
+            toes_joined: false,
+        }
+    }
+}
+
+impl FootShape {
+    pub fn validate(&self) -> Result<(), SimError> {
+        check_range("shape.mt1_x_ratio", self.mt1_x_ratio, 0.66, 0.76)?;
+        check_range("shape.mt5_x_ratio", self.mt5_x_ratio, 0.58, 0.70)?;
+        check_range(
+            "shape.medial_waist_ratio",
+            self.medial_waist_ratio,
+            0.70,
+            0.98,
+        )?;
+        check_range(
+            "shape.lateral_waist_ratio",
+            self.lateral_waist_ratio,
+            0.80,
+            0.99,
+        )?;
+        check_range("shape.body_front_ratio", self.body_front_ratio, 0.76, 0.84)?;
+        check_range("shape.hallux_valgus_mm", self.hallux_valgus_mm, 0.0, 10.0)?;
+        // The heads lie behind the front quarter ellipses' ends with room for the toes' rise.
+        let room = self.body_front_ratio - self.mt1_x_ratio.max(self.mt5_x_ratio);
+        if room < 0.05 {
+            return Err(SimError::InvalidParameter {
+                key: "shape.body_front_ratio".into(),
+                value: format!("{}", self.body_front_ratio),
+                expected: format!(
+                    "at least 0.05 more than the metatarsal heads' x'/L ({}, {})",
+                    self.mt1_x_ratio, self.mt5_x_ratio
+                ),
+            });
+        }
+        Ok(())
+    }
 }
 
 impl Default for FootParams {
@@ -50,6 +128,7 @@ impl Default for FootParams {
             yaw_deg: 1.5,
             press_mm: 3.0,
             edge_radius_mm: 5.0,
+            shape: FootShape::default(),
         }
     }
 }
@@ -65,7 +144,7 @@ impl FootParams {
         check_range("yaw_deg", self.yaw_deg, -20.0, 20.0)?;
         check_range("edge_radius_mm", self.edge_radius_mm, 1.0, 10.0)?;
         check_range("press_mm", self.press_mm, 0.0, self.edge_radius_mm - 0.5)?;
-        Ok(())
+        self.shape.validate()
     }
 
     /// The mirror image: other side, opposite yaw and axis offset.
@@ -215,33 +294,39 @@ pub struct Foot {
     y_bounds: (f64, f64),
 }
 
-const X_FRONT: f64 = 0.80;
-
 impl Foot {
     pub fn new(p: FootParams) -> Result<Foot, SimError> {
         p.validate()?;
         let l = p.length_mm;
+        let sh = &p.shape;
         let hh = p.heel_width_ratio * l / 2.0;
         let bw = p.ball_width_ratio * l;
         let (m1, m5) = (0.46 * bw, 0.54 * bw);
-        let x_f = X_FRONT * l;
+        let bunion = 0.3 * sh.hallux_valgus_mm;
+        let x_f = sh.body_front_ratio * l;
+        let (x1, x5) = (sh.mt1_x_ratio * l, sh.mt5_x_ratio * l);
         let medial = SideCurve {
-            hermite: Pchip::new(&[(hh, hh), (0.42 * l, 0.92 * hh), (0.72 * l, m1)]),
-            x_head: 0.72 * l,
-            w_head: m1,
+            hermite: Pchip::new(&[
+                (hh, hh),
+                (0.42 * l, sh.medial_waist_ratio * hh),
+                (x1, m1 + bunion),
+            ]),
+            x_head: x1,
+            w_head: m1 + bunion,
             x_front: x_f,
             x_waist: 0.42 * l,
-            w_waist: 0.92 * hh,
+            w_waist: sh.medial_waist_ratio * hh,
         };
         let lateral = SideCurve {
-            hermite: Pchip::new(&[(hh, hh), (0.35 * l, 0.95 * hh), (0.64 * l, m5)]),
-            x_head: 0.64 * l,
+            hermite: Pchip::new(&[(hh, hh), (0.35 * l, sh.lateral_waist_ratio * hh), (x5, m5)]),
+            x_head: x5,
             w_head: m5,
             x_front: x_f,
             x_waist: 0.35 * l,
-            w_waist: 0.95 * hh,
+            w_waist: sh.lateral_waist_ratio * hh,
         };
-        // Toe pads across, medial to lateral.
+        // Toe pads across, medial to lateral; hallux valgus leans them laterally, the hallux
+        // most (the gaps shrink by at most 0.15 of it, so the pads stay apart).
         let (b1, b, gap) = (0.115 * bw, 0.068 * bw, 0.02 * bw);
         let mut ycs = [0.0; 5];
         let mut bs = [b; 5];
@@ -250,10 +335,15 @@ impl Foot {
         for i in 1..5 {
             ycs[i] = ycs[i - 1] - bs[i - 1] - gap - bs[i];
         }
-        let tips = [l, 0.985 * l, 0.96 * l, 0.93 * l, 0.895 * l];
+        for (i, y) in ycs.iter_mut().enumerate() {
+            *y -= sh.hallux_valgus_mm * (1.0 - 0.15 * i as f64);
+        }
+        // Tips behind the hallux's in proportion to the toes' length (L - x_f).
+        let toe_len = (l - x_f) / (0.2 * l);
+        let tips = [0.0, 0.015, 0.04, 0.07, 0.105].map(|d| l - d * l * toe_len);
         let body_front = |y: f64| -> f64 {
             if y >= 0.0 {
-                if y >= m1 {
+                if y >= medial.w_head {
                     f64::NEG_INFINITY
                 } else {
                     medial.front_x(y)
@@ -264,7 +354,12 @@ impl Foot {
                 lateral.front_x(-y)
             }
         };
-        let toe_gap = 0.012 * l;
+        // Joined toes reach 0.015 L into the ball instead of stopping 0.012 L short of it.
+        let toe_gap = if sh.toes_joined {
+            -0.015 * l
+        } else {
+            0.012 * l
+        };
         let mut toes = [ToePad {
             xc: 0.0,
             yc: 0.0,
@@ -310,7 +405,7 @@ impl Foot {
             lateral,
             toes,
             toe_lift: 0.03 * l,
-            mt2_x: 0.71 * l,
+            mt2_x: x1 - 0.01 * l,
             cos,
             sin,
             sgn,
@@ -343,7 +438,7 @@ impl Foot {
 
     /// x' of the front of the body (toes excluded).
     pub fn body_front(&self) -> f64 {
-        X_FRONT * self.l
+        self.p.shape.body_front_ratio * self.l
     }
 
     /// World (x, y) to foot frame (x', y').
