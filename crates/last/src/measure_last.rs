@@ -6,8 +6,8 @@
 //!
 //! The frame the measures are given in: x heel to toe along the bottom's long axis, z up
 //! with the ground (the plane the last stands on, touching the tread under the joint line)
-//! at z = 0, y to the left (so a right last's medial side is +y), the heel point at x = 0
-//! and the bottom's extent across centred on y = 0. Every measure is a length or a point in
+//! at z = 0, y to the left (so a right last's medial side is +y), the heel point at x = 0,
+//! y = 0. Every measure is a length or a point in
 //! this frame, so a last turned, moved, mirrored (a right last from a left one: its side
 //! flips, nothing else) or written in another format measures the same.
 
@@ -32,6 +32,8 @@ pub const HEEL_SEAT_AT: f64 = 0.18;
 /// The bottom's waist width's station (fraction of the stick length).
 pub const WAIST_AT: f64 = 0.40;
 /// Half-length of the bottom's piece under the joint line whose tangent is the ground (mm).
+pub const TANGENT_HALF_MM: f64 = 3.0;
+/// The tread point is the lowest point within this of the joint line (mm).
 pub const TREAD_HALF_MM: f64 = 10.0;
 /// The top girth lies this far below the top point (mm).
 pub const TOP_GIRTH_BELOW_MM: f64 = 10.0;
@@ -85,7 +87,7 @@ pub struct LastMeasures {
     /// The file or name measured.
     pub source: String,
     pub side: Option<LastSide>,
-    /// Heel point to toe point along the ground.
+    /// Heel point to toe point in plan (a size stick laid on the ground from one to the other).
     pub stick_length: f64,
     /// Along the bottom's centre line from the heel point to the toe end (a tape on it).
     pub bottom_length: f64,
@@ -114,15 +116,55 @@ pub struct LastMeasures {
     /// Pitch of the standing frame against the bottom's best-fit plane (deg, toe down +).
     pub pitch_deg: f64,
     pub landmarks: LastLandmarks,
+    /// The plane each girth was taken in (measuring frame).
+    pub girth_planes: Vec<GirthPlane>,
+    /// The rigid map from the mesh as given (mm) to the measuring frame, row-major 4 x 4.
+    pub frame: [[f64; 4]; 4],
     /// What the picture draws (not serialised).
     #[serde(skip)]
     pub figure: LastFigure,
 }
 
+/// A girth's plane: a point on it and its unit normal (measuring frame, mm).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GirthPlane {
+    pub name: String,
+    pub origin: [f64; 3],
+    pub normal: [f64; 3],
+}
+
+/// The rigid map taking `from` onto `to` (the same vertices moved; least squares).
+fn rigid_map(from: &[P3], to: &[P3]) -> [[f64; 4]; 4] {
+    let n = from.len().max(1) as f64;
+    let ca = from.iter().map(|p| p.coords).sum::<V3>() / n;
+    let cb = to.iter().map(|p| p.coords).sum::<V3>() / n;
+    let mut h = nalgebra::Matrix3::zeros();
+    for (a, b) in from.iter().zip(to) {
+        h += (a.coords - ca) * (b.coords - cb).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (u, vt) = (svd.u.expect("u"), svd.v_t.expect("v_t"));
+    let mut d = nalgebra::Matrix3::identity();
+    if (vt.transpose() * u.transpose()).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = vt.transpose() * d * u.transpose();
+    let t = cb - r * ca;
+    let mut out = [[0.0; 4]; 4];
+    for i in 0..3 {
+        for j in 0..3 {
+            out[i][j] = r[(i, j)];
+        }
+        out[i][3] = t[i];
+    }
+    out[3][3] = 1.0;
+    out
+}
+
 /// The curves behind the measures, in the measuring frame, for the picture.
 #[derive(Clone, Debug, Default)]
 pub struct LastFigure {
-    /// Centre profile (section y = 0), closed.
+    /// Centre profile (section y = 0, through the heel point), closed.
     pub profile: Vec<P3>,
     /// Featherline points per station, left (+y) and right (-y).
     pub feather_left: Vec<P3>,
@@ -219,9 +261,10 @@ fn stations(m: &TriMesh, x0: f64, x1: f64) -> Vec<Station> {
     st
 }
 
-/// The centre profile: the loop of the section y = 0 with the largest extent along x.
-fn centre_profile(m: &TriMesh) -> Option<Vec<P3>> {
-    let plane = Plane::axis_aligned(1, 0.0);
+/// The centre profile: the loop of the section y = `y` (through the heel point) with the
+/// largest extent along x.
+fn centre_profile(m: &TriMesh, y: f64) -> Option<Vec<P3>> {
+    let plane = Plane::axis_aligned(1, y);
     m.section(&plane)
         .into_iter()
         .filter(|p| p.points.len() >= 3)
@@ -268,6 +311,9 @@ struct Pass {
     right_joint: P3,
     joint_x: f64,
     slope: f64,
+    /// Further slope to level so the forepart (negative) or the heel (positive) rests on
+    /// the ground too.
+    rock: f64,
     tread: P3,
 }
 
@@ -276,11 +322,15 @@ fn pass(m: &TriMesh, input: &str) -> Result<Pass, MeasureError> {
         input: input.to_string(),
         why: why.to_string(),
     };
-    let profile = centre_profile(m).ok_or_else(|| err("the centre plane misses the last"))?;
-    let heel = profile[argmax(&profile, |p| -p.x - p.z)];
+    // The heel point: the back of the heel seat at its featherline, the last's support
+    // point backwards and down at 45 degrees (wherever it lies across).
+    let heel = m.vertices[argmax(&m.vertices, |p| -p.x - p.z)];
+    let profile =
+        centre_profile(m, heel.y).ok_or_else(|| err("the centre plane misses the last"))?;
     let toe_end = profile[argmax(&profile, |p| p.x - p.z)];
     let toe = m.vertices[argmax(&m.vertices, |p| p.x)];
-    let length = toe.x - heel.x;
+    // The size stick is laid from the heel point to the toe point: their distance in plan.
+    let length = (toe.x - heel.x).hypot(toe.y - heel.y);
     if length <= 0.0 {
         return Err(err("the heel point is not behind the toe"));
     }
@@ -300,10 +350,10 @@ fn pass(m: &TriMesh, input: &str) -> Result<Pass, MeasureError> {
         .ok_or_else(|| err("no featherline in the joint's window"))?;
     let joint_x = 0.5 * (left_joint.x + right_joint.x);
     // The ground's slope: the least-squares line through the lowest point of each station
-    // within TREAD_HALF_MM of the joint line (the bottom's tangent under the joint).
+    // within TANGENT_HALF_MM of the joint line (the bottom's tangent under the joint).
     let pts: Vec<(f64, f64)> = st
         .iter()
-        .filter(|s| (s.x - joint_x).abs() <= TREAD_HALF_MM)
+        .filter(|s| (s.x - joint_x).abs() <= TANGENT_HALF_MM)
         .filter_map(|s| s.low.map(|p| (p.x, p.z)))
         .collect();
     if pts.len() < 3 {
@@ -323,6 +373,20 @@ fn pass(m: &TriMesh, input: &str) -> Result<Pass, MeasureError> {
         .filter_map(|s| s.low)
         .min_by(|a, b| a.z.total_cmp(&b.z))
         .expect("stations under the joint line");
+    // A forepart that dips below the tangent (no toe spring, a flat or hollow tread) rocks
+    // the last forward until it rests on its tread and the forepart's lowest point.
+    // A heel seat that dips below it rocks it back onto the heel.
+    let rel = |q: P3| (q.z - tread.z) / (q.x - tread.x) - slope;
+    let lows = || st.iter().filter_map(|s| s.low);
+    let front = lows()
+        .filter(|q| q.x > tread.x + TREAD_HALF_MM)
+        .map(rel)
+        .fold(0.0, f64::min);
+    let back = lows()
+        .filter(|q| q.x < tread.x - TREAD_HALF_MM)
+        .map(rel)
+        .fold(0.0, f64::max);
+    let rock = if front < 0.0 { front } else { back };
     Ok(Pass {
         profile,
         heel,
@@ -334,6 +398,7 @@ fn pass(m: &TriMesh, input: &str) -> Result<Pass, MeasureError> {
         right_joint,
         joint_x,
         slope,
+        rock,
         tread,
     })
 }
@@ -414,6 +479,7 @@ pub fn measure_last(mut m: TriMesh, input: &str) -> Result<LastMeasures, Measure
         input: input.to_string(),
         why,
     };
+    let given = m.vertices.clone();
     orient_last(&mut m, DOWN_COS).map_err(err)?;
     // Stand the last on its tread: the bottom's tangent under the joint line level. The
     // joint line moves a little with the pitch, so a few passes.
@@ -424,7 +490,12 @@ pub fn measure_last(mut m: TriMesh, input: &str) -> Result<LastMeasures, Measure
         pitch_rad += p.slope.atan();
     }
     let p = pass(&m, input)?;
-    m.translate(&V3::new(-p.heel.x, 0.0, -p.tread.z));
+    if p.rock != 0.0 {
+        pitch(&mut m, p.tread, p.rock);
+        pitch_rad += p.rock.atan();
+    }
+    let p = pass(&m, input)?;
+    m.translate(&V3::new(-p.heel.x, -p.heel.y, -p.tread.z));
     let p = pass(&m, input)?;
     let l = p.length;
     // Medial: the side the toe swings to (the forepart's midline between the featherlines
@@ -517,10 +588,11 @@ pub fn measure_last(mut m: TriMesh, input: &str) -> Result<LastMeasures, Measure
         return Err(bad("joint"));
     }
     let upright = upright.normalize();
-    let (_, joint_loop, joint_girth) = shortest(-tilt, tilt, |t| {
-        let r = nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(u), t);
-        cut(Plane::new(mt5, r * upright))
-    });
+    let joint_normal = |t: f64| {
+        nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(u), t) * upright
+    };
+    let (t_joint, joint_loop, joint_girth) =
+        shortest(-tilt, tilt, |t| cut(Plane::new(mt5, joint_normal(t))));
     // Waist and instep: planes through the top point, tilted about the line across (y).
     // A plane that misses the bottom's centre line is not round the last (near the top's
     // tangent plane it cuts a small cap off the top).
@@ -539,8 +611,9 @@ pub fn measure_last(mut m: TriMesh, input: &str) -> Result<LastMeasures, Measure
     let waist_x = 0.5 * (p.joint_x + instep.x);
     let waist_top = top_at(pr, waist_x)
         .ok_or_else(|| err("the centre profile has no top at the waist girth".into()))?;
-    let (_, waist_loop, waist_girth) = shortest(-tilt, tilt, across(waist_top));
-    let (_, instep_loop, instep_girth) = shortest(-tilt, tilt, across(instep));
+    let (t_waist, waist_loop, waist_girth) = shortest(-tilt, tilt, across(waist_top));
+    let (t_instep, instep_loop, instep_girth) = shortest(-tilt, tilt, across(instep));
+    let tilted = |t: f64| V3::new(t.cos(), 0.0, t.sin());
     let through_heel = |q: P3| Plane::new(heel, (q - heel).cross(&V3::y()));
     let (long_loop, long_heel_girth) =
         girth(&m, &through_heel(instep).ok_or_else(|| bad("long heel"))?);
@@ -548,7 +621,7 @@ pub fn measure_last(mut m: TriMesh, input: &str) -> Result<LastMeasures, Measure
     // instep point and the top point (planes containing y).
     let ang = |q: P3| (q.z - heel.z).atan2(q.x - heel.x);
     let (a0, a1) = (ang(instep), ang(top).max(ang(instep)));
-    let (_, short_loop, short_heel_girth) = shortest(a0, a1, |t| {
+    let (t_short, short_loop, short_heel_girth) = shortest(a0, a1, |t| {
         let d = V3::new(t.cos(), 0.0, t.sin());
         cut(Plane::new(heel, d.cross(&V3::y())))
     });
@@ -558,6 +631,27 @@ pub fn measure_last(mut m: TriMesh, input: &str) -> Result<LastMeasures, Measure
         .max_by(|a, b| (a - heel).norm().total_cmp(&(b - heel).norm()))
         .unwrap_or(top);
     let (top_loop, top_girth) = girth(&m, &Plane::axis_aligned(2, top.z - TOP_GIRTH_BELOW_MM));
+    let gp = |name: &str, o: P3, nrm: V3| GirthPlane {
+        name: name.to_string(),
+        origin: arr(o),
+        normal: arr(P3::from(nrm.normalize())),
+    };
+    let girth_planes = vec![
+        gp("joint", mt5, joint_normal(t_joint)),
+        gp("waist", waist_top, tilted(t_waist)),
+        gp("instep", instep, tilted(t_instep)),
+        gp("long heel", heel, (instep - heel).cross(&V3::y())),
+        gp(
+            "short heel",
+            heel,
+            V3::new(t_short.cos(), 0.0, t_short.sin()).cross(&V3::y()),
+        ),
+        gp(
+            "top",
+            P3::new(top.x, 0.0, top.z - TOP_GIRTH_BELOW_MM),
+            V3::z(),
+        ),
+    ];
     let fl = |f: fn(&Station) -> Option<P3>| -> Vec<P3> { p.st.iter().filter_map(f).collect() };
     let figure = LastFigure {
         profile: p.profile.clone(),
@@ -608,6 +702,8 @@ pub fn measure_last(mut m: TriMesh, input: &str) -> Result<LastMeasures, Measure
             waist_left: arr(ws.left.unwrap_or_default()),
             waist_right: arr(ws.right.unwrap_or_default()),
         },
+        girth_planes,
+        frame: rigid_map(&given, &m.vertices),
         figure,
     })
 }
@@ -641,6 +737,10 @@ const PURPLE: Colour = image::Rgb([130, 40, 170]);
 /// girth planes seen edge on) above the top view (plan outline, featherlines, girth lines),
 /// landmarks dotted and labelled, the measures listed.
 pub fn draw_measures(lm: &LastMeasures, path: &Path) -> std::io::Result<()> {
+    let name = Path::new(&lm.source)
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| lm.source.clone());
     let f = &lm.figure;
     let (w, h) = (1500u32, 1100u32);
     let mut cv = Canvas::new(w, h, draw::WHITE);
@@ -666,13 +766,7 @@ pub fn draw_measures(lm: &LastMeasures, path: &Path) -> std::io::Result<()> {
         left: side.left,
         ..top
     };
-    cv.text(
-        40,
-        20,
-        &format!("{} - side view", lm.source),
-        draw::BLACK,
-        2,
-    );
+    cv.text(40, 20, &format!("{name} - side view"), draw::BLACK, 2);
     cv.text(40, 590, "top view", draw::BLACK, 2);
     let xz = |p: &P3| (p.x, p.z);
     let xy = |p: &P3| (p.x, p.y);

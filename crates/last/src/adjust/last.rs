@@ -59,6 +59,10 @@ pub fn prepare_last(path: &Path, opts: &LastOptions) -> Result<PreparedLast, Adj
             source: Box::new(source),
         }
     })?;
+    crate::size::check_last_size(path, &mesh).map_err(|e| AdjustError::Last {
+        input: path.display().to_string(),
+        why: e.to_string(),
+    })?;
     let mut p = prepare_mesh(mesh, path, opts)?;
     p.load = Some(load);
     Ok(p)
@@ -140,14 +144,14 @@ fn region_stats(mesh: &TriMesh, region: &[usize]) -> (P3, Matrix3<f64>) {
 pub fn orient_last(mesh: &mut TriMesh, down_cos: f64) -> Result<(Vec<usize>, f64), String> {
     let mut tilt = 0.0;
     for _ in 0..2 {
-        let region = down_region(&mesh, down_cos).0;
+        let region = down_region(mesh, down_cos).0;
         if region.is_empty() {
             return Err(format!(
                 "no downward-facing triangles (normal z below -{}): is the last upside down?",
                 down_cos
             ));
         }
-        let (c, cov) = region_stats(&mesh, &region);
+        let (c, cov) = region_stats(mesh, &region);
         let e = cov.symmetric_eigen();
         let k = e.eigenvalues.imin();
         let mut n: Vector3<f64> = e.eigenvectors.column(k).into();
@@ -161,8 +165,8 @@ pub fn orient_last(mesh: &mut TriMesh, down_cos: f64) -> Result<(Vec<usize>, f64
             *p = c + rot * (*p - c);
         }
     }
-    let region = down_region(&mesh, down_cos).0;
-    let (c, cov) = region_stats(&mesh, &region);
+    let region = down_region(mesh, down_cos).0;
+    let (c, cov) = region_stats(mesh, &region);
     let sub2 = cov.fixed_view::<2, 2>(0, 0).into_owned();
     let e = sub2.symmetric_eigen();
     let k = e.eigenvalues.imax();
