@@ -23,7 +23,11 @@ use std::path::Path;
 
 /// Station spacing along the last (mm).
 pub const STEP_MM: f64 = 0.5;
-/// Joint points are looked for between these fractions of the stick length.
+/// The joint points are the widest featherline points between these fractions of the stick
+/// length: MT1 on the medial side, MT5 on the lateral (around the trade's 0.72 and 0.64 of
+/// the last's length), both in the wider window where the side is not known from the toe.
+pub const MT1_WINDOW: (f64, f64) = (0.62, 0.80);
+pub const MT5_WINDOW: (f64, f64) = (0.55, 0.72);
 pub const JOINT_WINDOW: (f64, f64) = (0.55, 0.85);
 /// The instep point's station (fraction of the stick length).
 pub const INSTEP_AT: f64 = 0.55;
@@ -309,6 +313,7 @@ struct Pass {
     st: Vec<Station>,
     left_joint: P3,
     right_joint: P3,
+    left_medial: bool,
     joint_x: f64,
     slope: f64,
     /// Further slope to level so the forepart (negative) or the heel (positive) rests on
@@ -339,15 +344,33 @@ fn pass(m: &TriMesh, input: &str) -> Result<Pass, MeasureError> {
         st.iter()
             .filter(move |s| s.x >= heel.x + a * length && s.x <= heel.x + b * length)
     };
-    let (jw0, jw1) = JOINT_WINDOW;
-    let left_joint = window(jw0, jw1)
+    // The side first (the toe's swing), then each joint point as the widest featherline
+    // point in its side's window of the trade's proportions.
+    let mid = |a: f64, b: f64| {
+        let v: Vec<f64> = st
+            .iter()
+            .filter(|s| s.x > heel.x + a * length && s.x < heel.x + b * length)
+            .filter_map(|s| Some(0.5 * (s.left?.y + s.right?.y)))
+            .collect();
+        v.iter().sum::<f64>() / v.len().max(1) as f64
+    };
+    let toe_swing = mid(TOE_SWING.0, TOE_SWING.1) - mid(JOINT_MID.0, JOINT_MID.1);
+    let swing_medial = (toe_swing.abs() >= MIN_SWING_MM).then_some(toe_swing > 0.0);
+    let (lw, rw) = match swing_medial {
+        Some(true) => (MT1_WINDOW, MT5_WINDOW),
+        Some(false) => (MT5_WINDOW, MT1_WINDOW),
+        None => (JOINT_WINDOW, JOINT_WINDOW),
+    };
+    let left_joint = window(lw.0, lw.1)
         .filter_map(|s| s.left)
         .max_by(|a, b| a.y.total_cmp(&b.y))
         .ok_or_else(|| err("no featherline in the joint's window"))?;
-    let right_joint = window(jw0, jw1)
+    let right_joint = window(rw.0, rw.1)
         .filter_map(|s| s.right)
         .min_by(|a, b| a.y.total_cmp(&b.y))
         .ok_or_else(|| err("no featherline in the joint's window"))?;
+    // Where the toe does not swing, the medial side's joint is the one further forward.
+    let left_medial = swing_medial.unwrap_or(left_joint.x > right_joint.x);
     let joint_x = 0.5 * (left_joint.x + right_joint.x);
     // The ground's slope: the least-squares line through the lowest point of each station
     // within TANGENT_HALF_MM of the joint line (the bottom's tangent under the joint).
@@ -396,6 +419,7 @@ fn pass(m: &TriMesh, input: &str) -> Result<Pass, MeasureError> {
         st,
         left_joint,
         right_joint,
+        left_medial,
         joint_x,
         slope,
         rock,
@@ -498,23 +522,7 @@ pub fn measure_last(mut m: TriMesh, input: &str) -> Result<LastMeasures, Measure
     m.translate(&V3::new(-p.heel.x, -p.heel.y, -p.tread.z));
     let p = pass(&m, input)?;
     let l = p.length;
-    // Medial: the side the toe swings to (the forepart's midline between the featherlines
-    // at 0.80-0.95 of the stick length, against the joint's at 0.60-0.70); where it does not
-    // swing, the side whose joint point is further forward.
-    let mid = |a: f64, b: f64| {
-        let v: Vec<f64> =
-            p.st.iter()
-                .filter(|s| s.x > a * l && s.x < b * l)
-                .filter_map(|s| Some(0.5 * (s.left?.y + s.right?.y)))
-                .collect();
-        v.iter().sum::<f64>() / v.len().max(1) as f64
-    };
-    let toe_swing = mid(TOE_SWING.0, TOE_SWING.1) - mid(JOINT_MID.0, JOINT_MID.1);
-    let left_medial = if toe_swing.abs() >= MIN_SWING_MM {
-        toe_swing > 0.0
-    } else {
-        p.left_joint.x > p.right_joint.x
-    };
+    let left_medial = p.left_medial;
     let (mt1, mt5) = if left_medial {
         (p.left_joint, p.right_joint)
     } else {

@@ -133,8 +133,9 @@ fn parametric_last_against_its_parameters() {
         let t = last.truth();
         let m = measure_last(last.mesh().clone(), "parametric").unwrap();
         println!(
-            "{toe:?} heel {heel}: stick {:.3} (truth {:.3}), joint width {:.3} (truth {:.3}), heel height {:.2}, side {:?}",
-            m.stick_length, t.bottom_length_mm, m.joint_width, t.ball_width_mm, m.heel_height, m.side
+            "{toe:?} heel {heel}: stick {:.3} (truth {:.3}), joint width {:.3} (truth {:.3}), heel height {:.2}, side {:?}, MT1 at {:.4}, MT5 at {:.4} (truth 0.72, 0.64), pitch {:.2} deg",
+            m.stick_length, t.bottom_length_mm, m.joint_width, t.ball_width_mm, m.heel_height, m.side,
+            m.mt1_at, m.mt5_at, m.pitch_deg
         );
         if heel > 30.0 {
             // A steep heel makes the tangent under the joint line sensitive to where the
