@@ -109,6 +109,10 @@ pub fn load_stock(path: &Path) -> Result<TriMesh, ClinicLastError> {
             path: path.into(),
             why: e.to_string(),
         })?;
+    footscan_last::size::check_last_size(path, &m).map_err(|e| ClinicLastError::Input {
+        path: path.into(),
+        why: e.to_string(),
+    })?;
     Ok(m)
 }
 

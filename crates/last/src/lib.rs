@@ -11,12 +11,16 @@
 //! - [`draw`]: the pictures every stage writes (heat maps, zebra stripes, views with labels).
 //! - [`join`]: the toe part of one last joined to the back part of another by a Gordon
 //!   surface through a curve network, with seam figures, IGES/STEP/STL and pictures.
+//! - [`measure_last`]: a last measured as shoemakers do (landmarks, bottom, widths, girths).
+//! - [`size`]: the size check every last command makes before it works on a last.
 
 pub mod adjust;
 pub mod blend;
 pub mod customize;
 pub mod draw;
 pub mod join;
+pub mod measure_last;
+pub mod size;
 
 /// The cubic ramp 3 s^2 - 2 s^3 from 0 at s <= 0 to 1 at s >= 1, level at both ends: the
 /// smooth transition the stages' fields and weights share.

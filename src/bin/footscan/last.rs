@@ -1,6 +1,6 @@
 //! `footscan last ...`: shoe-last stages on meshes.
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use footscan::lastfit::{adjust_scan, AdjustScanOptions};
 use footscan_geom::mesh::Units;
@@ -27,6 +27,29 @@ enum What {
     Adjust(AdjustArgs),
     /// A last made for one foot by the comfort rules (docs/method.md section 10).
     Customize(crate::last_customize::CustomizeArgs),
+    /// Measure a last as shoemakers do (docs/method.md 9.3): landmarks, stick and bottom
+    /// length, heel height, toe spring, bottom widths and girths; --picture draws where each
+    /// was taken.
+    Measure(MeasureArgs),
+}
+
+#[derive(Parser)]
+pub struct MeasureArgs {
+    /// The last: a closed mesh (STL, OBJ or PLY), z up, heel to toe along any horizontal
+    /// direction.
+    last: PathBuf,
+    /// Units of the last file: mm, m, or auto (decided from the size).
+    #[arg(long, default_value = "auto")]
+    units: Units,
+    /// Scale the last so its longest side is this many mm (for unitless meshes): 50-500.
+    #[arg(long, value_parser = last_length)]
+    length: Option<f64>,
+    /// Print the measures as JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Draw the side and top views with the landmarks and girths into this PNG.
+    #[arg(long)]
+    picture: Option<PathBuf>,
 }
 
 #[derive(Parser)]
@@ -59,6 +82,7 @@ pub fn run(args: Args) -> Result<()> {
         What::Join(a) => crate::last_join::run(a),
         What::Adjust(a) => run_adjust(a),
         What::Customize(a) => crate::last_customize::run(a),
+        What::Measure(a) => run_measure(a),
     }
 }
 
@@ -146,6 +170,53 @@ fn run_adjust(a: AdjustArgs) -> Result<()> {
     }
     for f in &w.files {
         println!("wrote {}", f.display());
+    }
+    Ok(())
+}
+
+fn run_measure(a: MeasureArgs) -> Result<()> {
+    use footscan_last::measure_last::{draw_measures, measure_last_file};
+    let m = measure_last_file(&a.last, a.units, a.length)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&m)?);
+    } else {
+        let side = match m.side {
+            Some(s) => format!("{s:?}").to_lowercase(),
+            None => "unknown".into(),
+        };
+        println!(
+            "{}: {side} last, stood on its tread (pitch {:+.2} deg from its bottom plane)",
+            a.last.display(),
+            m.pitch_deg
+        );
+        for (name, v) in m.rows() {
+            println!("  {name:18} {v:8.2} mm");
+        }
+        println!(
+            "  joints at {:.1} % (MT1) and {:.1} % (MT5) of the stick length, waist at {:.1} %",
+            100.0 * m.mt1_at,
+            100.0 * m.mt5_at,
+            100.0 * m.waist_at
+        );
+        let l = &m.landmarks;
+        for (name, p) in [
+            ("heel point", l.heel_point),
+            ("toe point", l.toe_point),
+            ("toe end", l.toe_end),
+            ("MT1", l.mt1),
+            ("MT5", l.mt5),
+            ("tread", l.tread),
+            ("instep point", l.instep),
+            ("top point", l.top),
+        ] {
+            println!("  {name:18} ({:7.2}, {:7.2}, {:7.2}) mm", p[0], p[1], p[2]);
+        }
+    }
+    if let Some(p) = &a.picture {
+        draw_measures(&m, p).with_context(|| format!("writing {}", p.display()))?;
+        if !a.json {
+            println!("wrote {}", p.display());
+        }
     }
     Ok(())
 }

@@ -9,6 +9,7 @@ use footscan_geom::plane::Plane;
 use footscan_geom::{P3, V3};
 use footscan_last::blend::{self, Blend, BlendParams};
 use footscan_last::join::{self, output, JoinParams};
+use footscan_last::size::{check_last_size, check_pair};
 use std::path::PathBuf;
 
 /// How the gap between the two kept parts is closed.
@@ -82,6 +83,9 @@ pub struct JoinArgs {
     /// superimposing them at the ball.
     #[arg(long)]
     as_is: bool,
+    /// Join two lasts whose lengths differ by more than a size group (13 %).
+    #[arg(long)]
+    allow_size_mismatch: bool,
     /// Output directory (created if missing).
     #[arg(long)]
     out: PathBuf,
@@ -140,12 +144,20 @@ pub fn run(a: JoinArgs) -> Result<()> {
         [b, t] => (*b, *t),
         _ => bail!("--aux {:?}: expected B,T or N", a.aux),
     };
-    let load = |p: &PathBuf| -> Result<TriMesh> {
-        Ok(TriMesh::load_solid(p, a.units, a.length)
+    // Each last must have a last's size (a wrong --units makes a 299 m last, whose join
+    // grew to gigabytes), and the two a size group apart at most: refused before anything
+    // is computed or written.
+    let load = |p: &PathBuf| -> Result<(TriMesh, f64)> {
+        let m = TriMesh::load_solid(p, a.units, a.length)
             .with_context(|| format!("reading last {}", p.display()))?
-            .0)
+            .0;
+        let l = check_last_size(p, &m)?;
+        Ok((m, l))
     };
-    let (back, toe) = (load(&a.back)?, load(&a.toe)?);
+    let ((back, back_len), (toe, toe_len)) = (load(&a.back)?, load(&a.toe)?);
+    if !a.allow_size_mismatch {
+        check_pair((&a.back, back_len), (&a.toe, toe_len))?;
+    }
     let placement = if a.as_is {
         join::Placement::AsIs
     } else {

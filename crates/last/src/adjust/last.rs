@@ -59,6 +59,10 @@ pub fn prepare_last(path: &Path, opts: &LastOptions) -> Result<PreparedLast, Adj
             source: Box::new(source),
         }
     })?;
+    crate::size::check_last_size(path, &mesh).map_err(|e| AdjustError::Last {
+        input: path.display().to_string(),
+        why: e.to_string(),
+    })?;
     let mut p = prepare_mesh(mesh, path, opts)?;
     p.load = Some(load);
     Ok(p)
@@ -130,32 +134,24 @@ fn region_stats(mesh: &TriMesh, region: &[usize]) -> (P3, Matrix3<f64>) {
     (P3::from(c), m / w)
 }
 
-/// Finds the bottom of a valid closed last mesh (already in mm) and measures it: the
-/// largest connected region of downward-facing triangles; the mesh levelled so the region's
+/// Turns a closed last mesh (mm, z roughly up) into its bottom frame, in place: the largest
+/// connected region of triangles facing down (normal z below `-down_cos`) levelled so its
 /// best-fit plane is horizontal (twice: the region is found again after levelling), turned
 /// so the region's long axis is x with the heel at -x (the heel is the end under the tall
-/// back of the last), then its outline (the region's boundary, seen from below) and heights
-/// (the lowest surface above each cell, by vertical rays).
-pub fn prepare_mesh(
-    mut mesh: TriMesh,
-    path: &Path,
-    opts: &LastOptions,
-) -> Result<PreparedLast, AdjustError> {
-    let input = path.display().to_string();
-    let err = |why: String| AdjustError::Last {
-        input: input.clone(),
-        why,
-    };
+/// back of the last), the region's rearmost point at x = 0, its extent across centred on
+/// y = 0 and its lowest point at z = 0. Returns the region (triangle indices) and the tilt
+/// of the levelling (deg).
+pub fn orient_last(mesh: &mut TriMesh, down_cos: f64) -> Result<(Vec<usize>, f64), String> {
     let mut tilt = 0.0;
     for _ in 0..2 {
-        let region = down_region(&mesh, opts.down_cos).0;
+        let region = down_region(mesh, down_cos).0;
         if region.is_empty() {
-            return Err(err(format!(
+            return Err(format!(
                 "no downward-facing triangles (normal z below -{}): is the last upside down?",
-                opts.down_cos
-            )));
+                down_cos
+            ));
         }
-        let (c, cov) = region_stats(&mesh, &region);
+        let (c, cov) = region_stats(mesh, &region);
         let e = cov.symmetric_eigen();
         let k = e.eigenvalues.imin();
         let mut n: Vector3<f64> = e.eigenvectors.column(k).into();
@@ -169,8 +165,8 @@ pub fn prepare_mesh(
             *p = c + rot * (*p - c);
         }
     }
-    let region = down_region(&mesh, opts.down_cos).0;
-    let (c, cov) = region_stats(&mesh, &region);
+    let region = down_region(mesh, down_cos).0;
+    let (c, cov) = region_stats(mesh, &region);
     let sub2 = cov.fixed_view::<2, 2>(0, 0).into_owned();
     let e = sub2.symmetric_eigen();
     let k = e.eigenvalues.imax();
@@ -204,6 +200,26 @@ pub fn prepare_mesh(
     }
     let shift = V3::new(-lo.x, -(lo.y + hi.y) / 2.0, -lo.z);
     mesh.translate(&shift);
+    Ok((region, tilt))
+}
+
+/// Finds the bottom of a valid closed last mesh (already in mm) and measures it: the
+/// largest connected region of downward-facing triangles; the mesh levelled so the region's
+/// best-fit plane is horizontal (twice: the region is found again after levelling), turned
+/// so the region's long axis is x with the heel at -x (the heel is the end under the tall
+/// back of the last), then its outline (the region's boundary, seen from below) and heights
+/// (the lowest surface above each cell, by vertical rays).
+pub fn prepare_mesh(
+    mut mesh: TriMesh,
+    path: &Path,
+    opts: &LastOptions,
+) -> Result<PreparedLast, AdjustError> {
+    let input = path.display().to_string();
+    let (region, tilt) =
+        orient_last(&mut mesh, opts.down_cos).map_err(|why| AdjustError::Last {
+            input: input.clone(),
+            why,
+        })?;
 
     // Lowest surface under each cell over the whole last, by vertical rays.
     let bvh = footscan_geom::mesh::Bvh::new(&mesh);
