@@ -470,6 +470,37 @@ pub fn render(input: &ReportInput) -> Result<(Vec<u8>, Layout)> {
         );
     }
 
+    // Figures the measurement doubted: said on the page the clinic keeps, not only in JSON.
+    let warnings: Vec<&str> = m["warnings"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|w| w.as_str()).collect())
+        .unwrap_or_default();
+    if !warnings.is_empty() {
+        y -= 2.0;
+        pg.text(x0, y, 9.0, true, "Check these figures:");
+        y -= 3.8;
+        for (k, w) in warnings.iter().enumerate() {
+            let lines = wrap(&format!("! {w}"), chars);
+            // The ruler's caption takes the page's last 24 mm.
+            if y - 2.9 * (lines.len() as f64) < 24.0 {
+                let rest = warnings.len() - k;
+                pg.text(
+                    x0,
+                    y,
+                    6.5,
+                    true,
+                    &format!("... and {rest} more in measurements.json"),
+                );
+                break;
+            }
+            for l in lines {
+                pg.text(x0, y, 6.5, false, &l);
+                y -= 2.9;
+            }
+            y -= 1.0;
+        }
+    }
+
     let (rx, ry) = (ruler_x, 16.0);
     draw_ruler(&mut pg, rx, ry, x0, chars);
     let layout = Layout {

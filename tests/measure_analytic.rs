@@ -3,6 +3,7 @@
 //! The height map sees the whole sole up to its vertical edge, so these bounds are tighter
 //! than the scan's (tests/measure_scan.rs).
 
+use footscan::bench::measure::{analytic_map, population_rows};
 use footscan::geom::HeightMap;
 use footscan::measure::{
     compare_with_truth, measure_foot, ErrorKind, MeasureError, Measurements, Side, TruthComparison,
@@ -10,27 +11,6 @@ use footscan::measure::{
 use footscan_sim::foot::{Foot, FootParams, Side as SimSide};
 
 const CELL: f64 = 0.1;
-
-/// The analytic foot sampled at cell centres (NaN outside the footprint); `toes` false leaves
-/// the toe pads out.
-fn analytic_map(foot: &Foot, cell: f64, toes: bool) -> HeightMap {
-    let t = foot.truth();
-    let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
-    for p in t.outline_body.iter().chain(t.outline_toes.iter().flatten()) {
-        for a in 0..2 {
-            lo[a] = lo[a].min(p[a] - 3.0);
-            hi[a] = hi[a].max(p[a] + 3.0);
-        }
-    }
-    HeightMap::sampled(lo, hi, cell, |x, y| {
-        if toes {
-            foot.height(x, y)
-        } else {
-            let [xf, yf] = foot.to_foot(x, y);
-            foot.body_height_foot_frame(xf, yf)
-        }
-    })
-}
 
 fn measure(p: FootParams) -> (Measurements, TruthComparison) {
     let foot = Foot::new(p).unwrap();
@@ -199,64 +179,46 @@ fn empty_and_tiny_footprints_are_errors() {
     assert!(e.to_string().contains("200 mm^2"), "{e}");
 }
 
-/// The targets on a population (issue: measurements that hold on every kind of foot): the
-/// metatarsal heads within 3 mm, widths within 0.5 mm, length within 0.3 mm; a foot outside
-/// any of them must carry a warning, and a plain foot none.
-const POP_HEAD_MM: f64 = 3.0;
-const POP_WIDTH_MM: f64 = 0.5;
-const POP_LENGTH_MM: f64 = 0.3;
-
+/// The targets on a population (footscan::bench::measure: heads 3 mm, widths 0.5 mm, length
+/// 0.3 mm): a foot outside any of them must carry a warning, a plain foot none, and nearly
+/// every foot is within them (flagging is the fallback, not the method).
 #[test]
 fn a_population_of_sixty_feet_of_every_kind() {
-    use footscan_sim::foot::population;
-    let feet = population(60, 2026);
-    let mut within = 0;
-    let mut table = String::new();
+    let rows = population_rows(60, 2026, CELL).unwrap();
     let mut failures = Vec::new();
-    for (i, pf) in feet.iter().enumerate() {
-        let foot = Foot::new(pf.params.clone()).unwrap();
-        let m = measure_foot(&analytic_map(&foot, CELL, true))
-            .unwrap_or_else(|e| panic!("foot {i} ({}): {e}", pf.kind));
-        let c = compare_with_truth(&m, &serde_json::to_string(&foot.truth()).unwrap()).unwrap();
-        let e = |name: &str| c.row(name).unwrap().error.abs();
-        let widths = ["ball_width_mm", "heel_width_mm", "midfoot_width_mm"]
-            .map(e)
-            .into_iter()
-            .fold(0.0, f64::max);
-        let (h1, h5, len) = (e("mt1_head"), e("mt5_head"), e("foot_length_mm"));
-        let ok = c.side_correct
-            && h1 <= POP_HEAD_MM
-            && h5 <= POP_HEAD_MM
-            && widths <= POP_WIDTH_MM
-            && len <= POP_LENGTH_MM;
-        within += ok as usize;
-        table += &format!(
-            "{i:2} {:26} L {:5.1} {:5} MT1 {h1:5.2} MT5 {h5:5.2} widths {widths:5.2} length \
-             {len:5.2} axis {:+5.2} waists {:5.1} {:5.1} warnings {}\n",
-            pf.kind,
-            pf.params.length_mm,
-            format!("{:?}", m.side),
-            c.row("axis_angle_deg").unwrap().error,
-            e("waist_inner"),
-            e("waist_outer"),
-            m.warnings.len()
+    for (i, r) in rows.iter().enumerate() {
+        println!(
+            "{i:2} {:26} L {:5.1} MT1 {:5.2} MT5 {:5.2} ball {:4.2} heel {:4.2} mid {:4.2} \
+             length {:4.2} axis {:4.2} waists {:4.1} {:4.1} warnings {}",
+            r.kind,
+            r.length_mm,
+            r.mt1_mm,
+            r.mt5_mm,
+            r.ball_mm,
+            r.heel_mm,
+            r.midfoot_mm,
+            r.length_err_mm,
+            r.axis_deg,
+            r.waist_inner_mm,
+            r.waist_outer_mm,
+            r.warnings.len()
         );
-        if !ok && m.warnings.is_empty() {
+        if !r.within_targets() && r.warnings.is_empty() {
             failures.push(format!(
                 "foot {i} ({}) is off the targets without a warning",
-                pf.kind
+                r.kind
             ));
         }
-        if pf.kind == "plain" && !m.warnings.is_empty() {
-            failures.push(format!("plain foot {i} warns: {:?}", m.warnings));
+        if r.kind == "plain" && !r.warnings.is_empty() {
+            failures.push(format!("plain foot {i} warns: {:?}", r.warnings));
         }
     }
-    println!("{table}{within} of {} feet within every target", feet.len());
+    let within = rows.iter().filter(|r| r.within_targets()).count();
+    println!("{within} of {} feet within every target", rows.len());
     assert!(failures.is_empty(), "{failures:#?}");
-    // Flagging is the fallback, not the method: nearly every foot is measured right.
     assert!(
         within >= 57,
         "only {within} of {} feet within the targets",
-        feet.len()
+        rows.len()
     );
 }

@@ -24,6 +24,13 @@
 //!   L - 0.04 L, L - 0.07 L, L - 0.105 L; each pad's rear end is 0.012 L in front of the body
 //!   (so pads and body are disjoint).
 //!
+//! The fractions above are the reference foot's; [`FootShape`] moves them within a population
+//! ([`population`]): the head stations (0.72 L, 0.64 L), the waists' depths (0.92 H, 0.95 H),
+//! the body front x_f (0.80 L; the toe tips' offsets from L scale with L - x_f), hallux
+//! valgus (the pads shifted laterally by v (1 - 0.15 i) for pad i, M1 grown by 0.3 v) and
+//! joined toes (each pad reaching 0.015 L into the body instead of stopping 0.012 L short).
+//! The second metatarsal head stays on the axis, 0.01 L behind the first's station.
+//!
 //! # Sole heights
 //! Unloaded sole u >= 0, pressed sole h = max(0, u - press_mm):
 //! - edge rounding: R - sqrt(R^2 - (R - d)^2) for d < R (R = edge_radius_mm; vertical at the

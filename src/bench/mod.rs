@@ -3,6 +3,7 @@
 
 pub mod calibrate;
 pub mod detect;
+pub mod measure;
 pub mod real;
 pub mod render;
 pub mod surface;

@@ -521,7 +521,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         let f = frac(p);
         if !(HEADS_PLAUSIBLE.0..=HEADS_PLAUSIBLE.1).contains(&f) {
             warnings.push(format!(
-                "the {name} metatarsal head is at {:.0} % of the length from the heel; heads lie \
+                "the {name} metatarsal head is at {:.1} % of the length from the heel; heads lie \
                  between {:.0} % and {:.0} %: the ball width and the axis may be wrong",
                 100.0 * f,
                 100.0 * HEADS_PLAUSIBLE.0,

@@ -31,13 +31,22 @@
 //! - Medial side: the side of the axis holding the largest toe pad (the hallux); without toe
 //!   pads, the side with the higher midfoot (the medial arch). A right foot has its medial
 //!   side to the left of the heel-to-toe axis seen from above.
-//! - First / fifth metatarsal heads: most medial / most lateral body outline points in the
-//!   front 60 % of the length; ball width: the sum of their distances from the axis.
-//! - Waist inner / outer: the medial / lateral body outline points nearest the axis between
-//!   the heel centre and the metatarsal head of that side.
+//! - First / fifth metatarsal heads: the most prominent bulges (at least 0.5 mm) of the medial
+//!   / lateral side profile (half-widths from the axis along it, smoothed over 2 mm) in the
+//!   forefoot, ties within 2 mm going to the one nearest where feet have the head; a side with
+//!   no bulge takes its extreme with a warning. Ball width: the sum of their distances from
+//!   the axis. With toes joined to the ball (no toe pad apart) the axis runs from the heel
+//!   centre to the second head's place on the ball line (0.46 of the way from the first head
+//!   to the fifth) instead of the body front, which is then a toe.
+//! - Waist inner / outer: the deepest hollows of the side profiles in the midfoot (from 0.2 L
+//!   to 0.1 L behind the head of that side).
 //! - Mid-foot width: breadth of the footprint perpendicular to the axis at half the length.
 //!   Heel width: maximum breadth perpendicular to the axis over the rear quarter, on side
-//!   profiles smoothed over 2 mm (outline quantisation would otherwise bias a maximum up).
+//!   profiles smoothed over 2 mm (outline quantisation would otherwise bias a maximum up); the
+//!   breadth through the heel centre where the foot still widens at the quarter.
+//! - Plausibility (docs/method.md 8.2.1): heads outside 60-80 % of the length, a forefoot
+//!   wider than the ball, waists not behind the heads, widths out of order or out of
+//!   proportion, an arch on the glass: each a warning, never a silent figure.
 //! - Hallux point: most medial outline point of the hallux pad.
 //! - Arch height: highest point of the medial arch vault that still faces the glass: the
 //!   maximum sole height, over the medial half of the middle third of the body, among

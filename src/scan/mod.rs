@@ -91,6 +91,8 @@ pub struct ScanCounters {
     quality: Mutex<Option<Quality>>,
     /// The side of the measured foot, from `measure.foot`.
     foot_side: Mutex<Option<crate::measure::Side>>,
+    /// The measured foot's doubtful figures, from `measure.foot`.
+    measure_warnings: Mutex<Vec<String>>,
 }
 
 impl ScanCounters {
@@ -128,6 +130,12 @@ impl ScanCounters {
     }
     pub fn foot_side(&self) -> Option<crate::measure::Side> {
         *self.foot_side.lock().unwrap()
+    }
+    pub fn set_measure_warnings(&self, w: Vec<String>) {
+        *self.measure_warnings.lock().unwrap() = w;
+    }
+    pub fn measure_warnings(&self) -> Vec<String> {
+        self.measure_warnings.lock().unwrap().clone()
     }
     /// Laser-off frames and the rows found in them.
     pub fn laser_off(&self) -> (u64, u64) {

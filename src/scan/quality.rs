@@ -211,6 +211,10 @@ pub struct Quality {
     pub lowest_mm: Option<f64>,
     /// Set when a foot was measured.
     pub side: Option<SideCheck>,
+    /// The measured foot's doubtful figures (measurements.json's warnings): each makes the
+    /// scan "complete with warnings".
+    #[serde(default)]
+    pub measure_warnings: Vec<String>,
     pub issues: Vec<Issue>,
 }
 
@@ -484,6 +488,13 @@ pub fn judge(
         };
         push(&mut issues, level, text);
     }
+    if !q.measure_warnings.is_empty() {
+        push(
+            &mut issues,
+            Level::Warning,
+            format!("measurements to check: {}", q.measure_warnings.join("; ")),
+        );
+    }
     issues.sort_by_key(|i| std::cmp::Reverse(i.level));
     let worst = issues.first().map(|i| i.level);
     let status = match worst {
@@ -559,6 +570,26 @@ mod tests {
         assert_eq!(g.frames[6].index, 6);
         assert!((g.point(3, 7)[2] - 0.015).abs() < 1e-12);
         assert_eq!(g.valid_count(), 7 * 20);
+    }
+
+    #[test]
+    fn doubtful_measurements_make_a_scan_complete_with_warnings() {
+        let cfg = QualitySection {
+            whole_foot: false,
+            ..QualitySection::default()
+        };
+        let g = grid(&[0.0, 0.5, 1.0, 1.5, 2.0]);
+        let mut q = Quality::default();
+        inspect(&g, &mut q);
+        let (s, _) = judge(&mut q.clone(), &cfg, 5, true);
+        assert_eq!(s, ScanStatus::Complete);
+        q.measure_warnings = vec!["the first metatarsal head is at 41 % of the length".into()];
+        let (s, r) = judge(&mut q, &cfg, 5, true);
+        assert_eq!(s, ScanStatus::CompleteWithWarnings);
+        assert_eq!(
+            r.as_deref(),
+            Some("measurements to check: the first metatarsal head is at 41 % of the length")
+        );
     }
 
     #[test]

@@ -174,6 +174,7 @@ fn gate(
         crate::measure::Side::Right => "right".to_string(),
     };
     let measured = counters.foot_side();
+    q.measure_warnings = counters.measure_warnings();
     q.side = measured.map(|d| SideCheck {
         chosen: chosen.map(name),
         detected: name(d),

@@ -110,6 +110,7 @@ impl Stage<Item> for MeasureStage {
                 }
                 if let Some(c) = &self.counters {
                     c.set_foot_side(m.side);
+                    c.set_measure_warnings(m.warnings.clone());
                 }
                 let _ = out.emit(Item::Foot(Arc::new(m)));
                 Ok(())
