@@ -82,6 +82,9 @@ const FRONT_DEPTH: f64 = 3.0;
 /// the outline's steps are 0.1 mm and the smoothing leaves wiggles of about 0.1 mm.
 const PROFILE_STEP: f64 = 0.25;
 const MIN_PROMINENCE: f64 = 0.5;
+/// The extremes are refined over the outline where the profile stays this close to the peak
+/// (mm): more than the parabola's own depth (0.7 mm), so it sees both flanks whole.
+const REFINE_DEPTH: f64 = 1.5;
 /// Where the heads are sought, as fractions of the length from the heel point (first,
 /// fifth), and where they are plausible (docs/method.md section 8.2).
 const MT1_WINDOW: (f64, f64) = (0.50, 0.88);
@@ -120,7 +123,7 @@ struct Heads {
     mt1: [f64; 2],
     mt5: [f64; 2],
     /// The stretch of each side around its station where the profile stays within
-    /// `MIN_PROMINENCE` of it (mm from the heel point): the extreme is refined there.
+    /// `REFINE_DEPTH` of it (mm from the heel point): the extreme is refined there.
     mt1_x: (f64, f64),
     mt5_x: (f64, f64),
     waist_inner_x: (f64, f64),
@@ -239,10 +242,10 @@ impl Heads {
         Some(Heads {
             mt1: at(k1, prof.med[k1]),
             mt5: at(k5, -prof.lat[k5]),
-            mt1_x: basin(&prof, &prof.med, k1, MIN_PROMINENCE, true),
-            mt5_x: basin(&prof, &prof.lat, k5, MIN_PROMINENCE, true),
-            waist_inner_x: basin(&prof, &prof.med, ki, MIN_PROMINENCE, false),
-            waist_outer_x: basin(&prof, &prof.lat, ko, MIN_PROMINENCE, false),
+            mt1_x: basin(&prof, &prof.med, k1, REFINE_DEPTH, true),
+            mt5_x: basin(&prof, &prof.lat, k5, REFINE_DEPTH, true),
+            waist_inner_x: basin(&prof, &prof.med, ki, REFINE_DEPTH, false),
+            waist_outer_x: basin(&prof, &prof.lat, ko, REFINE_DEPTH, false),
         })
     }
 
