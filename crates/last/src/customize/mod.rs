@@ -18,9 +18,9 @@ pub mod shape;
 pub use error::CustomizeError;
 
 use curves::{fit_loop, least_change, Constraint, FitRecord};
-use footscan_geom::mesh::{Bvh, Format, TriMesh, Units};
+use footscan_geom::mesh::{Bvh, Format, Intake, IntakeOptions, TriMesh};
 use footscan_geom::nurbs::NurbsCurve;
-use footscan_geom::{P2, P3};
+use footscan_geom::{P2, P3, V3};
 use measure::{find_frame, measure, FootFrame, Loop3, Measures, OUTLINE_Z};
 use rules::{RuleSet, Shoe, Wearer};
 use serde::Serialize;
@@ -50,7 +50,7 @@ impl Default for Inputs {
 pub const HEEL_RANGE_MM: (f64, f64) = (0.0, 120.0);
 
 /// Foot length range accepted as a foot (mm).
-pub const FOOT_LENGTH_RANGE: (f64, f64) = (100.0, 360.0);
+pub const FOOT_LENGTH_RANGE: (f64, f64) = footscan_geom::mesh::FOOT_LENGTH_MM;
 
 /// One rule's row in the report.
 #[derive(Clone, Debug, Serialize)]
@@ -295,12 +295,35 @@ pub fn targets(
     (rows, heel)
 }
 
-/// Load a foot mesh (STL, OBJ, PLY; metres detected from the size), check it is closed and
-/// foot-sized, and bring it into its own frame.
+/// Load a foot mesh (STL, OBJ, PLY) as it comes (units, axes and orientation found from the
+/// mesh: [`footscan_geom::mesh::intake`]), and bring it into its own frame.
 pub fn load_foot(path: &Path) -> Result<(TriMesh, FootFrame), CustomizeError> {
-    let (m, _rep) = TriMesh::load_solid(path, Units::Auto, None)?;
+    load_foot_with(path, &IntakeOptions::default()).map(|(m, f, _)| (m, f))
+}
+
+/// [`load_foot`] with the units, length and axes given where known. Returns the foot in its
+/// frame, the frame in the file's own coordinates (millimetres: file units times the unit
+/// scale), and what the intake did (notes for the CLI).
+pub fn load_foot_with(
+    path: &Path,
+    opts: &IntakeOptions,
+) -> Result<(TriMesh, FootFrame, Intake), CustomizeError> {
+    let intake = TriMesh::read_foot(path, opts).map_err(|e| {
+        e.retold(
+            "pass --units m (or --units auto)",
+            "give its unit with --units mm|cm|m or its heel-to-toe length with --length MM",
+        )
+    })?;
     let name = path.display().to_string();
-    foot_in_frame(m, &name)
+    let (m, mut frame) = foot_in_frame(intake.mesh.clone(), &name)?;
+    // The frame in the file's coordinates (the intake only turned and moved the mesh).
+    let o = intake.to_file_mm(&P3::from(frame.origin));
+    let ex = intake.dir_to_file(&V3::from(frame.ex));
+    let ey = intake.dir_to_file(&V3::from(frame.ey));
+    frame.origin = o.into();
+    frame.ex = ex.into();
+    frame.ey = ey.into();
+    Ok((m, frame, intake))
 }
 
 /// A closed world mesh (mm, z up) into its foot frame, with the extent check.
