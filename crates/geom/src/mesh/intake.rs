@@ -10,8 +10,8 @@
 //! - orientation: triangles are made consistent across every manifold edge (a walk over the
 //!   surface turning any triangle that runs along a shared edge the same way as its
 //!   neighbour); after the top is capped, a component of negative volume is turned as a whole;
-//! - holes: each boundary loop that lies within 3 % of the foot's longest side of one plane
-//!   is capped flat; after the up direction is known, a capped loop must be at the top (its
+//! - holes: each boundary loop at least 15 % of the foot's longest side across that lies
+//!   within 3 % of it of one plane is capped flat (a fan from its centre); after the up direction is known, a capped loop must be at the top (its
 //!   plane across the up direction, its centre in the upper half), else the mesh is refused
 //!   naming where the hole is;
 //! - up: of the candidate directions across the long axis (the signed file axes first, then
@@ -40,6 +40,9 @@ pub const FOOT_ELONGATION: (f64, f64) = (1.6, 5.0);
 /// A boundary loop is a planar cut when it lies within this fraction of the longest side of
 /// its best-fit plane.
 pub const CUT_PLANARITY: f64 = 0.03;
+/// A boundary loop is a cut through the leg or ankle only when it spans at least this
+/// fraction of the longest side.
+pub const CUT_MIN_SPAN: f64 = 0.15;
 
 /// Heel-to-toe and up directions, given or to be found.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -205,16 +208,41 @@ pub fn intake(mut m: TriMesh, path: &Path, opts: &IntakeOptions) -> Result<Intak
     }
     // 2. Boundary loops: planar ones capped (checked to be at the top below).
     let loops = boundary_loops(&m).map_err(&invalid)?;
-    let mut caps: Vec<(CapInfo, bool)> = Vec::new();
-    for lp in &loops {
-        let info = loop_plane(&m, lp);
+    let mut caps: Vec<(&CapInfo, bool)> = Vec::new();
+    let infos: Vec<CapInfo> = loops.iter().map(|lp| loop_plane(&m, lp)).collect();
+    // A loop large enough is a cut; a smaller one is part of a cut when it lies in the plane
+    // of a large one, within its span (an island the cut left: a fold of the top).
+    let tol = CUT_PLANARITY * longest;
+    let is_cut = |c: &CapInfo| c.diameter >= CUT_MIN_SPAN * longest && c.max_dev <= tol;
+    for (lp, info) in loops.iter().zip(infos.iter()) {
+        let on_a_cut = infos.iter().any(|big| {
+            is_cut(big)
+                && (info.centre - big.centre).dot(&big.normal).abs() + info.max_dev <= tol
+                && (info.centre - big.centre).norm() <= big.diameter
+        });
+        let island = info.diameter < CUT_MIN_SPAN * longest && on_a_cut;
+        if info.diameter < CUT_MIN_SPAN * longest && !on_a_cut {
+            return Err(MeshError::Hole {
+                path: path.to_path_buf(),
+                why: format!(
+                    "the mesh is open: a hole of {} edges around {} (file units), {:.4} across, \
+                     is not the top cut: too small (a cut through the leg or ankle is at least \
+                     {:.0} % of the foot's {:.4} across); only a flat cut at the top is closed",
+                    lp.len(),
+                    fmt_p(&info.centre),
+                    info.diameter,
+                    CUT_MIN_SPAN * 100.0,
+                    longest
+                ),
+            });
+        }
         if info.max_dev > CUT_PLANARITY * longest {
             return Err(MeshError::Hole {
                 path: path.to_path_buf(),
                 why: format!(
-                    "a hole of {} edges around {} (file units), {:.4} across, is not a planar cut \
-                     (off its best plane by up to {:.4}, more than {:.0} % of the foot's {:.4}): \
-                     only a flat cut at the top is closed",
+                    "the mesh is open: a hole of {} edges around {} (file units), {:.4} across, \
+                     is not the top cut: not planar (off its best plane by up to {:.4}, more than \
+                     {:.0} % of the foot's {:.4}); only a flat cut at the top is closed",
                     lp.len(),
                     fmt_p(&info.centre),
                     info.diameter,
@@ -224,8 +252,15 @@ pub fn intake(mut m: TriMesh, path: &Path, opts: &IntakeOptions) -> Result<Intak
                 ),
             });
         }
-        let star = cap_loop(&mut m, lp, &info);
-        caps.push((info, star));
+        // Where the loop touches itself it is capped piece by piece.
+        let mut star = true;
+        for part in simple_loops(lp) {
+            let pi = loop_plane(&m, &part);
+            star &= cap_loop(&mut m, &part, &pi);
+        }
+        if !island {
+            caps.push((info, star));
+        }
     }
     // 3. Each component outward.
     let mut turned_inside_out = false;
@@ -267,8 +302,9 @@ pub fn intake(mut m: TriMesh, path: &Path, opts: &IntakeOptions) -> Result<Intak
             return Err(MeshError::Hole {
                 path: path.to_path_buf(),
                 why: format!(
-                    "a hole around {} (file units), {:.4} across, is not at the top cut (up is {}): \
-                     a foot may be open only where it was cut at the top",
+                    "the mesh is open: a hole around {} (file units), {:.4} across, is not the top \
+                     cut: it is not at the top (up is {}); a foot may be open only where it was cut \
+                     at the top",
                     fmt_p(&c.centre),
                     c.diameter,
                     axis_name(&up)
@@ -471,7 +507,8 @@ pub fn orient_consistently(m: &mut TriMesh) -> Result<usize, Defect> {
 }
 
 /// Boundary loops (edges of one triangle), each as vertex ids in the direction its triangles
-/// run along it. Loops that touch at a vertex are walked apart (each edge used once).
+/// run along it, each edge used once (a loop that touches itself at a vertex passes it
+/// twice: [`simple_loops`] splits it for capping).
 fn boundary_loops(m: &TriMesh) -> Result<Vec<Vec<u32>>, Defect> {
     let mut count: HashMap<(u32, u32), u32> = HashMap::new();
     for tri in &m.triangles {
@@ -519,7 +556,7 @@ fn boundary_loops(m: &TriMesh) -> Result<Vec<Vec<u32>>, Defect> {
                 return Err(open(s, first));
             }
         }
-        loops.extend(simple_loops(&lp));
+        loops.push(lp);
     }
     Ok(loops)
 }
