@@ -17,7 +17,7 @@
 //! - up: of the candidate directions across the long axis (the signed file axes first, then
 //!   the surface's principal directions), those where the foot would stand: its lower 40 %
 //!   runs at least 80 % of the longest such footprint, and its top 30 % (the leg, or the
-//!   instep without one) covers under 60 % of the footprint's length (lying on a side the top
+//!   instep without one) covers under 75 % of the footprint's length (lying on a side the top
 //!   is a long wall, upside down the lower part is the leg). Of these, the one with the most
 //!   sole: projected area facing within 30 degrees of down in the lowest tenth;
 //! - heel to toe: the principal direction of the footprint; the heel end is the one under the
@@ -841,11 +841,14 @@ fn find_axes(m: &TriMesh, path: &Path) -> Result<(V3, V3, String), MeshError> {
             ),
         ),
         None => {
-            let s = stances
-                .iter()
-                .map(|(s, _)| s)
-                .max_by(|a, b| a.sole.total_cmp(&b.sole))
-                .unwrap();
+            let most_sole = |file: bool| {
+                stances
+                    .iter()
+                    .filter(|(_, f)| *f == file)
+                    .map(|(s, _)| s)
+                    .max_by(|a, b| a.sole.total_cmp(&b.sole))
+            };
+            let s = most_sole(true).or_else(|| most_sole(false)).unwrap();
             (
                 s,
                 format!(
@@ -883,9 +886,10 @@ fn find_axes(m: &TriMesh, path: &Path) -> Result<(V3, V3, String), MeshError> {
 
 /// Standing: the lower part's length is at least this fraction of the longest footprint's,
 /// and the top 30 % covers less than `TOP_SPREAD` of it (on the real feet: 0.33-0.47 standing,
-/// 0.78 and more lying on a side, docs/method.md 10.1).
+/// 0.79 and more lying on a side; the simulator's foot without a leg 0.69 standing, 0.88
+/// and more on a side; docs/method.md 10.1).
 const STANDING_SPAN: f64 = 0.8;
-const TOP_SPREAD: f64 = 0.6;
+const TOP_SPREAD: f64 = 0.75;
 
 #[cfg(test)]
 mod tests {

@@ -425,6 +425,42 @@ pub fn customize(
     })
 }
 
+impl Customized {
+    /// Where the last is not what the rules ask, one line each: a rule whose value on the
+    /// last is outside its bound, a region where the foot must fit and presses out beyond
+    /// what the rules allow (plus [`FIT_TOL_MM`]). Empty: the last is as the rules say.
+    pub fn misfits(&self) -> Vec<String> {
+        let mut out: Vec<String> = self
+            .rules
+            .iter()
+            .filter(|r| !r.met)
+            .map(|r| {
+                format!(
+                    "rule {} ({}) not met: {:.2} mm on the last for a target of {:.2} mm (bound {:.2})",
+                    r.rule, r.quantity, r.last_mm, r.target_mm, r.bound_mm
+                )
+            })
+            .collect();
+        for r in self.clearance.regions.iter().filter(|r| !r.met()) {
+            out.push(format!(
+                "the {} presses out through the {} by {:.2} mm at ({:.1}, {:.1}, {:.1}) (foot frame), where {} say it must fit{}",
+                self.clearance.of,
+                r.region,
+                -r.min_mm,
+                r.at_mm[0],
+                r.at_mm[1],
+                r.at_mm[2],
+                r.rules,
+                match r.allowed_press_mm {
+                    Some(a) if a > 0.0 => format!(" (pressing by {a:.2} mm allowed, {FIT_TOL_MM} mm slack)"),
+                    _ => format!(" ({FIT_TOL_MM} mm slack)"),
+                }
+            ));
+        }
+        out
+    }
+}
+
 /// Each rule's value cut from the output last, its error and whether it is within bound.
 pub(crate) fn judge(rows: &mut [RuleRow], lm: &Measures) {
     let v = shape::values(lm);
@@ -771,7 +807,15 @@ struct Report<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     bottom_curve: Option<&'a [[f64; 2]]>,
     foot_points: FootPoints,
+    /// Whether the last misses a rule or the must-fit check ([`Customized::misfits`]); a
+    /// misfit is written only when asked (`--keep-misfit`), with MISFIT.txt beside it.
+    misfit: bool,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    misfits: Vec<String>,
 }
+
+/// The file written beside a last that misses its rules (`--keep-misfit`).
+pub const MISFIT_FILE: &str = "MISFIT.txt";
 
 /// The foot's characteristic points in its frame (mm; docs/method.md 10.1 defines them), so a
 /// last maker or a test can compare them with landmarks of their own.
@@ -806,19 +850,38 @@ impl FootPoints {
 }
 
 /// Write last.stl, last.igs, last.step, frame.igs, report.json and customize.png into `dir`.
-/// Every rule must be met and the last closed first; nothing is written otherwise.
+/// Every rule must be met and the last closed first; nothing is written otherwise. The
+/// report says whether the foot fits where the rules say it must (`misfit`, `misfits`).
 pub fn write_outputs(c: &Customized, inp: &Inputs, dir: &Path) -> Result<(), CustomizeError> {
+    write_files(c, inp, dir, false)
+}
+
+/// [`write_outputs`] of a last that misses its rules, marked so: report.json has
+/// `"misfit": true` and the reasons, and MISFIT.txt says what is wrong in words.
+pub fn write_misfit(c: &Customized, inp: &Inputs, dir: &Path) -> Result<(), CustomizeError> {
+    write_files(c, inp, dir, true)
+}
+
+fn write_files(
+    c: &Customized,
+    inp: &Inputs,
+    dir: &Path,
+    marked: bool,
+) -> Result<(), CustomizeError> {
     let out = |p: &Path, why: String| CustomizeError::Output {
         path: p.display().to_string(),
         why,
     };
-    if let Some(r) = c.rules.iter().find(|r| !r.met) {
-        return Err(CustomizeError::Infeasible {
-            why: format!(
-                "rule {} ({}) not met on the last: {:.2} mm for a target of {:.2} mm",
-                r.rule, r.quantity, r.last_mm, r.target_mm
-            ),
-        });
+    let misfits = c.misfits();
+    if !marked {
+        if let Some(r) = c.rules.iter().find(|r| !r.met) {
+            return Err(CustomizeError::Infeasible {
+                why: format!(
+                    "rule {} ({}) not met on the last: {:.2} mm for a target of {:.2} mm",
+                    r.rule, r.quantity, r.last_mm, r.target_mm
+                ),
+            });
+        }
     }
     c.last
         .check()
@@ -852,12 +915,26 @@ pub fn write_outputs(c: &Customized, inp: &Inputs, dir: &Path) -> Result<(), Cus
         last_triangles: c.last.triangles.len(),
         bottom_curve: c.bottom_curve.as_deref(),
         foot_points: FootPoints::of(&c.foot_measures),
+        misfit: !misfits.is_empty(),
+        misfits: misfits.clone(),
     };
     let p = dir.join("report.json");
     let j = serde_json::to_string_pretty(&rep).map_err(|e| out(&p, e.to_string()))?;
     crate::draw::write_atomic(&p, j.as_bytes()).map_err(|e| out(&p, e.to_string()))?;
     let p = dir.join("customize.png");
     picture::draw(c, &p).map_err(|e| out(&p, e.to_string()))?;
+    if marked && !misfits.is_empty() {
+        let p = dir.join(MISFIT_FILE);
+        let text = format!(
+            "MISFIT: this last does not do what its rules ask. Check it before a shoe is made on it.\n\n{}\n\nreport.json has the rules' table and the clearance by region (\"misfit\": true).\n",
+            misfits
+                .iter()
+                .map(|m| format!("- {m}"))
+                .collect::<Vec<_>>()
+                .join("\n")
+        );
+        crate::draw::write_atomic(&p, text.as_bytes()).map_err(|e| out(&p, e.to_string()))?;
+    }
     Ok(())
 }
 
@@ -879,6 +956,24 @@ pub fn write_outputs_atomic(
     inp: &Inputs,
     out: &Path,
 ) -> Result<Vec<std::path::PathBuf>, CustomizeError> {
+    write_atomic(c, inp, out, false)
+}
+
+/// [`write_misfit`] all or nothing, as [`write_outputs_atomic`]; MISFIT.txt listed last.
+pub fn write_misfit_atomic(
+    c: &Customized,
+    inp: &Inputs,
+    out: &Path,
+) -> Result<Vec<std::path::PathBuf>, CustomizeError> {
+    write_atomic(c, inp, out, true)
+}
+
+fn write_atomic(
+    c: &Customized,
+    inp: &Inputs,
+    out: &Path,
+    marked: bool,
+) -> Result<Vec<std::path::PathBuf>, CustomizeError> {
     let err = |p: &Path, why: String| CustomizeError::Output {
         path: p.display().to_string(),
         why,
@@ -895,7 +990,7 @@ pub fn write_outputs_atomic(
     let pid = std::process::id();
     let tmp = parent.join(format!(".{name}.tmp{pid}"));
     let _ = std::fs::remove_dir_all(&tmp);
-    let result = write_outputs(c, inp, &tmp).and_then(|()| {
+    let result = write_files(c, inp, &tmp, marked).and_then(|()| {
         let old = parent.join(format!(".{name}.old{pid}"));
         let had = out.exists();
         if had {
@@ -916,7 +1011,11 @@ pub fn write_outputs_atomic(
         let _ = std::fs::remove_dir_all(&tmp);
     }
     result?;
-    Ok(OUTPUT_FILES.iter().map(|n| out.join(n)).collect())
+    let mut files: Vec<std::path::PathBuf> = OUTPUT_FILES.iter().map(|n| out.join(n)).collect();
+    if out.join(MISFIT_FILE).is_file() {
+        files.push(out.join(MISFIT_FILE));
+    }
+    Ok(files)
 }
 
 pub mod picture;
