@@ -107,7 +107,14 @@ pub fn load_stock(path: &Path) -> Result<TriMesh, ClinicLastError> {
     let (m, _) =
         TriMesh::load_solid(path, Units::Auto, None).map_err(|e| ClinicLastError::Input {
             path: path.into(),
-            why: e.to_string(),
+            // No unit or length option for a stock last: say what the file must be.
+            why: e
+                .retold(
+                    "a stock last is read in millimetres or metres; save it in one of them",
+                    "a stock last is read in millimetres or metres (no length can be given \
+                     for it); save it scaled to its real size",
+                )
+                .to_string(),
         })?;
     footscan_last::size::check_last_size(path, &m).map_err(|e| ClinicLastError::Input {
         path: path.into(),

@@ -792,10 +792,19 @@ fn clinic_scan_girths_and_stock_last() {
         s(&stock),
         "--out",
         s(&p("last")),
+        "--keep-misfit",
     ]);
-    assert!(ok, "{out}{err}");
     println!("{out}");
+    // The scan's footprint (its plan outline, arch included) presses out through the stock
+    // last's bottom outline at 1.5 mm in the heel seat, midfoot and toe box (measured
+    // 2026-11-27: -1.73, -19.31, -0.47 mm), where the rules say the foot must fit: the CLI
+    // says so, exits non-zero and, asked to keep it, writes the last marked as a misfit.
+    assert!(
+        !ok && err.contains("written marked as a misfit"),
+        "{out}{err}"
+    );
     let rep = check_cut(&p("last"));
+    assert_eq!(rep["misfit"], true);
     let rules = rep["rules"].as_array().unwrap();
     // The scan's plantar figures against the simulator's 250 mm foot (whole-foot path:
     // length 250.00, ball width 99.99, waist 58.42, heel width 62.50).
@@ -812,4 +821,149 @@ fn clinic_scan_girths_and_stock_last() {
     let regions = rep["clearance"]["regions"].as_array().unwrap();
     let toe_box = regions.iter().find(|r| r["region"] == "toe box").unwrap();
     assert!(toe_box["vertices"].as_u64().unwrap() > 100, "{toe_box}");
+}
+
+/// Honest exit: a rule file whose toe allowance is -25 mm asks for a last 25 mm shorter at
+/// the toe than the foot, so the toes press out through the toe box, where the rules say the
+/// foot must fit. Without --keep-misfit nothing is written and the status is non-zero; with
+/// it the files are written, marked (MISFIT.txt, report.json "misfit": true with the toe box
+/// named), and the status is still non-zero. The shipped rules on the same foot fit: status 0,
+/// "misfit": false, no MISFIT.txt.
+#[test]
+fn a_misfit_exits_non_zero_and_is_written_only_marked() {
+    let dir = tempfile::tempdir().unwrap();
+    let foot = dir.path().join("foot.stl");
+    let (ok, out, err) = footscan(&["sim", "foot", "--length", "250", "--out", s(&foot)]);
+    assert!(ok, "{out}{err}");
+    let text = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("config/last-rules.toml"),
+    )
+    .unwrap();
+    let short_text = text.replacen(
+        "toe_allowance_mm = { dress = 20.0",
+        "toe_allowance_mm = { dress = -25.0",
+        1,
+    );
+    assert_ne!(short_text, text);
+    let short = dir.path().join("short.toml");
+    std::fs::write(&short, short_text).unwrap();
+    let out_dir = dir.path().join("last");
+    let args = |rules: &str, keep: bool| {
+        let mut a = vec![
+            "last",
+            "customize",
+            "--foot",
+            s(&foot),
+            "--rules",
+            rules,
+            "--out",
+            s(&out_dir),
+        ];
+        if keep {
+            a.push("--keep-misfit");
+        }
+        a.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let run = |a: Vec<String>| footscan(&a.iter().map(|x| x.as_str()).collect::<Vec<_>>());
+    let (ok, out, err) = run(args(s(&short), false));
+    assert!(!ok, "a misfit exited 0: {out}");
+    assert!(
+        err.contains("toe box") && err.contains("nothing written") && err.contains("--keep-misfit"),
+        "{err}"
+    );
+    assert!(!out_dir.exists(), "a misfit wrote {}", out_dir.display());
+    let (ok, out, err) = run(args(s(&short), true));
+    assert!(!ok, "a kept misfit exited 0: {out}");
+    assert!(err.contains("written marked as a misfit"), "{err}");
+    let note = std::fs::read_to_string(out_dir.join("MISFIT.txt")).unwrap();
+    assert!(
+        note.starts_with("MISFIT") && note.contains("toe box"),
+        "{note}"
+    );
+    let rep: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("report.json")).unwrap()).unwrap();
+    assert_eq!(rep["misfit"], true);
+    assert!(
+        rep["misfits"][0].as_str().unwrap().contains("toe box"),
+        "{rep:?}"
+    );
+    for f in [
+        "last.stl",
+        "last.igs",
+        "last.step",
+        "frame.igs",
+        "customize.png",
+    ] {
+        assert!(out_dir.join(f).is_file(), "{f} missing");
+    }
+    // The shipped rules: a fit, written unmarked, status 0 (the old misfit replaced whole).
+    let (ok, out, err) = run(args("config/last-rules.toml", false));
+    assert!(ok, "{out}{err}");
+    assert!(!out_dir.join("MISFIT.txt").exists());
+    let rep: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("report.json")).unwrap()).unwrap();
+    assert_eq!(rep["misfit"], false);
+}
+
+/// --units, --length and --axes on a foot written as a scanner might: the simulated foot in
+/// centimetres, y up, heel to toe along -z. Read as it comes, given its units and axes, or
+/// scaled to a length, it comes out as the same foot; an unscaled copy is refused naming this
+/// command's own flags.
+#[test]
+fn foot_units_length_and_axes_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let foot = dir.path().join("foot.stl");
+    let (ok, out, err) = footscan(&["sim", "foot", "--length", "250", "--out", s(&foot)]);
+    assert!(ok, "{out}{err}");
+    let mut m = TriMesh::read(&foot).unwrap();
+    // (x, y, z) mm -> (y, z, -x) cm: heel to toe along -z, up +y.
+    for p in &mut m.vertices {
+        *p = P3::new(p.y / 10.0, p.z / 10.0, -p.x / 10.0);
+    }
+    let cm = dir.path().join("foot_cm.stl");
+    m.write(&cm, footscan_geom::mesh::Format::StlBinary)
+        .unwrap();
+    let mut tiny = m.clone();
+    tiny.scale(0.2);
+    let unscaled = dir.path().join("foot_unscaled.stl");
+    tiny.write(&unscaled, footscan_geom::mesh::Format::StlBinary)
+        .unwrap();
+    let length = |out: &str| -> f64 {
+        let l = out.lines().find(|l| l.contains("foot, length")).unwrap();
+        let t = l.split("length ").nth(1).unwrap();
+        t.split(' ').next().unwrap().parse().unwrap()
+    };
+    let customize = |extra: &[&str], file: &Path, name: &str| {
+        let o = dir.path().join(name);
+        let mut a = vec!["last", "customize", "--foot", s(file), "--out", s(&o)];
+        a.extend_from_slice(extra);
+        footscan(&a)
+    };
+    let (ok, out0, err) = customize(&[], &foot, "l0");
+    assert!(ok, "{out0}{err}");
+    let l0 = length(&out0);
+    for (extra, file) in [
+        (vec![], &cm),
+        (vec!["--units", "cm", "--axes", "-z,y"], &cm),
+        (vec!["--length", "250"], &unscaled),
+    ] {
+        let (ok, out, err) = customize(&extra, file, "l1");
+        assert!(ok, "{extra:?}: {out}{err}");
+        let l = length(&out);
+        println!(
+            "{extra:?} {}: length {l:.2} (mm file: {l0:.2})",
+            file.display()
+        );
+        assert!(out.contains("units: "), "{out}");
+        if extra.is_empty() {
+            assert!((l - l0).abs() < 0.5, "{l} vs {l0}");
+            assert!(out.contains("centimetres, from the size"), "{out}");
+        }
+    }
+    let (ok, _, err) = customize(&[], &unscaled, "l2");
+    assert!(!ok);
+    assert!(
+        err.contains("foot_unscaled.stl") && err.contains("--units") && err.contains("--length MM"),
+        "{err}"
+    );
 }

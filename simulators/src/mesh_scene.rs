@@ -16,7 +16,7 @@
 
 use crate::optics::{check_range, SimError};
 use crate::render::Surface;
-use footscan_geom::mesh::{MeshError, TriMesh, Units};
+use footscan_geom::mesh::{Axes, IntakeOptions, MeshError, TriMesh, Units};
 use footscan_geom::P3;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -97,11 +97,19 @@ pub struct MeshSceneConfig {
     /// STL (binary or ASCII), PLY or OBJ file; a relative path is taken from the working
     /// directory.
     pub path: PathBuf,
-    /// "mm", "m" or "auto" (from the size: under 1 long is metres, 50 and over millimetres,
-    /// in between it needs `length_mm`).
+    /// "mm", "cm", "m" or "auto". With `axes = "file"`: from the size (under 1 long is
+    /// metres, 50 and over millimetres, in between it needs `length_mm`); otherwise from the
+    /// heel-to-toe length (a foot or last is 100-360 mm: mm, cm or m, whichever fits).
     pub units: String,
-    /// Scale so the longest side is this long (mm); overrides `units`.
+    /// Scale to this length (mm): heel to toe, or with `axes = "file"` the longest side;
+    /// overrides `units`.
     pub length_mm: Option<f64>,
+    /// How the mesh stands before it is placed: "auto" (the default: up and heel to toe found
+    /// from the mesh as for a foot, docs/method.md 10.1, so it stands sole down on the glass,
+    /// heel toward -x; inward triangles turned and an open top cut closed), "F,U" (the file
+    /// axes running heel to toe and up, e.g. "y,z" or "-y,z"), or "file" (as the file has
+    /// it, z up, x heel to toe, as before this option).
+    pub axes: String,
     pub placement: Placement,
 }
 
@@ -111,6 +119,7 @@ impl Default for MeshSceneConfig {
             path: PathBuf::new(),
             units: "auto".into(),
             length_mm: None,
+            axes: "auto".into(),
             placement: Placement::default(),
         }
     }
@@ -125,8 +134,14 @@ pub enum MeshSceneError {
     Invalid(#[from] SimError),
     #[error("mesh scene: no mesh file given (set path = \"file.stl\" under [sim.mesh])")]
     NoPath,
-    #[error("mesh scene {path}: invalid units {units:?}; valid: mm, m, auto")]
+    #[error("mesh scene {path}: invalid units {units:?}; valid: mm, cm, m, auto")]
     Units { path: PathBuf, units: String },
+    #[error("mesh scene {path}: invalid axes {axes:?}: {why}; valid: auto, file, or heel-to-toe and up like \"y,z\" or \"-y,z\"")]
+    Axes {
+        path: PathBuf,
+        axes: String,
+        why: String,
+    },
 }
 
 impl MeshSceneConfig {
@@ -144,7 +159,33 @@ impl MeshSceneConfig {
             path: self.path.clone(),
             units: self.units.clone(),
         })?;
-        let (mesh, _report) = TriMesh::load_solid(&self.path, units, self.length_mm)?;
+        let retell = |e: MeshError| {
+            e.retold(
+                "set units = \"m\" (or \"auto\") under [sim.mesh]",
+                "set its unit with units = \"mm\", \"cm\" or \"m\", or its length with length_mm = MM, under [sim.mesh]",
+            )
+        };
+        let mesh = if self.axes.trim() == "file" {
+            TriMesh::load_solid(&self.path, units, self.length_mm)
+                .map_err(retell)?
+                .0
+        } else {
+            let axes: Axes = self.axes.parse().map_err(|why| MeshSceneError::Axes {
+                path: self.path.clone(),
+                axes: self.axes.clone(),
+                why,
+            })?;
+            let opts = IntakeOptions {
+                units,
+                length_mm: self.length_mm,
+                axes,
+            };
+            let intake = TriMesh::read_foot(&self.path, &opts).map_err(retell)?;
+            for n in &intake.notes {
+                tracing::info!("mesh scene {}: {n}", self.path.display());
+            }
+            intake.mesh
+        };
         Ok(place(&mesh, &self.placement)?)
     }
 }

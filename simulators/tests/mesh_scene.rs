@@ -171,7 +171,7 @@ fn unscaled_last_without_a_length_is_refused() {
     .unwrap_err()
     .to_string();
     assert!(
-        e.contains("Last_Flat_RoundTip.stl") && e.contains("--length"),
+        e.contains("Last_Flat_RoundTip.stl") && e.contains("length_mm = MM"),
         "{e}"
     );
     let e = MeshSceneConfig {
@@ -182,5 +182,100 @@ fn unscaled_last_without_a_length_is_refused() {
     .load()
     .unwrap_err()
     .to_string();
-    assert!(e.contains("mm, m, auto"), "{e}");
+    assert!(e.contains("mm, cm, m, auto"), "{e}");
+}
+
+/// `axes = "auto"` stands a real foot as it comes on the glass: the dupontgu pair is in
+/// metres, z up, heel to toe along -y (the heel at high y, under the leg stump), the right
+/// foot yawed about 17 degrees. Placed, each stands sole down (lowest z 0), heel toward -x:
+/// the leg's top lies over the rear third, and the length along x is the foot's. The same
+/// foot turned y up with heel to toe along +x, given as `axes = "x,y"`, stands as high, heel
+/// toward -x (its yaw in plan kept: given axes are taken exactly).
+/// The real lasts stand as the file has them (x heel to toe, z up) under "auto" as under
+/// "file": the same extent within a millimetre.
+#[test]
+fn auto_axes_stand_a_real_foot_heel_toward_minus_x() {
+    let feet = lasts_dir().join("../feet/dupontgu_my_feet");
+    for f in ["left_foot.stl", "right_foot.stl"] {
+        let cfg = MeshSceneConfig {
+            path: feet.join(f),
+            ..MeshSceneConfig::default()
+        };
+        let m = cfg.load_placed().unwrap_or_else(|e| panic!("{f}: {e}"));
+        let bb = m.bbox();
+        let (len, h) = (bb.max.x - bb.min.x, bb.max.z - bb.min.z);
+        let top: Vec<&P3> = m
+            .vertices
+            .iter()
+            .filter(|p| p.z > bb.min.z + 0.8 * h)
+            .collect();
+        let top_x = top.iter().map(|p| p.x).sum::<f64>() / top.len() as f64;
+        let at = (top_x - bb.min.x) / len;
+        println!("{f}: {len:.1} mm along x, {h:.1} high, the leg's top at {at:.2} of the length");
+        assert_eq!(bb.min.z, 0.0, "{f}");
+        assert!((255.0..290.0).contains(&len), "{f}: {len}");
+        assert!(h < 0.45 * len, "{f}: {h} high: not standing");
+        assert!(
+            at < 0.35,
+            "{f}: the leg is at {at:.2} of the length, not over the heel"
+        );
+        // Given the axes of a y-up copy.
+        let mut y_up = TriMesh::read(feet.join(f)).unwrap();
+        for p in &mut y_up.vertices {
+            *p = P3::new(-p.y, p.z, -p.x);
+        }
+        let p = std::env::temp_dir().join(format!("footscan_sim_y_up_{}_{f}", std::process::id()));
+        y_up.write(&p, footscan_geom::mesh::Format::StlBinary)
+            .unwrap();
+        let given = MeshSceneConfig {
+            path: p.clone(),
+            axes: "x,y".into(),
+            ..MeshSceneConfig::default()
+        }
+        .load_placed();
+        let _ = std::fs::remove_file(&p);
+        let g = given.unwrap();
+        let gb = g.bbox();
+        let gtop: Vec<&P3> = g.vertices.iter().filter(|p| p.z > 0.8 * gb.max.z).collect();
+        let g_at = (gtop.iter().map(|p| p.x).sum::<f64>() / gtop.len() as f64 - gb.min.x)
+            / (gb.max.x - gb.min.x);
+        // Given axes are taken exactly: the right foot keeps its yaw in plan.
+        assert!(
+            (gb.max.z - h).abs() < 0.5 && g_at < 0.35,
+            "{f}: given axes stand {:?} (the leg at {g_at:.2}), auto {:?}",
+            gb.extent(),
+            bb.extent()
+        );
+    }
+    for file in ["LastScan_Default.stl", "LastScan_Warped.stl"] {
+        let load = |axes: &str| {
+            MeshSceneConfig {
+                path: lasts_dir().join(file),
+                axes: axes.into(),
+                ..MeshSceneConfig::default()
+            }
+            .load_placed()
+            .unwrap_or_else(|e| panic!("{file} {axes}: {e}"))
+            .bbox()
+            .extent()
+        };
+        let (auto, file_axes) = (load("auto"), load("file"));
+        println!("{file}: auto {auto:.1?}, file {file_axes:.1?}");
+        assert!(
+            (auto - file_axes).abs().max() < 1.0,
+            "{file}: {auto:?} vs {file_axes:?}"
+        );
+    }
+    let e = MeshSceneConfig {
+        path: feet.join("left_foot.stl"),
+        axes: "y,y".into(),
+        ..MeshSceneConfig::default()
+    }
+    .load()
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("left_foot.stl") && e.contains("different axes"),
+        "{e}"
+    );
 }

@@ -5,18 +5,44 @@
 use anyhow::{anyhow, Result};
 use clap::Parser;
 use footscan::lastcustom::{load_stock, plantar_of_scan};
+use footscan_geom::mesh::{Axes, IntakeOptions, Units};
 use footscan_last::customize::clinic::{customize_stock, TapeGirths};
 use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
-use footscan_last::customize::{customize, load_foot, write_outputs_atomic, Inputs, HEEL_RANGE_MM};
+use footscan_last::customize::{
+    customize, load_foot_with, write_misfit_atomic, write_outputs_atomic, Inputs, HEEL_RANGE_MM,
+    MISFIT_FILE,
+};
 use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Parser)]
 pub struct CustomizeArgs {
-    /// The whole foot as a closed mesh (STL, OBJ or PLY; millimetres or metres, z up), as a
-    /// 3D foot scanner or `footscan sim foot` writes it.
+    /// The whole foot as a mesh (STL, OBJ or PLY), as a 3D foot scanner or `footscan sim foot`
+    /// writes it: read as it comes (unit, up, heel-to-toe, inward triangles and an open top
+    /// cut found and mended, each said on the first lines printed; docs/method.md 10.1).
     #[arg(long, required_unless_present = "scan", conflicts_with_all = ["scan", "girths", "stock"])]
     foot: Option<PathBuf>,
+    /// Unit of the --foot file: mm, cm, m, or auto (from its heel-to-toe length: a foot is
+    /// 100-360 mm).
+    #[arg(long, default_value = "auto", requires = "foot")]
+    units: Units,
+    /// Scale the --foot mesh so it is this long heel to toe (mm; for unscaled model units).
+    #[arg(long, value_name = "MM", requires = "foot")]
+    length: Option<f64>,
+    /// Axes of the --foot file: "auto", or heel-to-toe then up, each x, y or z with an
+    /// optional sign: "y,z" (heel to toe along +y, z up), "-y,z", "x,y".
+    #[arg(
+        long,
+        default_value = "auto",
+        requires = "foot",
+        allow_hyphen_values = true
+    )]
+    axes: Axes,
+    /// When the last misses a rule or the foot presses out where the rules say it must fit,
+    /// write it anyway, marked (MISFIT.txt, report.json "misfit": true); the exit status is
+    /// still non-zero. Without it nothing is written.
+    #[arg(long)]
+    keep_misfit: bool,
     /// The clinic's way: a plantar scan directory of ours (its measurements.json: length,
     /// widths, side), with --girths and --stock.
     #[arg(long, requires_all = ["girths", "stock"])]
@@ -76,7 +102,16 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
     };
     let t0 = Instant::now();
     let (c, t_load, t_custom, input) = if let Some(foot_path) = &a.foot {
-        let (foot, frame) = load_foot(foot_path).map_err(|e| named(foot_path, e))?;
+        let opts = IntakeOptions {
+            units: a.units,
+            length_mm: a.length,
+            axes: a.axes,
+        };
+        let (foot, frame, intake) =
+            load_foot_with(foot_path, &opts).map_err(|e| named(foot_path, e))?;
+        for n in &intake.notes {
+            println!("{}: {n}", foot_path.display());
+        }
         let t_load = t0.elapsed();
         let t1 = Instant::now();
         let c = customize(foot, frame, &rules, &inp).map_err(|e| named(foot_path, e))?;
@@ -167,8 +202,17 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
             "does NOT fit where the rules say it must"
         }
     );
+    // Honest exit: a last that misses its rules is written only when asked, marked, and the
+    // status says so either way.
+    let misfits = c.misfits();
     let t2 = Instant::now();
-    let files = write_outputs_atomic(&c, &inp, &a.out)?;
+    let files = if misfits.is_empty() {
+        write_outputs_atomic(&c, &inp, &a.out)?
+    } else if a.keep_misfit {
+        write_misfit_atomic(&c, &inp, &a.out)?
+    } else {
+        Vec::new()
+    };
     let t_write = t2.elapsed();
     println!(
         "load {:.0} ms, customize {:.0} ms ({} mesh evaluations), write {:.0} ms",
@@ -180,7 +224,23 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
     for f in &files {
         println!("wrote {}", f.display());
     }
-    Ok(())
+    if misfits.is_empty() {
+        return Ok(());
+    }
+    let list = misfits.join("; ");
+    if a.keep_misfit {
+        Err(anyhow!(
+            "{}: the last does not do what its rules ask: {list}; written marked as a misfit ({} in {}, report.json \"misfit\": true)",
+            input.display(),
+            MISFIT_FILE,
+            a.out.display()
+        ))
+    } else {
+        Err(anyhow!(
+            "{}: the last does not do what its rules ask: {list}; nothing written (--keep-misfit writes it marked as a misfit)",
+            input.display()
+        ))
+    }
 }
 
 /// A customization error with the foot file in front unless the message names it already.

@@ -92,16 +92,30 @@ pub enum MeshError {
     Invalid { path: PathBuf, defect: Defect },
     #[error(
         "{}: the mesh is {:.4} x {:.4} x {:.4} mm, smaller than 1 mm: it is in metres, not millimetres; \
-         pass --units m (or --units auto)",
+         {hint}",
         path.display(), size.x, size.y, size.z
     )]
-    MetresAsMm { path: PathBuf, size: V3 },
+    MetresAsMm {
+        path: PathBuf,
+        size: V3,
+        hint: String,
+    },
     #[error(
         "{}: the mesh is {:.3} x {:.3} x {:.3} units, too small for millimetres ({min_mm} mm at least) \
-         and too large for metres: it is in unscaled model units; give its length with --length MM",
+         and too large for metres: it is in unscaled model units; {hint}",
         path.display(), size.x, size.y, size.z, min_mm = super::MIN_PLAUSIBLE_MM
     )]
-    Unscaled { path: PathBuf, size: V3 },
+    Unscaled {
+        path: PathBuf,
+        size: V3,
+        hint: String,
+    },
+    /// The mesh is not a foot (size, shape), and why.
+    #[error("{}: not a foot: {why}", path.display())]
+    NotAFoot { path: PathBuf, why: String },
+    /// A hole that is not a flat cut at the top, and where.
+    #[error("{}: {why}", path.display())]
+    Hole { path: PathBuf, why: String },
     #[error("{}: invalid target length {length_mm} mm (must be positive and finite)", path.display())]
     BadLength { path: PathBuf, length_mm: f64 },
 }
@@ -116,7 +130,28 @@ impl MeshError {
             | MeshError::Invalid { path, .. }
             | MeshError::MetresAsMm { path, .. }
             | MeshError::Unscaled { path, .. }
-            | MeshError::BadLength { path, .. } => path,
+            | MeshError::BadLength { path, .. }
+            | MeshError::NotAFoot { path, .. }
+            | MeshError::Hole { path, .. } => path,
+        }
+    }
+
+    /// The same error with the advice on units and length put in the words of the command
+    /// or configuration that read the mesh (`units`: how to give the unit, `length`: how to
+    /// give the length), so it names options that exist there.
+    pub fn retold(self, units: &str, length: &str) -> MeshError {
+        match self {
+            MeshError::MetresAsMm { path, size, .. } => MeshError::MetresAsMm {
+                path,
+                size,
+                hint: units.to_string(),
+            },
+            MeshError::Unscaled { path, size, .. } => MeshError::Unscaled {
+                path,
+                size,
+                hint: length.to_string(),
+            },
+            e => e,
         }
     }
 }

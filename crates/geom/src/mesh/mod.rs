@@ -8,6 +8,7 @@
 
 mod bvh;
 mod error;
+mod intake;
 mod io;
 mod section;
 mod shapes;
@@ -16,6 +17,10 @@ mod validate;
 
 pub use bvh::{Bvh, ClosestPoint, Feature, RayHit, SignedDistance};
 pub use error::{Defect, MeshError};
+pub use intake::{
+    axis_name, intake, orient_consistently, Axes, Intake, IntakeOptions, CUT_MIN_SPAN,
+    CUT_PLANARITY, FOOT_ELONGATION, FOOT_LENGTH_MM,
+};
 pub use io::{Format, StlKind};
 pub use units::{LoadReport, Units, UnitsDecision, MIN_PLAUSIBLE_MM};
 pub use validate::MeshReport;

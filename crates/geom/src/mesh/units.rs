@@ -15,6 +15,8 @@ pub const MIN_PLAUSIBLE_MM: f64 = 50.0;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Units {
     Mm,
+    /// Centimetres (some scanners and modelling tools write them).
+    Cm,
     M,
     /// Decide from the size (see the module documentation).
     #[default]
@@ -26,9 +28,10 @@ impl std::str::FromStr for Units {
     fn from_str(s: &str) -> Result<Units, String> {
         match s {
             "mm" => Ok(Units::Mm),
+            "cm" => Ok(Units::Cm),
             "m" => Ok(Units::M),
             "auto" => Ok(Units::Auto),
-            _ => Err(format!("unknown units {s:?}; valid: mm, m, auto")),
+            _ => Err(format!("unknown units {s:?}; valid: mm, cm, m, auto")),
         }
     }
 }
@@ -40,6 +43,8 @@ pub enum UnitsDecision {
     Millimetres,
     /// Metres, given (`Units::M`) or detected from the size (`detected`); scale 1000.
     Metres { detected: bool },
+    /// Centimetres (given); scale 10.
+    Centimetres,
     /// Scaled so the longest side is the given length.
     Length { length_mm: f64 },
 }
@@ -66,6 +71,7 @@ impl LoadReport {
                 "metres (detected from the size), scaled by 1000".into()
             }
             UnitsDecision::Metres { detected: false } => "metres, scaled by 1000".into(),
+            UnitsDecision::Centimetres => "centimetres, scaled by 10".into(),
             UnitsDecision::Length { length_mm } => {
                 format!("scaled by {:.6} to a length of {length_mm} mm", self.scale)
             }
@@ -99,14 +105,17 @@ impl Units {
         }
         match self {
             Units::M => Ok((1000.0, UnitsDecision::Metres { detected: false })),
+            Units::Cm => Ok((10.0, UnitsDecision::Centimetres)),
             Units::Mm if longest < 1.0 => Err(MeshError::MetresAsMm {
                 path: path.to_path_buf(),
                 size,
+                hint: "pass --units m (or --units auto)".into(),
             }),
             Units::Auto if longest < 1.0 => Ok((1000.0, UnitsDecision::Metres { detected: true })),
             Units::Mm | Units::Auto if longest < MIN_PLAUSIBLE_MM => Err(MeshError::Unscaled {
                 path: path.to_path_buf(),
                 size,
+                hint: "give its length with --length MM".into(),
             }),
             Units::Mm | Units::Auto => Ok((1.0, UnitsDecision::Millimetres)),
         }

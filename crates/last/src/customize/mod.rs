@@ -18,9 +18,9 @@ pub mod shape;
 pub use error::CustomizeError;
 
 use curves::{fit_loop, least_change, Constraint, FitRecord};
-use footscan_geom::mesh::{Bvh, Format, TriMesh, Units};
+use footscan_geom::mesh::{Bvh, Format, Intake, IntakeOptions, TriMesh};
 use footscan_geom::nurbs::NurbsCurve;
-use footscan_geom::{P2, P3};
+use footscan_geom::{P2, P3, V3};
 use measure::{find_frame, measure, FootFrame, Loop3, Measures, OUTLINE_Z};
 use rules::{RuleSet, Shoe, Wearer};
 use serde::Serialize;
@@ -50,7 +50,7 @@ impl Default for Inputs {
 pub const HEEL_RANGE_MM: (f64, f64) = (0.0, 120.0);
 
 /// Foot length range accepted as a foot (mm).
-pub const FOOT_LENGTH_RANGE: (f64, f64) = (100.0, 360.0);
+pub const FOOT_LENGTH_RANGE: (f64, f64) = footscan_geom::mesh::FOOT_LENGTH_MM;
 
 /// One rule's row in the report.
 #[derive(Clone, Debug, Serialize)]
@@ -295,12 +295,35 @@ pub fn targets(
     (rows, heel)
 }
 
-/// Load a foot mesh (STL, OBJ, PLY; metres detected from the size), check it is closed and
-/// foot-sized, and bring it into its own frame.
+/// Load a foot mesh (STL, OBJ, PLY) as it comes (units, axes and orientation found from the
+/// mesh: [`footscan_geom::mesh::intake`]), and bring it into its own frame.
 pub fn load_foot(path: &Path) -> Result<(TriMesh, FootFrame), CustomizeError> {
-    let (m, _rep) = TriMesh::load_solid(path, Units::Auto, None)?;
+    load_foot_with(path, &IntakeOptions::default()).map(|(m, f, _)| (m, f))
+}
+
+/// [`load_foot`] with the units, length and axes given where known. Returns the foot in its
+/// frame, the frame in the file's own coordinates (millimetres: file units times the unit
+/// scale), and what the intake did (notes for the CLI).
+pub fn load_foot_with(
+    path: &Path,
+    opts: &IntakeOptions,
+) -> Result<(TriMesh, FootFrame, Intake), CustomizeError> {
+    let intake = TriMesh::read_foot(path, opts).map_err(|e| {
+        e.retold(
+            "pass --units m (or --units auto)",
+            "give its unit with --units mm|cm|m or its heel-to-toe length with --length MM",
+        )
+    })?;
     let name = path.display().to_string();
-    foot_in_frame(m, &name)
+    let (m, mut frame) = foot_in_frame(intake.mesh.clone(), &name)?;
+    // The frame in the file's coordinates (the intake only turned and moved the mesh).
+    let o = intake.to_file_mm(&P3::from(frame.origin));
+    let ex = intake.dir_to_file(&V3::from(frame.ex));
+    let ey = intake.dir_to_file(&V3::from(frame.ey));
+    frame.origin = o.into();
+    frame.ex = ex.into();
+    frame.ey = ey.into();
+    Ok((m, frame, intake))
 }
 
 /// A closed world mesh (mm, z up) into its foot frame, with the extent check.
@@ -400,6 +423,42 @@ pub fn customize(
         bottom_curve: bottom.map(|b| b.samples()),
         footprint: Vec::new(),
     })
+}
+
+impl Customized {
+    /// Where the last is not what the rules ask, one line each: a rule whose value on the
+    /// last is outside its bound, a region where the foot must fit and presses out beyond
+    /// what the rules allow (plus [`FIT_TOL_MM`]). Empty: the last is as the rules say.
+    pub fn misfits(&self) -> Vec<String> {
+        let mut out: Vec<String> = self
+            .rules
+            .iter()
+            .filter(|r| !r.met)
+            .map(|r| {
+                format!(
+                    "rule {} ({}) not met: {:.2} mm on the last for a target of {:.2} mm (bound {:.2})",
+                    r.rule, r.quantity, r.last_mm, r.target_mm, r.bound_mm
+                )
+            })
+            .collect();
+        for r in self.clearance.regions.iter().filter(|r| !r.met()) {
+            out.push(format!(
+                "the {} presses out through the {} by {:.2} mm at ({:.1}, {:.1}, {:.1}) (foot frame), where {} say it must fit{}",
+                self.clearance.of,
+                r.region,
+                -r.min_mm,
+                r.at_mm[0],
+                r.at_mm[1],
+                r.at_mm[2],
+                r.rules,
+                match r.allowed_press_mm {
+                    Some(a) if a > 0.0 => format!(" (pressing by {a:.2} mm allowed, {FIT_TOL_MM} mm slack)"),
+                    _ => format!(" ({FIT_TOL_MM} mm slack)"),
+                }
+            ));
+        }
+        out
+    }
 }
 
 /// Each rule's value cut from the output last, its error and whether it is within bound.
@@ -748,7 +807,15 @@ struct Report<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     bottom_curve: Option<&'a [[f64; 2]]>,
     foot_points: FootPoints,
+    /// Whether the last misses a rule or the must-fit check ([`Customized::misfits`]); a
+    /// misfit is written only when asked (`--keep-misfit`), with MISFIT.txt beside it.
+    misfit: bool,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    misfits: Vec<String>,
 }
+
+/// The file written beside a last that misses its rules (`--keep-misfit`).
+pub const MISFIT_FILE: &str = "MISFIT.txt";
 
 /// The foot's characteristic points in its frame (mm; docs/method.md 10.1 defines them), so a
 /// last maker or a test can compare them with landmarks of their own.
@@ -783,19 +850,38 @@ impl FootPoints {
 }
 
 /// Write last.stl, last.igs, last.step, frame.igs, report.json and customize.png into `dir`.
-/// Every rule must be met and the last closed first; nothing is written otherwise.
+/// Every rule must be met and the last closed first; nothing is written otherwise. The
+/// report says whether the foot fits where the rules say it must (`misfit`, `misfits`).
 pub fn write_outputs(c: &Customized, inp: &Inputs, dir: &Path) -> Result<(), CustomizeError> {
+    write_files(c, inp, dir, false)
+}
+
+/// [`write_outputs`] of a last that misses its rules, marked so: report.json has
+/// `"misfit": true` and the reasons, and MISFIT.txt says what is wrong in words.
+pub fn write_misfit(c: &Customized, inp: &Inputs, dir: &Path) -> Result<(), CustomizeError> {
+    write_files(c, inp, dir, true)
+}
+
+fn write_files(
+    c: &Customized,
+    inp: &Inputs,
+    dir: &Path,
+    marked: bool,
+) -> Result<(), CustomizeError> {
     let out = |p: &Path, why: String| CustomizeError::Output {
         path: p.display().to_string(),
         why,
     };
-    if let Some(r) = c.rules.iter().find(|r| !r.met) {
-        return Err(CustomizeError::Infeasible {
-            why: format!(
-                "rule {} ({}) not met on the last: {:.2} mm for a target of {:.2} mm",
-                r.rule, r.quantity, r.last_mm, r.target_mm
-            ),
-        });
+    let misfits = c.misfits();
+    if !marked {
+        if let Some(r) = c.rules.iter().find(|r| !r.met) {
+            return Err(CustomizeError::Infeasible {
+                why: format!(
+                    "rule {} ({}) not met on the last: {:.2} mm for a target of {:.2} mm",
+                    r.rule, r.quantity, r.last_mm, r.target_mm
+                ),
+            });
+        }
     }
     c.last
         .check()
@@ -829,12 +915,26 @@ pub fn write_outputs(c: &Customized, inp: &Inputs, dir: &Path) -> Result<(), Cus
         last_triangles: c.last.triangles.len(),
         bottom_curve: c.bottom_curve.as_deref(),
         foot_points: FootPoints::of(&c.foot_measures),
+        misfit: !misfits.is_empty(),
+        misfits: misfits.clone(),
     };
     let p = dir.join("report.json");
     let j = serde_json::to_string_pretty(&rep).map_err(|e| out(&p, e.to_string()))?;
     crate::draw::write_atomic(&p, j.as_bytes()).map_err(|e| out(&p, e.to_string()))?;
     let p = dir.join("customize.png");
     picture::draw(c, &p).map_err(|e| out(&p, e.to_string()))?;
+    if marked && !misfits.is_empty() {
+        let p = dir.join(MISFIT_FILE);
+        let text = format!(
+            "MISFIT: this last does not do what its rules ask. Check it before a shoe is made on it.\n\n{}\n\nreport.json has the rules' table and the clearance by region (\"misfit\": true).\n",
+            misfits
+                .iter()
+                .map(|m| format!("- {m}"))
+                .collect::<Vec<_>>()
+                .join("\n")
+        );
+        crate::draw::write_atomic(&p, text.as_bytes()).map_err(|e| out(&p, e.to_string()))?;
+    }
     Ok(())
 }
 
@@ -856,6 +956,24 @@ pub fn write_outputs_atomic(
     inp: &Inputs,
     out: &Path,
 ) -> Result<Vec<std::path::PathBuf>, CustomizeError> {
+    write_atomic(c, inp, out, false)
+}
+
+/// [`write_misfit`] all or nothing, as [`write_outputs_atomic`]; MISFIT.txt listed last.
+pub fn write_misfit_atomic(
+    c: &Customized,
+    inp: &Inputs,
+    out: &Path,
+) -> Result<Vec<std::path::PathBuf>, CustomizeError> {
+    write_atomic(c, inp, out, true)
+}
+
+fn write_atomic(
+    c: &Customized,
+    inp: &Inputs,
+    out: &Path,
+    marked: bool,
+) -> Result<Vec<std::path::PathBuf>, CustomizeError> {
     let err = |p: &Path, why: String| CustomizeError::Output {
         path: p.display().to_string(),
         why,
@@ -872,7 +990,7 @@ pub fn write_outputs_atomic(
     let pid = std::process::id();
     let tmp = parent.join(format!(".{name}.tmp{pid}"));
     let _ = std::fs::remove_dir_all(&tmp);
-    let result = write_outputs(c, inp, &tmp).and_then(|()| {
+    let result = write_files(c, inp, &tmp, marked).and_then(|()| {
         let old = parent.join(format!(".{name}.old{pid}"));
         let had = out.exists();
         if had {
@@ -893,7 +1011,11 @@ pub fn write_outputs_atomic(
         let _ = std::fs::remove_dir_all(&tmp);
     }
     result?;
-    Ok(OUTPUT_FILES.iter().map(|n| out.join(n)).collect())
+    let mut files: Vec<std::path::PathBuf> = OUTPUT_FILES.iter().map(|n| out.join(n)).collect();
+    if out.join(MISFIT_FILE).is_file() {
+        files.push(out.join(MISFIT_FILE));
+    }
+    Ok(files)
 }
 
 pub mod picture;
