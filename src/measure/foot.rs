@@ -109,6 +109,10 @@ const HEEL_EDGE_MM: f64 = 3.0;
 const BALL_RATIO: (f64, f64) = (0.33, 0.47);
 const HEEL_RATIO: (f64, f64) = (0.20, 0.32);
 const FLAT_ARCH_MM: f64 = 2.0;
+/// A standing foot touches the glass (h <= 1 mm) over at least this share of its footprint,
+/// and no arch index (middle third's share of the contact) exceeds about 0.4.
+const MIN_CONTACT_SHARE: f64 = 0.3;
+const MAX_ARCH_INDEX: f64 = 0.45;
 
 fn missing_landmark(what: &'static str) -> MeasureError {
     MeasureError::Landmark {
@@ -130,18 +134,19 @@ struct Heads {
     waist_outer_x: (f64, f64),
 }
 
-/// The stations around `k` where `y` stays within `tol` of `y[k]` on the far side of it
-/// (below a peak when `peak`, above a valley otherwise), as positions (mm).
+/// The stations around `k` down the flanks of its peak (or up those of its valley when not
+/// `peak`) by at most `tol`, as positions (mm).
 fn basin(prof: &Profiles, y: &[f64], k: usize, tol: f64, peak: bool) -> (f64, f64) {
-    let near = |j: usize| {
-        let d = if peak { y[k] - y[j] } else { y[j] - y[k] };
-        y[j].is_finite() && d <= tol
-    };
+    // The peak's own flanks: down from it by at most `tol`, and only while the profile keeps
+    // falling (past a hollow lies the next bulge, a big toe past the head, not this one).
+    let fall = |j: usize| if peak { y[k] - y[j] } else { y[j] - y[k] };
+    let flank =
+        |j: usize, prev: usize| y[j].is_finite() && fall(j) <= tol && fall(j) >= fall(prev) - 0.02;
     let (mut a, mut b) = (k, k);
-    while a > 0 && near(a - 1) {
+    while a > 0 && flank(a - 1, a) {
         a -= 1;
     }
-    while b + 1 < y.len() && near(b + 1) {
+    while b + 1 < y.len() && flank(b + 1, b) {
         b += 1;
     }
     (prof.x(a) - 0.5, prof.x(b) + 0.5)
@@ -576,6 +581,16 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
                 r
             ));
         }
+    }
+    let share = total / body.area_mm2;
+    if share < MIN_CONTACT_SHARE || thirds[1] / total > MAX_ARCH_INDEX {
+        warnings.push(format!(
+            "{:.0} % of the footprint touches the glass and the arch index is {:.2}: the foot \
+             did not stand on the glass with its weight, so the arch index describes its pose, \
+             not its arch",
+            100.0 * share,
+            thirds[1] / total
+        ));
     }
     if arch_height < FLAT_ARCH_MM {
         warnings.push(format!(

@@ -6,6 +6,8 @@ use std::path::PathBuf;
 
 #[path = "bench_customize.rs"]
 mod customize;
+#[path = "bench_measure.rs"]
+mod measure;
 
 #[derive(Parser)]
 pub struct Args {
@@ -98,6 +100,28 @@ enum What {
         #[arg(long, default_value_t = 3)]
         repeats: usize,
         /// One JSON array of objects instead of the tables.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Foot measurements (docs/method.md section 8): a population of simulated feet of ten
+    /// kinds (flat and high arches, hallux valgus, wide and narrow forefeet, short and long
+    /// toes, relaxed, toes joined) against their truth, worst error per kind, and the real
+    /// feet of DATA/feet read as they come: heads along the foot, widths, warnings, and one
+    /// person's left and right foot against each other.
+    Measure {
+        /// Directory holding feet/ (default: $FOOTSCAN_DATA or ../shared/data).
+        #[arg(long)]
+        data: Option<PathBuf>,
+        /// Simulated feet (ten kinds in turn).
+        #[arg(long, default_value_t = 100)]
+        feet: usize,
+        /// Seed of the population.
+        #[arg(long, default_value_t = 2026)]
+        seed: u64,
+        /// Height map cell (mm).
+        #[arg(long, default_value_t = 0.1)]
+        cell_mm: f64,
+        /// One JSON object {"population", "real", "pair"} instead of the tables.
         #[arg(long)]
         json: bool,
     },
@@ -252,12 +276,18 @@ pub fn run(args: Args) -> Result<()> {
             repeats,
             json,
         } => {
-            let dir = data.unwrap_or_else(|| {
-                std::env::var_os("FOOTSCAN_DATA")
-                    .map(PathBuf::from)
-                    .unwrap_or_else(|| PathBuf::from("../shared/data"))
-            });
+            let dir = data_dir(data);
             customize::run(&dir, repeats, json)
+        }
+        What::Measure {
+            data,
+            feet,
+            seed,
+            cell_mm,
+            json,
+        } => {
+            let dir = data_dir(data);
+            measure::run(&dir, feet, seed, cell_mm, json)
         }
         What::Join {
             data,
@@ -266,11 +296,7 @@ pub fn run(args: Args) -> Result<()> {
             out,
         } => {
             use footscan_last::join::{compare, study};
-            let dir = data.unwrap_or_else(|| {
-                std::env::var_os("FOOTSCAN_DATA")
-                    .map(PathBuf::from)
-                    .unwrap_or_else(|| PathBuf::from("../shared/data"))
-            });
+            let dir = data_dir(data);
             let pairs = study::real_pairs(&dir)
                 .map_err(|e| anyhow::anyhow!("{e} (give --data DIR holding lasts/)"))?;
             let (rows, pics) = compare::run(&pairs, &compare::methods(), repeats, out.is_some())?;
@@ -339,4 +365,13 @@ pub fn run(args: Args) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// The data directory: as given, else $FOOTSCAN_DATA, else ../shared/data.
+fn data_dir(data: Option<PathBuf>) -> PathBuf {
+    data.unwrap_or_else(|| {
+        std::env::var_os("FOOTSCAN_DATA")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| PathBuf::from("../shared/data"))
+    })
 }
