@@ -20,7 +20,7 @@ type Keypoints = (&'static str, &'static str, &'static str, f64);
 
 /// The real feet of the data directory (relative to it), their sides and landmarks, if any
 /// (the FIND template's STL is its OBJ in millimetres).
-const REAL: [(&str, &str, Option<Keypoints>); 3] = [
+const REAL: [(&str, &str, Option<Keypoints>); 5] = [
     (
         "feet/find_template/template_mm.stl",
         "left",
@@ -37,6 +37,8 @@ const REAL: [(&str, &str, Option<Keypoints>); 3] = [
         "right",
         None,
     ),
+    ("feet/dupontgu_my_feet/left_foot.stl", "left", None),
+    ("feet/dupontgu_my_feet/right_foot.stl", "right", None),
 ];
 
 fn sim_foot(length: f64, side: Side) -> Result<TriMesh> {
