@@ -167,6 +167,9 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
             "does NOT fit where the rules say it must"
         }
     );
+    if let Some(why) = &cl.missed_because {
+        println!("must-fit missed: {why}");
+    }
     let t2 = Instant::now();
     let files = write_outputs_atomic(&c, &inp, &a.out)?;
     let t_write = t2.elapsed();
