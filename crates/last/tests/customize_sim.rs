@@ -427,6 +427,16 @@ fn standing_pair_fits_as_scanned_and_perturbed() {
             for r in &c.rules {
                 assert!(r.met, "{side} {name}: {} err {}", r.rule, r.error_mm);
             }
+            // A miss is explained, a fit is not.
+            let missed = c.clearance.regions.iter().any(|r| !r.met());
+            assert_eq!(
+                c.clearance.missed_because.is_some(),
+                missed,
+                "{side} {name}"
+            );
+            if let Some(why) = &c.clearance.missed_because {
+                println!("  must-fit missed: {why}");
+            }
             for region in ["heel seat", "midfoot", "toe box"] {
                 let r = c.clearance.region(region).unwrap();
                 assert!(

@@ -438,7 +438,9 @@ fn why_missed(
     };
     if let Some((n, s)) = scale.filter(|s| s.1 < 1.0) {
         inward.push(format!(
-            "the {n} width scale {s:.4} (the last's plan width, taken from hulls that hold the              foot between stations, came out wider than the foot's and the rule's width is              given back from both walls)"
+            "the {n} width scale {s:.4} (the last's plan width, taken from hulls that \
+             hold the foot between stations, came out wider than the foot's and the \
+             rule's width is given back from both walls)"
         ));
     }
     for (n, v) in [("heel", dh), ("ankle", da), ("instep", di)] {
