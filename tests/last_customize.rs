@@ -581,11 +581,12 @@ fn real_feet_customized_and_cut_independently() {
     // plane, the stretched rings' reach, 250 stations and the rings' sharp corners kept,
     // -0.28/-0.32/-0.10, -0.05/-1.53/-0.67 and -0.08/-0.36/-0.22.
     let feet = [
-        // -0.19/-0.22/+0.00
+        // -0.19/-0.21/+0.00 (-0.19/-0.22/+0.00 with square corners on standing feet)
         ("find_template/template_mm.stl", "left"),
-        // -0.00/-0.21/-0.02
+        // -0.00/-0.13/-0.02 (-0.00/-0.21/-0.02)
         ("find_lowres/find_demo_template.obj", "left"),
-        // -0.02/-0.18/-0.02
+        // -0.02/-0.17/-0.02 (-0.02/-0.18/-0.02); the dupontgu pair, standing on a plate
+        // (no bottom curve), is bounded in crates/last/tests/customize_sim.rs
         (
             "makehuman/makehuman_default_right_foot_cut150mm.stl",
             "right",

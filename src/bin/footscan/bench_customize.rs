@@ -20,7 +20,7 @@ type Keypoints = (&'static str, &'static str, &'static str, f64);
 
 /// The real feet of the data directory (relative to it), their sides and landmarks, if any
 /// (the FIND template's STL is its OBJ in millimetres).
-const REAL: [(&str, &str, Option<Keypoints>); 3] = [
+const REAL: [(&str, &str, Option<Keypoints>); 5] = [
     (
         "feet/find_template/template_mm.stl",
         "left",
@@ -37,6 +37,8 @@ const REAL: [(&str, &str, Option<Keypoints>); 3] = [
         "right",
         None,
     ),
+    ("feet/dupontgu_my_feet/left_foot.stl", "left", None),
+    ("feet/dupontgu_my_feet/right_foot.stl", "right", None),
 ];
 
 fn sim_foot(length: f64, side: Side) -> Result<TriMesh> {
@@ -97,6 +99,9 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
             rows.push(one(format!("sim {l:.0} {s}"), m, &rules, &inp, repeats)?);
         }
     }
+    // The real feet's directories and sides, by row: a directory holding a left and a right
+    // foot is one person's pair.
+    let mut real_rows: Vec<(&Path, &str, usize)> = Vec::new();
     for (f, side, keypoints) in REAL {
         let p = data.join(f);
         if !p.exists() {
@@ -115,8 +120,31 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
                 .map_err(|e| anyhow!("{e}"))?;
             row.landmarks = pair_with(&row.c.foot_measures, &row.c.frame_in_world, &kp);
         }
+        real_rows.push((Path::new(f).parent().unwrap(), side, rows.len()));
         rows.push(row);
     }
+    // Left against right of each pair: length, ball width and heel width (the foot's, mm),
+    // their difference as a percentage of the mean (a person's feet are within about 2 %).
+    let pairs: Vec<(usize, usize)> = real_rows
+        .iter()
+        .filter(|l| l.1 == "left")
+        .filter_map(|l| {
+            real_rows
+                .iter()
+                .find(|r| r.1 == "right" && r.0 == l.0)
+                .map(|r| (l.2, r.2))
+        })
+        .collect();
+    let pair_table = |l: &Row, r: &Row| -> Vec<(&'static str, f64, f64, f64)> {
+        let (a, b) = (&l.c.foot_measures, &r.c.foot_measures);
+        [
+            ("foot length", a.length, b.length),
+            ("ball width", a.ball_width, b.ball_width),
+            ("heel width", a.heel_width, b.heel_width),
+        ]
+        .map(|(n, x, y)| (n, x, y, 200.0 * (x - y) / (x + y)))
+        .to_vec()
+    };
     if json_out {
         let j: Vec<_> = rows
             .iter()
@@ -134,6 +162,19 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
                 })
             })
             .collect();
+        // A pair's left-against-right figures go with its right foot's object.
+        let mut j = j;
+        for &(l, r) in &pairs {
+            j[r]["pair_left_vs_right"] = json!({
+                "left": rows[l].name,
+                "figures": pair_table(&rows[l], &rows[r])
+                    .iter()
+                    .map(|(n, a, b, pc)| {
+                        json!({"quantity": n, "left_mm": a, "right_mm": b, "difference_percent": pc})
+                    })
+                    .collect::<Vec<_>>(),
+            });
+        }
         println!("{}", serde_json::to_string_pretty(&j)?);
         return Ok(());
     }
@@ -171,6 +212,9 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
             r.c.evaluations,
             r.curve_ms
         );
+        if let Some(why) = &r.c.clearance.missed_because {
+            println!("  must-fit missed: {why}");
+        }
         let worst =
             r.c.rules
                 .iter()
@@ -218,6 +262,23 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
                 l.join(", ")
             );
         }
+    }
+    for &(l, r) in &pairs {
+        let t: Vec<String> = pair_table(&rows[l], &rows[r])
+            .iter()
+            .map(|(n, a, b, pc)| format!("{n} {a:.2} / {b:.2} ({pc:+.2} %)"))
+            .collect();
+        let worst = pair_table(&rows[l], &rows[r])
+            .iter()
+            .map(|x| x.3.abs())
+            .fold(0.0, f64::max);
+        println!(
+            "pair {} / {}: {}; largest difference {worst:.2} % (a pair is within 2 %: {})",
+            rows[l].name,
+            rows[r].name,
+            t.join(", "),
+            worst <= 2.0
+        );
     }
     let n = rows.len() as f64;
     let mean = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).sum::<f64>() / n;

@@ -202,6 +202,9 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
             "does NOT fit where the rules say it must"
         }
     );
+    if let Some(why) = &cl.missed_because {
+        println!("must-fit missed: {why}");
+    }
     // Honest exit: a last that misses its rules is written only when asked, marked, and the
     // status says so either way.
     let misfits = c.misfits();

@@ -137,6 +137,10 @@ pub struct Clearance {
     /// Smallest clearance anywhere below the top, and where (foot frame, mm).
     pub overall_mm: f64,
     pub worst_at_mm: [f64; 3],
+    /// Where the foot does not fit where the rules say it must: which region, where, and
+    /// what of the last's construction presses it there (None where it fits).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub missed_because: Option<String>,
 }
 
 /// One region's clearance.
@@ -407,7 +411,8 @@ pub fn customize(
     }
     // Algorithm I on the foot's characteristic curves, Algorithm II onto the last's.
     let (fits, curves) = frame_curves(&fm, &outline, &on_last, &target)?;
-    let clearance = clearance(&foot, &last, &nd, rows[2].change_mm);
+    let mut clearance = clearance(&foot, &last, &nd, rows[2].change_mm);
+    clearance.missed_because = why_missed(&clearance, &field, &nd, medial);
     Ok(Customized {
         frame_in_world: frame,
         foot,
@@ -459,6 +464,73 @@ impl Customized {
         }
         out
     }
+}
+
+/// Why the foot stands out of its last where the rules say it must fit: the worst missed
+/// region, its point (fraction of the length, height, side) and the field values that take
+/// the last inward there (a width scale below one pulls the walls about the axis; a negative
+/// offset or widening gives girth back over the top). None where every region is met.
+fn why_missed(
+    c: &Clearance,
+    field: &shape::Params,
+    nd: &shape::Nodes,
+    medial: f64,
+) -> Option<String> {
+    let r = c
+        .regions
+        .iter()
+        .filter(|r| !r.met())
+        .min_by(|a, b| a.min_mm.total_cmp(&b.min_mm))?;
+    let [x, y, z] = r.at_mm;
+    let side = if y * medial > 0.0 {
+        "medial"
+    } else {
+        "lateral"
+    };
+    let [_, syh, syw, syb, _, dh, da, di, kup] = *field;
+    let mut inward = Vec::new();
+    let scale = match r.region {
+        "heel seat" => Some(("heel", syh)),
+        "midfoot" => Some(("waist", syw)),
+        "toe box" => Some(("ball", syb)),
+        _ => None,
+    };
+    if let Some((n, s)) = scale.filter(|s| s.1 < 1.0) {
+        inward.push(format!(
+            "the {n} width scale {s:.4} (the last's plan width, taken from hulls that \
+             hold the foot between stations, came out wider than the foot's and the \
+             rule's width is given back from both walls)"
+        ));
+    }
+    for (n, v) in [("heel", dh), ("ankle", da), ("instep", di)] {
+        if v < 0.0 {
+            inward.push(format!(
+                "the {n} offset {v:+.2} mm (girth given back over the top)"
+            ));
+        }
+    }
+    if kup < 0.0 {
+        inward.push(format!(
+            "the upper midfoot's widening {:+.1} % (girth given back from the walls)",
+            100.0 * kup
+        ));
+    }
+    let cause = if inward.is_empty() {
+        "no field value takes the last inward there: the foot stands out between the last's \
+         sections (128-point polygons through hulls at 250 stations) or its own surface is \
+         rougher than the tolerance"
+            .to_string()
+    } else {
+        inward.join("; ")
+    };
+    Some(format!(
+        "{} {:+.2} mm (allowed {:.2}) at {:.2} L, {:.0} mm up, {side}: {cause}",
+        r.region,
+        r.min_mm,
+        -(r.allowed_press_mm.unwrap_or(0.0) + FIT_TOL_MM),
+        x / nd.length,
+        z
+    ))
 }
 
 /// Each rule's value cut from the output last, its error and whether it is within bound.
@@ -529,6 +601,7 @@ fn clearance_of(of: &'static str, regions: [RegionClearance; 5]) -> Clearance {
         must_fit_margin_mm,
         overall_mm,
         worst_at_mm,
+        missed_because: None,
     }
 }
 

@@ -336,7 +336,6 @@ impl Sections {
         // Behind the foot's own outline the heel keeps its curve.
         let mut band: Vec<Option<(f64, f64)>> = vec![None; xs.len()];
         let mut corner = vec![0.0; xs.len()];
-        let unloaded = xs.iter().any(|x| drop(*x) > 0.0);
         for (k, (x, q)) in xs.iter().zip(&pts).enumerate() {
             if *x < bottom_from || q.len() < 3 {
                 continue;
@@ -458,19 +457,21 @@ impl Sections {
                 (f64::MIN, f64::MAX)
             };
             if let Some((yl, yh)) = b.map(|(l, h)| (l.max(qlo), h.min(qhi))) {
-                // On a foot scanned without weight on it (laid flat by a curve under its
-                // arch) the bottom's corners are rounded, radius twice the band's height:
-                // its sole is round across, so square corners held no foot and added to
-                // every girth (FIND: the instep 2.7 mm over the rules before the solver,
-                // which gave it back by pressing the instep's sides 1.2 mm). Where the
-                // foot fills a corner its own points keep it. Radius 1, 2 and 3 bands
-                // (two points per wall piece): midfoot clearance -0.30, -0.26, -0.30 mm
-                // (FIND), -2.14, -1.52, -1.03 (low-poly FIND), -0.38, -0.35, -0.65
-                // (MakeHuman). A foot standing on the glass keeps square corners, its band
-                // being its spread sole (rounded, the 290 mm left simulated foot's midfoot
-                // went from -0.16 to -0.27 mm).
+                // The bottom's corners are rounded, radius twice the band's height: where
+                // the sole is round across (a foot scanned without weight on it, laid flat
+                // by a curve under its arch, and a real foot standing on a plate, whose
+                // sole rolls up into its sides over 10-15 mm) square corners held no foot
+                // and added to every girth, and the solver gave that back over the top,
+                // pressing the foot's sides (FIND: the instep 2.7 mm over the rules, its
+                // sides pressed 1.2 mm; the standing dupontgu left foot: instep 2.9 mm
+                // over, an instep offset of -2.2 mm, the lateral midfoot wall pressed
+                // 2.0 mm 32 mm up). Where the foot fills a corner (the simulated feet's
+                // spread soles) its own points keep it. Radius 1, 2 and 3 bands (two points
+                // per wall piece): midfoot clearance -0.30, -0.26, -0.30 mm (FIND), -2.14,
+                // -1.52, -1.03 (low-poly FIND), -0.38, -0.35, -0.65 (MakeHuman); 3 and 4
+                // on every foot later: the simulated heel seats to -0.16 and -0.32 mm.
                 let r = (CORNER_BANDS * r).min(0.5 * (yh - yl));
-                if unloaded && r > 0.1 {
+                if r > 0.1 {
                     for i in 0..=CORNER_POINTS {
                         let a = std::f64::consts::FRAC_PI_2 * i as f64 / CORNER_POINTS as f64;
                         let (dy, dz) = (r * (1.0 - a.cos()), r * (1.0 - a.sin()));
@@ -769,7 +770,20 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
             .iter()
             .zip(&normals)
             .map(|(q, n)| {
-                let w = (d + da * above(q.y)) * offset_weight(n.y);
+                // In front of the ankle station the instep's offset grows the last only
+                // below the long-heel girth's plane (going out over one ramp below it), as
+                // the ankle's grows it only above: so it grows the instep girth and not the
+                // long heel's, whose plane runs through the instep's top. Raising that top
+                // tilted the plane, and the long-heel girth grew 1.2 mm per millimetre of
+                // instep girth; on the dupontgu left foot, which needs 1.4 mm more instep and
+                // 0.7 mm more long heel than its neutral last, the solver then gave the long
+                // heel back with a negative widening that pressed the medial wall 1-3 mm.
+                let di = if nd.holds_foot && *x > nd.ankle {
+                    1.0 - smoothstep((q.y - zp) / ramp + 1.0)
+                } else {
+                    1.0
+                };
+                let w = (d * di + da * above(q.y)) * offset_weight(n.y);
                 let y = q.x * fy;
                 let m = y * kup * smoothstep((q.y - z0) / (z1 - z0));
                 // Between the heel window and the ball the offsets' sideways moves saturate
@@ -785,10 +799,15 @@ pub fn build(sec: &Sections, nd: &Nodes, p: &Params) -> TriMesh {
                 P3::new(xn, y, (q.y * fz + w * n.y).max(0.0))
             })
             .collect();
-        // A negative offset (a girth given back) folds the ring at a sharp corner, such as
-        // where the top was cut off (self-intersections at the ankle's top on the FIND
-        // foot); the ring is its own hull again, resampled with the same meaning per point.
-        if d < 0.0 || d + da < 0.0 || kup != 0.0 {
+        // A negative offset or widening (a girth given back) folds the ring at a sharp
+        // corner, such as where the top was cut off (self-intersections at the ankle's top
+        // on the FIND foot); the ring is its own hull again, resampled with the same
+        // meaning per point. Not for a positive widening: the hull then bridged the band
+        // between the instep's and the ankle's offsets (below and above the long-heel
+        // plane) and the long-heel girth jumped by 0.7 mm as the widening left zero, which
+        // the finite differences read as a slope and the solve overshot into a negative
+        // widening (dupontgu left foot: midfoot -1.02 mm, now -0.24).
+        if d < 0.0 || d + da < 0.0 || kup < 0.0 {
             let h = convex_hull(&pts.iter().map(|q| P2::new(q.y, q.z)).collect::<Vec<_>>());
             pts = resample_hull(&h.points, AROUND)
                 .into_iter()
