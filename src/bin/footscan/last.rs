@@ -31,6 +31,10 @@ enum What {
     /// length, heel height, toe spring, bottom widths and girths; --picture draws where each
     /// was taken.
     Measure(MeasureArgs),
+    /// Grade a last into a size run (docs/method.md 9.4): each size's last as STL and STEP,
+    /// its measures and the achieved steps against the rule (grade.csv, steps.csv,
+    /// grade.json) to --out, all or nothing.
+    Grade(crate::last_grade::GradeArgs),
 }
 
 #[derive(Parser)]
@@ -83,6 +87,7 @@ pub fn run(args: Args) -> Result<()> {
         What::Adjust(a) => run_adjust(a),
         What::Customize(a) => crate::last_customize::run(a),
         What::Measure(a) => run_measure(a),
+        What::Grade(a) => crate::last_grade::run(a),
     }
 }
 

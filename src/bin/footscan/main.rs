@@ -7,6 +7,7 @@ mod detect;
 mod fleet;
 mod last;
 mod last_customize;
+mod last_grade;
 mod last_join;
 mod measure;
 mod model;
