@@ -35,6 +35,9 @@ enum What {
     /// its measures and the achieved steps against the rule (grade.csv, steps.csv,
     /// grade.json) to --out, all or nothing.
     Grade(crate::last_grade::GradeArgs),
+    /// Rank the shop's lasts by how little each must change to fit a scanned foot
+    /// (docs/method.md 9.5) and customize the best one that succeeds into --out.
+    Choose(crate::last_choose::ChooseArgs),
 }
 
 #[derive(Parser)]
@@ -88,6 +91,7 @@ pub fn run(args: Args) -> Result<()> {
         What::Customize(a) => crate::last_customize::run(a),
         What::Measure(a) => run_measure(a),
         What::Grade(a) => crate::last_grade::run(a),
+        What::Choose(a) => crate::last_choose::run(a),
     }
 }
 

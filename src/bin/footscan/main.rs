@@ -6,6 +6,7 @@ mod detect;
 #[cfg(feature = "fleet")]
 mod fleet;
 mod last;
+mod last_choose;
 mod last_customize;
 mod last_grade;
 mod last_join;
