@@ -8,7 +8,9 @@
 //!   the whole last deformed to it, deviation before and after.
 //! - [`blend`]: the same gap filled by slices that blend a linear morph with a discrete
 //!   G1/G2 extension of both parts (or a blend chosen by fairing), measured the same way.
+//! - [`choose`]: the shop's lasts ranked by how little each must change to fit a foot.
 //! - [`draw`]: the pictures every stage writes (heat maps, zebra stripes, views with labels).
+//! - [`grade`]: a last graded into a size run (Paris, UK, US, Mondopoint), steps tabled.
 //! - [`join`]: the toe part of one last joined to the back part of another by a Gordon
 //!   surface through a curve network, with seam figures, IGES/STEP/STL and pictures.
 //! - [`measure_last`]: a last measured as shoemakers do (landmarks, bottom, widths, girths).
@@ -16,8 +18,10 @@
 
 pub mod adjust;
 pub mod blend;
+pub mod choose;
 pub mod customize;
 pub mod draw;
+pub mod grade;
 pub mod join;
 pub mod measure_last;
 pub mod size;

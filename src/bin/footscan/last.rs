@@ -31,6 +31,13 @@ enum What {
     /// length, heel height, toe spring, bottom widths and girths; --picture draws where each
     /// was taken.
     Measure(MeasureArgs),
+    /// Grade a last into a size run (docs/method.md 9.4): each size's last as STL and STEP,
+    /// its measures and the achieved steps against the rule (grade.csv, steps.csv,
+    /// grade.json) to --out, all or nothing.
+    Grade(crate::last_grade::GradeArgs),
+    /// Rank the shop's lasts by how little each must change to fit a scanned foot
+    /// (docs/method.md 9.5) and customize the best one that succeeds into --out.
+    Choose(crate::last_choose::ChooseArgs),
 }
 
 #[derive(Parser)]
@@ -83,6 +90,8 @@ pub fn run(args: Args) -> Result<()> {
         What::Adjust(a) => run_adjust(a),
         What::Customize(a) => crate::last_customize::run(a),
         What::Measure(a) => run_measure(a),
+        What::Grade(a) => crate::last_grade::run(a),
+        What::Choose(a) => crate::last_choose::run(a),
     }
 }
 

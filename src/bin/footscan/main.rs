@@ -6,7 +6,9 @@ mod detect;
 #[cfg(feature = "fleet")]
 mod fleet;
 mod last;
+mod last_choose;
 mod last_customize;
+mod last_grade;
 mod last_join;
 mod measure;
 mod model;

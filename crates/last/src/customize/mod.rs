@@ -5,7 +5,7 @@
 //! Method: docs/method.md section 10; paper: "Adaptive deformation of characteristic NURBS
 //! curves for customized shoe-last" (Ren, Wang, Liu, Luo, 2013).
 
-mod bottom;
+pub(crate) mod bottom;
 use bottom::{raise, shear, BottomCurve, FLAT_TOL_MM};
 pub mod clinic;
 pub mod curves;
