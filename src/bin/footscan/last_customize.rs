@@ -4,8 +4,9 @@
 
 use anyhow::{anyhow, Result};
 use clap::Parser;
-use footscan::lastcustom::{load_stock, plantar_of_scan};
-use footscan_last::customize::clinic::{customize_stock, TapeGirths};
+use footscan::lastcustom::{load_stock_as, plantar_of_scan};
+use footscan_geom::mesh::Units;
+use footscan_last::customize::clinic::{customize_stock_with, StockOptions, TapeGirths};
 use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
 use footscan_last::customize::{customize, load_foot, write_outputs_atomic, Inputs, HEEL_RANGE_MM};
 use std::path::PathBuf;
@@ -28,6 +29,17 @@ pub struct CustomizeArgs {
     /// deformed until its cut values meet the rules.
     #[arg(long)]
     stock: Option<PathBuf>,
+    /// Units of the stock last's file: mm, m, or auto (decided from the size).
+    #[arg(long, default_value = "auto", requires = "stock")]
+    units: Units,
+    /// Scale the stock last so its longest side is this many mm (for a last in model
+    /// units): 50-500.
+    #[arg(long, value_parser = last_length, requires = "stock")]
+    length: Option<f64>,
+    /// Refuse a stock last of the other side than the scanned foot (by default it is
+    /// mirrored to the foot's side, and the output says so).
+    #[arg(long, requires = "stock")]
+    strict_sides: bool,
     /// Comfort rule file (TOML by curve type I-IV; see config/last-rules.toml). Default:
     /// $FOOTSCAN_LAST_RULES if set, else the shipped config/last-rules.toml, built into the
     /// binary (so the default does not depend on the working directory).
@@ -45,6 +57,16 @@ pub struct CustomizeArgs {
     /// Output directory (replaced as a whole once everything is written).
     #[arg(long)]
     out: PathBuf,
+}
+
+/// A last is 50-500 mm long (as the other last commands take `--length`).
+fn last_length(s: &str) -> Result<f64, String> {
+    let l: f64 = s.parse().map_err(|e| format!("{s:?}: {e}"))?;
+    if l > 50.0 && l < 500.0 {
+        Ok(l)
+    } else {
+        Err(format!("{l} mm: a last is 50-500 mm long"))
+    }
 }
 
 fn heel_mm(s: &str) -> Result<f64, String> {
@@ -89,12 +111,17 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
         );
         let g = TapeGirths::load(girths).map_err(|e| anyhow!(e))?;
         let plantar = plantar_of_scan(scan)?;
-        let m = load_stock(stock)?;
+        g.check_against(&plantar)
+            .map_err(|why| anyhow!("{}: {why}", girths.display()))?;
+        let m = load_stock_as(stock, a.units, a.length)?;
         let t_load = t0.elapsed();
         let t1 = Instant::now();
         let name = stock.display().to_string();
-        let c =
-            customize_stock(m, &name, &plantar, &g, &rules, &inp).map_err(|e| named(stock, e))?;
+        let opts = StockOptions {
+            strict_sides: a.strict_sides,
+        };
+        let c = customize_stock_with(m, &name, &plantar, &g, &rules, &inp, opts)
+            .map_err(|e| named(stock, e))?;
         (c, t_load, t1.elapsed(), scan.clone())
     };
     let fm = &c.foot_measures;
@@ -112,7 +139,17 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
         "{:5} {:16} {:>8} {:>7} {:>8} {:>8} {:>7} {:>6}  met",
         "rule", "quantity", "foot", "change", "target", "last", "error", "bound"
     );
+    for n in &c.notes {
+        println!("note: {n}");
+    }
     for r in &c.rules {
+        if let Some(why) = &r.not_applicable {
+            println!(
+                "{:5} {:16} {:8.2} {:+7.2} {:8.2} {:>8} {:>7} {:>6}  n/a: {why}",
+                r.rule, r.quantity, r.foot_mm, r.change_mm, r.target_mm, "-", "-", "-"
+            );
+            continue;
+        }
         println!(
             "{:5} {:16} {:8.2} {:+7.2} {:8.2} {:8.2} {:+7.3} {:6.2}  {}",
             r.rule,
