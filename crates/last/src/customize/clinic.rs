@@ -333,6 +333,7 @@ pub fn customize_stock_with(
         footprint_clearance(&fp, &lm.outline, &at_foot, rows[2].change_mm)
     };
     let (mut last, mut stock, mut curves) = (last, stock, curves);
+    let mut bottom_curve = None;
     if let Some(b) = &bottom {
         // Raised back: the last's x mapped onto the stock's by their extents (the toe
         // stretch and the length change move the bottom's features with them).
@@ -340,6 +341,14 @@ pub fn customize_stock_with(
         let k = (s.max.x - s.min.x) / (l.max.x - l.min.x);
         let on_stock = |x: f64| s.min.x + (x - l.min.x) * k;
         shear(&mut last, |x| b.at(on_stock(x)));
+        // The curve as last.stl was raised by it (x on the output last), so the output laid
+        // flat by report.json's curve is the last the rules were measured on.
+        bottom_curve = Some(
+            b.samples()
+                .into_iter()
+                .map(|[x, z]| [l.min.x + (x - s.min.x) / k, z])
+                .collect::<Vec<_>>(),
+        );
         shear(&mut stock, |x| b.at(x));
         for (_, c) in &mut curves.last {
             for p in &mut c.points {
@@ -364,7 +373,7 @@ pub fn customize_stock_with(
         field,
         evaluations: evals,
         clearance: cl,
-        bottom_curve: bottom.map(|b| b.samples()),
+        bottom_curve,
         footprint: fp,
         notes,
     })
