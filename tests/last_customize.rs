@@ -57,8 +57,12 @@ fn cut_last(m: &TriMesh, l: f64, side: &str) -> [f64; 8] {
     let xmax = ol.iter().map(|p| p.x).fold(f64::MIN, f64::max);
     // Plan extremes: sections x = const every 0.25 mm (the narrowest waist can lie between
     // the last's own sections).
+    // On the same 0.25 mm grid as the library's plan profile (multiples of 0.25 mm): where
+    // a width is taken at the end of its window (a shop last's waist at 0.25 L, its sides
+    // still narrowing there) a station 0.1 mm off reads it 0.2 mm off.
+    let x0 = (xmin / 0.25).ceil() * 0.25;
     let rings: Vec<(f64, f64, f64, P3, P3)> = (0..)
-        .map(|k| xmin + 0.25 * k as f64)
+        .map(|k| x0 + 0.25 * k as f64)
         .take_while(|&x| x < 0.9 * l)
         .filter_map(|x| {
             let pts: Vec<P3> = m

@@ -390,10 +390,13 @@ fn actionable(e: CustomizeError, rows: &[super::RuleRow], name: &str) -> Customi
         .iter()
         .map(|&(i, d)| {
             let r = &rows[i];
-            let (more, fewer) = if d > 0.0 {
-                ("larger", "smaller")
-            } else {
-                ("smaller", "larger")
+            let (more, fewer) = match (i, d > 0.0) {
+                (0, true) => ("longer", "shorter"),
+                (0, false) => ("shorter", "longer"),
+                (1..=3, true) => ("wider", "narrower"),
+                (1..=3, false) => ("narrower", "wider"),
+                (_, true) => ("larger", "smaller"),
+                (_, false) => ("smaller", "larger"),
             };
             let what = match i {
                 0 => "bottom",
