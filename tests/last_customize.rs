@@ -883,7 +883,9 @@ fn clinic_refusals_name_the_input_and_write_nothing() {
         "{err}"
     );
     // A last in inches.
-    let mut inches = TriMesh::read(&default).unwrap();
+    // (the shared file is in metres: read as millimetres first, then written in inches)
+    let (mut inches, _) =
+        TriMesh::load_solid(&default, footscan_geom::mesh::Units::Auto, None).unwrap();
     for v in &mut inches.vertices {
         v.coords /= 25.4;
     }
