@@ -753,17 +753,18 @@ fn rules_default_and_sim_foot_missing_dir() {
 /// cut here, the plantar figures within 0.5 mm of the simulator's foot.
 /// Girths missing from the tape file are named, nothing written.
 /// The default simulated scan (250 mm right foot), made once for this test binary (a
-/// simulated scan takes 15-60 s) under the target's temporary directory.
+/// simulated scan takes 15-60 s) in one directory under the target's temporary directory,
+/// replaced by the next run (a static is never dropped, so a temporary directory would be
+/// left behind by every run).
 fn sim_scan() -> &'static Path {
-    static SCAN: std::sync::OnceLock<(tempfile::TempDir, PathBuf)> = std::sync::OnceLock::new();
-    let (_, p) = SCAN.get_or_init(|| {
-        let dir = tempfile::tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap();
-        let p = dir.path().join("scan");
+    static SCAN: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    SCAN.get_or_init(|| {
+        let p = Path::new(env!("CARGO_TARGET_TMPDIR")).join("last_customize-sim-scan");
+        let _ = std::fs::remove_dir_all(&p);
         let (ok, out, err) = footscan(&["scan", "--config", "config/sim.toml", "--out", s(&p)]);
         assert!(ok, "{out}{err}");
-        (dir, p)
-    });
-    p
+        p
+    })
 }
 
 /// The shared shop lasts (DATA/lasts, read where they are; never copied into the repo).
