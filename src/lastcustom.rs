@@ -104,8 +104,18 @@ pub const STOCK_EXTENSIONS: [&str; 3] = ["stl", "obj", "ply"];
 
 /// Read a stock last: a closed mesh (STL, OBJ or PLY; millimetres or metres, z up).
 pub fn load_stock(path: &Path) -> Result<TriMesh, ClinicLastError> {
+    load_stock_as(path, Units::Auto, None)
+}
+
+/// [`load_stock`] with the file's units given, or its length (mm) for a last in model
+/// units (`--units`, `--length`, as every last command takes them).
+pub fn load_stock_as(
+    path: &Path,
+    units: Units,
+    length_mm: Option<f64>,
+) -> Result<TriMesh, ClinicLastError> {
     let (m, _) =
-        TriMesh::load_solid(path, Units::Auto, None).map_err(|e| ClinicLastError::Input {
+        TriMesh::load_solid(path, units, length_mm).map_err(|e| ClinicLastError::Input {
             path: path.into(),
             // No unit or length option for a stock last: say what the file must be.
             why: e

@@ -57,8 +57,12 @@ fn cut_last(m: &TriMesh, l: f64, side: &str) -> [f64; 8] {
     let xmax = ol.iter().map(|p| p.x).fold(f64::MIN, f64::max);
     // Plan extremes: sections x = const every 0.25 mm (the narrowest waist can lie between
     // the last's own sections).
+    // On the same 0.25 mm grid as the library's plan profile (multiples of 0.25 mm): where
+    // a width is taken at the end of its window (a shop last's waist at 0.25 L, its sides
+    // still narrowing there) a station 0.1 mm off reads it 0.2 mm off.
+    let x0 = (xmin / 0.25).ceil() * 0.25;
     let rings: Vec<(f64, f64, f64, P3, P3)> = (0..)
-        .map(|k| xmin + 0.25 * k as f64)
+        .map(|k| x0 + 0.25 * k as f64)
         .take_while(|&x| x < 0.9 * l)
         .filter_map(|x| {
             let pts: Vec<P3> = m
@@ -186,6 +190,12 @@ fn perimeter(p: &[P3]) -> f64 {
 /// Every rule of report.json checked on last.stl cut here: lengths and widths within 0.2 mm,
 /// girths within 0.5 mm. Returns the report.
 fn check_cut(out_dir: &Path) -> serde_json::Value {
+    check_cut_outline(out_dir, 2.7)
+}
+
+/// [`check_cut`] with the largest outline length allowed, in bottom lengths (a shop last laid
+/// flat by its bottom curve: LastScan_Default's 1.5 mm outline is 2.72 bottom lengths).
+fn check_cut_outline(out_dir: &Path, outline_ratio: f64) -> serde_json::Value {
     let rep: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out_dir.join("report.json")).unwrap())
             .unwrap();
@@ -248,12 +258,20 @@ fn check_cut(out_dir: &Path) -> serde_json::Value {
         outline / cut[0]
     );
     assert!(
-        outline < 2.7 * cut[0],
+        outline < outline_ratio * cut[0],
         "{}: outline {outline:.1} mm on a {:.1} mm last",
         out_dir.display(),
         cut[0]
     );
     for (r, v) in rules.iter().zip(cut) {
+        // A rule with no counterpart on the last (the clinic path's ankle girth on a
+        // low-cut last) says why and has no value to meet.
+        if r["applies"] == false {
+            let why = r["not_applicable"].as_str().unwrap();
+            assert!(why.contains("not applicable for this last"), "{why}");
+            println!("{} {:16} {why}", r["rule"], r["quantity"]);
+            continue;
+        }
         let t = r["target_mm"].as_f64().unwrap();
         let bound = if r["quantity"].as_str().unwrap().contains("girth") {
             0.5
@@ -735,18 +753,199 @@ fn rules_default_and_sim_foot_missing_dir() {
 /// solves the 238 and 240 mm ones too). The stock last deformed: every rule met on last.stl
 /// cut here, the plantar figures within 0.5 mm of the simulator's foot.
 /// Girths missing from the tape file are named, nothing written.
+/// The default simulated scan (250 mm right foot), made once for this test binary (a
+/// simulated scan takes 15-60 s) in one directory under the target's temporary directory,
+/// replaced by the next run (a static is never dropped, so a temporary directory would be
+/// left behind by every run).
+fn sim_scan() -> &'static Path {
+    static SCAN: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    SCAN.get_or_init(|| {
+        let p = Path::new(env!("CARGO_TARGET_TMPDIR")).join("last_customize-sim-scan");
+        let _ = std::fs::remove_dir_all(&p);
+        let (ok, out, err) = footscan(&["scan", "--config", "config/sim.toml", "--out", s(&p)]);
+        assert!(ok, "{out}{err}");
+        p
+    })
+}
+
+/// The shared shop lasts (DATA/lasts, read where they are; never copied into the repo).
+fn shared_last(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/lasts")
+        .join(name)
+}
+
+/// The tape girths of the simulator's 250 mm foot (ball, instep, long heel, ankle).
+const SIM_GIRTHS: &str = "ball = 260.0\ninstep = 248.0\nlong_heel = 367.0\nankle = 200.5\n";
+
+#[test]
+fn clinic_shared_lasts_meet_every_applicable_rule() {
+    let scan = sim_scan();
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n);
+    let girths = p("girths.toml");
+    std::fs::write(&girths, SIM_GIRTHS).unwrap();
+    // The RoundTip lasts are in model units: given a length.
+    for (name, length) in [
+        ("LastScan_Default.stl", None),
+        ("LastScan_Warped.stl", None),
+        ("Last_Flat_RoundTip.stl", Some("260")),
+        ("Last_Heeled_RoundTip.stl", Some("260")),
+    ] {
+        let out_dir = p(name);
+        let stock = shared_last(name);
+        let mut args = vec![
+            "last",
+            "customize",
+            "--scan",
+            s(scan),
+            "--girths",
+            s(&girths),
+            "--stock",
+            s(&stock),
+            "--out",
+            s(&out_dir),
+        ];
+        if let Some(l) = length {
+            args.extend(["--length", l]);
+        }
+        let t0 = std::time::Instant::now();
+        let (ok, out, err) = footscan(&args);
+        println!(
+            "{name}: {} in {:.0} ms\n{out}{err}",
+            if ok { "made" } else { "refused" },
+            t0.elapsed().as_secs_f64() * 1e3
+        );
+        if name == "Last_Heeled_RoundTip.stl" && !ok {
+            // Not solved yet on this last (docs/method.md 10.7): the refusal must be one a
+            // last maker can act on, and nothing written.
+            assert!(
+                err.contains("this last's") && err.contains("choose a last"),
+                "{err}"
+            );
+            assert!(!err.contains("field"), "{err}");
+            assert!(!out_dir.exists());
+            continue;
+        }
+        assert!(ok, "{name}: {out}{err}");
+        // The shared lasts are left lasts; the scan is a right foot.
+        assert!(
+            out.contains("the last was mirrored to the foot's side"),
+            "{out}"
+        );
+        assert!(out.contains("n/a: not applicable for this last"), "{out}");
+        let rep = check_cut_outline(&out_dir, 2.9);
+        let ankle = &rep["rules"][7];
+        assert_eq!(ankle["rule"], "IV");
+        assert_eq!(ankle["applies"], false, "{ankle}");
+        for f in [
+            "last.stl",
+            "last.igs",
+            "last.step",
+            "frame.igs",
+            "report.json",
+        ] {
+            assert!(out_dir.join(f).exists(), "{name}: no {f}");
+        }
+    }
+}
+
+#[test]
+fn clinic_refusals_name_the_input_and_write_nothing() {
+    let scan = sim_scan();
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n);
+    std::fs::write(p("girths.toml"), SIM_GIRTHS).unwrap();
+    let default = shared_last("LastScan_Default.stl");
+    let run = |girths: &Path, stock: &Path, extra: &[&str], out_dir: &Path| {
+        let mut args = vec![
+            "last",
+            "customize",
+            "--scan",
+            s(scan),
+            "--girths",
+            s(girths),
+            "--stock",
+            s(stock),
+            "--out",
+            s(out_dir),
+        ];
+        args.extend(extra);
+        let (ok, out, err) = footscan(&args);
+        println!("{extra:?}: {err}");
+        assert!(!ok, "{out}{err}");
+        assert!(!out_dir.exists(), "{} written", out_dir.display());
+        assert!(!err.contains("field"), "{err}");
+        err
+    };
+    // Strict sides: the left last is refused for the right foot.
+    let err = run(&p("girths.toml"), &default, &["--strict-sides"], &p("o1"));
+    assert!(
+        err.contains("a left last for a right foot") && err.contains("LastScan_Default.stl"),
+        "{err}"
+    );
+    // A last in inches.
+    // (the shared file is in metres: read as millimetres first, then written in inches)
+    let (mut inches, _) =
+        TriMesh::load_solid(&default, footscan_geom::mesh::Units::Auto, None).unwrap();
+    for v in &mut inches.vertices {
+        v.coords /= 25.4;
+    }
+    inches
+        .write(p("inches.stl"), footscan_geom::mesh::Format::StlBinary)
+        .unwrap();
+    let err = run(&p("girths.toml"), &p("inches.stl"), &[], &p("o2"));
+    assert!(err.contains("inches.stl"), "{err}");
+    // A last more than a size group too short for the foot.
+    let err = run(
+        &p("girths.toml"),
+        &shared_last("Last_Flat_RoundTip.stl"),
+        &["--length", "200"],
+        &p("o3"),
+    );
+    assert!(
+        err.contains("Last_Flat_RoundTip.stl")
+            && err.contains("more than a size group")
+            && err.contains("choose a longer last"),
+        "{err}"
+    );
+    // Girths the footprint cannot have: a ball girth under twice the ball width.
+    std::fs::write(
+        p("thin.toml"),
+        "ball = 150.0\ninstep = 248.0\nlong_heel = 367.0\nankle = 200.5\n",
+    )
+    .unwrap();
+    let err = run(&p("thin.toml"), &default, &[], &p("o4"));
+    assert!(
+        err.contains("thin.toml") && err.contains("less than twice the scanned ball width"),
+        "{err}"
+    );
+    // A rule the last cannot meet: each missed rule, by how much, and what would make it
+    // possible, never the solver's field.
+    let err = run(
+        &p("girths.toml"),
+        &shared_last("Last_Heeled_RoundTip.stl"),
+        &["--length", "265"],
+        &p("o5"),
+    );
+    assert!(
+        err.contains("Last_Heeled_RoundTip.stl")
+            && err.contains("rule II-H (long-heel girth): this last's")
+            && err.contains("choose a last with a smaller")
+            && err.contains("in the rule file"),
+        "{err}"
+    );
+}
+
 #[test]
 fn clinic_scan_girths_and_stock_last() {
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n);
-    let (ok, out, err) = footscan(&[
-        "scan",
-        "--config",
-        "config/sim.toml",
-        "--out",
-        s(&p("scan")),
-    ]);
-    assert!(ok, "{out}{err}");
+    std::fs::create_dir_all(p("scan")).unwrap();
+    for e in std::fs::read_dir(sim_scan()).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), p("scan").join(e.file_name())).unwrap();
+    }
     let (ok, out, err) = footscan(&["sim", "foot", "--length", "245", "--out", s(&p("f245.stl"))]);
     assert!(ok, "{out}{err}");
     let (ok, out, err) = footscan(&[

@@ -96,6 +96,10 @@ enum What {
         /// Directory holding feet/ (default: $FOOTSCAN_DATA or ../shared/data).
         #[arg(long)]
         data: Option<PathBuf>,
+        /// Only the clinic path's table (scans of simulated feet with their own girths x
+        /// the stock lasts of DATA/lasts).
+        #[arg(long)]
+        clinic_only: bool,
         /// Runs per foot; the fastest is reported.
         #[arg(long, default_value_t = 3)]
         repeats: usize,
@@ -275,9 +279,16 @@ pub fn run(args: Args) -> Result<()> {
             data,
             repeats,
             json,
+            clinic_only,
         } => {
             let dir = data_dir(data);
-            customize::run(&dir, repeats, json)
+            if !clinic_only {
+                customize::run(&dir, repeats, json)?;
+            }
+            if json && !clinic_only {
+                return Ok(());
+            }
+            customize::run_clinic(&dir, repeats)
         }
         What::Measure {
             data,

@@ -5,8 +5,11 @@
 //! plus Algorithm II deformation (best of the repeats).
 
 use anyhow::{anyhow, Result};
+use footscan::lastcustom::{load_stock_as, plantar_of_scan};
 use footscan_geom::mesh::{TriMesh, Units};
+use footscan_last::customize::clinic::{customize_stock, TapeGirths};
 use footscan_last::customize::landmarks::{pair_with, read_keypoints, LandmarkPair};
+use footscan_last::customize::measure::measure;
 use footscan_last::customize::rules::RuleSet;
 use footscan_last::customize::{customize, foot_in_frame, Customized, Inputs};
 use footscan_sim::foot::{Foot, FootParams, MeshResolution, Side};
@@ -299,5 +302,159 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
             .map(|r| r.c.clearance.overall_mm)
             .fold(f64::MAX, f64::min)
     );
+    Ok(())
+}
+
+/// The shop lasts of DATA/lasts for the clinic table, with the length given to the ones in
+/// model units (mm).
+const STOCK: [(&str, Option<f64>); 4] = [
+    ("lasts/LastScan_Default.stl", None),
+    ("lasts/LastScan_Warped.stl", None),
+    ("lasts/Last_Flat_RoundTip.stl", Some(260.0)),
+    ("lasts/Last_Heeled_RoundTip.stl", Some(260.0)),
+];
+
+/// The tape girths of a simulated foot: its own mesh cut by the rules' definitions on a
+/// foot (docs/method.md 10.1), what a fitter's tape reads on it.
+fn sim_girths(length: f64) -> Result<TapeGirths> {
+    let world = sim_foot(length, Side::Right)?;
+    let (foot, frame) = foot_in_frame(world, "sim foot").map_err(|e| anyhow!("{e}"))?;
+    let m = measure(&foot, None, frame.medial_sign()).map_err(|e| anyhow!("sim foot: {e}"))?;
+    TapeGirths::checked(
+        m.ball_girth,
+        m.instep_girth,
+        m.long_heel_girth,
+        m.ankle_girth,
+    )
+    .map_err(|e| anyhow!("sim foot {length} mm: {e}"))
+}
+
+/// A simulated scan of the `length` mm right foot (config/sim.toml with that foot length),
+/// made by this binary into `out`.
+fn sim_scan(length: f64, out: &Path) -> Result<()> {
+    let cfg = std::fs::read_to_string("config/sim.toml")
+        .map_err(|e| anyhow!("config/sim.toml (run from the repository): {e}"))?;
+    let mut cfg = cfg.replacen("length_mm = 250.0", &format!("length_mm = {length:.1}"), 1);
+    if length > 270.0 {
+        // The 290 mm foot runs past the default 320 mm of travel.
+        cfg = cfg
+            .replacen("end_mm = 320.0", "end_mm = 380.0", 1)
+            .replacen("travel_mm = 330.0", "travel_mm = 390.0", 1);
+    }
+    let path = out.with_extension("toml");
+    std::fs::write(&path, cfg)?;
+    let st = std::process::Command::new(std::env::current_exe()?)
+        .args(["scan", "--config"])
+        .arg(&path)
+        .arg("--out")
+        .arg(out)
+        .stdout(std::process::Stdio::null())
+        .status()?;
+    if !st.success() {
+        return Err(anyhow!("simulated scan of the {length} mm foot failed"));
+    }
+    Ok(())
+}
+
+/// The clinic path (docs/method.md 10.7): simulated scans of the 230, 250 (the default),
+/// 260 and 290 mm right feet with their own girths, each on the stock lasts of DATA/lasts.
+/// Per pair: each applicable rule's error cut from the output last, the rules not
+/// applicable, the time, or why it was refused.
+pub fn run_clinic(data: &Path, repeats: usize) -> Result<()> {
+    let rules = RuleSet::default_rules();
+    let inp = Inputs::default();
+    let tmp = std::env::temp_dir().join(format!("footscan-bench-clinic-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp)?;
+    let r = clinic_rows(data, repeats, &rules, &inp, &tmp);
+    let _ = std::fs::remove_dir_all(&tmp);
+    r
+}
+
+fn clinic_rows(
+    data: &Path,
+    repeats: usize,
+    rules: &RuleSet,
+    inp: &Inputs,
+    tmp: &Path,
+) -> Result<()> {
+    println!(
+        "clinic path: scan + tape girths (the simulated foot's own) + stock last; rule \
+         errors (last - target, mm, cut from the output last), best of {repeats}"
+    );
+    for length in [250.0, 230.0, 260.0, 290.0] {
+        let dir = tmp.join(format!("scan{length:.0}"));
+        let t0 = Instant::now();
+        sim_scan(length, &dir)?;
+        let scan_s = t0.elapsed().as_secs_f64();
+        let g = sim_girths(length)?;
+        let plantar = plantar_of_scan(&dir)?;
+        println!(
+            "scan {length:.0} mm ({scan_s:.0} s): scanned length {:.2}, ball width {:.2}, \
+             waist {:.2}, heel {:.2}; girths ball {:.1}, instep {:.1}, long heel {:.1}, \
+             ankle {:.1}",
+            plantar.length,
+            plantar.ball_width,
+            plantar.waist_width,
+            plantar.heel_width,
+            g.ball,
+            g.instep,
+            g.long_heel,
+            g.ankle
+        );
+        for (f, length_mm) in STOCK {
+            let p = data.join(f);
+            if !p.exists() {
+                eprintln!("{}: absent, skipped", p.display());
+                continue;
+            }
+            let name = Path::new(f)
+                .file_stem()
+                .unwrap()
+                .to_string_lossy()
+                .to_string();
+            let m = load_stock_as(&p, Units::Auto, length_mm)?;
+            let mut best: Option<(f64, Result<Customized, String>)> = None;
+            for _ in 0..repeats.max(1) {
+                let t = Instant::now();
+                let r = customize_stock(m.clone(), &name, &plantar, &g, rules, inp)
+                    .map_err(|e| e.to_string());
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                if best.as_ref().is_none_or(|b| ms < b.0) {
+                    best = Some((ms, r));
+                }
+            }
+            let (ms, r) = best.expect("one run");
+            match r {
+                Ok(c) => {
+                    let errs: Vec<String> = c
+                        .rules
+                        .iter()
+                        .filter(|x| x.applies)
+                        .map(|x| format!("{} {:+.3}", x.rule, x.error_mm))
+                        .collect();
+                    let na: Vec<&str> = c
+                        .rules
+                        .iter()
+                        .filter(|x| !x.applies)
+                        .map(|x| x.rule)
+                        .collect();
+                    let met = c.rules.iter().all(|x| x.met);
+                    println!(
+                        "  {name:22} {:>7.0} ms  {}  all applicable met: {met}; n/a: {}; \
+                         footprint {}",
+                        ms,
+                        errs.join(", "),
+                        if na.is_empty() {
+                            "none".into()
+                        } else {
+                            na.join(" ")
+                        },
+                        c.clearance.summary()
+                    );
+                }
+                Err(e) => println!("  {name:22} {ms:>7.0} ms  refused: {e}"),
+            }
+        }
+    }
     Ok(())
 }

@@ -4,9 +4,9 @@
 
 use anyhow::{anyhow, Result};
 use clap::Parser;
-use footscan::lastcustom::{load_stock, plantar_of_scan};
+use footscan::lastcustom::{load_stock_as, plantar_of_scan};
 use footscan_geom::mesh::{Axes, IntakeOptions, Units};
-use footscan_last::customize::clinic::{customize_stock, TapeGirths};
+use footscan_last::customize::clinic::{customize_stock_with, StockOptions, TapeGirths};
 use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
 use footscan_last::customize::{
     customize, load_foot_with, write_misfit_atomic, write_outputs_atomic, Inputs, HEEL_RANGE_MM,
@@ -22,12 +22,13 @@ pub struct CustomizeArgs {
     /// cut found and mended, each said on the first lines printed; docs/method.md 10.1).
     #[arg(long, required_unless_present = "scan", conflicts_with_all = ["scan", "girths", "stock"])]
     foot: Option<PathBuf>,
-    /// Unit of the --foot file: mm, cm, m, or auto (from its heel-to-toe length: a foot is
-    /// 100-360 mm).
-    #[arg(long, default_value = "auto", requires = "foot")]
+    /// Unit of the mesh given (--foot or --stock): mm, cm (a foot), m, or auto (from its
+    /// size: a foot is 100-360 mm heel to toe).
+    #[arg(long, default_value = "auto")]
     units: Units,
-    /// Scale the --foot mesh so it is this long heel to toe (mm; for unscaled model units).
-    #[arg(long, value_name = "MM", requires = "foot")]
+    /// Scale the mesh given (--foot or --stock) to this length (mm; for unscaled model
+    /// units): a foot heel to toe, a stock last its longest side; 50-500.
+    #[arg(long, value_name = "MM", value_parser = last_length)]
     length: Option<f64>,
     /// Axes of the --foot file: "auto", or heel-to-toe then up, each x, y or z with an
     /// optional sign: "y,z" (heel to toe along +y, z up), "-y,z", "x,y".
@@ -54,6 +55,10 @@ pub struct CustomizeArgs {
     /// deformed until its cut values meet the rules.
     #[arg(long)]
     stock: Option<PathBuf>,
+    /// Refuse a stock last of the other side than the scanned foot (by default it is
+    /// mirrored to the foot's side, and the output says so).
+    #[arg(long, requires = "stock")]
+    strict_sides: bool,
     /// Comfort rule file (TOML by curve type I-IV; see config/last-rules.toml). Default:
     /// $FOOTSCAN_LAST_RULES if set, else the shipped config/last-rules.toml, built into the
     /// binary (so the default does not depend on the working directory).
@@ -71,6 +76,16 @@ pub struct CustomizeArgs {
     /// Output directory (replaced as a whole once everything is written).
     #[arg(long)]
     out: PathBuf,
+}
+
+/// A foot or a last is 50-500 mm long (as the other last commands take `--length`).
+fn last_length(s: &str) -> Result<f64, String> {
+    let l: f64 = s.parse().map_err(|e| format!("{s:?}: {e}"))?;
+    if l > 50.0 && l < 500.0 {
+        Ok(l)
+    } else {
+        Err(format!("{l} mm: a foot or a last is 50-500 mm long"))
+    }
 }
 
 fn heel_mm(s: &str) -> Result<f64, String> {
@@ -124,12 +139,17 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
         );
         let g = TapeGirths::load(girths).map_err(|e| anyhow!(e))?;
         let plantar = plantar_of_scan(scan)?;
-        let m = load_stock(stock)?;
+        g.check_against(&plantar)
+            .map_err(|why| anyhow!("{}: {why}", girths.display()))?;
+        let m = load_stock_as(stock, a.units, a.length)?;
         let t_load = t0.elapsed();
         let t1 = Instant::now();
         let name = stock.display().to_string();
-        let c =
-            customize_stock(m, &name, &plantar, &g, &rules, &inp).map_err(|e| named(stock, e))?;
+        let opts = StockOptions {
+            strict_sides: a.strict_sides,
+        };
+        let c = customize_stock_with(m, &name, &plantar, &g, &rules, &inp, opts)
+            .map_err(|e| named(stock, e))?;
         (c, t_load, t1.elapsed(), scan.clone())
     };
     let fm = &c.foot_measures;
@@ -147,7 +167,17 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
         "{:5} {:16} {:>8} {:>7} {:>8} {:>8} {:>7} {:>6}  met",
         "rule", "quantity", "foot", "change", "target", "last", "error", "bound"
     );
+    for n in &c.notes {
+        println!("note: {n}");
+    }
     for r in &c.rules {
+        if let Some(why) = &r.not_applicable {
+            println!(
+                "{:5} {:16} {:8.2} {:+7.2} {:8.2} {:>8} {:>7} {:>6}  n/a: {why}",
+                r.rule, r.quantity, r.foot_mm, r.change_mm, r.target_mm, "-", "-", "-"
+            );
+            continue;
+        }
         println!(
             "{:5} {:16} {:8.2} {:+7.2} {:8.2} {:8.2} {:+7.3} {:6.2}  {}",
             r.rule,

@@ -68,6 +68,10 @@ pub struct RuleLine {
     pub last_mm: f64,
     pub error_mm: f64,
     pub met: bool,
+    /// Why the rule has no counterpart on the stock last (not solved for; `met` true,
+    /// `error_mm` 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub not_applicable: Option<String>,
 }
 
 /// A scan's last job as recorded in `last-job.json` and shown by the API.
@@ -352,8 +356,10 @@ fn make_last(
             foot_mm: r.foot_mm,
             target_mm: r.target_mm,
             last_mm: r.last_mm,
-            error_mm: r.error_mm,
+            // NaN would be written as null and not read back.
+            error_mm: if r.applies { r.error_mm } else { 0.0 },
             met: r.met,
+            not_applicable: r.not_applicable.clone(),
         })
         .collect();
     job.clearance = Some(format!(

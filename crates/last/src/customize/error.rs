@@ -13,6 +13,13 @@ pub enum CustomizeError {
     RankDeficient { curve: String, constraint: String },
     #[error("{why}")]
     Infeasible { why: String },
+    /// The solve ended with these rules missed: (index in rule order, last minus target,
+    /// mm); `why` is the whole-foot path's message.
+    #[error("{why}")]
+    Unmet {
+        why: String,
+        misses: Vec<(usize, f64)>,
+    },
     #[error("{0}")]
     Rules(String),
     #[error("{path}: {why}")]

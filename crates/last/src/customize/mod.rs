@@ -65,8 +65,14 @@ pub struct RuleRow {
     pub last_mm: f64,
     pub error_mm: f64,
     pub bound_mm: f64,
+    /// Met, or nothing to meet: a rule with no counterpart on the last (see `applies`).
     pub met: bool,
     pub source: String,
+    /// The rule has a counterpart on this last (the clinic path's ankle girth on a low-cut
+    /// last has none); else `not_applicable` says why and the rule was not solved for.
+    pub applies: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_applicable: Option<String>,
 }
 
 /// The characteristic curves of the last's frame after Algorithm II.
@@ -116,6 +122,9 @@ pub struct Customized {
     pub bottom_curve: Option<Vec<[f64; 2]>>,
     /// Clinic path: the scan's footprint in the last's frame (drawn in the top view).
     pub footprint: Vec<Vec<[f64; 2]>>,
+    /// What was done to the input that the user should know (the clinic path: a stock last
+    /// of the other side mirrored).
+    pub notes: Vec<String>,
 }
 
 /// How far the foot stands inside the last, region by region (negative: the foot presses
@@ -221,6 +230,8 @@ pub fn targets(
         bound_mm: b,
         met: false,
         source: s.to_string(),
+        applies: true,
+        not_applicable: None,
     };
     let rows = vec![
         row(
@@ -427,6 +438,7 @@ pub fn customize(
         clearance,
         bottom_curve: bottom.map(|b| b.samples()),
         footprint: Vec::new(),
+        notes: Vec::new(),
     })
 }
 
@@ -538,8 +550,13 @@ pub(crate) fn judge(rows: &mut [RuleRow], lm: &Measures) {
     let v = shape::values(lm);
     for (r, v) in rows.iter_mut().zip(v) {
         r.last_mm = v;
-        r.error_mm = v - r.target_mm;
-        r.met = r.error_mm.abs() <= r.bound_mm;
+        if r.applies {
+            r.error_mm = v - r.target_mm;
+            r.met = r.error_mm.abs() <= r.bound_mm;
+        } else {
+            r.error_mm = f64::NAN;
+            r.met = true;
+        }
     }
 }
 

@@ -923,12 +923,23 @@ fn least_change(
         rv -= a.column(j) * u[j];
         af.column_mut(j).fill(0.0);
         uf[j] = 0.0;
-        let sv = af.singular_values();
-        if sv.min() < 1e-3 * sv.max() {
+    }
+    // A rule not applied (its target NaN, see [`solve`]) has a zero row: it is kept out of
+    // the system by a unit pivot of the system's scale (its multiplier comes out zero).
+    let mut g = af * af.transpose();
+    let big = g.diagonal().max();
+    for i in 0..8 {
+        if af.row(i).iter().all(|x| *x == 0.0) {
+            g[(i, i)] = big.max(1.0);
+        }
+    }
+    if held.is_some() {
+        let sv = g.singular_values();
+        if sv.min() < 1e-6 * sv.max() {
             return None;
         }
     }
-    let y = (af * af.transpose()).lu().solve(&(af * uf - rv))?;
+    let y = g.lu().solve(&(af * uf - rv))?;
     let mut du = -uf + af.transpose() * y;
     if let Some(j) = held {
         du[j] = -u[j];
@@ -963,7 +974,15 @@ pub fn solve(
                 why: format!("the deformed last cannot be measured: {why}"),
             })?;
         let v = values(&me);
-        let r: [f64; 8] = std::array::from_fn(|i| v[i] - target[i]);
+        // A NaN target: the rule has no counterpart on this last (the clinic path's ankle
+        // girth on a low-cut last) and is not solved for.
+        let r: [f64; 8] = std::array::from_fn(|i| {
+            if target[i].is_nan() {
+                0.0
+            } else {
+                v[i] - target[i]
+            }
+        });
         Ok((m, me, r))
     };
     let f = values(foot);
@@ -1161,11 +1180,17 @@ pub fn solve(
         .filter(|&i| r[i].abs() > TOL[i])
         .map(|i| format!("{} off by {:+.2} mm", names[i], r[i]))
         .collect();
-    Err(CustomizeError::Infeasible {
+    if debug {
+        eprintln!("solve: failed with field {p:?}");
+    }
+    Err(CustomizeError::Unmet {
         why: format!(
-            "the rules cannot be met together on this foot ({}); field {:?}",
-            miss.join(", "),
-            p
+            "the rules cannot be met together on this foot ({})",
+            miss.join(", ")
         ),
+        misses: (0..8)
+            .filter(|&i| r[i].abs() > TOL[i])
+            .map(|i| (i, r[i]))
+            .collect(),
     })
 }

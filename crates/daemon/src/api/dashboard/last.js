@@ -77,7 +77,9 @@ async function lastShowJob(id) {
         el('td', { text: x.rule }), el('td', { text: x.quantity.replace(/_/g, ' ') }),
         el('td', { class: 'num', text: x.foot_mm.toFixed(1) }), el('td', { class: 'num', text: x.target_mm.toFixed(1) }),
         el('td', { class: 'num', text: x.last_mm.toFixed(1) }),
-        el('td', { class: x.met ? 'ok' : 'bad', text: x.met ? 'yes' : `no (${x.error_mm.toFixed(2)})` })));
+        x.not_applicable
+          ? el('td', { text: 'n/a', title: x.not_applicable })
+          : el('td', { class: x.met ? 'ok' : 'bad', text: x.met ? 'yes' : `no (${x.error_mm.toFixed(2)})` })));
     }
     t.append(tb);
     out.append(t);
