@@ -173,7 +173,7 @@ impl Heads {
             .flat_map(|o| o.iter())
             .map(|&p| dot(sub(p, heel), u))
             .fold(f64::NEG_INFINITY, f64::max);
-        if length.is_nan() || length <= 4.0 * radius.max(1.0) {
+        if length.is_nan() || length <= 0.0 {
             return None;
         }
         let prof = Profiles::of(&[bo], heel, u, m, length, PROFILE_STEP);
@@ -196,7 +196,11 @@ impl Heads {
             match pick(y, &found, k(prior), TIE_MM) {
                 Some(p) => Some(p.k),
                 None => {
-                    let j = extreme_in(y, k(win.0), k(win.1), true)?;
+                    // A footprint cut short (a partial scan) may not reach the window: the
+                    // extreme of what there is, said in the warning's figure.
+                    let j = extreme_in(y, k(win.0), k(win.1), true)
+                        .or_else(|| extreme_in(y, k(0.4), y.len() - 1, true))
+                        .or_else(|| extreme_in(y, 0, y.len() - 1, true))?;
                     warnings.push(format!(
                         "{name} head: the {border} border has no prominence between {:.0} % and \
                          {:.0} % of the length (it runs straight or widens toward the heel); \
@@ -230,7 +234,7 @@ impl Heads {
             match pick(&neg, &found, k(prior), TIE_MM) {
                 Some(p) => Some(p.k),
                 None => {
-                    let j = extreme_in(y, kc, kh, false)?;
+                    let j = extreme_in(y, kc, kh, false).unwrap_or(kc);
                     warnings.push(format!(
                         "{name} waist: the border does not curve in between the heel and the \
                          metatarsal head (a flat or full midfoot); taken at its narrowest point \

@@ -489,9 +489,16 @@ pub fn judge(
         push(&mut issues, level, text);
     }
     if !q.measure_warnings.is_empty() {
+        // A partial scan by design measures part of a foot: its figures' doubts are noted,
+        // not warned (the foot cut by the range is already noted above).
+        let level = if cfg.whole_foot {
+            Level::Warning
+        } else {
+            Level::Note
+        };
         push(
             &mut issues,
-            Level::Warning,
+            level,
             format!("measurements to check: {}", q.measure_warnings.join("; ")),
         );
     }
@@ -574,22 +581,27 @@ mod tests {
 
     #[test]
     fn doubtful_measurements_make_a_scan_complete_with_warnings() {
-        let cfg = QualitySection {
-            whole_foot: false,
-            ..QualitySection::default()
-        };
+        let cfg = QualitySection::default();
         let g = grid(&[0.0, 0.5, 1.0, 1.5, 2.0]);
         let mut q = Quality::default();
         inspect(&g, &mut q);
+        q.cut.clear();
         let (s, _) = judge(&mut q.clone(), &cfg, 5, true);
         assert_eq!(s, ScanStatus::Complete);
         q.measure_warnings = vec!["the first metatarsal head is at 41 % of the length".into()];
-        let (s, r) = judge(&mut q, &cfg, 5, true);
+        let (s, r) = judge(&mut q.clone(), &cfg, 5, true);
         assert_eq!(s, ScanStatus::CompleteWithWarnings);
         assert_eq!(
             r.as_deref(),
             Some("measurements to check: the first metatarsal head is at 41 % of the length")
         );
+        // A partial scan by design: noted only.
+        let partial = QualitySection {
+            whole_foot: false,
+            ..cfg
+        };
+        let (s, r) = judge(&mut q, &partial, 5, true);
+        assert_eq!(s, ScanStatus::Complete, "{r:?}");
     }
 
     #[test]
