@@ -85,6 +85,23 @@ pub struct LastLandmarks {
     pub waist_right: [f64; 3],
 }
 
+impl LastLandmarks {
+    /// The landmarks a last maker names, with their names (the picture's labels and the
+    /// command's lines).
+    pub fn named(&self) -> [(&'static str, [f64; 3]); 8] {
+        [
+            ("heel point", self.heel_point),
+            ("toe point", self.toe_point),
+            ("toe end", self.toe_end),
+            ("MT1", self.mt1),
+            ("MT5", self.mt5),
+            ("tread", self.tread),
+            ("instep", self.instep),
+            ("top", self.top),
+        ]
+    }
+}
+
 /// A last's measures (mm unless named otherwise).
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct LastMeasures {
@@ -819,17 +836,7 @@ pub fn draw_measures(lm: &LastMeasures, path: &Path) -> std::io::Result<()> {
     }
     let l = &lm.landmarks;
     let p3 = |a: [f64; 3]| P3::new(a[0], a[1], a[2]);
-    let marks: [(&str, [f64; 3]); 9] = [
-        ("heel point", l.heel_point),
-        ("toe point", l.toe_point),
-        ("toe end", l.toe_end),
-        ("MT1", l.mt1),
-        ("MT5", l.mt5),
-        ("tread", l.tread),
-        ("instep", l.instep),
-        ("top", l.top),
-        ("waist", l.waist_left),
-    ];
+    let marks = l.named().into_iter().chain([("waist", l.waist_left)]);
     for (name, a) in marks {
         let q = p3(a);
         for (v, pos) in [(&side, xz(&q)), (&top, xy(&q))] {

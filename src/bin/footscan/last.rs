@@ -208,16 +208,7 @@ fn run_measure(a: MeasureArgs) -> Result<()> {
             100.0 * m.waist_at
         );
         let l = &m.landmarks;
-        for (name, p) in [
-            ("heel point", l.heel_point),
-            ("toe point", l.toe_point),
-            ("toe end", l.toe_end),
-            ("MT1", l.mt1),
-            ("MT5", l.mt5),
-            ("tread", l.tread),
-            ("instep point", l.instep),
-            ("top point", l.top),
-        ] {
+        for (name, p) in l.named() {
             println!("  {name:18} ({:7.2}, {:7.2}, {:7.2}) mm", p[0], p[1], p[2]);
         }
     }
