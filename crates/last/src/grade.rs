@@ -838,18 +838,6 @@ pub fn write_graded_atomic(g: &Graded, out: &Path) -> Result<Vec<PathBuf>, Grade
         path: p.display().to_string(),
         why,
     };
-    let parent = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = out
-        .file_name()
-        .ok_or_else(|| err(out, "not a directory path".into()))?
-        .to_string_lossy()
-        .to_string();
-    let pid = std::process::id();
-    let tmp = parent.join(format!(".{name}.tmp{pid}"));
-    let _ = std::fs::remove_dir_all(&tmp);
     let write = |dir: &Path| -> Result<Vec<PathBuf>, GradeError> {
         std::fs::create_dir_all(dir).map_err(|e| err(dir, e.to_string()))?;
         let mut files = Vec::new();
@@ -871,25 +859,11 @@ pub fn write_graded_atomic(g: &Graded, out: &Path) -> Result<Vec<PathBuf>, Grade
         }
         Ok(files)
     };
-    let result = write(&tmp).and_then(|files| {
-        let old = parent.join(format!(".{name}.old{pid}"));
-        let had = out.exists();
-        if had {
-            std::fs::rename(out, &old).map_err(|e| err(out, e.to_string()))?;
-        }
-        if let Err(e) = std::fs::rename(&tmp, out) {
-            if had {
-                let _ = std::fs::rename(&old, out);
-            }
-            return Err(err(out, e.to_string()));
-        }
-        if had {
-            let _ = std::fs::remove_dir_all(&old);
-        }
-        Ok(files)
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    result
+    crate::outdir::write_dir_atomic(out, |tmp| {
+        write(tmp).map_err(|e| match e {
+            GradeError::Output { path, why } => (path.into(), why),
+            e => (tmp.to_path_buf(), e.to_string()),
+        })
+    })
+    .map_err(|(p, why)| err(&p, why))
 }

@@ -1068,39 +1068,13 @@ fn write_atomic(
         path: p.display().to_string(),
         why,
     };
-    let parent = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    let name = out
-        .file_name()
-        .ok_or_else(|| err(out, "not a directory path".into()))?
-        .to_string_lossy()
-        .to_string();
-    let pid = std::process::id();
-    let tmp = parent.join(format!(".{name}.tmp{pid}"));
-    let _ = std::fs::remove_dir_all(&tmp);
-    let result = write_files(c, inp, &tmp, marked).and_then(|()| {
-        let old = parent.join(format!(".{name}.old{pid}"));
-        let had = out.exists();
-        if had {
-            std::fs::rename(out, &old).map_err(|e| err(out, e.to_string()))?;
-        }
-        if let Err(e) = std::fs::rename(&tmp, out) {
-            if had {
-                let _ = std::fs::rename(&old, out);
-            }
-            return Err(err(out, e.to_string()));
-        }
-        if had {
-            let _ = std::fs::remove_dir_all(&old);
-        }
-        Ok(())
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    result?;
+    crate::outdir::write_dir_atomic(out, |tmp| {
+        write_files(c, inp, tmp, marked).map_err(|e| match e {
+            CustomizeError::Output { path, why } => (path.into(), why),
+            e => (tmp.to_path_buf(), e.to_string()),
+        })
+    })
+    .map_err(|(p, why)| err(&p, why))?;
     let mut files: Vec<std::path::PathBuf> = OUTPUT_FILES.iter().map(|n| out.join(n)).collect();
     if out.join(MISFIT_FILE).is_file() {
         files.push(out.join(MISFIT_FILE));
