@@ -7,8 +7,8 @@ use footscan::lastcustom::{plantar_of_scan, STOCK_EXTENSIONS};
 use footscan_geom::mesh::Units;
 use footscan_last::choose::{foot_targets, judge_files, mirrored, rank};
 use footscan_last::customize::clinic::{customize_stock, TapeGirths};
-use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
-use footscan_last::customize::{write_outputs_atomic, Inputs};
+use footscan_last::customize::rules::{Shoe, Wearer};
+use footscan_last::customize::write_outputs_atomic;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -48,19 +48,8 @@ pub struct ChooseArgs {
 }
 
 pub fn run(a: ChooseArgs) -> Result<()> {
-    let rules_path = a
-        .rules
-        .clone()
-        .or_else(|| std::env::var_os("FOOTSCAN_LAST_RULES").map(PathBuf::from));
-    let rules = match &rules_path {
-        Some(p) => RuleSet::load(p).map_err(|e| anyhow!(e))?,
-        None => RuleSet::default_rules(),
-    };
-    let inp = Inputs {
-        shoe: a.shoe,
-        wearer: a.wearer,
-        heel_mm: a.heel_mm,
-    };
+    let (rules, inp) =
+        crate::last_customize::rules_and_inputs(a.rules.as_deref(), a.shoe, a.wearer, a.heel_mm)?;
     let g = TapeGirths::load(&a.girths).map_err(|e| anyhow!(e))?;
     let plantar = plantar_of_scan(&a.scan)?;
     let mut files: Vec<PathBuf> = std::fs::read_dir(&a.stock_dir)

@@ -100,21 +100,34 @@ fn heel_mm(s: &str) -> Result<f64, String> {
     }
 }
 
-pub fn run(a: CustomizeArgs) -> Result<()> {
-    // The rule file first: a typo in it is named before the foot is read.
-    let rules_path = a
-        .rules
-        .clone()
+/// The comfort rules (`rules`, else $FOOTSCAN_LAST_RULES, else the shipped ones) and the
+/// shoe they are for; read first, so a typo in the rule file is named before any mesh is read.
+pub fn rules_and_inputs(
+    rules: Option<&std::path::Path>,
+    shoe: Shoe,
+    wearer: Wearer,
+    heel_mm: f64,
+) -> Result<(RuleSet, Inputs)> {
+    let path = rules
+        .map(PathBuf::from)
         .or_else(|| std::env::var_os("FOOTSCAN_LAST_RULES").map(PathBuf::from));
-    let rules = match &rules_path {
+    let rules = match &path {
         Some(p) => RuleSet::load(p).map_err(|e| anyhow!(e))?,
         None => RuleSet::default_rules(),
     };
-    let inp = Inputs {
-        shoe: a.shoe,
-        wearer: a.wearer,
-        heel_mm: a.heel_mm,
-    };
+    Ok((
+        rules,
+        Inputs {
+            shoe,
+            wearer,
+            heel_mm,
+        },
+    ))
+}
+
+pub fn run(a: CustomizeArgs) -> Result<()> {
+    // The rule file first: a typo in it is named before the foot is read.
+    let (rules, inp) = rules_and_inputs(a.rules.as_deref(), a.shoe, a.wearer, a.heel_mm)?;
     let t0 = Instant::now();
     let (c, t_load, t_custom, input) = if let Some(foot_path) = &a.foot {
         let opts = IntakeOptions {
