@@ -201,7 +201,14 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
             r.last_mm,
             r.error_mm,
             r.bound_mm,
-            if r.met { "yes" } else { "NO" }
+            match (r.met, r.built_up_mm != 0.0) {
+                (true, false) => "yes".to_string(),
+                (true, true) => format!(
+                    "yes by the solve; {:+.2} mm from the build-up for the footprint",
+                    r.built_up_mm
+                ),
+                (false, _) => "NO".to_string(),
+            }
         );
     }
     println!("(last: measured by cutting the output mesh)");
@@ -230,7 +237,7 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
         "clearance ({} inside the last, {}, mm): {}; overall {:+.2} at ({:.1}, {:.1}, {:.1}); {}",
         cl.of,
         if cl.of == "footprint" {
-            "its bottom outline at 1.5 mm"
+            "its plan outline"
         } else {
             "below its top"
         },

@@ -11,7 +11,9 @@ use crate::archive::{ScanId, Status, VisitError};
 use footscan::lastcustom::{customize_scan, STOCK_EXTENSIONS};
 use footscan_last::customize::clinic::TapeGirths;
 use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
-use footscan_last::customize::{write_outputs_atomic, Inputs, HEEL_RANGE_MM, OUTPUT_FILES};
+use footscan_last::customize::{
+    write_misfit_atomic, write_outputs_atomic, Inputs, HEEL_RANGE_MM, OUTPUT_FILES,
+};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -72,6 +74,9 @@ pub struct RuleLine {
     /// `error_mm` 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub not_applicable: Option<String>,
+    /// How much the build-up for the footprint grew the measure after the solve met it.
+    #[serde(default)]
+    pub built_up_mm: f64,
 }
 
 /// A scan's last job as recorded in `last-job.json` and shown by the API.
@@ -360,6 +365,7 @@ fn make_last(
             error_mm: if r.applies { r.error_mm } else { 0.0 },
             met: r.met,
             not_applicable: r.not_applicable.clone(),
+            built_up_mm: r.built_up_mm,
         })
         .collect();
     job.clearance = Some(format!(
@@ -368,11 +374,28 @@ fn make_last(
         c.clearance.summary()
     ));
     job.fits = Some(c.clearance.regions.iter().all(|r| r.met()));
-    let files = write_outputs_atomic(&c, inp, &dir.join(LAST_DIR)).map_err(|e| e.to_string())?;
+    // As the CLI: a last that misses its rules is not a made last. Its files are kept,
+    // marked (report.json "misfit", MISFIT.txt), so nothing is lost, and the job fails with
+    // the reasons.
+    let misfits = c.misfits();
+    let write = if misfits.is_empty() {
+        write_outputs_atomic
+    } else {
+        write_misfit_atomic
+    };
+    let files = write(&c, inp, &dir.join(LAST_DIR)).map_err(|e| e.to_string())?;
     job.files = files
         .iter()
         .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
         .collect();
+    if !misfits.is_empty() {
+        return Err(format!(
+            "the last does not do what its rules ask: {}; its files are kept marked as a \
+             misfit ({})",
+            misfits.join("; "),
+            footscan_last::customize::MISFIT_FILE
+        ));
+    }
     Ok(())
 }
 

@@ -6,11 +6,12 @@
 //! as on the whole-foot path until its cut values are the targets (docs/method.md 10.7).
 
 use super::bottom::{shear, BottomCurve, FLAT_TOL_MM};
-use super::measure::{measure, Side};
+use super::measure::{measure, PlanProfile, Side, PLAN_STEP};
 use super::rules::RuleSet;
 use super::{clearance, foot_in_frame, footprint_clearance, frame_curves, judge, shape, targets};
 use super::{CustomizeError, Customized, Inputs};
 use footscan_geom::mesh::TriMesh;
+use footscan_geom::P3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -302,25 +303,18 @@ pub fn customize_stock_with(
     nd.length = foot.length;
     nd.holds_foot = false;
     nd.heel_allowance = heel_point.max(0.0);
-    let (last, lm, field, evals) =
+    let (mut last, mut lm, field, evals) =
         shape::solve(&sec, &nd, &sm, &target, medial).map_err(|e| actionable(e, &rows, name))?;
-    let on_last = shape::values(&lm);
-    let curve_target: [f64; 8] = std::array::from_fn(|i| {
-        if target[i].is_nan() {
-            on_last[i]
-        } else {
-            target[i]
-        }
-    });
-    let (fits, curves) = frame_curves(&sm, &sec.sole_outline(), &lm, &curve_target)?;
     judge(&mut rows, &lm);
     // The foot we have is its footprint: it must lie inside the last's bottom where the rules
     // say the foot must fit (the frame's medial side is +y or -y by the side).
-    let fp: Vec<Vec<[f64; 2]>> = foot
+    let mut fp: Vec<Vec<[f64; 2]>> = foot
         .footprint
         .iter()
         .map(|l| l.iter().map(|p| [p[0], p[1] * medial]).collect())
         .collect();
+    let mut built = Vec::new();
+    let mut placement = None;
     let cl = if fp.is_empty() {
         let mut cl = clearance(&stock, &last, &nd, rows[2].change_mm);
         cl.of = "stock last";
@@ -330,8 +324,65 @@ pub fn customize_stock_with(
         // that part of the footprint is outside by rule.
         let mut at_foot = nd;
         at_foot.heel_allowance = heel_allow;
-        footprint_clearance(&fp, &lm.outline, &at_foot, rows[2].change_mm)
+        // A footprint is the foot's plan outline (the sole seen from below, its sides where
+        // they bulge furthest), so it is held against the last's plan outline, not against
+        // the last's 1.5 mm bottom: a shop last's sides round in above the featherline, and
+        // there the footprint stood 4-15 mm out of lasts whose plan widths met every rule.
+        let mut plan = PlanProfile::new(&last, PLAN_STEP, f64::INFINITY);
+        let pivot = 0.5 * foot.length;
+        let pl = place_footprint(&fp, &plan, &at_foot, pivot);
+        for p in fp.iter_mut().flatten() {
+            *p = pl.apply(*p, pivot);
+        }
+        placement = Some(pl);
+        if pl != Placement::default() {
+            notes.push(format!(
+                "the footprint was set in the last as a fitter sets a foot: turned {:+.1} \
+                 degrees, moved {:+.1} mm across and {:+.1} mm along the last",
+                pl.turn_deg * medial,
+                pl.across_mm * medial,
+                pl.along_mm
+            ));
+        }
+        let ups = build_up(&mut last, &plan, &fp, &at_foot, medial);
+        if !ups.is_empty() {
+            let before: Vec<f64> = rows.iter().map(|r| r.last_mm).collect();
+            let met: Vec<bool> = rows.iter().map(|r| r.met).collect();
+            lm = measure(&last, Some(nd.length), medial).map_err(|why| {
+                CustomizeError::NotAFoot {
+                    name: name.into(),
+                    why: format!("after the build-up for the footprint: {why}"),
+                }
+            })?;
+            judge(&mut rows, &lm);
+            for ((r, b), m) in rows.iter_mut().zip(before).zip(met) {
+                if r.applies && (r.last_mm - b).abs() > 0.01 {
+                    r.built_up_mm = r.last_mm - b;
+                    r.met = m;
+                }
+            }
+            for u in &ups {
+                notes.push(format!(
+                    "the last was built up on its {} side for the footprint: {:.2} mm at {:.0} \
+                     mm along the foot, from {:.0} to {:.0} mm (a stock last's sides round in \
+                     where the scanned sole spreads; the rule table shows what it grew)",
+                    u.side, u.max_mm, u.at_x_mm, u.from_x_mm, u.to_x_mm
+                ));
+            }
+            plan = PlanProfile::new(&last, PLAN_STEP, f64::INFINITY);
+        }
+        built = ups;
+        footprint_clearance(&fp, &[plan.outline()], &at_foot, rows[2].change_mm)
     };
+    let on_last = shape::values(&lm);
+    let curve_target: [f64; 8] = std::array::from_fn(|i| {
+        if target[i].is_nan() || rows[i].built_up_mm != 0.0 {
+            on_last[i]
+        } else {
+            target[i]
+        }
+    });
+    let (fits, curves) = frame_curves(&sm, &sec.sole_outline(), &lm, &curve_target)?;
     let (mut last, mut stock, mut curves) = (last, stock, curves);
     let mut bottom_curve = None;
     if let Some(b) = &bottom {
@@ -376,6 +427,8 @@ pub fn customize_stock_with(
         bottom_curve,
         footprint: fp,
         notes,
+        placement,
+        build_up: built,
     })
 }
 
@@ -434,4 +487,252 @@ fn actionable(e: CustomizeError, rows: &[super::RuleRow], name: &str) -> Customi
         "{name}: the rules cannot all be met on this last: {}",
         parts.join("; ")
     ))
+}
+
+/// Where the footprint stands in the last: turned about the foot's mid-length on the axis and
+/// moved, as a fitter sets a foot in a shoe (positive `across_mm` towards the medial side).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Placement {
+    pub turn_deg: f64,
+    pub along_mm: f64,
+    pub across_mm: f64,
+}
+
+/// How far a placement may move the footprint from the last's frame: the foot's axis and the
+/// last's are each found from their own outlines, and a foot stands in a shoe a few degrees
+/// and millimetres either way of the last's centre line; beyond these the last is not the
+/// foot's. Along the axis only a little: the heel allowance (rule I-A) sets the heel's place.
+const TURN_MAX_DEG: f64 = 6.0;
+const ACROSS_MAX_MM: f64 = 8.0;
+const ALONG_MAX_MM: f64 = 2.0;
+
+impl Placement {
+    fn apply(&self, p: [f64; 2], pivot: f64) -> [f64; 2] {
+        let (s, c) = self.turn_deg.to_radians().sin_cos();
+        let (x, y) = (p[0] - pivot, p[1]);
+        [
+            pivot + c * x - s * y + self.along_mm,
+            s * x + c * y + self.across_mm,
+        ]
+    }
+}
+
+/// The placement of the footprint (foot frame, medial +y) in the last's plan outline that
+/// leaves the most room where the foot must fit (heel seat, midfoot, toe box) and at the
+/// ball: the least side room over those points, each point's room taken across the axis
+/// against the last's plan extremes at its station (ahead of or behind the last: the distance
+/// beyond its end). A grid over turn, across and along, then a pattern search from its best.
+fn place_footprint(
+    fp: &[Vec<[f64; 2]>],
+    plan: &PlanProfile,
+    nd: &shape::Nodes,
+    pivot: f64,
+) -> Placement {
+    let judged: Vec<[f64; 2]> = fp
+        .iter()
+        .flatten()
+        .copied()
+        .filter(|p| {
+            let r = super::region_of_plan(nd, p[0]);
+            r != 0
+        })
+        .collect();
+    // Every third point: the outline is traced at a tenth of a millimetre.
+    let pts: Vec<[f64; 2]> = judged.iter().step_by(3).copied().collect();
+    if pts.is_empty() {
+        return Placement::default();
+    }
+    let room = |pl: &Placement| -> f64 {
+        pts.iter()
+            .map(|&p| plan.side_room(pl.apply(p, pivot)))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut best = (Placement::default(), room(&Placement::default()));
+    let steps = |max: f64, h: f64| {
+        let n = (max / h).round() as i32;
+        (-n..=n).map(move |i| i as f64 * h)
+    };
+    for turn_deg in steps(TURN_MAX_DEG, 1.0) {
+        for across_mm in steps(ACROSS_MAX_MM, 1.0) {
+            for along_mm in steps(ALONG_MAX_MM, 1.0) {
+                let pl = Placement {
+                    turn_deg,
+                    along_mm,
+                    across_mm,
+                };
+                let r = room(&pl);
+                if r > best.1 {
+                    best = (pl, r);
+                }
+            }
+        }
+    }
+    let mut h = 0.5;
+    while h > 0.01 {
+        let mut moved = false;
+        for (dt, dx, dy) in [
+            (h, 0.0, 0.0),
+            (-h, 0.0, 0.0),
+            (0.0, h, 0.0),
+            (0.0, -h, 0.0),
+            (0.0, 0.0, h),
+            (0.0, 0.0, -h),
+        ] {
+            let b = best.0;
+            let pl = Placement {
+                turn_deg: (b.turn_deg + dt).clamp(-TURN_MAX_DEG, TURN_MAX_DEG),
+                along_mm: (b.along_mm + dx).clamp(-ALONG_MAX_MM, ALONG_MAX_MM),
+                across_mm: (b.across_mm + dy).clamp(-ACROSS_MAX_MM, ACROSS_MAX_MM),
+            };
+            let r = room(&pl);
+            if r > best.1 + 1e-9 {
+                best = (pl, r);
+                moved = true;
+            }
+        }
+        if !moved {
+            h *= 0.5;
+        }
+    }
+    best.0
+}
+
+/// Room the build-up leaves between the footprint and the last's plan outline (mm).
+const BUILD_UP_ROOM_MM: f64 = 0.1;
+/// The build-up spreads over this distance either side of where it is needed (mm): a last
+/// maker's build-up (leather or cork laid on the stock last and sanded in) runs out smoothly.
+const BUILD_UP_SPREAD_MM: f64 = 8.0;
+/// Above the side's widest point the build-up runs out over this height (mm).
+const BUILD_UP_FADE_MM: f64 = 15.0;
+
+/// One side's build-up of the last, as report.json and the CLI give it.
+#[derive(Clone, Debug, Serialize)]
+pub struct BuildUp {
+    /// "medial" or "lateral".
+    pub side: &'static str,
+    /// Where it is largest (foot frame, mm along the axis) and by how much (mm).
+    pub at_x_mm: f64,
+    pub max_mm: f64,
+    /// Where it starts and ends along the axis (mm).
+    pub from_x_mm: f64,
+    pub to_x_mm: f64,
+}
+
+/// Build the last's sides out where the placed footprint stands outside its plan outline in
+/// the regions the foot must fit (heel seat, midfoot, toe box), as a last maker builds up a
+/// stock last for a patient: each side's half-width at a station grows by the most any
+/// footprint point there lacks (plus [`BUILD_UP_ROOM_MM`]), spread and smoothed over
+/// [`BUILD_UP_SPREAD_MM`] so that it never falls below what a point needs; a vertex moves out
+/// by that growth times its share of the half-width, so the centre line, the bottom's middle
+/// and the top stay where the rules put them. `medial` is the frame's medial sign (+y or -y).
+fn build_up(
+    last: &mut TriMesh,
+    plan: &PlanProfile,
+    fp: &[Vec<[f64; 2]>],
+    nd: &shape::Nodes,
+    medial: f64,
+) -> Vec<BuildUp> {
+    let n = plan.hi.len();
+    let mut need = [vec![0.0f64; n], vec![0.0f64; n]];
+    for &p in fp.iter().flatten() {
+        let r = super::region_of_plan(nd, p[0]);
+        if r == 0 || r == 3 {
+            continue;
+        }
+        let room = plan.side_room(p);
+        if room >= BUILD_UP_ROOM_MM || !room.is_finite() {
+            continue;
+        }
+        let k = ((p[0] - plan.x0) / plan.step).round();
+        if k < 0.0 || k as usize >= n {
+            continue;
+        }
+        let k = k as usize;
+        let (Some(hi), Some(lo)) = (plan.hi[k], plan.lo[k]) else {
+            continue;
+        };
+        let side = usize::from(hi.y - p[1] < p[1] - lo.y);
+        need[side][k] = need[side][k].max(BUILD_UP_ROOM_MM - room);
+    }
+    let r = (BUILD_UP_SPREAD_MM / plan.step).round() as usize;
+    let grow: Vec<Vec<f64>> = need
+        .iter()
+        .map(|v| {
+            let window = |k: usize| k.saturating_sub(r)..=(k + r).min(n - 1);
+            let m: Vec<f64> = (0..n)
+                .map(|k| v[window(k)].iter().copied().fold(0.0, f64::max))
+                .collect();
+            (0..n)
+                .map(|k| {
+                    let w = window(k);
+                    let len = w.clone().count() as f64;
+                    m[w].iter().sum::<f64>() / len
+                })
+                .collect()
+        })
+        .collect();
+    let at = |v: &[f64], x: f64| {
+        let t = ((x - plan.x0) / plan.step).clamp(0.0, (n - 1) as f64);
+        let k = (t.floor() as usize).min(n - 1);
+        let k1 = (k + 1).min(n - 1);
+        v[k] + (t - k as f64) * (v[k1] - v[k])
+    };
+    let ys = |side: &[Option<P3>]| -> Vec<f64> {
+        side.iter().map(|q| q.map_or(f64::NAN, |q| q.y)).collect()
+    };
+    let zs = |side: &[Option<P3>]| -> Vec<f64> {
+        side.iter().map(|q| q.map_or(f64::NAN, |q| q.z)).collect()
+    };
+    let (his, los) = (ys(&plan.hi), ys(&plan.lo));
+    let (hiz, loz) = (zs(&plan.hi), zs(&plan.lo));
+    if grow.iter().all(|g| g.iter().all(|&w| w == 0.0)) {
+        return Vec::new();
+    }
+    // Up to the height of the side's widest point the side moves out whole; above it the
+    // build-up runs out over BUILD_UP_FADE_MM, so the top and the girths round it grow by
+    // little more than the bottom's widening.
+    let fade = |z: f64, ze: f64| {
+        if ze.is_finite() {
+            (1.0 - (z - ze) / BUILD_UP_FADE_MM).clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
+    };
+    for v in &mut last.vertices {
+        let (hi, lo) = (at(&his, v.x), at(&los, v.x));
+        if !(hi.is_finite() && lo.is_finite()) || hi <= lo {
+            continue;
+        }
+        let c = 0.5 * (hi + lo);
+        let half = 0.5 * (hi - lo);
+        if v.y >= c {
+            let f = fade(v.z, at(&hiz, v.x));
+            v.y += at(&grow[1], v.x) * f * ((v.y - c) / half).clamp(0.0, 1.0);
+        } else {
+            let f = fade(v.z, at(&loz, v.x));
+            v.y -= at(&grow[0], v.x) * f * ((c - v.y) / half).clamp(0.0, 1.0);
+        }
+    }
+    let mut out = Vec::new();
+    for (i, g) in grow.iter().enumerate() {
+        let Some((k, &max)) = g.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)) else {
+            continue;
+        };
+        if max <= 0.0 {
+            continue;
+        }
+        let first = g.iter().position(|&w| w > 0.0).unwrap_or(k);
+        let last_k = g.iter().rposition(|&w| w > 0.0).unwrap_or(k);
+        let x = |k: usize| plan.x0 + k as f64 * plan.step;
+        // Side 1 is +y: medial when the frame's medial sign is +1.
+        let is_medial = (i == 1) == (medial > 0.0);
+        out.push(BuildUp {
+            side: if is_medial { "medial" } else { "lateral" },
+            at_x_mm: x(k),
+            max_mm: max,
+            from_x_mm: x(first),
+            to_x_mm: x(last_k),
+        });
+    }
+    out
 }

@@ -166,6 +166,50 @@ pub(crate) fn cut_below(v: &[P3; 3], x: f64, top: f64, mut out: impl FnMut(P3)) 
 }
 
 impl PlanProfile {
+    /// Room across the axis for a plan point (x, y): the distance to the nearer plan extreme
+    /// at its station, interpolated between stations (negative outside); ahead of or behind
+    /// the outline, minus the distance beyond its end.
+    pub fn side_room(&self, p: [f64; 2]) -> f64 {
+        let n = self.lo.len();
+        let first = self.hi.iter().position(Option::is_some);
+        let last = self.hi.iter().rposition(Option::is_some);
+        let (Some(a), Some(b)) = (first, last) else {
+            return f64::NEG_INFINITY;
+        };
+        let (xa, xb) = (
+            self.x0 + a as f64 * self.step,
+            self.x0 + b as f64 * self.step,
+        );
+        if p[0] < xa {
+            return -(xa - p[0]);
+        }
+        if p[0] > xb {
+            return -(p[0] - xb);
+        }
+        let t = (p[0] - self.x0) / self.step;
+        let k = (t.floor() as usize).min(n - 1);
+        let k1 = (k + 1).min(b);
+        let f = t - k as f64;
+        let at = |v: &[Option<P3>], k: usize| v[k].map(|q| q.y);
+        let lerp = |v: &[Option<P3>]| match (at(v, k), at(v, k1)) {
+            (Some(u), Some(w)) => Some(u + f * (w - u)),
+            (Some(u), None) | (None, Some(u)) => Some(u),
+            _ => None,
+        };
+        match (lerp(&self.hi), lerp(&self.lo)) {
+            (Some(hi), Some(lo)) => (hi - p[1]).min(p[1] - lo),
+            _ => f64::NEG_INFINITY,
+        }
+    }
+
+    /// The plan outline: the highest-y points from heel to toe, then the lowest back; the
+    /// outline a last casts on the glass seen from above, as a footprint is a foot's.
+    pub fn outline(&self) -> Loop3 {
+        let mut out: Loop3 = self.hi.iter().flatten().copied().collect();
+        out.extend(self.lo.iter().rev().flatten().copied());
+        out
+    }
+
     /// Cut every triangle by the planes x = x0 + k step, the mesh sliced once in
     /// O(triangles and crossings), keeping the sections below `top`: a foot's plan widths are
     /// those a last cut off at its top can have. On the real feet with a leg the heel's

@@ -73,6 +73,14 @@ pub struct RuleRow {
     pub applies: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub not_applicable: Option<String>,
+    /// How much the clinic path's build-up for the footprint grew this measure after the
+    /// solve met it (mm; 0 where nothing was built up): judged on the solve, shown as grown.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub built_up_mm: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// The characteristic curves of the last's frame after Algorithm II.
@@ -125,6 +133,10 @@ pub struct Customized {
     /// What was done to the input that the user should know (the clinic path: a stock last
     /// of the other side mirrored).
     pub notes: Vec<String>,
+    /// Clinic path: where the footprint was set in the last, and what of the last was built
+    /// up so the footprint fits (empty: nothing).
+    pub placement: Option<clinic::Placement>,
+    pub build_up: Vec<clinic::BuildUp>,
 }
 
 /// How far the foot stands inside the last, region by region (negative: the foot presses
@@ -232,6 +244,7 @@ pub fn targets(
         source: s.to_string(),
         applies: true,
         not_applicable: None,
+        built_up_mm: 0.0,
     };
     let rows = vec![
         row(
@@ -439,6 +452,8 @@ pub fn customize(
         bottom_curve: bottom.map(|b| b.samples()),
         footprint: Vec::new(),
         notes: Vec::new(),
+        placement: None,
+        build_up: Vec::new(),
     })
 }
 
@@ -583,6 +598,11 @@ fn clearance_regions(waist_change_mm: f64) -> [RegionClearance; 5] {
     })
 }
 
+/// The region of a footprint point (on the glass: the outline's height).
+pub(crate) fn region_of_plan(nd: &shape::Nodes, x: f64) -> usize {
+    region_of(nd, x, OUTLINE_Z)
+}
+
 /// The region of a point of the foot frame (x along the axis, z up).
 fn region_of(nd: &shape::Nodes, x: f64, z: f64) -> usize {
     // Under the heel allowance's 45 degree chamfer (with a millimetre's margin).
@@ -656,8 +676,8 @@ pub(crate) fn clearance(
 }
 
 /// The clinic path's clearance: no whole foot, so the scanned footprint (its body and toe
-/// outlines, foot frame) against the last's bottom outline at 1.5 mm, point by point (inside:
-/// the distance to the outline; outside: its negative).
+/// outlines, placed in the last's frame) against the last's plan outline, point by point
+/// (inside: the distance to the outline; outside: its negative).
 pub(crate) fn footprint_clearance(
     footprint: &[Vec<[f64; 2]>],
     last_outline: &[Loop3],
@@ -902,6 +922,12 @@ struct Report<'a> {
     misfit: bool,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     misfits: Vec<String>,
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    notes: &'a [String],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    placement: Option<clinic::Placement>,
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    build_up: &'a [clinic::BuildUp],
 }
 
 /// The file written beside a last that misses its rules (`--keep-misfit`).
@@ -1007,6 +1033,9 @@ fn write_files(
         foot_points: FootPoints::of(&c.foot_measures),
         misfit: !misfits.is_empty(),
         misfits: misfits.clone(),
+        notes: &c.notes,
+        placement: c.placement,
+        build_up: &c.build_up,
     };
     let p = dir.join("report.json");
     let j = serde_json::to_string_pretty(&rep).map_err(|e| out(&p, e.to_string()))?;
