@@ -15,6 +15,7 @@ pub const GREY: Colour = Rgb([128, 128, 128]);
 pub const RED: Colour = Rgb([200, 30, 30]);
 pub const BLUE: Colour = Rgb([30, 60, 200]);
 pub const GREEN: Colour = Rgb([20, 150, 40]);
+pub const AMBER: Colour = Rgb([210, 130, 0]);
 
 /// Maps world (x, y) in mm to pixels: uniform scale, y up, a margin around the content box.
 #[derive(Clone, Copy, Debug)]

@@ -2,7 +2,7 @@
 //! curves and the rule table.
 
 use super::Customized;
-use crate::draw::{Canvas, View, BLACK, BLUE, GREEN, GREY, RED, WHITE};
+use crate::draw::{Canvas, View, AMBER, BLACK, BLUE, GREEN, GREY, RED, WHITE};
 use footscan_geom::plane::Plane;
 use footscan_geom::{P3, V3};
 use std::path::Path;
@@ -59,8 +59,23 @@ pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
     }
     // The last's outline as its rules were measured: laid flat by its bottom curve, if it
     // has one (a cut of the raised last at 1.5 mm misses the raised waist).
+    // The clinic path holds the footprint against the last's plan outline: that is drawn
+    // black, the 1.5 mm bottom grey.
+    let clinic = !c.footprint.is_empty();
     for l in &c.last_measures.outline {
         let l: Vec<(f64, f64)> = l.iter().map(|p| (p.x, p.y)).collect();
+        cv.polyline(
+            &top,
+            &l,
+            true,
+            if clinic { GREY } else { BLACK },
+            if clinic { 1 } else { 2 },
+        );
+    }
+    if clinic {
+        let plan =
+            super::measure::PlanProfile::new(&c.last, super::measure::PLAN_STEP, f64::INFINITY);
+        let l: Vec<(f64, f64)> = plan.outline().iter().map(|p| (p.x, p.y)).collect();
         cv.polyline(&top, &l, true, BLACK, 2);
     }
     for l in &c.footprint {
@@ -111,7 +126,7 @@ pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
         if c.footprint.is_empty() {
             "top: sole outlines at 1.5 mm (last laid flat), points O A P B C D E"
         } else {
-            "top: outlines at 1.5 mm, scanned footprint blue"
+            "top: last's plan outline black (bottom at 1.5 mm grey), footprint as set in it blue"
         },
         BLACK,
         2,
@@ -120,11 +135,19 @@ pub fn draw(c: &Customized, path: &Path) -> std::io::Result<()> {
     cv.text(900, y, "rule    foot  target   last", BLACK, 2);
     for r in &c.rules {
         y += 24;
+        // A measure the build-up for the footprint grew is marked "b" (amber): met by the
+        // solve, grown after it.
+        let (mark, colour) = match (r.met, r.built_up_mm != 0.0, r.applies) {
+            (_, _, false) => (" n/a", GREY),
+            (true, false, true) => ("", GREEN),
+            (true, true, true) => (" b", AMBER),
+            (false, _, true) => ("", RED),
+        };
         let s = format!(
-            "{:<5}{:7.1} {:7.1}{:7.1}",
+            "{:<5}{:7.1} {:7.1}{:7.1}{mark}",
             r.rule, r.foot_mm, r.target_mm, r.last_mm
         );
-        cv.text(900, y, &s, if r.met { GREEN } else { RED }, 2);
+        cv.text(900, y, &s, colour, 2);
     }
     y += 34;
     cv.text(
