@@ -7,9 +7,9 @@
 //! centroids onto the output's, and a triangle whose normal then points against its output
 //! normal is folded.
 //!
-//! Both tests are ignored until the deformation folds nothing (issue 31 item 6): they fail
-//! today and are kept as the measure (`cargo test -p footscan-last --test adjust_folds --
-//! --ignored --nocapture`; FOLD_DEBUG=1 prints where each fold is).
+//! The parametric lasts' test is ignored until the deformation folds nothing on them (issue
+//! 31 item 6): it fails today and is kept as the measure (`cargo test -p footscan-last --test
+//! adjust_folds -- --ignored --nocapture`; FOLD_DEBUG=1 prints where each fold is).
 
 use footscan_geom::mesh::{TriMesh, Units};
 use footscan_geom::V3;
@@ -119,7 +119,6 @@ fn feet() -> Vec<(String, f64, FootPlantar)> {
 }
 
 #[test]
-#[ignore = "known failing: 1 fold on Last_Flat_RoundTip (230 mm right foot); docs/method.md 9.6"]
 fn no_shared_last_folds() {
     let mut files: Vec<PathBuf> = std::fs::read_dir(lasts_dir())
         .unwrap()
@@ -152,7 +151,7 @@ fn no_shared_last_folds() {
 }
 
 #[test]
-#[ignore = "known failing: 1-10 folds in 25 of 36 cases (toe tip slivers, heel walls); docs/method.md 9.6"]
+#[ignore = "known failing: 78 folds in 36 runs, at most 9 (heel and toe rims); docs/method.md 9.2.1"]
 fn no_parametric_last_folds() {
     let mut total = 0;
     for (foot_name, len, foot) in feet() {
