@@ -166,10 +166,44 @@ pub enum LastSource {
     Scan { dir: PathBuf, bottom: LastBottom },
 }
 
+/// A last scan cut by the scan range or the camera's view (scan.json's quality gate) has
+/// lost its heel, toe or a side: its length and side would be guessed from what is left (a
+/// right last cut at the toe was read as a left one and mirrored), so it is refused.
+fn refuse_cut_last_scan(dir: &Path) -> Result<(), LastFitError> {
+    let Ok(text) = std::fs::read(dir.join("scan.json")) else {
+        return Ok(()); // an older scan directory: nothing to go by
+    };
+    let json: serde_json::Value =
+        serde_json::from_slice(&text).map_err(|e| LastFitError::Scan {
+            dir: dir.to_path_buf(),
+            what: "scan.json".into(),
+            why: e.to_string(),
+        })?;
+    let cut: Vec<&str> = json["quality"]["cut"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|c| c.as_str()).collect())
+        .unwrap_or_default();
+    if cut.is_empty() {
+        return Ok(());
+    }
+    Err(LastFitError::Scan {
+        dir: dir.to_path_buf(),
+        what: format!(
+            "the last runs past the {} (scan.json)",
+            cut.join(" and the ")
+        ),
+        why: "part of its bottom was not scanned, so its length and side cannot be told; \
+              scan it again with the whole last inside the scan range (config/sim-last.toml \
+              says which lengths fit)"
+            .into(),
+    })
+}
+
 impl LastSource {
     /// A directory is a scan of a last bottom (its grid.bin), anything else a mesh file.
     pub fn load(path: &Path, opts: &LastOptions, cell_mm: f64) -> Result<Self, LastFitError> {
         if path.is_dir() {
+            refuse_cut_last_scan(path)?;
             let gpath = path.join("grid.bin");
             let grid = ScanGrid::load(&gpath).map_err(|e| LastFitError::Scan {
                 dir: path.to_path_buf(),

@@ -112,6 +112,11 @@ pub struct QualitySection {
     /// The scan must hold the whole foot: a measured foot touching either end of the scan
     /// range is a rescan. false for partial scans (a heel, a quick test): noted only.
     pub whole_foot: bool,
+    /// The object on the glass must lie whole inside the scan range even when no foot is
+    /// measured (a last bottom: cut at the toe, its length and side cannot be told), so one
+    /// running past either end of the range is a rescan. false (plates, calibration
+    /// targets, which may fill the range): noted only.
+    pub whole_object: bool,
     /// Share of the sole's rows lost (a line the detector rejected, or no point) above which
     /// the scan warns, and above which it is a rescan.
     pub lost_warn: f64,
@@ -123,6 +128,7 @@ impl Default for QualitySection {
         QualitySection {
             bridge_mm: 3.0,
             whole_foot: true,
+            whole_object: false,
             lost_warn: 0.01,
             lost_rescan: 0.10,
         }
@@ -415,20 +421,22 @@ pub fn judge(
         let foot_cut = c.contains("range");
         // Only a measured foot must be whole: a plate, a last bottom or a calibration target
         // may fill the range and the view.
-        let level = if !(measured_foot && cfg.whole_foot) {
-            Level::Note
+        let whole = if measured_foot {
+            cfg.whole_foot
         } else {
-            Level::Rescan
+            cfg.whole_object
         };
+        let level = if whole { Level::Rescan } else { Level::Note };
+        let what = if measured_foot { "foot" } else { "object" };
         let advice = if foot_cut {
-            "place the foot inside the scanned length"
+            format!("place the {what} inside the scanned length")
         } else {
-            "place the foot in the middle of the glass"
+            format!("place the {what} in the middle of the glass")
         };
         push(
             &mut issues,
             level,
-            format!("the foot runs past the {c}: {advice}"),
+            format!("the {what} runs past the {c}: {advice}"),
         );
     }
     if q.rows_lost > 0 && q.rows_lost_share > cfg.lost_warn {
@@ -615,6 +623,16 @@ mod tests {
         let (s, r) = judge(&mut q.clone(), &cfg, 5, true);
         assert_eq!(s, ScanStatus::Rescan);
         assert!(r.unwrap().starts_with("the foot runs past the start"));
+        // No foot measured (a last bottom): a rescan only when the object must be whole.
+        let (s, _) = judge(&mut q.clone(), &cfg, 5, false);
+        assert_ne!(s, ScanStatus::Rescan);
+        let whole = QualitySection {
+            whole_object: true,
+            ..cfg.clone()
+        };
+        let (s, r) = judge(&mut q.clone(), &whole, 5, false);
+        assert_eq!(s, ScanStatus::Rescan);
+        assert!(r.unwrap().starts_with("the object runs past the start"));
         // A partial scan: noted; the bridged gap (3 of 8 frames, 1.5 mm) is the warning.
         let partial = QualitySection {
             whole_foot: false,

@@ -8,9 +8,11 @@ use footscan_geom::mesh::{TriMesh, Units};
 use footscan_geom::plane::Plane;
 use footscan_geom::{P3, V3};
 use footscan_last::blend::{self, Blend, BlendParams};
+use footscan_last::join::landmarks::{place_pair, Sides};
 use footscan_last::join::{self, output, JoinParams};
+use footscan_last::outdir::write_dir_atomic;
 use footscan_last::size::{check_last_size, check_pair};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// How the gap between the two kept parts is closed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -36,12 +38,15 @@ pub struct JoinArgs {
     /// Last whose toe part (toe plane to the tip) is kept.
     #[arg(long)]
     toe: PathBuf,
-    /// Back cutting plane: `X` (mm along the last in the common frame, heel at 0), `P%` (of
-    /// the back last's length), or `ox,oy,oz,nx,ny,nz` (normal towards the toe). Default 62%.
+    /// Back cutting plane: `X` (mm along the last in the common frame, the back last's heel
+    /// point at 0), `P%` (of the back last's length), or `ox,oy,oz,nx,ny,nz` (normal towards
+    /// the toe). Default: 93 % of the way from the back last's heel point to its joint line
+    /// (about 62 % of its length), so lasts of different sizes join.
     #[arg(long)]
     back_plane: Option<String>,
-    /// Toe cutting plane, as --back-plane (of the toe last's length). Default 70%. The blend
-    /// needs it parallel to the back plane.
+    /// Toe cutting plane, as --back-plane (P% of the toe last's length). Default: 10 % of the
+    /// way from the joint line to the toe last's toe point (about 70 % of its length). The
+    /// blend needs it parallel to the back plane.
     #[arg(long)]
     toe_plane: Option<String>,
     /// How the gap is closed: `gordon` (a Gordon surface on sections and guides) or `blend`
@@ -80,9 +85,13 @@ pub struct JoinArgs {
     #[arg(long)]
     length: Option<f64>,
     /// Take the meshes as already placed in a common frame (x heel to toe, z up) instead of
-    /// superimposing them at the ball.
+    /// standing each on its tread and superimposing them at the joint line.
     #[arg(long)]
     as_is: bool,
+    /// Mirror the toe last onto the back last's side when the two are of different sides
+    /// (without it such a pair is refused: a right toe on a left back fits no foot).
+    #[arg(long)]
+    mirror_toe: bool,
     /// Join two lasts whose lengths differ by more than a size group (13 %).
     #[arg(long)]
     allow_size_mismatch: bool,
@@ -158,19 +167,47 @@ pub fn run(a: JoinArgs) -> Result<()> {
     if !a.allow_size_mismatch {
         check_pair((&a.back, back_len), (&a.toe, toe_len))?;
     }
-    let placement = if a.as_is {
-        join::Placement::AsIs
+    // Each last stood on its tread as `last measure` and `last adjust` stand it, sides
+    // checked, the toe last moved to the back last's joint line (docs/method.md 11.6).
+    let (back, toe, mut back_plane, mut toe_plane) = if a.as_is {
+        (back, toe, None, None)
     } else {
-        join::Placement::Ball
+        let sides = if a.mirror_toe {
+            Sides::MirrorToe
+        } else {
+            Sides::Refuse
+        };
+        let p = place_pair(
+            &back,
+            &a.back.display().to_string(),
+            &toe,
+            &a.toe.display().to_string(),
+            sides,
+        )?;
+        println!(
+            "placed: back last {} {} mm, toe last {} {} mm{}, joint lines met at x = {:.1} mm",
+            p.back_measures.side.map_or("(side undecided)", side_word),
+            fmt1(p.back_measures.stick_length),
+            p.toe_measures.side.map_or("(side undecided)", side_word),
+            fmt1(p.toe_measures.stick_length),
+            if p.toe_mirrored { " (mirrored)" } else { "" },
+            p.joint_x
+        );
+        (p.back, p.toe, Some(p.back_plane), Some(p.toe_plane))
     };
-    let back_plane = match &a.back_plane {
-        Some(s) => Some(parse_plane(s, &join::place(&back, &placement), "back")?),
-        None => None,
-    };
-    let toe_plane = match &a.toe_plane {
-        Some(s) => Some(parse_plane(s, &join::place(&toe, &placement), "toe")?),
-        None => None,
-    };
+    let placement = join::Placement::AsIs;
+    if let Some(s) = &a.back_plane {
+        back_plane = Some(parse_plane(s, &back, "back")?);
+    }
+    if let Some(s) = &a.toe_plane {
+        toe_plane = Some(parse_plane(s, &toe, "toe")?);
+    }
+    if let (Some(b), Some(t)) = (&back_plane, &toe_plane) {
+        println!(
+            "planes: back at x = {:.1} mm, toe at x = {:.1} mm",
+            b.origin.x, t.origin.x
+        );
+    }
     let name = format!(
         "{} back + {} toe",
         a.back.file_stem().unwrap_or_default().to_string_lossy(),
@@ -205,8 +242,12 @@ pub fn run(a: JoinArgs) -> Result<()> {
         ..JoinParams::default()
     };
     let j = join::join(&back, &toe, &p)?;
-    let w = output::write(&j, &a.out, &name)
-        .with_context(|| format!("writing into {}", a.out.display()))?;
+    let w = write_all_or_nothing(&a.out, |dir| {
+        output::write(&j, dir, &name).map(|w| {
+            let files = w.files.clone();
+            (w, files)
+        })
+    })?;
     let q = &w.quality;
     let t = &j.timings;
     println!(
@@ -223,10 +264,43 @@ pub fn run(a: JoinArgs) -> Result<()> {
     print_seams(&[("back", &q.back_seam), ("toe", &q.toe_seam)]);
     print_original(&[("back", &q.back_original), ("toe", &q.toe_original)]);
     print_deviation(&[("back", &q.back_deviation), ("toe", &q.toe_deviation)]);
-    for f in &w.files {
+    for f in in_out(&a.out, &w.files) {
         println!("wrote {}", f.display());
     }
     Ok(())
+}
+
+fn side_word(s: footscan_last::measure_last::LastSide) -> &'static str {
+    match s {
+        footscan_last::measure_last::LastSide::Left => "left",
+        footscan_last::measure_last::LastSide::Right => "right",
+    }
+}
+
+fn fmt1(x: f64) -> String {
+    format!("{x:.1}")
+}
+
+/// Writes the output directory through `write` into a fresh sibling and puts it in place
+/// only when every file is written: a join that fails half-way leaves --out as it was.
+fn write_all_or_nothing<T>(
+    out: &Path,
+    write: impl FnOnce(&Path) -> std::io::Result<(T, Vec<PathBuf>)>,
+) -> Result<T> {
+    write_dir_atomic(out, |dir| {
+        write(dir)
+            .map(|(v, _)| v)
+            .map_err(|e| (dir.to_path_buf(), e.to_string()))
+    })
+    .map_err(|(p, e)| anyhow::anyhow!("writing into {} ({}): {e}", out.display(), p.display()))
+}
+
+/// The written files by their names in --out (they were written into its temporary sibling).
+fn in_out(out: &Path, files: &[PathBuf]) -> Vec<PathBuf> {
+    files
+        .iter()
+        .map(|f| out.join(f.file_name().unwrap_or_default()))
+        .collect()
 }
 
 fn print_seams(s: &[(&str, &join::seam::SeamMetrics)]) {
@@ -271,8 +345,12 @@ fn run_blend(
 ) -> Result<()> {
     let f = blend::fill(back, toe, p)?;
     let q = blend::output::quality(&f, 400)?;
-    let w = blend::output::write_as_join(&f, &q, &a.out)
-        .with_context(|| format!("writing into {}", a.out.display()))?;
+    let w = write_all_or_nothing(&a.out, |dir| {
+        blend::output::write_as_join(&f, &q, dir).map(|w| {
+            let files = w.files();
+            (w, files)
+        })
+    })?;
     let t = &f.timings;
     let fill_slices = f
         .slices
@@ -311,7 +389,7 @@ fn run_blend(
         q.fill_variation, q.fill_energy
     );
     print_deviation(&[("back", &q.back_deviation), ("toe", &q.toe_deviation)]);
-    for f in w.files() {
+    for f in in_out(&a.out, &w.files()) {
         println!("wrote {}", f.display());
     }
     Ok(())

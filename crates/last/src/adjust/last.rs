@@ -543,6 +543,21 @@ pub fn deform_last(
             }
         })
         .collect();
+    // And under the orthogonal map that best carries the whole last's triangle centroids
+    // to where the faded field puts them: a last whose heel comes down is pitched as a
+    // whole, and a rim triangle turned past the vertical against that is as folded to
+    // whoever compares the files, though not against the plan's rigid fit alone.
+    let whole = best_orthogonal(&prep.mesh, |i| moves[i].0 + faded[i]);
+    let want_whole: Vec<V3> = (0..mesh.triangles.len())
+        .map(|t| {
+            let n = whole * prep.mesh.face_normal(t);
+            if mirrored {
+                -n
+            } else {
+                n
+            }
+        })
+        .collect();
     let flipped_now = |disp: &[V3]| -> Vec<usize> {
         (0..mesh.triangles.len())
             .filter(|&t| {
@@ -552,7 +567,8 @@ pub fn deform_last(
                     moves[j].0 + disp[j],
                     moves[k].0 + disp[k],
                 );
-                (pj - pi).cross(&(pk - pi)).dot(&want[t]) < 0.0
+                let n = (pj - pi).cross(&(pk - pi));
+                n.dot(&want[t]) < 0.0 || n.dot(&want_whole[t]) < 0.0
             })
             .collect()
     };
@@ -565,10 +581,22 @@ pub fn deform_last(
     // reduced them.
     let mut bad = flipped_now(&disp);
     let mut relaxed = vec![false; disp.len()];
-    // Bottom vertices are the adjusted bottom and stay.
+    // Bottom vertices are the adjusted bottom and stay: on the lowest surface and corners of
+    // a triangle facing down. Height alone also pinned the steep walls' vertices where a
+    // wall overhangs its own footprint (a pointed toe's tip, a heel's back), whose slivers
+    // then could not be repaired.
+    let mut faces_down = vec![false; disp.len()];
+    for (t, tri) in prep.mesh.triangles.iter().enumerate() {
+        if prep.mesh.face_normal(t).z < -0.5 {
+            for &i in tri {
+                faces_down[i as usize] = true;
+            }
+        }
+    }
     let pinned: Vec<bool> = moves
         .iter()
-        .map(|m| m.2.abs() <= BOTTOM_VERTEX_MM)
+        .zip(&faces_down)
+        .map(|(m, &down)| down && m.2.abs() <= BOTTOM_VERTEX_MM)
         .collect();
     if !bad.is_empty() {
         let mut nbrs: Vec<Vec<u32>> = vec![Vec::new(); disp.len()];
@@ -650,8 +678,8 @@ pub fn deform_last(
     // original bottom) that land inside the adjusted outline.
     let (mut bottom_max, mut bottom_ss, mut bottom_n) = (0.0f64, 0.0, 0usize);
     let h = &adj.heights;
-    for (v, m) in mesh.vertices.iter().zip(&moves) {
-        if m.2.abs() > BOTTOM_VERTEX_MM {
+    for (v, &bottom) in mesh.vertices.iter().zip(&pinned) {
+        if !bottom {
             continue;
         }
         match h.cell_of(v.x, v.y) {
@@ -689,6 +717,29 @@ pub fn deform_last(
             volume_after_mm3: report.volume,
         },
     ))
+}
+
+/// The orthogonal map (a mirror allowed) that best takes `m`'s triangle centroids onto the
+/// centroids of the same triangles with the vertices at `moved` (least squares, Kabsch).
+fn best_orthogonal(m: &TriMesh, moved: impl Fn(usize) -> P3) -> Matrix3<f64> {
+    let n = m.triangles.len().max(1) as f64;
+    let cen = |t: usize, f: &dyn Fn(usize) -> P3| {
+        let [a, b, c] = m.triangles[t].map(|i| f(i as usize).coords);
+        (a + b + c) / 3.0
+    };
+    let given = |i: usize| m.vertices[i];
+    let nt = m.triangles.len();
+    let ca = (0..nt).map(|t| cen(t, &given)).sum::<Vector3<f64>>() / n;
+    let cb = (0..nt).map(|t| cen(t, &moved)).sum::<Vector3<f64>>() / n;
+    let mut h = Matrix3::zeros();
+    for t in 0..nt {
+        h += (cen(t, &given) - ca) * (cen(t, &moved) - cb).transpose();
+    }
+    let svd = h.svd(true, true);
+    match (svd.u, svd.v_t) {
+        (Some(u), Some(vt)) => vt.transpose() * u.transpose(),
+        _ => Matrix3::identity(),
+    }
 }
 
 /// The largest 4-connected set of true cells.

@@ -6,11 +6,16 @@ use footscan_geom::nurbs::NurbsError;
 /// Why a join failed. Every variant names the last, plane or section at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum JoinError {
-    #[error("{last} last: the {plane} misses it (no section); move the plane inside the last")]
+    #[error(
+        "{last} last: the {plane} misses it (no section); move the plane inside the last \
+         (--back-plane / --toe-plane: X mm from the heel, P% of the last's length, or \
+         ox,oy,oz,nx,ny,nz)"
+    )]
     PlaneMisses { last: String, plane: String },
     #[error(
         "{last} last: the {plane} cuts it into {loops} loops; a joining plane must cut the \
-         last in one closed loop (move it away from the ends and the top)"
+         last in one closed loop (move it away from the ends and the top: --back-plane / \
+         --toe-plane)"
     )]
     ManyLoops {
         last: String,
@@ -29,9 +34,25 @@ pub enum JoinError {
     },
     #[error(
         "the toe plane ({toe}) is not ahead of the back plane ({back}) along the back plane's \
-         normal: the gap would be {gap:.1} mm; the toe part must start where the back part ends"
+         normal: the gap would be {gap:.1} mm; the toe part must start where the back part ends \
+         (give --back-plane and --toe-plane further apart: X mm from the heel, P% of the \
+         last's length, or ox,oy,oz,nx,ny,nz; without them the planes are placed behind and \
+         ahead of the joints)"
     )]
     PlanesOverlap { back: String, toe: String, gap: f64 },
+    #[error(
+        "the back last {back} is a {back_side} last and the toe last {toe} a {toe_side} last: \
+         their join would fit no foot; give two lasts of one side, or pass --mirror-toe to \
+         mirror the toe last onto the back last's side"
+    )]
+    Sides {
+        back: String,
+        back_side: &'static str,
+        toe: String,
+        toe_side: &'static str,
+    },
+    #[error("{last}: its landmarks cannot be found for the join ({why})")]
+    Landmarks { last: String, why: String },
     #[error("section {section} cannot be aligned: {reason}")]
     NotAligned { section: String, reason: String },
     #[error("invalid parameter {name} = {value}: {valid}")]

@@ -21,6 +21,7 @@ pub mod compare;
 pub mod error;
 pub mod gordon;
 pub mod guides;
+pub mod landmarks;
 pub mod output;
 pub mod reference;
 pub mod seam;
