@@ -173,8 +173,8 @@ impl GrblSlider {
     }
 
     /// How long stopping from full speed may take, plus the response timeout: the deadline of
-    /// a feed hold or a jog cancel. From the fastest `$11x` over the slowest `$12x` the
-    /// controller listed (GRBL's defaults where it listed none), doubled because a controller
+    /// a feed hold or a jog cancel. From the scan axis' `$110` and `$120` (the driver moves X
+    /// only; GRBL's defaults where the controller listed none), doubled because a controller
     /// may run slower than its settings (grbl-sim runs at about 40 % of real time on a busy
     /// machine).
     pub fn stop_deadline(&self) -> Duration {
@@ -183,18 +183,16 @@ impl GrblSlider {
         self.config.response_timeout + Duration::from_secs_f64(2.0 * decel_s)
     }
 
-    /// Fastest maximum rate (mm/min) and slowest acceleration (mm/s²) over the axes.
+    /// X's maximum rate (mm/min) and acceleration (mm/s²), as read or GRBL's defaults.
     fn rate_and_accel(&self) -> (f64, f64) {
         let s = self.settings.as_ref();
-        let rate = (0..3)
-            .filter_map(|a| s.and_then(|s| s.max_rate(a)))
+        let rate = s
+            .and_then(|s| s.max_rate(0))
             .filter(|r| *r > 0.0)
-            .fold(None, |m: Option<f64>, r| Some(m.map_or(r, |m| m.max(r))))
             .unwrap_or(DEFAULT_MAX_RATE);
-        let accel = (0..3)
-            .filter_map(|a| s.and_then(|s| s.acceleration(a)))
+        let accel = s
+            .and_then(|s| s.acceleration(0))
             .filter(|a| *a > 0.0)
-            .fold(None, |m: Option<f64>, a| Some(m.map_or(a, |m| m.min(a))))
             .unwrap_or(DEFAULT_ACCEL);
         (rate, accel)
     }
@@ -202,12 +200,7 @@ impl GrblSlider {
     /// How long a move of `distance_mm` at `feed_mm_min` takes on this controller (trapezoid
     /// at `$120`, feed clamped to `$110`), for callers that choose a `wait_idle` timeout.
     pub fn move_duration(&self, distance_mm: f64, feed_mm_min: f64) -> Duration {
-        let s = self.settings.as_ref();
-        let rate = s.and_then(|s| s.max_rate(0)).unwrap_or(DEFAULT_MAX_RATE);
-        let a = s
-            .and_then(|s| s.acceleration(0))
-            .filter(|a| *a > 0.0)
-            .unwrap_or(DEFAULT_ACCEL);
+        let (rate, a) = self.rate_and_accel();
         let v = feed_mm_min.min(rate).max(1e-9) / 60.0;
         let d = distance_mm.abs();
         // Accelerate to v and back takes v/a seconds over v²/a mm; a short move is a triangle.
