@@ -38,6 +38,11 @@ pub struct GrblConfig {
     pub rx_buffer: usize,
     /// The output the laser is wired to; None: the laser is not switched by the controller.
     pub laser: Option<LaserOutput>,
+    /// How much longer than its settings (`$110`, `$120`) a controller may take to stop: the
+    /// stopping deadlines are this times the planned deceleration, plus `response_timeout`.
+    /// 2 covers real boards; grbl-sim on a loaded 2-core machine runs at 20-40 % of real time
+    /// and needs 5.
+    pub motion_slack: f64,
 }
 
 /// The controller output that switches the laser (GRBL boards have a spindle enable/PWM pin
@@ -93,6 +98,7 @@ impl Default for GrblConfig {
             poll_interval: Duration::from_millis(20),
             rx_buffer: 128,
             laser: None,
+            motion_slack: 2.0,
         }
     }
 }
@@ -174,13 +180,13 @@ impl GrblSlider {
 
     /// How long stopping from full speed may take, plus the response timeout: the deadline of
     /// a feed hold or a jog cancel. From the scan axis' `$110` and `$120` (the driver moves X
-    /// only; GRBL's defaults where the controller listed none), doubled because a controller
-    /// may run slower than its settings (grbl-sim runs at about 40 % of real time on a busy
-    /// machine).
+    /// only; GRBL's defaults where the controller listed none), times
+    /// [`GrblConfig::motion_slack`] because a controller may run slower than its settings.
     pub fn stop_deadline(&self) -> Duration {
         let (rate, accel) = self.rate_and_accel();
         let decel_s = rate / 60.0 / accel;
-        self.config.response_timeout + Duration::from_secs_f64(2.0 * decel_s)
+        let slack = self.config.motion_slack.max(1.0);
+        self.config.response_timeout + Duration::from_secs_f64(slack * decel_s)
     }
 
     /// X's maximum rate (mm/min) and acceleration (mm/s²), as read or GRBL's defaults.
@@ -652,10 +658,10 @@ impl Slider for GrblSlider {
         }
     }
 
-    /// The configured output's command (see [`LaserOutput`]). Outside laser mode GRBL executes
-    /// spindle and coolant commands in step with the planner (after the queued motion), so a
-    /// laser switched during a move comes on when the move ends, and this returns then; in
-    /// laser mode (`$32=1`) spindle changes apply at once. A refusal names the command and the
+    /// The configured output's command (see [`LaserOutput`]). GRBL switches the spindle and
+    /// coolant outputs in step with the planner (after the queued motion, in laser mode too:
+    /// there only a power change applies at once), so a laser switched during a move comes on
+    /// when the move ends, and this returns then. A refusal names the command and the
     /// controller's `error:N` with its meaning.
     fn laser(&mut self, on: bool) -> HalResult<()> {
         let Some(out) = self.config.laser else {
