@@ -97,9 +97,9 @@ fn connect_settings_status_and_error_decoding() {
         (Some(500.0), Some(10.0))
     );
     assert_eq!(s.laser_mode(), Some(false));
-    // 500 mm/min at 10 mm/s² stops in 0.83 s: 2 s + 5 times that.
+    // 500 mm/min at 10 mm/s² stops in 0.83 s: the response timeout + 5 times that.
     let d = s.stop_deadline().as_secs_f64();
-    assert!((d - (2.0 + 5.0 * 500.0 / 60.0 / 10.0)).abs() < 1e-9, "{d}");
+    assert!((d - (5.0 + 5.0 * 500.0 / 60.0 / 10.0)).abs() < 1e-9, "{d}");
     let mut rtts = Vec::new();
     for _ in 0..20 {
         let t = Instant::now();
@@ -155,7 +155,11 @@ fn moves_hold_resume_and_jog_cancel() {
             format!("{:?}@{}", st.state, st.x_mm)
         })
         .collect();
-    assert_eq!(s.status().unwrap().state, SliderState::Run, "resumed: {after:?}");
+    assert_eq!(
+        s.status().unwrap().state,
+        SliderState::Run,
+        "resumed: {after:?}"
+    );
     s.feed_hold().unwrap();
     std::thread::sleep(Duration::from_millis(1000));
     assert_eq!(s.status().unwrap().state, SliderState::Hold);
@@ -289,7 +293,7 @@ fn homing_alarm_8_then_unlock_and_settings() {
     s.unlock().unwrap();
     assert_eq!(s.status().unwrap().state, SliderState::Idle);
     s.command("$22=0").expect("answered, not lost to a reset");
-    assert_eq!(s.read_settings().unwrap().homing_enabled(), false);
+    assert!(!s.read_settings().unwrap().homing_enabled());
     assert_eq!(s.stats().lost_answers, 0);
 }
 
