@@ -22,11 +22,11 @@
 //!   probing, offsets and M7 (mist: not in GRBL's default build) answer `error:20`.
 //! - a laser wired to the spindle (M3/M5) or flood coolant (M8/M9) output
 //!   ([`EmulatorConfig::laser`]): [`GrblEmulator::laser_source`] tells the simulated camera
-//!   whether it shone at a frame's capture time. A reset switches both outputs off. Outside
-//!   laser mode a spindle or coolant change waits for the queued motion to finish before it
-//!   applies and is answered (GRBL's planner sync); in laser mode (`$32=1`) a spindle change
-//!   applies at once, and the spindle output is lit at rest only in G1 motion mode with a
-//!   power above 0 (after a reset, `M3 S..` alone stays dark).
+//!   whether it shone at a frame's capture time. A reset switches both outputs off. A spindle
+//!   or coolant switch waits for the queued motion to finish before it applies and is
+//!   answered (GRBL's planner sync); in laser mode (`$32=1`) a power change alone applies at
+//!   once, and the spindle output is lit at rest only in G1 motion mode with a power above 0
+//!   (after a reset, `M3 S..` alone stays dark).
 //! - realtime bytes act on arrival, even mid-line: `?` status report
 //!   `<Idle|MPos:12.345,0.000,0.000|FS:0,0>` (with `|WCO:` and `|Ov:` every few reports as
 //!   GRBL does; `WPos` when `$10` bit 0 is clear; `Bf:` when bit 1 is set), `!` feed hold

@@ -30,8 +30,8 @@ enum Blocked {
     Homing,
     /// A failed homing cycle aborting: at the instant given, the `$H`'s `ok` and the reset.
     HomingAbort(f64),
-    /// A spindle or coolant change outside laser mode: GRBL waits for the queued motion to
-    /// finish before it switches the output and answers.
+    /// A spindle or coolant switch: GRBL waits for the queued motion to finish before it
+    /// switches the output and answers.
     Outputs,
     /// A soft-limit alarm is pending; the line that caused it is never answered.
     Alarm,
@@ -578,16 +578,18 @@ impl Server {
         };
         match action {
             Action::None => {
-                let outputs_change = (modal.spindle_on, modal.flood, modal.spindle)
-                    != (self.modal.spindle_on, self.modal.flood, self.modal.spindle);
+                let laser_mode = self.machine().laser_mode();
+                let switched =
+                    (modal.spindle_on, modal.flood) != (self.modal.spindle_on, self.modal.flood);
+                let power = modal.spindle != self.modal.spindle;
                 self.modal = modal;
                 if state == MachineState::Check {
                     return self.respond(Ok(()));
                 }
-                let laser_mode = self.machine().laser_mode();
-                if outputs_change && !laser_mode {
-                    // Outside laser mode GRBL syncs the planner before a spindle or coolant
-                    // change: the answer comes when the queued motion has run.
+                if switched || (power && !laser_mode) {
+                    // GRBL syncs the planner before a spindle or coolant switch (in laser mode
+                    // too; there a power change alone applies at once): the answer comes when
+                    // the queued motion has run.
                     self.blocked = Some(Blocked::Outputs);
                     self.tick(now);
                     return;
