@@ -128,7 +128,7 @@ impl GrblSlider {
         let mut deadline = Instant::now() + policy.timeout;
         let mut sync_sent = false;
         // A line waiting for the motion to end is answered a moment after the state says so:
-        // the timeout runs from the last report of motion, not from before it.
+        // once the motion is seen to have ended, it gets one more full timeout.
         let mut moved = false;
         loop {
             for a in self.tracker.skip_older(id) {

@@ -610,22 +610,27 @@ impl Slider for GrblSlider {
     }
 
     /// Resume a feed hold. GRBL ignores `~` until the hold has come to rest (`Hold:0`), and a
-    /// hold asked for just before may not have taken effect yet (the state still says `Run`):
-    /// so wait for rest first, then send `~` until the state has left `Hold`.
+    /// hold asked for just before may not have taken effect yet (the state still says `Run`,
+    /// or `Idle` for a machine at rest): so wait for rest, send `~`, and confirm that the state
+    /// stays out of `Hold` for two reports in a row, sending `~` again whenever it is `Hold:0`.
     fn resume(&mut self) -> HalResult<()> {
-        let s = self.wait_at_rest("the feed hold to come to rest before the resume")?;
-        if s.state != SliderState::Hold {
-            return Ok(());
-        }
+        self.wait_at_rest("the feed hold to come to rest before the resume")?;
         self.realtime(b'~')?;
-        let budget = self.config.response_timeout;
+        let budget = self.stop_deadline();
         let deadline = Instant::now() + budget;
+        let mut out_of_hold = 0;
         loop {
             std::thread::sleep(self.config.poll_interval);
             let s = self.query_status(Instant::now() + self.config.response_timeout)?;
+            let sub = self.last_report().and_then(|r| r.substate);
             if s.state != SliderState::Hold {
-                return Ok(());
+                out_of_hold += 1;
+                if out_of_hold >= 2 {
+                    return Ok(());
+                }
+                continue;
             }
+            out_of_hold = 0;
             if Instant::now() >= deadline {
                 return Err(self.timeout(
                     format!(
@@ -635,8 +640,10 @@ impl Slider for GrblSlider {
                     budget,
                 ));
             }
-            // A `~` that arrived while the hold was still settling was ignored: send again.
-            self.realtime(b'~')?;
+            // A `~` that arrived before the hold applied was dropped: send it again at rest.
+            if sub == Some(0) {
+                self.realtime(b'~')?;
+            }
         }
     }
 

@@ -226,3 +226,15 @@ fn laser_on_and_off_mean_the_same_in_laser_mode() {
     s.laser(false).unwrap();
     assert!(!emu.laser_on());
 }
+
+#[test]
+fn resume_right_after_a_feed_hold_at_rest_leaves_no_hold() {
+    let (emu, mut s) = homed(EmulatorConfig::default());
+    // At rest, `!` makes Hold:0 once it applies; a status taken before that says Idle.
+    s.feed_hold().unwrap();
+    s.resume().unwrap();
+    std::thread::sleep(Duration::from_millis(100));
+    assert_eq!(emu.state(), MachineState::Idle, "not left held");
+    s.move_to(5.0, 3000.0).unwrap();
+    assert_eq!(s.wait_idle(S10).unwrap().x_mm, 5.0);
+}
