@@ -309,12 +309,19 @@ impl GrblSlider {
 
     /// Before a reset on reconnect: a controller that kept power may still be moving; a reset
     /// then would kill the steppers (ALARM:3, position lost). Cancel a jog, or feed hold a
-    /// program, and wait for the stop. Best effort: a controller that does not answer (it is
-    /// rebooting) is simply reset.
+    /// program, and wait for the stop. A controller that does not answer at once may be
+    /// booting (boards that reset on port open) or briefly stalled (grbl-sim under load did
+    /// for over 5 s): it is asked again until the reset timeout, and only a controller silent
+    /// that long is reset as it is.
     fn bring_to_rest(&mut self) {
-        let deadline = Instant::now() + self.config.response_timeout;
-        let Ok(st) = self.query_status(deadline) else {
-            return;
+        let deadline = Instant::now() + self.config.reset_timeout;
+        let st = loop {
+            match self.query_status(Instant::now() + self.config.response_timeout) {
+                Ok(st) => break st,
+                Err(HalError::Timeout { .. } | HalError::BadData { .. })
+                    if Instant::now() < deadline => {}
+                Err(_) => return,
+            }
         };
         let result = match st.state {
             SliderState::Jog => self.jog_cancel(),

@@ -55,8 +55,8 @@ fn reconnect_during_a_move_keeps_the_position() {
     s.connect().unwrap();
     s.home(S10).unwrap();
     for i in 0..3 {
-        s.move_to(if i % 2 == 0 { 250.0 } else { 20.0 }, 3000.0)
-            .unwrap();
+        let x = s.status().unwrap().x_mm;
+        s.move_to(x + 100.0, 3000.0).unwrap();
         std::thread::sleep(Duration::from_millis(200));
         assert_eq!(emu.state(), MachineState::Run);
         // The same machine on the same port: reconnect brings it to rest, then resets.
@@ -184,7 +184,8 @@ fn laser_rig(wiring: LaserWiring, out: LaserOutput) -> (GrblEmulator, GrblSlider
     };
     let drv = GrblConfig {
         laser: Some(out),
-        response_timeout: Duration::from_millis(500),
+        // Shorter than the move below (3 s), long enough for a status on a loaded machine.
+        response_timeout: Duration::from_secs(1),
         ..GrblConfig::default()
     };
     connected(cfg, drv)
@@ -193,7 +194,7 @@ fn laser_rig(wiring: LaserWiring, out: LaserOutput) -> (GrblEmulator, GrblSlider
 #[test]
 fn laser_on_during_a_move_waits_for_the_move() {
     let (emu, mut s) = laser_rig(LaserWiring::Spindle, LaserOutput::Spindle { power: 800.0 });
-    s.move_to(100.0, 3000.0).unwrap();
+    s.move_to(150.0, 3000.0).unwrap();
     std::thread::sleep(Duration::from_millis(100));
     s.laser(true).expect("answered when the move ends");
     assert_eq!(
@@ -237,4 +238,30 @@ fn resume_right_after_a_feed_hold_at_rest_leaves_no_hold() {
     assert_eq!(emu.state(), MachineState::Idle, "not left held");
     s.move_to(5.0, 3000.0).unwrap();
     assert_eq!(s.wait_idle(S10).unwrap().x_mm, 5.0);
+}
+
+#[test]
+fn reconnect_to_a_controller_that_stalls_still_stops_it_first() {
+    // grbl-sim under load once left a status query unanswered for over 5 s during a
+    // reconnect; a single unanswered query must not lead to a reset in motion.
+    let (emu, mut s) = homed(EmulatorConfig::default());
+    s.move_to(300.0, 3000.0).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    emu.inject(Fault::Silence(true));
+    let emu = std::sync::Arc::new(emu);
+    let waker = {
+        let emu = emu.clone();
+        std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(2500));
+            emu.inject(Fault::Silence(false));
+        })
+    };
+    // Response timeout 2 s < the 2.5 s stall < the reset timeout 5 s.
+    s.reconnect(Duration::from_secs(5)).unwrap();
+    waker.join().unwrap();
+    assert_eq!(s.alarm(), None, "reset while moving (ALARM:3)");
+    let st = s.status().unwrap();
+    assert_eq!(st.state, SliderState::Idle);
+    assert!(st.x_mm > 10.0 && st.x_mm < 300.0, "{st:?}");
+    assert!((st.x_mm - emu.machine_x()).abs() < 5e-4, "position kept");
 }
