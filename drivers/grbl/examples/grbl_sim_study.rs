@@ -106,6 +106,9 @@ fn main() {
         );
     }
     println!("total {:?}", t_all.elapsed());
+    // exit() skips destructors: end the simulator first.
+    drop(s);
+    drop(sim);
     if failures.iter().sum::<usize>() > 0 {
         std::process::exit(1);
     }
