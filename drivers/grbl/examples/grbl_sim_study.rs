@@ -19,7 +19,7 @@ fn connect(sim: &grbl_sim::GrblSim) -> GrblSlider {
         sim.port_str(),
         GrblConfig {
             reset_timeout: Duration::from_secs(15),
-            response_timeout: Duration::from_secs(5),
+            response_timeout: Duration::from_secs(10),
             motion_slack: 5.0,
             ..GrblConfig::default()
         },

@@ -21,8 +21,11 @@ fn config() -> GrblConfig {
     GrblConfig {
         // The simulator reads no input during its first simulated second (2-3 s here).
         reset_timeout: Duration::from_secs(15),
-        // grbl-sim on a loaded machine sometimes stalls for seconds (its README).
-        response_timeout: Duration::from_secs(5),
+        // grbl-sim on a loaded machine stalls for seconds (its README): polling `?` every
+        // 20 ms, without the driver, the longest gap between reports was 4.3 s in 40 s at a
+        // load average of 8-12 on 2 cores. Some runs hang for good (no report in 30 s): a
+        // grbl-sim fault this timeout cannot cure (docs/method.md 14.1).
+        response_timeout: Duration::from_secs(10),
         laser: Some(LaserOutput::Spindle { power: 500.0 }),
         motion_slack: 5.0,
         ..GrblConfig::default()
@@ -99,7 +102,7 @@ fn connect_settings_status_and_error_decoding() {
     assert_eq!(s.laser_mode(), Some(false));
     // 500 mm/min at 10 mm/s² stops in 0.83 s: the response timeout + 5 times that.
     let d = s.stop_deadline().as_secs_f64();
-    assert!((d - (5.0 + 5.0 * 500.0 / 60.0 / 10.0)).abs() < 1e-9, "{d}");
+    assert!((d - (10.0 + 5.0 * 500.0 / 60.0 / 10.0)).abs() < 1e-9, "{d}");
     let mut rtts = Vec::new();
     for _ in 0..20 {
         let t = Instant::now();
@@ -140,7 +143,7 @@ fn moves_hold_resume_and_jog_cancel() {
         })
         .unwrap();
     assert!(xs.windows(2).all(|w| w[1] >= w[0]), "monotonic: {xs:?}");
-    assert!(xs.len() > 5, "{} reports", xs.len());
+    assert!(xs.len() >= 3, "{} reports", xs.len());
     assert_eq!(s.status().unwrap().x_mm, 3.0, "{st}");
 
     // Feed hold, then resume at once: the resume waits for Hold:0 and is not lost.
@@ -219,7 +222,9 @@ fn stop_and_reconnect_during_moves_never_alarm() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(4);
     for i in 0..2 * n {
-        let x0 = start_move(&mut s, 10.0);
+        // 30 mm: 3.6 s at 500 mm/min even at full simulator speed, so a test thread that the
+        // loaded machine leaves waiting still stops it under way.
+        let x0 = start_move(&mut s, 30.0);
         // Vary the moment: accelerating, cruising.
         std::thread::sleep(Duration::from_millis(50 + 60 * (i as u64 % 5)));
         if i % 2 == 0 {
@@ -232,7 +237,7 @@ fn stop_and_reconnect_during_moves_never_alarm() {
             &mut s,
             &format!("{} {i}", if i % 2 == 0 { "stop" } else { "reconnect" }),
         );
-        assert!(x > x0 && x < x0 + 10.0, "{i}: {x0} -> {x}");
+        assert!(x > x0 && x < x0 + 30.0, "{i}: {x0} -> {x}");
     }
     // The controller still moves: grbl-sim would not after an ALARM:3.
     let x = s.status().unwrap().x_mm;

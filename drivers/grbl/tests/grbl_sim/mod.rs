@@ -11,7 +11,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
-use std::sync::OnceLock;
+use std::sync::{Mutex, MutexGuard, OnceLock};
 use std::time::{Duration, Instant};
 
 /// Where the firmware sources are: `$FOOTSCAN_FIRMWARE`, else `../shared/firmware` beside the
@@ -166,6 +166,9 @@ pub struct GrblSim {
     pub dir: PathBuf,
     pub port: PathBuf,
     socat: Option<Child>,
+    /// One simulator at a time per process: two at once on a loaded 2-core machine left
+    /// status queries unanswered for over 10 s. Released after the simulator has ended.
+    _turn: MutexGuard<'static, ()>,
 }
 
 impl GrblSim {
@@ -181,6 +184,9 @@ impl GrblSim {
                 return None;
             }
         };
+        static TURN: Mutex<()> = Mutex::new(());
+        // A test that failed while holding its turn poisons the lock; the turn is still free.
+        let turn = TURN.lock().unwrap_or_else(|e| e.into_inner());
         static N: AtomicU32 = AtomicU32::new(0);
         let dir = target_dir().join(format!(
             "grbl-sim-run-{}-{}",
@@ -194,6 +200,7 @@ impl GrblSim {
             dir: dir.clone(),
             port: port.clone(),
             socat: None,
+            _turn: turn,
         };
         sim.spawn(&exe);
         Some(sim)
