@@ -15,6 +15,8 @@ packages+=(python3-venv)
 # The fleet tests (crates/fleet, crates/daemon/tests/daemon_fleet.rs, tests/fleet_cli.rs) start
 # a PostgreSQL server of their own (initdb + pg_ctl); footscan-fleet's TLS links OpenSSL.
 packages+=(postgresql libssl-dev openssl)
+# drivers/grbl/tests/firmware.rs builds GRBL 1.1h's simulator (gcc, make) and runs it on a pty.
+packages+=(make socat)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

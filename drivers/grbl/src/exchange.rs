@@ -127,6 +127,9 @@ impl GrblSlider {
     pub(crate) fn wait_answer(&mut self, id: u64, policy: WaitPolicy) -> HalResult<()> {
         let mut deadline = Instant::now() + policy.timeout;
         let mut sync_sent = false;
+        // A line waiting for the motion to end is answered a moment after the state says so:
+        // once the motion is seen to have ended, it gets one more full timeout.
+        let mut moved = false;
         loop {
             for a in self.tracker.skip_older(id) {
                 if let Outcome::Error(c) = a.outcome {
@@ -147,7 +150,13 @@ impl GrblSlider {
                 continue;
             }
             let resync = policy.resync == Resync::OnTimeout && !sync_sent && self.link.is_open();
-            if policy.patience == Patience::WhileMoving && self.moving()? {
+            let moving = policy.patience == Patience::WhileMoving && self.moving()?;
+            if !moving && std::mem::take(&mut moved) {
+                deadline = Instant::now() + policy.timeout;
+                continue;
+            }
+            if moving {
+                moved = true;
                 if resync {
                     // The answer may be lost while the machine runs (a scan move is seconds
                     // long): the `$G` behind the line finds out without waiting for the end.

@@ -16,6 +16,10 @@ pub struct StatusReport {
     pub spindle: Option<f64>,
     /// `Bf:` planner blocks and RX bytes available.
     pub buffer: Option<(u32, u32)>,
+    /// `A:` accessory outputs lit (`S` spindle CW, `C` CCW, `F` flood, `M` mist). GRBL sends
+    /// the field only with `Ov:` (every 10-20 reports, and in the first report after an
+    /// output changes), so None means "not reported", and `Ov:` without `A:` means all off.
+    pub accessories: Option<String>,
 }
 
 impl StatusReport {
@@ -79,6 +83,7 @@ pub fn parse_status(line: &str) -> Result<StatusReport, String> {
         feed: None,
         spindle: None,
         buffer: None,
+        accessories: None,
     };
     let bad = |f: &str| format!("malformed field {f:?} in {line:?}");
     for f in fields {
@@ -99,7 +104,9 @@ pub fn parse_status(line: &str) -> Result<StatusReport, String> {
                 let v = floats(val).filter(|v| v.len() == 2).ok_or_else(|| bad(f))?;
                 r.buffer = Some((v[0] as u32, v[1] as u32));
             }
-            // Ln, Pn, Ov, A and future fields carry nothing the slider needs.
+            "Ov" if r.accessories.is_none() => r.accessories = Some(String::new()),
+            "A" => r.accessories = Some(val.trim().to_string()),
+            // Ln, Pn and future fields carry nothing the slider needs.
             _ => {}
         }
     }
@@ -201,6 +208,20 @@ mod tests {
         assert_eq!(r.feed, Some(500.0));
         let r = parse_status("<Idle|WPos:1.0,0,0|WCO:-1.0,0,0|Ov:100,100,100>").unwrap();
         assert_eq!(r.machine_x(None), Some(0.0));
+        assert_eq!(
+            r.accessories.as_deref(),
+            Some(""),
+            "Ov: without A: is all off"
+        );
+        let r =
+            parse_status("<Idle|MPos:5.380,0.000,-1.000|FS:0,500|Pn:PXYZRHS|Ov:100,100,100|A:S>")
+                .unwrap();
+        assert_eq!(
+            (r.accessories.as_deref(), r.spindle),
+            (Some("S"), Some(500.0))
+        );
+        let r = parse_status("<Idle|MPos:0,0,0|FS:0,0>").unwrap();
+        assert_eq!(r.accessories, None, "not reported");
         assert!(parse_status("<Idle|FS:0,0>").is_err());
         assert!(parse_status("<Idle|MPos:1,x,3>").is_err());
         assert!(

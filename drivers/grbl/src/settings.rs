@@ -59,6 +59,11 @@ impl GrblSettings {
     pub fn homing_pulloff_mm(&self) -> Option<f64> {
         self.get(27)
     }
+    /// `$32` laser mode: a power (`S`) change applies without stopping the motion, and the
+    /// spindle output is lit only in a G1/G2/G3 motion mode.
+    pub fn laser_mode(&self) -> bool {
+        self.flag(32)
+    }
     /// `$100 + axis` steps per mm (axis 0 = X).
     pub fn steps_per_mm(&self, axis: usize) -> Option<f64> {
         self.axis(100, axis)

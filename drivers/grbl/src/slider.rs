@@ -38,14 +38,21 @@ pub struct GrblConfig {
     pub rx_buffer: usize,
     /// The output the laser is wired to; None: the laser is not switched by the controller.
     pub laser: Option<LaserOutput>,
+    /// How much longer than its settings (`$110`, `$120`) a controller may take to stop: the
+    /// stopping deadlines are this times the planned deceleration, plus `response_timeout`.
+    /// 2 covers real boards; grbl-sim on a loaded 2-core machine runs at 20-40 % of real time
+    /// and needs 5.
+    pub motion_slack: f64,
 }
 
 /// The controller output that switches the laser (GRBL boards have a spindle enable/PWM pin
 /// and coolant pins; a line laser sits on whichever is free).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LaserOutput {
-    /// `M3 S<power>` on, `M5` off. With laser mode on (`$32=1`) GRBL keeps the spindle output
-    /// off while the axes stand still, so a scanner needs `$32=0`.
+    /// `M3 S<power>` on, `M5` off. With laser mode on (`$32=1`) GRBL 1.1h lights the spindle
+    /// output at rest only in a G1/G2/G3 motion mode (after a reset the mode is G0, and
+    /// `M3 S..` then leaves it dark), so in laser mode "on" is sent as `G1 F.. M3 S..`: the
+    /// laser is lit at rest in both modes.
     Spindle { power: f64 },
     /// `M8` on, `M9` off (flood coolant pin).
     Flood,
@@ -54,9 +61,14 @@ pub enum LaserOutput {
 }
 
 impl LaserOutput {
-    /// The g-code line switching the laser on or off.
-    pub fn command(self, on: bool) -> String {
+    /// The g-code line switching the laser on or off; `laser_mode` is GRBL's `$32`.
+    pub fn command(self, on: bool, laser_mode: bool) -> String {
         match (self, on) {
+            // G1 without axis words only sets the motion mode; it needs a feed rate (error:22
+            // without one after a reset). The F is modal only: every move sends its own.
+            (LaserOutput::Spindle { power }, true) if laser_mode => {
+                format!("G1F{LASER_MODE_FEED}M3S{power}")
+            }
             (LaserOutput::Spindle { power }, true) => format!("M3S{power}"),
             (LaserOutput::Spindle { .. }, false) => "M5".into(),
             (LaserOutput::Flood, true) => "M8".into(),
@@ -65,6 +77,16 @@ impl LaserOutput {
         }
     }
 }
+
+/// The feed that `G1` carries when laser mode needs the motion mode set at rest (any valid
+/// value: no motion follows from it).
+const LASER_MODE_FEED: u32 = 100;
+
+/// Acceleration assumed for the stopping deadlines when the controller did not list `$120`
+/// (GRBL's default, 10 mm/s²: the slowest plausible stop).
+const DEFAULT_ACCEL: f64 = 10.0;
+/// Maximum rate assumed likewise (GRBL's default `$110`, 500 mm/min).
+const DEFAULT_MAX_RATE: f64 = 500.0;
 
 impl Default for GrblConfig {
     fn default() -> Self {
@@ -76,6 +98,7 @@ impl Default for GrblConfig {
             poll_interval: Duration::from_millis(20),
             rx_buffer: 128,
             laser: None,
+            motion_slack: 2.0,
         }
     }
 }
@@ -92,6 +115,8 @@ pub struct GrblSlider {
     pub(crate) link: Link,
     pub(crate) tracker: Tracker,
     build_info: Option<BuildInfo>,
+    /// `$$` of the last connect: the stopping deadlines and laser mode come from it.
+    settings: Option<GrblSettings>,
 }
 
 impl std::fmt::Debug for GrblSlider {
@@ -114,6 +139,7 @@ impl GrblSlider {
             tracker: Tracker::new(config.rx_buffer),
             config,
             build_info: None,
+            settings: None,
         }
     }
 
@@ -141,6 +167,55 @@ impl GrblSlider {
     /// `$I` of the last connect, if the controller answered it.
     pub fn build_info(&self) -> Option<&BuildInfo> {
         self.build_info.as_ref()
+    }
+    /// `$$` as read at the last connect (or refreshed by [`GrblSlider::read_settings`]).
+    pub fn known_settings(&self) -> Option<&GrblSettings> {
+        self.settings.as_ref()
+    }
+    /// Whether GRBL's laser mode (`$32=1`) is in force, as last read; None before a connect
+    /// that could read `$$`. Laser on/off mean the same in both modes (see [`LaserOutput`]).
+    pub fn laser_mode(&self) -> Option<bool> {
+        self.settings.as_ref().map(GrblSettings::laser_mode)
+    }
+
+    /// How long stopping from full speed may take, plus the response timeout: the deadline of
+    /// a feed hold or a jog cancel. From the scan axis' `$110` and `$120` (the driver moves X
+    /// only; GRBL's defaults where the controller listed none), times
+    /// [`GrblConfig::motion_slack`] because a controller may run slower than its settings.
+    pub fn stop_deadline(&self) -> Duration {
+        let (rate, accel) = self.rate_and_accel();
+        let decel_s = rate / 60.0 / accel;
+        let slack = self.config.motion_slack.max(1.0);
+        self.config.response_timeout + Duration::from_secs_f64(slack * decel_s)
+    }
+
+    /// X's maximum rate (mm/min) and acceleration (mm/s²), as read or GRBL's defaults.
+    fn rate_and_accel(&self) -> (f64, f64) {
+        let s = self.settings.as_ref();
+        let rate = s
+            .and_then(|s| s.max_rate(0))
+            .filter(|r| *r > 0.0)
+            .unwrap_or(DEFAULT_MAX_RATE);
+        let accel = s
+            .and_then(|s| s.acceleration(0))
+            .filter(|a| *a > 0.0)
+            .unwrap_or(DEFAULT_ACCEL);
+        (rate, accel)
+    }
+
+    /// How long a move of `distance_mm` at `feed_mm_min` takes on this controller (trapezoid
+    /// at `$120`, feed clamped to `$110`), for callers that choose a `wait_idle` timeout.
+    pub fn move_duration(&self, distance_mm: f64, feed_mm_min: f64) -> Duration {
+        let (rate, a) = self.rate_and_accel();
+        let v = feed_mm_min.min(rate).max(1e-9) / 60.0;
+        let d = distance_mm.abs();
+        // Accelerate to v and back takes v/a seconds over v²/a mm; a short move is a triangle.
+        let t = if d * a >= v * v {
+            d / v + v / a
+        } else {
+            2.0 * (d / a).sqrt()
+        };
+        Duration::from_secs_f64(t)
     }
     /// Faults absorbed so far.
     pub fn stats(&self) -> GrblStats {
@@ -216,6 +291,14 @@ impl GrblSlider {
                 Err(e) => return Err(e),
             }
         }
+        // Settings: the stopping deadlines and laser mode depend on them. A clone that refuses
+        // `$$` keeps the defaults.
+        self.settings = None;
+        match self.read_settings() {
+            Ok(s) => self.settings = Some(s),
+            Err(HalError::Rejected { .. } | HalError::BadData { .. }) => {}
+            Err(e) => return Err(e),
+        }
         let deadline = Instant::now() + self.config.response_timeout;
         self.query_status(deadline)?;
         Ok(SliderInfo {
@@ -226,18 +309,25 @@ impl GrblSlider {
 
     /// Before a reset on reconnect: a controller that kept power may still be moving; a reset
     /// then would kill the steppers (ALARM:3, position lost). Cancel a jog, or feed hold a
-    /// program, and wait for the stop. Best effort: a controller that does not answer (it is
-    /// rebooting) is simply reset.
+    /// program, and wait for the stop. A controller that does not answer at once may be
+    /// booting (boards that reset on port open) or briefly stalled (grbl-sim under load did
+    /// for over 5 s): it is asked again until the reset timeout, and only a controller silent
+    /// that long is reset as it is.
     fn bring_to_rest(&mut self) {
-        let deadline = Instant::now() + self.config.response_timeout;
-        let Ok(st) = self.query_status(deadline) else {
-            return;
+        let deadline = Instant::now() + self.config.reset_timeout;
+        let st = loop {
+            match self.query_status(Instant::now() + self.config.response_timeout) {
+                Ok(st) => break st,
+                Err(HalError::Timeout { .. } | HalError::BadData { .. })
+                    if Instant::now() < deadline => {}
+                Err(_) => return,
+            }
         };
         let result = match st.state {
             SliderState::Jog => self.jog_cancel(),
             SliderState::Run | SliderState::Hold => self.realtime(b'!').and_then(|_| {
-                let deadline = Instant::now() + self.config.response_timeout;
-                self.wait_hold_complete(deadline).map(|_| ())
+                self.wait_at_rest("the feed hold before the reset")
+                    .map(|_| ())
             }),
             _ => Ok(()),
         };
@@ -288,11 +378,13 @@ impl GrblSlider {
 
     // ----- settings and locks ------------------------------------------------------------
 
-    /// `$$` as a typed map.
+    /// `$$` as a typed map (kept: the stopping deadlines and laser mode follow it).
     pub fn read_settings(&mut self) -> HalResult<GrblSettings> {
-        Ok(GrblSettings {
+        let s = GrblSettings {
             raw: Slider::settings(self)?,
-        })
+        };
+        self.settings = Some(s.clone());
+        Ok(s)
     }
 
     /// `$X`: clear the alarm lock without homing.
@@ -340,30 +432,51 @@ impl GrblSlider {
     /// controller has left the `Jog` state. A no-op when not jogging.
     pub fn jog_cancel(&mut self) -> HalResult<()> {
         self.realtime(0x85)?;
-        let deadline = Instant::now() + self.config.response_timeout;
-        loop {
-            let s = self.query_status(deadline)?;
-            if s.state != SliderState::Jog {
-                return Ok(());
-            }
-            if Instant::now() >= deadline {
-                return Err(self.timeout("the jog cancel", self.config.response_timeout));
-            }
-            std::thread::sleep(self.config.poll_interval);
-        }
+        self.wait_state(
+            "the jog cancel to stop the jog",
+            self.stop_deadline(),
+            |st, _| st != SliderState::Jog,
+        )
+        .map(|_| ())
     }
 
-    /// Wait until the state is no longer `Hold:1` (deceleration in progress).
-    fn wait_hold_complete(&mut self, deadline: Instant) -> HalResult<SliderStatus> {
+    /// After a feed hold: wait until the machine is at rest, `Hold:0` or `Idle` (or any
+    /// state that does not move). GRBL answers a `?` sent right after `!` before the hold
+    /// takes effect, so `Run` (or `Jog`) still means stopping, as does `Hold:1`; a reset or a
+    /// resume sent then would kill the motion (ALARM:3) or be ignored.
+    fn wait_at_rest(&mut self, what: &str) -> HalResult<SliderStatus> {
+        self.wait_state(what, self.stop_deadline(), |st, sub| {
+            !(st.is_moving() || (st == SliderState::Hold && sub != Some(0)))
+        })
+    }
+
+    /// Poll the status until `done(state, substate)`, for at most `budget`. Each query gets
+    /// the full response timeout, so a deadline that passes names the motion waited for, not
+    /// the query. An alarm ends the wait with its code.
+    fn wait_state(
+        &mut self,
+        what: &str,
+        budget: Duration,
+        done: impl Fn(SliderState, Option<u8>) -> bool,
+    ) -> HalResult<SliderStatus> {
+        let deadline = Instant::now() + budget;
         loop {
-            let s = self.query_status(deadline)?;
-            let decelerating = s.state == SliderState::Hold
-                && self.last_report().and_then(|r| r.substate) != Some(0);
-            if !decelerating {
+            let s = self.query_status(Instant::now() + self.config.response_timeout)?;
+            let sub = self.last_report().and_then(|r| r.substate);
+            if done(s.state, sub) {
                 return Ok(s);
             }
+            if s.state == SliderState::Alarm {
+                return Err(self.alarm_error(self.tracker.alarm().unwrap_or(0)));
+            }
             if Instant::now() >= deadline {
-                return Err(self.timeout("the feed hold to complete", self.config.response_timeout));
+                let word = match sub {
+                    Some(n) => format!("{:?}:{n}", s.state),
+                    None => format!("{:?}", s.state),
+                };
+                return Err(
+                    self.timeout(format!("{what} (still {word} at X {:.3})", s.x_mm), budget)
+                );
             }
             std::thread::sleep(self.config.poll_interval);
         }
@@ -418,12 +531,27 @@ impl Slider for GrblSlider {
     /// switch nobody waits for; the error says so.
     fn home(&mut self, timeout: Duration) -> HalResult<()> {
         self.prepare_to_send()?;
-        let id = self.send_line("$H", LineKind::Command)?;
+        let since = self.tracker.banners();
+        let id = self.send_line("$H", LineKind::Homing)?;
         // No $G resync on timeout: GRBL reads no line while homing.
         match self.wait_answer(id, WaitPolicy::alone(timeout)) {
             Ok(()) => {
                 self.tracker.clear_alarm();
                 Ok(())
+            }
+            Err(e @ HalError::Alarm { .. }) => {
+                // GRBL resets after a failed cycle: a line sent before its banner would be
+                // discarded by it. Wait for it (a controller that does not reset is left).
+                if self.tracker.banners() == since {
+                    let t = self.config.reset_timeout;
+                    if let Err(w) = self.wait_banner(since, t) {
+                        tracing::debug!(
+                            "{}: no reset after the homing alarm: {w}",
+                            self.port_name()
+                        );
+                    }
+                }
+                Err(e)
             }
             Err(HalError::Timeout { .. }) if self.link.is_open() => {
                 let aborted = self.soft_reset();
@@ -488,11 +616,42 @@ impl Slider for GrblSlider {
         self.realtime(b'!')
     }
 
+    /// Resume a feed hold. GRBL ignores `~` until the hold has come to rest (`Hold:0`), and a
+    /// hold asked for just before may not have taken effect yet (the state still says `Run`,
+    /// or `Idle` for a machine at rest): so wait for rest, send `~`, and confirm that the state
+    /// stays out of `Hold` for two reports in a row, sending `~` again whenever it is `Hold:0`.
     fn resume(&mut self) -> HalResult<()> {
-        // GRBL ignores '~' until the hold deceleration is complete.
-        let deadline = Instant::now() + self.config.response_timeout;
-        self.wait_hold_complete(deadline)?;
-        self.realtime(b'~')
+        self.wait_at_rest("the feed hold to come to rest before the resume")?;
+        self.realtime(b'~')?;
+        let budget = self.stop_deadline();
+        let deadline = Instant::now() + budget;
+        let mut out_of_hold = 0;
+        loop {
+            std::thread::sleep(self.config.poll_interval);
+            let s = self.query_status(Instant::now() + self.config.response_timeout)?;
+            let sub = self.last_report().and_then(|r| r.substate);
+            if s.state != SliderState::Hold {
+                out_of_hold += 1;
+                if out_of_hold >= 2 {
+                    return Ok(());
+                }
+                continue;
+            }
+            out_of_hold = 0;
+            if Instant::now() >= deadline {
+                return Err(self.timeout(
+                    format!(
+                        "the resume (`~`) to leave the hold (still Hold at X {:.3})",
+                        s.x_mm
+                    ),
+                    budget,
+                ));
+            }
+            // A `~` that arrived before the hold applied was dropped: send it again at rest.
+            if sub == Some(0) {
+                self.realtime(b'~')?;
+            }
+        }
     }
 
     fn stop(&mut self) -> HalResult<()> {
@@ -505,8 +664,7 @@ impl Slider for GrblSlider {
                 // Feed hold first so the reset does not kill the steppers mid-motion (which
                 // would lose the position and alarm); then reset to discard the planner.
                 self.realtime(b'!')?;
-                let deadline = Instant::now() + self.config.response_timeout;
-                self.wait_hold_complete(deadline)?;
+                self.wait_at_rest("the feed hold before the reset")?;
                 self.soft_reset()
             }
             SliderState::Home => self.soft_reset(),
@@ -514,10 +672,11 @@ impl Slider for GrblSlider {
         }
     }
 
-    /// The configured output's command (see [`LaserOutput`]). GRBL executes spindle and
-    /// coolant commands in step with the planner (after the queued motion), so a laser switched
-    /// mid-move would first stop the move: scans switch it at rest. A refusal names the command
-    /// and the controller's `error:N` with its meaning.
+    /// The configured output's command (see [`LaserOutput`]). GRBL switches the spindle and
+    /// coolant outputs in step with the planner (after the queued motion, in laser mode too:
+    /// there only a power change applies at once), so a laser switched during a move comes on
+    /// when the move ends, and this returns then. A refusal names the command and the
+    /// controller's `error:N` with its meaning.
     fn laser(&mut self, on: bool) -> HalResult<()> {
         let Some(out) = self.config.laser else {
             return Err(HalError::InvalidArgument {
@@ -527,8 +686,10 @@ impl Slider for GrblSlider {
             });
         };
         self.fail_if_alarm()?;
-        let line = out.command(on);
-        match self.command(&line) {
+        let line = out.command(on, self.laser_mode().unwrap_or(false));
+        // Outside laser mode GRBL answers a spindle or coolant line only once the queued
+        // motion has finished: patient while the machine moves, like a motion line.
+        match self.command_with(&line, WaitPolicy::motion(self.config.response_timeout)) {
             Ok(_) => Ok(()),
             Err(HalError::Rejected {
                 device,

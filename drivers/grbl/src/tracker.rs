@@ -55,7 +55,8 @@ pub struct GrblStats {
 pub(crate) enum Outcome {
     Ok,
     Error(u32),
-    /// Never answered: the controller alarmed (and discards its input).
+    /// The controller alarmed: never answered (GRBL discards its input), or a `$H` answered
+    /// after the alarm its cycle raised.
     LostToAlarm(u32),
     /// Never answered: the controller reset.
     LostToReset,
@@ -82,11 +83,16 @@ pub(crate) enum Poll {
     Missing,
 }
 
-/// Whether a line is an ordinary command or a `$G` sent to resynchronise the counting.
+/// Whether a line is an ordinary command, a `$G` sent to resynchronise the counting, or a
+/// homing cycle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum LineKind {
     Command,
     Sync,
+    /// `$H`: a failed cycle raises `ALARM:N` while GRBL is still executing the line, and GRBL
+    /// answers the line with its `ok` after the alarm (then resets). Counting it lost at the
+    /// alarm would pair that late `ok` with the next line sent.
+    Homing,
 }
 
 /// What a received line was, for the caller's log.
@@ -115,6 +121,9 @@ struct InFlight {
     len: usize,
     line: String,
     kind: LineKind,
+    /// An `ALARM:N` arrived while this `$H` executed: its answer still comes, and means
+    /// the alarm.
+    alarmed: Option<u32>,
 }
 
 /// What the controller has told about itself.
@@ -205,6 +214,7 @@ impl Tracker {
             len: bytes.len(),
             line: line.to_string(),
             kind,
+            alarmed: None,
         });
         if kind == LineKind::Sync {
             self.stats.resyncs += 1;
@@ -299,7 +309,11 @@ impl Tracker {
             Message::Error(c) => self.answer(Outcome::Error(c)),
             Message::Alarm(code) => {
                 self.seen.alarm = Some(code);
-                self.lose_in_flight(Outcome::LostToAlarm(code));
+                match self.in_flight.front_mut() {
+                    // The cycle's line is answered after its alarm; nothing is sent behind it.
+                    Some(f) if f.kind == LineKind::Homing => f.alarmed = Some(code),
+                    _ => self.lose_in_flight(Outcome::LostToAlarm(code)),
+                }
                 Routed::Alarm(code)
             }
             Message::Status(r) => {
@@ -373,6 +387,7 @@ impl Tracker {
     fn answer(&mut self, outcome: Outcome) -> Routed {
         match self.in_flight.pop_front() {
             Some(f) => {
+                let outcome = f.alarmed.map_or(outcome, Outcome::LostToAlarm);
                 self.answered.push_back(Answer {
                     id: f.id,
                     outcome,

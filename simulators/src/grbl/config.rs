@@ -24,6 +24,14 @@ pub struct EmulatorConfig {
     pub homing_seconds: f64,
     /// Delay between sampling a status report and sending it.
     pub status_latency_us: u64,
+    /// Delay before a feed hold (`!`) takes effect. GRBL answers a `?` sent right behind a
+    /// `!` before the hold applies (the report still says `Run`), and ignores a `~` that
+    /// arrives before it; grbl-sim showed it for milliseconds. 0 applies the hold at once.
+    pub hold_latency_us: u64,
+    /// Time from a failed homing cycle's `ALARM:N` to the `ok` of its `$H` and the reset
+    /// that follows (GRBL 1.1h in grbl-sim: about 0.55 s); lines arriving in between are
+    /// discarded by that reset.
+    pub homing_abort_seconds: f64,
     /// Serial RX buffer, bytes (reported in `$I` as `[OPT:V,15,N]`).
     pub rx_buffer: usize,
     /// What switches the laser: `always` (wired to its own supply: always on, as before the
@@ -62,6 +70,8 @@ impl Default for EmulatorConfig {
             homing_enabled: true,
             homing_seconds: 0.3,
             status_latency_us: 0,
+            hold_latency_us: 10_000,
+            homing_abort_seconds: 0.3,
             rx_buffer: 128,
             laser: LaserWiring::Always,
         }

@@ -155,6 +155,10 @@ impl Machine {
     pub fn homing_enabled(&self) -> bool {
         self.setting(22) != 0.0
     }
+    /// `$32`: laser mode.
+    pub fn laser_mode(&self) -> bool {
+        self.setting(32) != 0.0
+    }
     pub fn status_mask(&self) -> u32 {
         self.setting(10) as u32
     }

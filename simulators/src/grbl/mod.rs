@@ -22,12 +22,19 @@
 //!   probing, offsets and M7 (mist: not in GRBL's default build) answer `error:20`.
 //! - a laser wired to the spindle (M3/M5) or flood coolant (M8/M9) output
 //!   ([`EmulatorConfig::laser`]): [`GrblEmulator::laser_source`] tells the simulated camera
-//!   whether it shone at a frame's capture time. A reset switches both outputs off.
+//!   whether it shone at a frame's capture time. A reset switches both outputs off. A spindle
+//!   or coolant switch waits for the queued motion to finish before it applies and is
+//!   answered (GRBL's planner sync); in laser mode (`$32=1`) a power change alone applies at
+//!   once, and the spindle output is lit at rest only in G1 motion mode with a power above 0
+//!   (after a reset, `M3 S..` alone stays dark).
 //! - realtime bytes act on arrival, even mid-line: `?` status report
 //!   `<Idle|MPos:12.345,0.000,0.000|FS:0,0>` (with `|WCO:` and `|Ov:` every few reports as
 //!   GRBL does; `WPos` when `$10` bit 0 is clear; `Bf:` when bit 1 is set), `!` feed hold
 //!   (`Hold:1` while decelerating at `$120`, then `Hold:0`; a jog is cancelled instead), `~`
 //!   resume (ignored until the hold is complete, as in GRBL), 0x85 jog cancel, 0x18 reset.
+//!   As in GRBL, the hold takes effect a moment after `!` arrives
+//!   ([`EmulatorConfig::hold_latency_us`]): a `?` sent right behind it is still answered
+//!   `Run`, a `~` sent before it applies is dropped, and a reset then kills the motion.
 //! - soft limits (`$20`, on when homing is enabled): a g-code target outside `[0, $130]`
 //!   decelerates, raises `ALARM:2`, `[MSG:Reset to continue]` and ignores everything but `?`
 //!   and reset until a reset; a jog beyond travel is refused with `error:15`.
@@ -37,8 +44,11 @@
 //!   in order (no data is lost) but counted in [`GrblEmulator::rx_overflow_bytes`], so a test
 //!   can prove that a character-counting client never overflows.
 //!
-//! Deviations: spindle and coolant commands take effect when their line is read (GRBL waits
-//! for the queued motion first); CRLF counts as one line end (GRBL would answer the empty line between `\r` and
+//! - a failed homing cycle (`Fault::HomingFail`) answers `ALARM:N`, then after
+//!   [`EmulatorConfig::homing_abort_seconds`] the `$H`'s `ok` and the reset (banner, lock);
+//!   lines sent in between are discarded by that reset, as in GRBL.
+//!
+//! Deviations: CRLF counts as one line end (GRBL would answer the empty line between `\r` and
 //! `\n` with a second `ok`); blocks join with a full stop (no junction look-ahead); a G4 sharing a
 //! block with axis words is refused with `error:31`.
 //!

@@ -28,6 +28,11 @@ enum Blocked {
     Sync(f64),
     Dwell(f64),
     Homing,
+    /// A failed homing cycle aborting: at the instant given, the `$H`'s `ok` and the reset.
+    HomingAbort(f64),
+    /// A spindle or coolant switch: GRBL waits for the queued motion to finish before it
+    /// switches the output and answers.
+    Outputs,
     /// A soft-limit alarm is pending; the line that caused it is never answered.
     Alarm,
 }
@@ -43,6 +48,8 @@ pub(crate) struct Server {
     cmds: Receiver<Cmd>,
     rx_buffer: usize,
     status_latency: f64,
+    /// When a received feed hold takes effect (see `EmulatorConfig::hold_latency_us`).
+    pending_hold: Option<f64>,
     /// Received, unprocessed non-realtime bytes (the serial RX buffer, plus whatever an
     /// over-sending client pushed beyond it, counted in `rx_overflow`).
     input: VecDeque<u8>,
@@ -94,6 +101,7 @@ impl Server {
             cmds,
             rx_buffer: rx_buffer.max(1),
             status_latency: status_latency_us as f64 * 1e-6,
+            pending_hold: None,
             input: VecDeque::new(),
             last_cr: false,
             blocked: None,
@@ -188,7 +196,10 @@ impl Server {
             // Sleep until input, a wake-up, or the next scheduled event.
             let now = now_s();
             let mut next = self.machine().next_event(now);
-            if let Some(Blocked::Dwell(t)) = self.blocked {
+            if let Some(Blocked::Dwell(t) | Blocked::HomingAbort(t)) = self.blocked {
+                next = Some(next.map_or(t, |n| n.min(t)));
+            }
+            if let Some(t) = self.pending_hold {
                 next = Some(next.map_or(t, |n| n.min(t)));
             }
             if let Some(&(t, _)) = self.outbox.front() {
@@ -314,7 +325,17 @@ impl Server {
                 self.emit_at(now + self.status_latency, &report);
                 self.flush(now);
             }
-            b'!' => self.machine().feed_hold(now),
+            b'!' => {
+                let latency = self.shared.config.hold_latency_us as f64 * 1e-6;
+                if latency > 0.0 {
+                    self.pending_hold.get_or_insert(now + latency);
+                } else {
+                    self.machine().feed_hold(now);
+                }
+            }
+            // A cycle start that arrives before the hold it would end has taken effect is
+            // dropped, as in GRBL (the hold wins when both are pending).
+            b'~' if self.pending_hold.is_some() => {}
             b'~' => self.machine().cycle_start(now),
             0x18 => self.soft_reset(now),
             0x85 => {
@@ -356,6 +377,7 @@ impl Server {
     }
 
     fn soft_reset(&mut self, now: f64) {
+        self.pending_hold = None;
         let (moving, homing) = {
             let m = self.machine();
             (m.is_moving(now), m.state(now) == MachineState::Home)
@@ -397,6 +419,10 @@ impl Server {
 
     /// Advance time-driven state: blocked lines, homing completion, soft-limit alarms.
     fn tick(&mut self, now: f64) {
+        if self.pending_hold.is_some_and(|t| now >= t) {
+            self.pending_hold = None;
+            self.machine().feed_hold(now);
+        }
         let fire_alarm = {
             let mut m = self.machine();
             m.timeline.prune(now - HISTORY_S);
@@ -432,16 +458,17 @@ impl Server {
                 if done {
                     self.blocked = None;
                     if let Some(code) = self.homing_failing.take() {
-                        // GRBL: the alarm, the `$H` line's `ok` after the abort, then the
-                        // reset path (banner, lock).
+                        // GRBL: the alarm, the `$H` line's `ok` after the abort (seen
+                        // 0.55 s later in grbl-sim), then the reset path (banner, lock).
                         {
                             let mut m = self.machine();
                             m.halt(now);
                             m.alarm = true;
                         }
                         self.emit(&format!("ALARM:{code}"));
-                        self.emit("ok");
-                        self.reinit(now);
+                        let abort = self.shared.config.homing_abort_seconds.max(0.0);
+                        self.blocked = Some(Blocked::HomingAbort(now + abort));
+                        self.tick(now);
                     } else {
                         self.modal.x = 0.0;
                         self.emit("ok");
@@ -476,6 +503,23 @@ impl Server {
             Some(Blocked::Dwell(t)) if now >= t => {
                 self.blocked = None;
                 self.emit("ok");
+            }
+            Some(Blocked::HomingAbort(t)) if now >= t => {
+                self.blocked = None;
+                self.emit("ok");
+                // The reset discards whatever arrived during the abort.
+                self.reinit(now);
+            }
+            Some(Blocked::Outputs) => {
+                let empty = {
+                    let m = self.machine();
+                    m.busy(now) == 0 && m.hold.is_none()
+                };
+                if empty {
+                    self.blocked = None;
+                    self.apply_outputs(now);
+                    self.emit("ok");
+                }
             }
             _ => {}
         }
@@ -534,10 +578,23 @@ impl Server {
         };
         match action {
             Action::None => {
+                let laser_mode = self.machine().laser_mode();
+                let switched =
+                    (modal.spindle_on, modal.flood) != (self.modal.spindle_on, self.modal.flood);
+                let power = modal.spindle != self.modal.spindle;
                 self.modal = modal;
-                if state != MachineState::Check {
-                    self.apply_outputs(now);
+                if state == MachineState::Check {
+                    return self.respond(Ok(()));
                 }
+                if switched || (power && !laser_mode) {
+                    // GRBL syncs the planner before a spindle or coolant switch (in laser mode
+                    // too; there a power change alone applies at once): the answer comes when
+                    // the queued motion has run.
+                    self.blocked = Some(Blocked::Outputs);
+                    self.tick(now);
+                    return;
+                }
+                self.apply_outputs(now);
                 self.respond(Ok(()));
             }
             Action::Dwell(p) => {
@@ -577,9 +634,15 @@ impl Server {
         }
     }
 
-    /// The spindle and coolant outputs of the modal state, to the machine (the laser).
+    /// The spindle and coolant outputs of the modal state, to the machine (the laser). In
+    /// laser mode (`$32=1`) GRBL 1.1h lights the spindle output at rest only in a G1 motion
+    /// mode with a power above 0 (after a reset the mode is G0, and `M3 S..` stays dark).
     fn apply_outputs(&mut self, now: f64) {
-        let (spindle, flood) = (self.modal.spindle_on, self.modal.flood);
+        let laser_mode = self.machine().laser_mode();
+        let spindle = self.modal.spindle_on
+            && (!laser_mode
+                || (self.modal.motion == gcode::Motion::Linear && self.modal.spindle > 0.0));
+        let flood = self.modal.flood;
         self.machine().set_outputs(now, spindle, flood);
     }
 

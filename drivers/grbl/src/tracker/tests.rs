@@ -343,3 +343,25 @@ fn reopening_forgets_the_old_port_but_keeps_the_counters() {
     w.t.forget_in_flight();
     assert_eq!(w.t.poll(a), Poll::Missing);
 }
+
+#[test]
+fn a_failed_homing_cycle_is_answered_after_its_alarm() {
+    // GRBL 1.1h on a failed `$H`: ALARM:8, the line's `ok` half a second later, then the reset.
+    let mut w = Wire::new();
+    let home = w.t.send("$H", LineKind::Homing).unwrap().0;
+    w.feed(b"ALARM:8\r\n");
+    assert_eq!(w.t.alarm(), Some(8));
+    assert_eq!(w.outcome(home), None, "still executing: its answer comes");
+    assert_eq!(
+        w.feed(b"ok\r\n"),
+        [Routed::Answer(home, Outcome::LostToAlarm(8))]
+    );
+    // The next line pairs with its own answer, not with `$H`'s.
+    let unlock = w.send("$X");
+    w.feed(b"\r\nGrbl 1.1h ['$' for help]\r\n[MSG:'$H'|'$X' to unlock]\r\n");
+    assert_eq!(w.outcome(unlock), Some(Outcome::LostToReset));
+    let unlock = w.send("$X");
+    w.feed(b"[MSG:Caution: Unlocked]\r\nok\r\n");
+    assert_eq!(w.outcome(unlock), Some(Outcome::Ok));
+    assert_eq!(w.t.alarm(), None);
+}
