@@ -3,7 +3,7 @@
 
 use super::scans::{body, parse_id, send_file};
 use super::{blocking, ApiError, AppState};
-use crate::daemon::lastjob::LastRequest;
+use crate::daemon::lastjob::{LastRequest, RankRequest};
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Path, State};
 use axum::http::StatusCode;
@@ -60,4 +60,18 @@ pub async fn download(
     let (rid, rname) = (id.clone(), name.clone());
     let path = blocking(move || Ok(d.last_file(&rid, &rname)?)).await?;
     send_file(&path, &format!("{id}-{name}"), &headers).await
+}
+
+/// `POST /api/scans/{id}/last/rank`: the stock collection ranked for the scan and the
+/// fitter's girths (best first: the least change), answered when done.
+pub async fn rank(
+    State(st): State<AppState>,
+    Path(id): Path<String>,
+    b: Result<Json<RankRequest>, JsonRejection>,
+) -> Result<Response, ApiError> {
+    let id = parse_id(&id)?;
+    let req = body(b)?;
+    let d = st.daemon.clone();
+    let ranking = blocking(move || Ok(d.rank_lasts(&id, req)?)).await?;
+    Ok(Json(ranking).into_response())
 }

@@ -117,6 +117,7 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/api/visits/{id}/report.pdf", get(visits::report_pdf))
         .route("/api/scans/{id}/files/{name}", get(scans::download))
         .route("/api/scans/{id}/last", get(lasts::show).post(lasts::start))
+        .route("/api/scans/{id}/last/rank", post(lasts::rank))
         .route("/api/scans/{id}/last/{name}", get(lasts::download))
         .route("/api/lasts", get(lasts::stock))
         .route("/api/preview.png", get(live::preview_png))

@@ -52,6 +52,27 @@ pub struct LastRequest {
     pub heel_mm: f64,
 }
 
+/// `POST /api/scans/{id}/last/rank`: the girths and what the last is for, no stock.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RankRequest {
+    pub girths: TapeGirths,
+    #[serde(default = "default_shoe")]
+    pub shoe: Shoe,
+    #[serde(default = "default_wearer")]
+    pub wearer: Wearer,
+    #[serde(default = "default_heel_mm")]
+    pub heel_mm: f64,
+}
+
+/// The stock collection ranked for a scan, best first.
+#[derive(Clone, Debug, Serialize)]
+pub struct Ranking {
+    pub scan: String,
+    pub seconds: f64,
+    pub lasts: Vec<footscan_last::choose::Candidate>,
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum LastState {
@@ -174,6 +195,69 @@ impl Daemon {
             )));
         }
         Ok(p)
+    }
+
+    /// Rank the stock collection for a measured scan and the fitter's girths, as `footscan
+    /// last choose` does: by how little each last must change (its largest rule station and
+    /// its bottom outline), with what each cannot meet and why. Runs on the caller's thread
+    /// (the API's blocking pool): reading and measuring the lasts is the work, in parallel.
+    pub fn rank_lasts(&self, id: &ScanId, req: RankRequest) -> Result<Ranking, DaemonError> {
+        let (_, dir) = self.measured_scan(id, "a ranking of the stock lasts")?;
+        let g = req.girths;
+        let girths = TapeGirths::checked(g.ball, g.instep, g.long_heel, g.ankle)
+            .map_err(|e| DaemonError::BadRequest(format!("girths: {e}")))?;
+        if !(HEEL_RANGE_MM.0..=HEEL_RANGE_MM.1).contains(&req.heel_mm) {
+            return Err(DaemonError::BadRequest(format!(
+                "heel_mm = {}: a heel is {:.0}-{:.0} mm high",
+                req.heel_mm, HEEL_RANGE_MM.0, HEEL_RANGE_MM.1
+            )));
+        }
+        let rules = match &self.config.last_rules {
+            Some(p) => RuleSet::load(p).map_err(DaemonError::Setup)?,
+            None => RuleSet::default_rules(),
+        };
+        let plantar = footscan::lastcustom::plantar_of_scan(&dir)
+            .map_err(|e| DaemonError::Conflict(e.to_string()))?;
+        girths
+            .check_against(&plantar)
+            .map_err(|e| DaemonError::BadRequest(format!("girths: {e}")))?;
+        let inp = Inputs {
+            shoe: req.shoe,
+            wearer: req.wearer,
+            heel_mm: req.heel_mm,
+        };
+        let t0 = Instant::now();
+        let rows = footscan_last::choose::foot_targets(&plantar, &girths, &rules, &inp);
+        let stock = self.stock_dir()?.to_path_buf();
+        let names: Vec<String> = self.stock_lasts()?.into_iter().map(|s| s.name).collect();
+        let files: Vec<PathBuf> = names.iter().map(|n| stock.join(n)).collect();
+        let judged = footscan_last::choose::judge_files(
+            &files,
+            footscan_geom::mesh::Units::Auto,
+            None,
+            &rows,
+            plantar.side,
+            plantar.length,
+        );
+        let mut lasts: Vec<footscan_last::choose::Candidate> = judged
+            .into_iter()
+            .zip(&names)
+            .map(|((mut c, _), n)| {
+                // The collection's file name, not the daemon's path to it.
+                let path = c.name.clone();
+                for t in c.cannot.iter_mut().chain(c.notes.iter_mut()) {
+                    *t = t.replace(&path, n);
+                }
+                c.name = n.clone();
+                c
+            })
+            .collect();
+        footscan_last::choose::rank(&mut lasts);
+        Ok(Ranking {
+            scan: id.to_string(),
+            seconds: t0.elapsed().as_secs_f64(),
+            lasts,
+        })
     }
 
     /// Check a request and start its job; the job's record says `running` until it ends.

@@ -356,7 +356,8 @@ pub fn customize_stock_with(
             })?;
             judge(&mut rows, &lm);
             for ((r, b), m) in rows.iter_mut().zip(before).zip(met) {
-                if r.applies && (r.last_mm - b).abs() > 0.01 {
+                // Growths under 0.05 mm are the cut's own noise, below any bound.
+                if r.applies && (r.last_mm - b).abs() >= 0.05 {
                     r.built_up_mm = r.last_mm - b;
                     r.met = m;
                 }

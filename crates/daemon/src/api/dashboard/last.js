@@ -1,6 +1,7 @@
 // The customized last of the scan shown in Result (docs/API.md "Lasts"): the girths a fitter
 // measured with a tape, a stock last of the shop's collection and what the last is for
-// (shoe, wearer, heel) start the job (POST /api/scans/{id}/last); while it runs its record is
+// (shoe, wearer, heel) rank the collection for this foot (POST /api/scans/{id}/last/rank) and
+// start the job (POST /api/scans/{id}/last); while it runs its record is
 // polled; then every comfort rule (foot, target, the last as cut, met) and the last's files
 // (STL, IGES, STEP, the curve frame, the report, the picture) are shown, or the reason it
 // failed. Uses app.js's helpers (api, el, $, withToken, showError, clearError).
@@ -19,6 +20,7 @@ async function renderLast(rec) {
   const box = $('last');
   if (lastPoll) clearTimeout(lastPoll);
   lastPoll = null;
+  if (lastScan !== rec.id) $('last-ranking').replaceChildren();
   lastScan = rec.id;
   const measured = (rec.artifacts || []).some((a) => a.name === 'measurements.json');
   box.hidden = !measured || rec.status === 'running';
@@ -79,7 +81,11 @@ async function lastShowJob(id) {
         el('td', { class: 'num', text: x.last_mm.toFixed(1) }),
         x.not_applicable
           ? el('td', { text: 'n/a', title: x.not_applicable })
-          : el('td', { class: x.met ? 'ok' : 'bad', text: x.met ? 'yes' : `no (${x.error_mm.toFixed(2)})` })));
+          : el('td', {
+            class: x.met ? 'ok' : 'bad',
+            text: !x.met ? `no (${x.error_mm.toFixed(2)})`
+              : x.built_up_mm ? `yes; built up ${x.built_up_mm > 0 ? '+' : ''}${x.built_up_mm.toFixed(1)} for the footprint` : 'yes',
+          })));
     }
     t.append(tb);
     out.append(t);
@@ -103,18 +109,61 @@ async function lastShowJob(id) {
   }
 }
 
-$('last-form').addEventListener('submit', async (ev) => {
-  ev.preventDefault();
-  const id = lastScan;
-  if (!id) return;
+/** The form's girths and what the last is for (the body of both POSTs). */
+function lastBody() {
   const num = (k) => Number($(`last-${k}`).value);
-  const body = {
+  return {
     girths: { ball: num('ball'), instep: num('instep'), long_heel: num('long-heel'), ankle: num('ankle') },
-    stock: $('last-stock').value,
     shoe: $('last-shoe').value,
     wearer: $('last-wearer').value,
     heel_mm: num('heel'),
   };
+}
+
+// Rank the collection for this scan and these girths (POST .../last/rank): best first, by
+// the largest change any rule asks of the last; a row's button picks that last in the form.
+$('last-rank').addEventListener('click', async () => {
+  const id = lastScan;
+  const out = $('last-ranking');
+  if (!id || !$('last-form').reportValidity()) return;
+  $('last-rank').disabled = true;
+  out.replaceChildren(el('p', { class: 'small', text: 'Ranking the stock lasts…' }));
+  try {
+    const r = await api('POST', `/api/scans/${encodeURIComponent(id)}/last/rank`, lastBody());
+    clearError('POST /api/scans');
+    const t = el('table', { class: 'data', id: 'last-ranking-table' },
+      el('caption', { text: `Stock lasts for this foot, least change first (${r.lasts.length} in ${r.seconds.toFixed(2)} s)` }),
+      el('thead', {}, el('tr', {}, ...['#', 'Last', 'Largest change (mm)', 'At', 'Outline (mm)', 'Notes', ''].map((h) => el('th', { scope: 'col', text: h })))));
+    const tb = el('tbody');
+    r.lasts.forEach((c, i) => {
+      const fin = (v) => (Number.isFinite(v) ? v.toFixed(1) : '-');
+      const notes = [...c.cannot, ...c.notes].join('; ');
+      const pick = el('button', { type: 'button', text: 'Use', class: 'small' });
+      pick.disabled = !c.eligible;
+      pick.addEventListener('click', () => { $('last-stock').value = c.name; });
+      tb.append(el('tr', { class: c.eligible ? '' : 'muted', 'data-name': c.name },
+        el('td', { class: 'num', text: String(i + 1) }), el('td', { text: c.name }),
+        el('td', { class: 'num', text: fin(c.largest_change_mm) }), el('td', { text: (c.largest_at || '').replace(/_/g, ' ') }),
+        el('td', { class: 'num', text: fin(c.outline_change_mm) }), el('td', { class: c.cannot.length ? 'bad' : 'small', text: notes }),
+        el('td', {}, pick)));
+    });
+    t.append(tb);
+    out.replaceChildren(t);
+    const best = r.lasts.find((c) => c.eligible);
+    if (best) $('last-stock').value = best.name;
+  } catch (e) {
+    out.replaceChildren();
+    showError(e);
+  } finally {
+    $('last-rank').disabled = false;
+  }
+});
+
+$('last-form').addEventListener('submit', async (ev) => {
+  ev.preventDefault();
+  const id = lastScan;
+  if (!id) return;
+  const body = { ...lastBody(), stock: $('last-stock').value };
   $('last-make').disabled = true;
   try {
     await api('POST', `/api/scans/${encodeURIComponent(id)}/last`, body);
