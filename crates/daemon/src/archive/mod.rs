@@ -566,6 +566,69 @@ impl Archive {
         p.symlink_metadata().ok().filter(|m| m.is_file()).map(|_| p)
     }
 
+    /// Open `path` (a file under the archive's root) for reading without following any
+    /// symlink below the root: each directory is opened with O_NOFOLLOW relative to the one
+    /// before, and the file itself too, so a component swapped for a symlink (a scan's
+    /// `last/` pointing outside the archive) fails with ELOOP or ENOTDIR instead of being
+    /// served, and no check-then-open race remains. Only regular files open.
+    pub fn open_inside(&self, path: &Path) -> std::io::Result<File> {
+        use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
+        use std::os::unix::ffi::OsStrExt;
+        let rel = path.strip_prefix(&self.root).map_err(|_| {
+            std::io::Error::new(
+                std::io::ErrorKind::PermissionDenied,
+                format!("{} is not under the archive", path.display()),
+            )
+        })?;
+        let parts: Vec<&std::ffi::OsStr> = rel
+            .components()
+            .map(|c| match c {
+                std::path::Component::Normal(n) => Ok(n),
+                _ => Err(std::io::Error::new(
+                    std::io::ErrorKind::PermissionDenied,
+                    format!("{}: only plain names below the archive", path.display()),
+                )),
+            })
+            .collect::<Result<_, _>>()?;
+        let Some((file, dirs)) = parts.split_last() else {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "the archive root is not a file",
+            ));
+        };
+        let open_at = |at: &OwnedFd, name: &std::ffi::OsStr, flags: libc::c_int| {
+            let c = std::ffi::CString::new(name.as_bytes())
+                .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
+            // SAFETY: a valid directory descriptor and a NUL-terminated name; the new
+            // descriptor is owned at once.
+            let fd = unsafe {
+                libc::openat(
+                    at.as_raw_fd(),
+                    c.as_ptr(),
+                    flags | libc::O_NOFOLLOW | libc::O_CLOEXEC,
+                )
+            };
+            if fd < 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            // SAFETY: `fd` was just opened and is owned by nobody else.
+            Ok(unsafe { OwnedFd::from_raw_fd(fd) })
+        };
+        // The root itself is the configured path (it may be a symlink the admin chose).
+        let mut dir: OwnedFd = File::open(&self.root)?.into();
+        for d in dirs {
+            dir = open_at(&dir, d, libc::O_RDONLY | libc::O_DIRECTORY)?;
+        }
+        let f = File::from(open_at(&dir, file, libc::O_RDONLY | libc::O_NONBLOCK)?);
+        if !f.metadata()?.is_file() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!("{} is not a regular file", path.display()),
+            ));
+        }
+        Ok(f)
+    }
+
     /// Write `r` into the index; a refused write keeps `r` in memory (listed instead of the
     /// row) and is retried with the next write. The directory is the truth: rebuild repairs
     /// the index at the next start.
