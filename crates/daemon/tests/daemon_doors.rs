@@ -94,8 +94,8 @@ fn slow_header_flood(
 }
 
 /// Door 1: under 2,000 connections that send half a head and are reopened when closed,
-/// half-sent connections are evicted, /api/health on a fresh connection always answers (within
-/// 5 s), and a scan running meanwhile ends with its files.
+/// /api/health on a fresh connection answers within 100 ms at p99, and a scan running
+/// meanwhile ends with its files.
 #[test]
 fn a_slow_header_flood_cannot_hold_the_door() {
     let tmp = tempfile::tempdir().unwrap();
@@ -135,12 +135,13 @@ fn a_slow_header_flood_cannot_hold_the_door() {
          p99 {p99:.1} ms, {failed} of 200 failed; scan {} with {} frames, {} dropped",
         end["state"], end["frames"], end["dropped"]
     );
-    // Before the fix a half-sent connection was never evicted: the cap filled, accepting
-    // stopped and health timed out. The latency target (p99 under 100 ms, no frame dropped)
-    // is not met yet on a loaded 2-core machine with the flood on the same host: see
-    // docs/method.md (issue 37); the figures are printed above, and not asserted.
+    // Before the fix the cap (256) filled with half-sent connections that were never
+    // evicted, accepting stopped and health timed out. Now the default cap holds the flood
+    // (no churn through eviction, which only queues the reopened connections ahead of real
+    // ones: p99 was 1.0-1.7 s that way, docs/method.md 14.1). Frames dropped are printed,
+    // not asserted: on a loaded machine the simulated scan drops frames without any flood.
     assert_eq!(failed, 0, "health requests failed under the flood");
-    assert!(reopened > 0, "no half-sent connection was evicted");
+    assert!(p99 < 100.0, "health p99 {p99:.1} ms under the flood");
     assert_ne!(end["state"], "failed", "{end}");
     assert!(d.record(&id)["artifacts"].to_string().contains("grid.bin"));
 }
@@ -505,4 +506,112 @@ fn a_visit_the_archive_cannot_write_is_507() {
     let (s, v) = d.post("/api/visits", r#"{"patient": "P-1"}"#);
     assert_eq!(s, 507, "{v}");
     assert!(v["error"].as_str().unwrap().contains("visits"), "{v}");
+}
+
+/// HTTP JSON bodies, fuzzed: mutations of each POST endpoint's valid body (and arbitrary
+/// bytes) get an answer below 500 with the API's JSON error, and the daemon stays up. The
+/// body limit (16 KiB) bounds what any of them can make the daemon allocate. A longer run:
+/// `FOOTSCAN_FUZZ_CASES=20000 cargo test -p footscand --test daemon_doors http_json`.
+#[test]
+fn http_json_bodies_fuzzed_get_json_answers() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().join("archive");
+    let ids = archive_with(&root, &[("P-1", "left")]);
+    let d = start_on(tmp.path(), &root);
+    let vid = visit(&d, "P-1");
+    let sid = &ids[0];
+    let seeds: Vec<(String, String)> = vec![
+        (
+            "/api/visits".into(),
+            r#"{"patient": "P-2", "notes": "x"}"#.into(),
+        ),
+        (
+            format!("/api/visits/{vid}/notes"),
+            r#"{"notes": "n"}"#.into(),
+        ),
+        (
+            format!("/api/visits/{vid}/scans"),
+            format!(r#"{{"scan": "{sid}", "move": true}}"#),
+        ),
+        (
+            format!("/api/scans/{sid}/record"),
+            r#"{"subject": "P-1", "side": "left", "why": "w"}"#.into(),
+        ),
+        (
+            format!("/api/scans/{sid}/side"),
+            r#"{"side": "left", "confirmed_by": "op"}"#.into(),
+        ),
+        (
+            format!("/api/scans/{sid}/last"),
+            r#"{"girths": {"ball_mm": 230}, "stock": "x"}"#.into(),
+        ),
+        (
+            "/api/scans".into(),
+            r#"{"subject": "", "side": "up"}"#.into(),
+        ),
+        (
+            "/api/calibrations/x/confirm".into(),
+            r#"{"phase": "place", "step": 0, "attempt": 1}"#.into(),
+        ),
+        (
+            "/api/verify".into(),
+            r#"{"guided": true, "confirmed_by": "op", "sim_mistakes": []}"#.into(),
+        ),
+    ];
+    let n: usize = std::env::var("FOOTSCAN_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(400);
+    let mut x = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        x.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    };
+    let mut by_status = std::collections::BTreeMap::new();
+    for i in 0..n {
+        let (path, seed) = &seeds[next() as usize % seeds.len()];
+        let mut b = seed.clone().into_bytes();
+        if i % 5 == 0 {
+            b = (0..next() % 300).map(|_| next() as u8).collect();
+        } else {
+            for _ in 0..1 + next() % 4 {
+                let at = next() as usize % (b.len() + 1);
+                let tokens: [&[u8]; 8] = [
+                    b"{", b"}", b"\"", b",", b"null", b"1e999", b"-1", b"\\u0000",
+                ];
+                match next() % 3 {
+                    0 if at < b.len() => b[at] = next() as u8,
+                    1 => {
+                        let t = tokens[next() as usize % tokens.len()];
+                        b.splice(at..at, t.iter().copied());
+                    }
+                    _ => b.truncate(at),
+                }
+            }
+        }
+        let r = d
+            .client
+            .post(d.url(path))
+            .header("content-type", "application/json")
+            .body(b.clone())
+            .send()
+            .unwrap_or_else(|e| panic!("case {i}: POST {path}: {e}"));
+        let status = r.status().as_u16();
+        let text = r.text().unwrap();
+        *by_status.entry(status).or_insert(0) += 1;
+        assert!(
+            status < 500 || status == 503,
+            "case {i}: POST {path} {:?}: {status} {text}",
+            String::from_utf8_lossy(&b)
+        );
+        if status >= 400 {
+            let v: Value = serde_json::from_str(&text)
+                .unwrap_or_else(|e| panic!("case {i}: {status} not JSON ({e}): {text}"));
+            assert!(v["error"].is_string(), "case {i}: {text}");
+        }
+    }
+    println!("{n} fuzzed JSON bodies: answers by status {by_status:?}");
+    assert_eq!(d.get_json("/api/health")["ok"], true);
 }
