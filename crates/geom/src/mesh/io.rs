@@ -135,7 +135,12 @@ impl TriMesh {
                  ASCII STL (does not start with 'solid')",
             ));
         }
-        let mut soup = Vec::new();
+        // Counted first, so the soup is allocated once at its size (no doubling).
+        let facets = text
+            .lines()
+            .filter(|l| l.split_whitespace().next() == Some("endloop"))
+            .count();
+        let mut soup = Vec::with_capacity(facets);
         let mut cur: Vec<P3> = Vec::with_capacity(3);
         let mut in_loop = false;
         for (ln, line) in text.lines().enumerate() {
@@ -176,6 +181,9 @@ impl TriMesh {
                                 cur.len()
                             ),
                         ));
+                    }
+                    if soup.len() == soup.capacity() {
+                        return Err(parse_err(path, "more facets than counted"));
                     }
                     soup.push([cur[0], cur[1], cur[2]]);
                     in_loop = false;
