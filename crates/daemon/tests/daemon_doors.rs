@@ -615,3 +615,48 @@ fn http_json_bodies_fuzzed_get_json_answers() {
     println!("{n} fuzzed JSON bodies: answers by status {by_status:?}");
     assert_eq!(d.get_json("/api/health")["ok"], true);
 }
+
+/// A scan whose directory could not take its record (the archive turned read-only) while
+/// the index took its end keeps that first reason across a restart instead of becoming
+/// "interrupted".
+#[test]
+fn the_first_reason_survives_a_directory_that_refused_its_record() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().join("archive");
+    let a = Archive::open(&root).unwrap();
+    let s = a
+        .begin(NewScan {
+            subject: "P-1".into(),
+            side: "left".into(),
+            notes: String::new(),
+        })
+        .unwrap();
+    let dir = s.dir.clone();
+    // record.json taken by a non-empty directory: no record can be written there (as with
+    // a read-only directory; this holds as root too). No scan.json either.
+    std::fs::create_dir_all(dir.join("record.json").join("blocker")).unwrap();
+    let id = s.record.id.clone();
+    let end = a.finish(
+        s,
+        ScanEnd {
+            status: Status::Complete,
+            reason: None,
+            frames: 141,
+            points: 75_000,
+        },
+    );
+    assert!(end.is_err(), "archiving should have failed");
+    drop(a);
+    // Writable again; the daemon restarts.
+    std::fs::remove_dir_all(dir.join("record.json")).unwrap();
+    let a = Archive::open(&root).unwrap();
+    let r = a
+        .get(&footscan_daemon::archive::ScanId::parse(&id).unwrap())
+        .unwrap();
+    println!("after the restart: {} {:?}", r.status.as_str(), r.reason);
+    assert_eq!(r.status, Status::Failed);
+    let reason = r.reason.unwrap_or_default();
+    assert_ne!(reason, footscan_daemon::archive::INTERRUPTED);
+    assert!(reason.contains("archiving failed"), "{reason}");
+    assert_eq!(r.frames, 141);
+}

@@ -339,7 +339,8 @@ impl Archive {
 
     /// Close every `.tmp-` scan left unfinished, as failed, with the most honest reason at
     /// hand: the daemon's own record in the directory (a scan whose archiving failed), else
-    /// the pipeline's summary (the scan ended but was never archived), else [`INTERRUPTED`]
+    /// the end the index recorded when the directory could not take it, else the pipeline's
+    /// summary (the scan ended but was never archived), else [`INTERRUPTED`]
     /// with the frame count the index last noted.
     fn recover(&self) -> Result<(), ArchiveError> {
         for entry in std::fs::read_dir(&self.root).map_err(io_at(&self.root))? {
@@ -360,10 +361,13 @@ impl Archive {
                 .ok()
                 .and_then(|b| serde_json::from_slice::<Record>(&b).ok())
                 .filter(|r| r.id == id && r.status != Status::Running);
-            let record = match own {
-                Some(r) => r,
-                None => {
-                    let indexed = self.with_index(|i| i.get(id)).ok().flatten();
+            let indexed = self.with_index(|i| i.get(id)).ok().flatten();
+            let record = match (own, indexed) {
+                (Some(r), _) => r,
+                // The directory could not take its record (turned read-only) but the index
+                // took the end: that is the first, real reason; keep it.
+                (None, Some(r)) if r.status != Status::Running => r,
+                (None, indexed) => {
                     let mut r = indexed.unwrap_or_else(|| {
                         Record::running(
                             id.to_string(),
