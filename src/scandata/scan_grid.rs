@@ -83,7 +83,11 @@ impl ScanGrid {
     }
 
     pub fn load(path: &std::path::Path) -> std::io::Result<Self> {
-        let bytes = std::fs::read(path)?;
+        Self::parse(&std::fs::read(path)?, path)
+    }
+
+    /// A grid.bin's bytes; `path` names it in errors.
+    pub fn parse(bytes: &[u8], path: &std::path::Path) -> std::io::Result<Self> {
         // Sizes are checked against the header below, so the unwraps after it cannot fail.
         let bad = |what: &str| {
             std::io::Error::new(
@@ -91,20 +95,26 @@ impl ScanGrid {
                 format!("{}: not a footscan grid.bin ({what})", path.display()),
             )
         };
-        let mut r = Reader { b: &bytes, at: 0 };
+        let mut r = Reader { b: bytes, at: 0 };
         if r.take(8).ok_or_else(|| bad("too short"))? != MAGIC {
             return Err(bad("wrong magic"));
         }
         let nf = r.u32().ok_or_else(|| bad("truncated header"))? as usize;
         let rows = r.u32().ok_or_else(|| bad("truncated header"))? as usize;
-        let expect = 16 + nf * 32 + nf * rows * 45;
-        if bytes.len() != expect {
+        // In u128: header counts of up to 2^32 each would overflow (a panic in a debug
+        // build, a wrapped size that may match in a release one).
+        let expect = 16 + nf as u128 * 32 + nf as u128 * rows as u128 * 45;
+        if bytes.len() as u128 != expect {
             return Err(bad(&format!(
                 "{nf} frames x {rows} rows need {expect} bytes, the file has {}",
                 bytes.len()
             )));
         }
         let mut g = ScanGrid::new(rows);
+        // Exact sizes (no doubling), known good from the file size.
+        g.frames.reserve_exact(nf);
+        g.lines.reserve_exact(nf * rows);
+        g.points.reserve_exact(nf * rows);
         for _ in 0..nf {
             g.frames.push(FrameMeta {
                 index: r.u64().unwrap(),

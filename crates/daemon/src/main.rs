@@ -97,8 +97,7 @@ fn run(args: Args) -> Result<()> {
         .build()
         .context("starting the async runtime")?;
     rt.block_on(async move {
-        let listener = tokio::net::TcpListener::bind(bind)
-            .await
+        let listener = footscan_daemon::api::server::listen(bind)
             .with_context(|| format!("cannot listen on {bind}"))?;
         let addr = listener.local_addr()?;
         tracing::info!(

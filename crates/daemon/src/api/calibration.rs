@@ -1,9 +1,10 @@
 //! Calibration endpoints: the guided calibration and the daily check as jobs (start, the
 //! current step, confirm / repeat / abort), the calibration history and the check trend.
 
+use super::blocking;
 use super::{scans::body, ApiError, AppState};
 use crate::archive::calibrations::{valid_id, Calibrations};
-use crate::daemon::guided::{parse_mistake, parse_target, Answer, JobRequest};
+use crate::daemon::guided::{parse_mistake, parse_target, Answer, AnswerFor, JobRequest};
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Path, State};
 use axum::http::StatusCode;
@@ -125,8 +126,27 @@ pub async fn job(State(st): State<AppState>) -> Result<Json<Value>, ApiError> {
     }
 }
 
-async fn answer(st: AppState, id: String, a: Answer) -> Result<Json<Value>, ApiError> {
-    let job = st.daemon.answer_job(&id, a)?;
+/// The answer's body: none, `{}`, or the step it is meant for (`phase`, `step`, `attempt`, as
+/// `GET /api/calibrations/job` shows them); a body naming another step is 409.
+async fn answer(
+    st: AppState,
+    id: String,
+    a: Answer,
+    b: axum::body::Bytes,
+) -> Result<Json<Value>, ApiError> {
+    // No body (or `{}`) asks for no check beyond the job's own.
+    let expect = if b.iter().all(u8::is_ascii_whitespace) {
+        None
+    } else {
+        Some(serde_json::from_slice::<AnswerFor>(&b).map_err(|e| {
+            ApiError::bad_request(format!(
+                "invalid answer body ({e}): {{}} or any of \"phase\" (\"place\" or \"review\"), \
+                 \"step\" (the step's index) and \"attempt\", as GET /api/calibrations/job shows them"
+            ))
+        })?)
+    };
+    let d = st.daemon.clone();
+    let job = blocking(move || Ok(d.answer_job(&id, a, expect.as_ref())?)).await?;
     Ok(Json(json!({"id": job.id, "answer": a.name()})))
 }
 
@@ -134,24 +154,27 @@ async fn answer(st: AppState, id: String, a: Answer) -> Result<Json<Value>, ApiE
 pub async fn confirm(
     State(st): State<AppState>,
     Path(id): Path<String>,
+    b: axum::body::Bytes,
 ) -> Result<Json<Value>, ApiError> {
-    answer(st, id, Answer::Confirm).await
+    answer(st, id, Answer::Confirm, b).await
 }
 
 /// POST /api/calibrations/{id}/repeat
 pub async fn repeat(
     State(st): State<AppState>,
     Path(id): Path<String>,
+    b: axum::body::Bytes,
 ) -> Result<Json<Value>, ApiError> {
-    answer(st, id, Answer::Repeat).await
+    answer(st, id, Answer::Repeat, b).await
 }
 
 /// POST /api/calibrations/{id}/abort
 pub async fn abort(
     State(st): State<AppState>,
     Path(id): Path<String>,
+    b: axum::body::Bytes,
 ) -> Result<Json<Value>, ApiError> {
-    answer(st, id, Answer::Abort).await
+    answer(st, id, Answer::Abort, b).await
 }
 
 /// GET /api/calibrations: the history, newest first, and the current calibration's id.

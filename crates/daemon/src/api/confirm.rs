@@ -98,8 +98,8 @@ pub async fn confirm_side(
             r.reason = reason.clone();
             Ok(())
         };
-        let (rec, changes) = a
-            .amend(&id, &why, edit)
+        let (rec, changes, _visits) = a
+            .amend_with_visits(&id, &why, edit)
             .map_err(crate::daemon::DaemonError::from)??;
         let mut v = serde_json::to_value(&rec).map_err(ApiError::internal)?;
         v["changes"] = serde_json::to_value(&changes).map_err(ApiError::internal)?;

@@ -7,7 +7,8 @@
 //! - A state-changing request (anything but GET and HEAD) must carry
 //!   `Content-Type: application/json`, which a cross-site form or a no-preflight fetch cannot
 //!   send, and an Origin, if any, that is the daemon's own (`http(s)://<Host>`).
-//! - The request body must arrive within the body timeout (and within the body limit).
+//! - The request body must arrive within the body timeout (and within the body limit); a
+//!   Content-Length over the limit is 413 at once, before any of the body is waited for.
 //! - A request target over 8 KiB is 414 and headers over 32 KiB are 431, as JSON errors.
 //! - Every response says X-Content-Type-Options: nosniff and refuses framing
 //!   (X-Frame-Options: DENY, CSP frame-ancestors 'none').
@@ -79,6 +80,28 @@ pub async fn guard(State(st): State<AppState>, req: Request, next: Next) -> Resp
             format!("request headers of {head} bytes: at most {MAX_HEADERS}"),
         )
         .into_response();
+    }
+    // A declared length over the limit is refused before waiting for the body: otherwise a
+    // client announcing 10^15 bytes and sending none holds the connection until the body
+    // timeout. (hyper has already refused a Content-Length that is not one number.)
+    let declared = req
+        .headers()
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.trim().parse::<u64>().ok());
+    if let Some(n) = declared.filter(|&n| n > super::BODY_LIMIT as u64) {
+        let mut r = ApiError(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!(
+                "Content-Length {n}: request bodies are at most {} bytes",
+                super::BODY_LIMIT
+            ),
+        )
+        .into_response();
+        // The unread body would otherwise be taken for the next request.
+        r.headers_mut()
+            .insert(header::CONNECTION, HeaderValue::from_static("close"));
+        return r;
     }
     let Some(host) = req
         .headers()

@@ -58,8 +58,14 @@ pub async fn download(
     let id = parse_id(&id)?;
     let d = st.daemon.clone();
     let (rid, rname) = (id.clone(), name.clone());
-    let path = blocking(move || Ok(d.last_file(&rid, &rname)?)).await?;
-    send_file(&path, &format!("{id}-{name}"), &headers).await
+    let file = blocking(move || {
+        let p = d.last_file(&rid, &rname)?;
+        d.archive
+            .open_inside(&p)
+            .map_err(|e| ApiError::not_found(format!("scan {rid} last file {rname:?}: {e}")))
+    })
+    .await?;
+    send_file(file, &format!("{id}-{name}"), &headers).await
 }
 
 /// `POST /api/scans/{id}/last/rank`: the stock collection ranked for the scan and the

@@ -159,7 +159,7 @@ pub async fn download(
         )));
     }
     let d = st.daemon.clone();
-    let (path, rec) = tokio::task::spawn_blocking(move || {
+    let path = tokio::task::spawn_blocking(move || {
         let r = d
             .archive
             .get(&id)
@@ -178,27 +178,32 @@ pub async fn download(
                 names.join(", ")
             ))
         })?;
-        Ok::<_, ApiError>((p, r))
+        let f = d
+            .archive
+            .open_inside(&p)
+            .map_err(|e| ApiError::not_found(format!("scan {} file {name:?}: {e}", r.id)))?;
+        Ok::<_, ApiError>((p, f, r))
     })
     .await
     .map_err(ApiError::internal)??;
+    let (path, file, rec) = path;
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    send_file(&path, &format!("{}-{name}", rec.id), &headers).await
+    send_file(file, &format!("{}-{name}", rec.id), &headers).await
 }
 
 /// A file as a download named `save_as`, whole or the one byte range asked for (a
 /// resumed download of a large cloud).
+/// The file comes opened (by [`crate::archive::Archive::open_inside`]), so what is sent is
+/// what was checked.
 pub(super) async fn send_file(
-    path: &std::path::Path,
+    file: std::fs::File,
     save_as: &str,
     headers: &axum::http::HeaderMap,
 ) -> Result<Response, ApiError> {
-    let mut file = tokio::fs::File::open(path)
-        .await
-        .map_err(|e| ApiError::not_found(format!("{}: {e}", path.display())))?;
+    let mut file = tokio::fs::File::from_std(file);
     let len = file.metadata().await.map_err(ApiError::internal)?.len();
     let range = match headers.get(header::RANGE).and_then(|v| v.to_str().ok()) {
         None => None,

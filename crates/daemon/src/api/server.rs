@@ -6,7 +6,13 @@
 //! When the connection cap is reached, the oldest connection with no request in flight
 //! (idle, or still sending its headers) is closed to make room, so idle or half-sent
 //! connections can never lock real requests out; only when every connection is busy is a
-//! new one answered 503 and closed.
+//! new one answered 503 and closed. An evicted connection is dropped outright, not shut down
+//! gracefully: hyper's graceful shutdown waits for a half-read head to complete, which is
+//! exactly what a slow-header flood never does.
+//!
+//! hyper answers a head it cannot parse (a duplicate Content-Length, a bad header line)
+//! itself, with an empty body; [`JsonErrors`] rewrites those answers into the API's JSON
+//! error so every client sees one error format.
 
 use axum::body::Body;
 use axum::http::Request;
@@ -30,6 +36,9 @@ pub const RESERVED_FDS: u64 = 64;
 const OVERFLOW: usize = 8;
 /// Fewest connections worth serving with; a lower descriptor limit is a start-up error.
 const MIN_CONNECTIONS: usize = 8;
+/// Added to a connection's busy count when it is chosen for eviction, so it is chosen once;
+/// the bits below count requests in flight.
+const EVICTED: usize = 1 << 20;
 
 /// The server's limits (from the [daemon] config).
 #[derive(Clone, Debug)]
@@ -42,6 +51,24 @@ pub struct Limits {
     pub max_connections: usize,
     /// Open connections from one client address at most.
     pub max_per_client: usize,
+}
+
+/// Pending connections the kernel may queue for accept (capped by net.core.somaxconn).
+/// Deeper than the default 1024 so that a flood of connections reopened as fast as they are
+/// evicted does not fill the queue: a full queue drops new SYNs, and the client's retry after
+/// 1 s is what a legitimate request would then wait.
+pub const LISTEN_BACKLOG: u32 = 4096;
+
+/// Listen on `addr` with [`LISTEN_BACKLOG`].
+pub fn listen(addr: SocketAddr) -> std::io::Result<tokio::net::TcpListener> {
+    let socket = if addr.is_ipv4() {
+        tokio::net::TcpSocket::new_v4()?
+    } else {
+        tokio::net::TcpSocket::new_v6()?
+    };
+    socket.set_reuseaddr(true)?;
+    socket.bind(addr)?;
+    socket.listen(LISTEN_BACKLOG)
 }
 
 /// The connection cap the descriptor limit allows: the soft RLIMIT_NOFILE less the
@@ -102,7 +129,7 @@ impl Registry {
             .min_by_key(|c| c.opened);
         match victim {
             Some(c) => {
-                c.busy.fetch_add(1 << 20, Ordering::AcqRel); // evicted once
+                c.busy.fetch_add(EVICTED, Ordering::AcqRel); // evicted once
                 c.close.notify_one();
                 true
             }
@@ -275,7 +302,7 @@ pub async fn run(
                 // Room for heads up to the API's own limits (guard.rs answers 414 and 431
                 // with JSON); beyond this hyper refuses them itself, without a body.
                 .max_buf_size(256 * 1024)
-                .serve_connection(TokioIo::new(stream), svc);
+                .serve_connection(TokioIo::new(JsonErrors::new(stream)), svc);
             let mut conn = std::pin::pin!(conn);
             let mut shutting = false;
             loop {
@@ -287,6 +314,13 @@ pub async fn run(
                         break;
                     }
                     _ = close.notified(), if !shutting => {
+                        // No request in flight (the eviction mark aside): at most part of a
+                        // head was read, and nothing is lost by dropping the connection. The
+                        // check runs on this task, which alone polls `conn`, so no request
+                        // can start between it and the drop.
+                        if busy.load(Ordering::Acquire) & (EVICTED - 1) == 0 {
+                            break;
+                        }
                         shutting = true;
                         conn.as_mut().graceful_shutdown();
                     }
@@ -313,4 +347,138 @@ pub async fn run(
         tasks.abort_all();
     }
     Ok(())
+}
+
+/// A connection's stream that turns hyper's own empty-bodied error answers (to heads it
+/// could not parse) into the API's `{"error": ...}` form. hyper writes such an answer as one
+/// head with `content-length: 0` and nothing after it; the API never answers an error with
+/// an empty body (see `json_errors` in api/mod.rs), so the pattern is hyper's alone.
+struct JsonErrors<S> {
+    inner: S,
+    /// The rewritten answer still to be written, and the length of hyper's buffer it stands
+    /// for (reported written once all of it is).
+    pending: Option<(Vec<u8>, usize)>,
+}
+
+impl<S> JsonErrors<S> {
+    fn new(inner: S) -> Self {
+        JsonErrors {
+            inner,
+            pending: None,
+        }
+    }
+}
+
+/// The JSON answer for hyper's own error head `buf`, if that is what it is.
+fn json_error_for(buf: &[u8]) -> Option<Vec<u8>> {
+    let text = std::str::from_utf8(buf).ok()?;
+    let rest = text.strip_prefix("HTTP/1.1 ")?;
+    let head = text.strip_suffix("\r\n\r\n")?;
+    if head.contains("\r\n\r\n") {
+        return None;
+    }
+    let code: u16 = rest.get(..3)?.parse().ok()?;
+    if !(400..600).contains(&code) {
+        return None;
+    }
+    let lower = head.to_ascii_lowercase();
+    if !lower.contains("\r\ncontent-length: 0") || lower.contains("\r\ncontent-type:") {
+        return None;
+    }
+    let why = match code {
+        400 => {
+            "malformed request head: a duplicate or invalid Content-Length, a bad header line \
+             or request line (RFC 9112)"
+        }
+        414 => "request target too long",
+        431 => "request headers too large",
+        _ => "request refused by the HTTP layer",
+    };
+    let body = serde_json::json!({ "error": why }).to_string();
+    let status_line = head.split("\r\n").next()?;
+    Some(
+        format!(
+            "{status_line}\r\ncontent-type: application/json\r\ncontent-length: {}\r\n\
+             connection: close\r\nx-content-type-options: nosniff\r\n\r\n{body}",
+            body.len()
+        )
+        .into_bytes(),
+    )
+}
+
+impl<S: tokio::io::AsyncRead + Unpin> tokio::io::AsyncRead for JsonErrors<S> {
+    fn poll_read(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &mut tokio::io::ReadBuf<'_>,
+    ) -> Poll<std::io::Result<()>> {
+        Pin::new(&mut self.inner).poll_read(cx, buf)
+    }
+}
+
+impl<S: tokio::io::AsyncWrite + Unpin> tokio::io::AsyncWrite for JsonErrors<S> {
+    fn poll_write(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &[u8],
+    ) -> Poll<std::io::Result<usize>> {
+        let me = &mut *self;
+        if me.pending.is_none() {
+            match json_error_for(buf) {
+                Some(json) => me.pending = Some((json, buf.len())),
+                None => return Pin::new(&mut me.inner).poll_write(cx, buf),
+            }
+        }
+        let (bytes, stands_for) = me.pending.as_mut().expect("set above");
+        while !bytes.is_empty() {
+            match Pin::new(&mut me.inner).poll_write(cx, bytes) {
+                Poll::Ready(Ok(0)) => {
+                    me.pending = None;
+                    return Poll::Ready(Err(std::io::ErrorKind::WriteZero.into()));
+                }
+                Poll::Ready(Ok(n)) => {
+                    bytes.drain(..n);
+                }
+                Poll::Ready(Err(e)) => {
+                    me.pending = None;
+                    return Poll::Ready(Err(e));
+                }
+                Poll::Pending => return Poll::Pending,
+            }
+        }
+        let n = *stands_for;
+        me.pending = None;
+        Poll::Ready(Ok(n))
+    }
+
+    fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<std::io::Result<()>> {
+        Pin::new(&mut self.inner).poll_flush(cx)
+    }
+
+    fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<std::io::Result<()>> {
+        Pin::new(&mut self.inner).poll_shutdown(cx)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::json_error_for;
+
+    #[test]
+    fn hypers_own_error_heads_become_json() {
+        let hyper = b"HTTP/1.1 400 Bad Request\r\ncontent-length: 0\r\ndate: Fri, 27 Nov 2026 12:00:00 GMT\r\n\r\n";
+        let out = String::from_utf8(json_error_for(hyper).unwrap()).unwrap();
+        assert!(out.starts_with("HTTP/1.1 400 Bad Request\r\n"), "{out}");
+        let (_, body) = out.split_once("\r\n\r\n").unwrap();
+        let v: serde_json::Value = serde_json::from_str(body).unwrap();
+        assert!(v["error"].as_str().unwrap().contains("Content-Length"));
+        // The API's own answers pass untouched.
+        for own in [
+            &b"HTTP/1.1 400 Bad Request\r\ncontent-type: application/json\r\ncontent-length: 0\r\n\r\n"[..],
+            b"HTTP/1.1 200 OK\r\ncontent-length: 0\r\n\r\n",
+            b"HTTP/1.1 404 Not Found\r\ncontent-type: application/json\r\ncontent-length: 12\r\n\r\n{\"error\":1}",
+        ] {
+            assert!(json_error_for(own).is_none());
+        }
+    }
 }

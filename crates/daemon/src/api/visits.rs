@@ -25,6 +25,11 @@ impl From<VisitError> for ApiError {
             VisitError::Archive(crate::archive::ArchiveError::NotFound(id)) => {
                 ApiError::not_found(format!("scan {id} is not in the archive"))
             }
+            // The archive could not be read or written (a full or read-only disk): 507, as
+            // for scans.
+            VisitError::Archive(a @ crate::archive::ArchiveError::Io { .. }) => {
+                ApiError(StatusCode::INSUFFICIENT_STORAGE, a.to_string())
+            }
             VisitError::Archive(a) => ApiError::internal(a),
         }
     }
@@ -71,9 +76,12 @@ pub async fn create(
     notes_ok(&v.notes)?;
     let d = st.daemon.clone();
     let visit = blocking(move || {
-        d.archive
-            .new_visit(&v.patient, &v.notes)
-            .map_err(ApiError::internal)
+        d.archive.new_visit(&v.patient, &v.notes).map_err(|e| {
+            ApiError(
+                StatusCode::INSUFFICIENT_STORAGE,
+                format!("the visit could not be written: {e}"),
+            )
+        })
     })
     .await?;
     let zone = &st.daemon.config.clinic_zone;
@@ -169,6 +177,9 @@ pub async fn set_notes(
 #[serde(deny_unknown_fields)]
 pub struct AddScan {
     scan: String,
+    /// Take the scan out of the visit holding it (a scan is in one visit at most).
+    #[serde(default, rename = "move")]
+    move_it: bool,
 }
 
 pub async fn add_scan(
@@ -177,9 +188,10 @@ pub async fn add_scan(
     b: Result<Json<AddScan>, JsonRejection>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
     let vid = parse_id(&vid)?;
-    let sid = parse_id(&body(b)?.scan)?;
+    let a = body(b)?;
+    let sid = parse_id(&a.scan)?;
     let d = st.daemon.clone();
-    let v = blocking(move || Ok(d.archive.add_visit_scan(&vid, &sid)?)).await?;
+    let v = blocking(move || Ok(d.archive.add_visit_scan(&vid, &sid, a.move_it)?)).await?;
     Ok(Json(st.daemon.config.clinic_zone.visit_json(&v)))
 }
 
@@ -248,9 +260,9 @@ pub async fn correct(
             }
             Ok::<(), ApiError>(())
         };
-        let (rec, changes) = d
+        let (rec, changes, visits) = d
             .archive
-            .amend(&sid, &format!("corrected: {why}"), edit)
+            .amend_with_visits(&sid, &format!("corrected: {why}"), edit)
             .map_err(|e| match e {
                 crate::archive::ArchiveError::NotFound(id) => {
                     ApiError::not_found(format!("scan {id} is not in the archive"))
@@ -259,6 +271,7 @@ pub async fn correct(
             })??;
         let mut v = serde_json::to_value(&rec).map_err(ApiError::internal)?;
         v["changes"] = serde_json::to_value(&changes).map_err(ApiError::internal)?;
+        v["visits_changed"] = serde_json::to_value(&visits).map_err(ApiError::internal)?;
         Ok(Json(v))
     })
     .await

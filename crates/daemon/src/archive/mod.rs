@@ -339,7 +339,8 @@ impl Archive {
 
     /// Close every `.tmp-` scan left unfinished, as failed, with the most honest reason at
     /// hand: the daemon's own record in the directory (a scan whose archiving failed), else
-    /// the pipeline's summary (the scan ended but was never archived), else [`INTERRUPTED`]
+    /// the end the index recorded when the directory could not take it, else the pipeline's
+    /// summary (the scan ended but was never archived), else [`INTERRUPTED`]
     /// with the frame count the index last noted.
     fn recover(&self) -> Result<(), ArchiveError> {
         for entry in std::fs::read_dir(&self.root).map_err(io_at(&self.root))? {
@@ -360,10 +361,13 @@ impl Archive {
                 .ok()
                 .and_then(|b| serde_json::from_slice::<Record>(&b).ok())
                 .filter(|r| r.id == id && r.status != Status::Running);
-            let record = match own {
-                Some(r) => r,
-                None => {
-                    let indexed = self.with_index(|i| i.get(id)).ok().flatten();
+            let indexed = self.with_index(|i| i.get(id)).ok().flatten();
+            let record = match (own, indexed) {
+                (Some(r), _) => r,
+                // The directory could not take its record (turned read-only) but the index
+                // took the end: that is the first, real reason; keep it.
+                (None, Some(r)) if r.status != Status::Running => r,
+                (None, indexed) => {
                     let mut r = indexed.unwrap_or_else(|| {
                         Record::running(
                             id.to_string(),
@@ -564,6 +568,69 @@ impl Archive {
         }
         let p = self.checked_dir(record)?.join(name);
         p.symlink_metadata().ok().filter(|m| m.is_file()).map(|_| p)
+    }
+
+    /// Open `path` (a file under the archive's root) for reading without following any
+    /// symlink below the root: each directory is opened with O_NOFOLLOW relative to the one
+    /// before, and the file itself too, so a component swapped for a symlink (a scan's
+    /// `last/` pointing outside the archive) fails with ELOOP or ENOTDIR instead of being
+    /// served, and no check-then-open race remains. Only regular files open.
+    pub fn open_inside(&self, path: &Path) -> std::io::Result<File> {
+        use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
+        use std::os::unix::ffi::OsStrExt;
+        let rel = path.strip_prefix(&self.root).map_err(|_| {
+            std::io::Error::new(
+                std::io::ErrorKind::PermissionDenied,
+                format!("{} is not under the archive", path.display()),
+            )
+        })?;
+        let parts: Vec<&std::ffi::OsStr> = rel
+            .components()
+            .map(|c| match c {
+                std::path::Component::Normal(n) => Ok(n),
+                _ => Err(std::io::Error::new(
+                    std::io::ErrorKind::PermissionDenied,
+                    format!("{}: only plain names below the archive", path.display()),
+                )),
+            })
+            .collect::<Result<_, _>>()?;
+        let Some((file, dirs)) = parts.split_last() else {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "the archive root is not a file",
+            ));
+        };
+        let open_at = |at: &OwnedFd, name: &std::ffi::OsStr, flags: libc::c_int| {
+            let c = std::ffi::CString::new(name.as_bytes())
+                .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
+            // SAFETY: a valid directory descriptor and a NUL-terminated name; the new
+            // descriptor is owned at once.
+            let fd = unsafe {
+                libc::openat(
+                    at.as_raw_fd(),
+                    c.as_ptr(),
+                    flags | libc::O_NOFOLLOW | libc::O_CLOEXEC,
+                )
+            };
+            if fd < 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            // SAFETY: `fd` was just opened and is owned by nobody else.
+            Ok(unsafe { OwnedFd::from_raw_fd(fd) })
+        };
+        // The root itself is the configured path (it may be a symlink the admin chose).
+        let mut dir: OwnedFd = File::open(&self.root)?.into();
+        for d in dirs {
+            dir = open_at(&dir, d, libc::O_RDONLY | libc::O_DIRECTORY)?;
+        }
+        let f = File::from(open_at(&dir, file, libc::O_RDONLY | libc::O_NONBLOCK)?);
+        if !f.metadata()?.is_file() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!("{} is not a regular file", path.display()),
+            ));
+        }
+        Ok(f)
     }
 
     /// Write `r` into the index; a refused write keeps `r` in memory (listed instead of the

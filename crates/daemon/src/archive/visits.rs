@@ -3,7 +3,8 @@
 //!
 //! Each visit is one JSON file `<archive>/visits/<id>.json`, written atomically; the files are
 //! the truth (a few thousand are listed in milliseconds), so nothing here depends on the index.
-//! Deleting a visit deletes its scans' directories too, and is logged in
+//! A scan belongs to one visit at most (moving it is explicit). Deleting a visit deletes
+//! the scans it owns (its patient's, in no other visit) too, and is logged in
 //! `<archive>/visits/deleted.log` (one JSON line: when, which visit, whose, which scans).
 //!
 //! Times are kept as UTC instants; the clinic's time zone ([`ClinicZone`], `[clinic]
@@ -235,12 +236,45 @@ impl Archive {
         Ok(v)
     }
 
+    /// Every visit listing scan `scan` (in either slot). Under the visits lock, there is at
+    /// most one; archives written before a scan belonged to one visit may hold more.
+    fn visits_holding(&self, scan: &str) -> Result<Vec<Visit>, ArchiveError> {
+        Ok(self
+            .visits(None, None)?
+            .into_iter()
+            .filter(|v| v.left.as_deref() == Some(scan) || v.right.as_deref() == Some(scan))
+            .collect())
+    }
+
     /// Put finished scan `scan` into the visit as its foot (by the record's side). The scan
-    /// must be the visit's patient's; a foot already held is replaced (a rescan).
-    pub fn add_visit_scan(&self, id: &ScanId, scan: &ScanId) -> Result<Visit, VisitError> {
+    /// must be the visit's patient's; a foot already held is replaced (a rescan). A scan
+    /// belongs to one visit: one held by another visit is refused unless `move_it`, which
+    /// takes it out of that visit (said in the log).
+    pub fn add_visit_scan(
+        &self,
+        id: &ScanId,
+        scan: &ScanId,
+        move_it: bool,
+    ) -> Result<Visit, VisitError> {
         let _one = VISITS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
         let mut v = self.visit(id)?;
         let r: Record = self.get(scan)?;
+        let others: Vec<Visit> = self
+            .visits_holding(&r.id)?
+            .into_iter()
+            .filter(|o| o.id != v.id)
+            .collect();
+        if !others.is_empty() && !move_it {
+            let names: Vec<String> = others
+                .iter()
+                .map(|o| format!("{} of patient {:?}", o.id, o.patient))
+                .collect();
+            return Err(VisitError::Conflict(format!(
+                "scan {scan} belongs to visit {}: a scan is in one visit at most; to move it \
+                 here, post {{\"scan\": \"{scan}\", \"move\": true}}",
+                names.join(", ")
+            )));
+        }
         if r.status == Status::Running {
             return Err(VisitError::Conflict(format!(
                 "scan {scan} is still running: add it once it has ended"
@@ -253,17 +287,89 @@ impl Archive {
                 r.subject, v.patient
             )));
         }
+        // Out of its other slot first (its side was corrected since it was put in).
+        for slot in [&mut v.left, &mut v.right] {
+            if slot.as_deref() == Some(r.id.as_str()) {
+                *slot = None;
+            }
+        }
         match r.side.as_str() {
-            "left" => v.left = Some(r.id),
-            "right" => v.right = Some(r.id),
+            "left" => v.left = Some(r.id.clone()),
+            "right" => v.right = Some(r.id.clone()),
             s => {
                 return Err(VisitError::Conflict(format!(
                     "scan {scan} has side {s:?}, not left or right"
                 )))
             }
         }
+        for mut o in others {
+            for slot in [&mut o.left, &mut o.right] {
+                if slot.as_deref() == Some(r.id.as_str()) {
+                    *slot = None;
+                }
+            }
+            self.write_visit(&o)?;
+            tracing::warn!(
+                "scan {} moved on request from visit {} (patient {}) to visit {} (patient {})",
+                r.id,
+                o.id,
+                o.patient,
+                v.id,
+                v.patient
+            );
+        }
         self.write_visit(&v)?;
         Ok(v)
+    }
+
+    /// [`Archive::amend`] a scan's record, keeping its visits in line: a corrected side
+    /// moves the scan to that slot of its visit (replacing a scan held there, as a rescan
+    /// does, which stays in the archive), and a subject corrected away from a visit's
+    /// patient takes the scan out of that visit. Returns the record, its changes and the
+    /// visits changed (as they are now).
+    #[allow(clippy::type_complexity)]
+    pub fn amend_with_visits<E>(
+        &self,
+        id: &ScanId,
+        why: &str,
+        edit: impl FnOnce(&mut Record) -> Result<(), E>,
+    ) -> Result<Result<(Record, Vec<super::Change>, Vec<Visit>), E>, ArchiveError> {
+        let _one = VISITS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
+        let (rec, changes) = match self.amend(id, why, edit)? {
+            Ok(x) => x,
+            Err(e) => return Ok(Err(e)),
+        };
+        let mut changed = Vec::new();
+        for mut v in self.visits_holding(&rec.id)? {
+            let before = v.clone();
+            for slot in [&mut v.left, &mut v.right] {
+                if slot.as_deref() == Some(rec.id.as_str()) {
+                    *slot = None;
+                }
+            }
+            if rec.subject == v.patient {
+                match rec.side.as_str() {
+                    "left" => v.left = Some(rec.id.clone()),
+                    "right" => v.right = Some(rec.id.clone()),
+                    _ => {}
+                }
+            }
+            if v != before {
+                self.write_visit(&v)?;
+                tracing::info!(
+                    "visit {}: scan {} now {}",
+                    v.id,
+                    rec.id,
+                    if rec.subject == v.patient {
+                        format!("in its {} slot", rec.side)
+                    } else {
+                        format!("out of it (subject corrected to {})", rec.subject)
+                    }
+                );
+                changed.push(v);
+            }
+        }
+        Ok(Ok((rec, changes, changed)))
     }
 
     /// Delete a visit with its scans' directories (and their index rows); logged. Returns the
@@ -280,12 +386,33 @@ impl Archive {
         if let Some(why) = refuse(&v) {
             return Err(VisitError::Conflict(why));
         }
+        // Only scans the visit owns are deleted: its patient's, and listed by no other visit
+        // (archives from before a scan belonged to one visit may list one twice).
+        let others: Vec<Visit> = self
+            .visits(None, None)?
+            .into_iter()
+            .filter(|o| o.id != v.id)
+            .collect();
         let mut deleted = Vec::new();
+        let mut kept = Vec::new();
         for sid in [&v.left, &v.right].into_iter().flatten() {
             let Ok(sid) = ScanId::parse(sid) else {
                 continue;
             };
             let Ok(r) = self.get(&sid) else { continue };
+            let elsewhere = others
+                .iter()
+                .any(|o| o.left.as_deref() == Some(&r.id) || o.right.as_deref() == Some(&r.id));
+            if elsewhere || r.subject != v.patient {
+                tracing::warn!(
+                    "visit {}: scan {} (subject {}) kept: not the visit's own",
+                    v.id,
+                    r.id,
+                    r.subject
+                );
+                kept.push(r.id);
+                continue;
+            }
             if let Some(dir) = self.checked_dir(&r) {
                 std::fs::remove_dir_all(&dir).map_err(io_at(&dir))?;
             }
@@ -300,6 +427,7 @@ impl Archive {
             "visit": v.id,
             "patient": v.patient,
             "scans": deleted,
+            "kept": kept,
         });
         std::fs::OpenOptions::new()
             .create(true)

@@ -56,8 +56,12 @@ struct DaemonSection {
 /// Defaults of the HTTP limits.
 pub const DEFAULT_HEADER_TIMEOUT_S: f64 = 10.0;
 pub const DEFAULT_BODY_TIMEOUT_S: f64 = 10.0;
-pub const DEFAULT_MAX_CONNECTIONS: usize = 256;
-pub const DEFAULT_MAX_CONNECTIONS_PER_CLIENT: usize = 192;
+/// High enough that a flood of a few thousand half-sent connections is held (each costs a
+/// descriptor and a few KiB) instead of churned through eviction: every evicted connection
+/// is reopened at once and waits in the listen queue ahead of real requests. The descriptor
+/// limit lowers it (deploy/footscand.service allows 4096).
+pub const DEFAULT_MAX_CONNECTIONS: usize = 4096;
+pub const DEFAULT_MAX_CONNECTIONS_PER_CLIENT: usize = 3072;
 
 /// The resolved daemon configuration.
 #[derive(Clone, Debug)]

@@ -42,6 +42,18 @@ impl Answer {
     }
 }
 
+/// The step an answer is meant for, as the operator saw it (`GET /api/calibrations/job`);
+/// each field left out is not checked.
+#[derive(Clone, Debug, Default, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnswerFor {
+    /// "place" or "review".
+    pub phase: Option<String>,
+    /// The step's 0-based index (`step.index`).
+    pub step: Option<usize>,
+    pub attempt: Option<usize>,
+}
+
 /// What a calibration or check job is asked to do.
 #[derive(Clone, Debug)]
 pub struct JobRequest {
@@ -354,8 +366,19 @@ impl Daemon {
     /// The operator's answer to job `id`'s waiting step. Refused when the job is not
     /// waiting for that answer (confirming a step that failed its check, repeating before
     /// the step was taken).
-    pub fn answer_job(&self, id: &str, a: Answer) -> Result<CalibrationJob, DaemonError> {
-        let st = self.state.lock().unwrap();
+    ///
+    /// The check and the hand-over are one step under the state lock: the answer moves the
+    /// job out of its waiting phase before the lock is let go, so of several simultaneous
+    /// answers one is taken and the others are refused (409); none waits in the channel for
+    /// a later step. `expect`, when given, is the step the operator saw: an answer meant for
+    /// another phase, step or attempt is refused too.
+    pub fn answer_job(
+        &self,
+        id: &str,
+        a: Answer,
+        expect: Option<&AnswerFor>,
+    ) -> Result<CalibrationJob, DaemonError> {
+        let mut st = self.state.lock().unwrap();
         let job = match &st.calibrating {
             Some(j) if j.id == id => j.clone(),
             _ => {
@@ -378,8 +401,41 @@ impl Daemon {
                 job.kind
             )));
         };
+        if let Some(e) = expect {
+            let step = job.step.as_ref().map(|s| s.index);
+            let mismatch = [
+                e.phase
+                    .as_deref()
+                    .filter(|p| *p != job.phase)
+                    .map(|p| format!("the answer is for phase {p:?}, the job is {:?}", job.phase)),
+                e.step.filter(|s| Some(*s) != step).map(|s| {
+                    format!(
+                        "the answer is for step index {s}, the job is at {}",
+                        step.map_or("no step".into(), |x| format!("step index {x}"))
+                    )
+                }),
+                e.attempt.filter(|t| *t != job.attempt).map(|t| {
+                    format!(
+                        "the answer is for attempt {t}, the job is at attempt {}",
+                        job.attempt
+                    )
+                }),
+            ]
+            .into_iter()
+            .flatten()
+            .collect::<Vec<_>>();
+            if !mismatch.is_empty() {
+                return Err(DaemonError::Conflict(format!(
+                    "cannot {} {} {id}: {}; GET /api/calibrations/job for the current step",
+                    a.name(),
+                    job.kind,
+                    mismatch.join("; ")
+                )));
+            }
+        }
         let passed = job.result.as_ref().is_some_and(StepResult::passed);
         let ok = match (a, job.phase.as_str()) {
+            (Answer::Abort, "aborting") => false,
             (Answer::Abort, _) => true,
             (Answer::Confirm, "place") => true,
             (Answer::Confirm, "review") => passed,
@@ -407,13 +463,30 @@ impl Daemon {
                     format!("the job is {phase}: wait for the step to be shown, or abort")
                 }
             };
-            return Err(DaemonError::NotRunning(format!(
+            return Err(DaemonError::Conflict(format!(
                 "cannot {} {} {id}{step}: {why}",
                 a.name(),
                 job.kind
             )));
         }
-        let _ = tx.send(a);
+        if tx.send(a).is_err() {
+            return Err(DaemonError::NotRunning(format!(
+                "{} {id} is ending: nothing to {}",
+                job.kind,
+                a.name()
+            )));
+        }
+        // Handed over: the job leaves its waiting phase now, under the same lock, so the
+        // next answer finds nothing waiting. The job thread sets the phase it really enters.
+        let handed = match (a, job.phase.as_str()) {
+            (Answer::Abort, _) => "aborting",
+            (Answer::Confirm, "place") => "acquiring",
+            (Answer::Confirm, _) => "keeping",
+            (Answer::Repeat, _) => "repeating",
+        };
+        if let Some(j) = st.calibrating.as_mut() {
+            j.phase = handed.into();
+        }
         Ok(job)
     }
 

@@ -98,16 +98,24 @@ impl TriMesh {
         if bytes.len() >= 84 {
             let n = u32::from_le_bytes(bytes[80..84].try_into().unwrap()) as usize;
             if bytes.len() as u64 == 84 + 50 * n as u64 {
-                let mut soup = Vec::with_capacity(n);
-                for t in 0..n {
+                // The records are read twice (checked, then merged) rather than held as a
+                // soup beside the mesh: 72 bytes a triangle fewer held.
+                let tri = |t: usize| {
                     let rec = &bytes[84 + 50 * t..84 + 50 * t + 50];
                     let f = |k: usize| {
                         f32::from_le_bytes(rec[4 * k..4 * k + 4].try_into().unwrap()) as f64
                     };
-                    soup.push([0, 1, 2].map(|c| P3::new(f(3 + 3 * c), f(4 + 3 * c), f(5 + 3 * c))));
+                    [0, 1, 2].map(|c| P3::new(f(3 + 3 * c), f(4 + 3 * c), f(5 + 3 * c)))
+                };
+                if let Some(t) =
+                    (0..n).find(|&t| tri(t).iter().any(|p| !p.iter().all(|c| c.is_finite())))
+                {
+                    return Err(parse_err(
+                        path,
+                        format!("facet {t} has a non-finite coordinate"),
+                    ));
                 }
-                check_finite_soup(&soup, path)?;
-                return Ok((TriMesh::from_soup(&soup), StlKind::Binary));
+                return Ok((TriMesh::from_triangles(n, (0..n).map(tri)), StlKind::Binary));
             }
         }
         let text = std::str::from_utf8(bytes).map_err(|_| {
@@ -127,7 +135,12 @@ impl TriMesh {
                  ASCII STL (does not start with 'solid')",
             ));
         }
-        let mut soup = Vec::new();
+        // Counted first, so the soup is allocated once at its size (no doubling).
+        let facets = text
+            .lines()
+            .filter(|l| l.split_whitespace().next() == Some("endloop"))
+            .count();
+        let mut soup = Vec::with_capacity(facets);
         let mut cur: Vec<P3> = Vec::with_capacity(3);
         let mut in_loop = false;
         for (ln, line) in text.lines().enumerate() {
@@ -168,6 +181,9 @@ impl TriMesh {
                                 cur.len()
                             ),
                         ));
+                    }
+                    if soup.len() == soup.capacity() {
+                        return Err(parse_err(path, "more facets than counted"));
                     }
                     soup.push([cur[0], cur[1], cur[2]]);
                     in_loop = false;
@@ -280,51 +296,110 @@ impl TriMesh {
     /// Parses OBJ: `v` and `f` lines (other statements ignored); `f a/b/c ...` polygons are
     /// fan-triangulated, negative indices count back from the latest vertex.
     pub fn parse_obj(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshError> {
-        let text = String::from_utf8_lossy(bytes);
-        let mut m = TriMesh::default();
-        for (ln, line) in text.lines().enumerate() {
-            let mut tok = line.split_whitespace();
-            let bad =
-                |what: &str| parse_err(path, format!("line {}: {what}: {:?}", ln + 1, line.trim()));
-            match tok.next() {
-                Some("v") => {
-                    let c: Vec<f64> = tok
-                        .take(3)
-                        .map(|s| s.parse::<f64>())
-                        .collect::<Result<_, _>>()
-                        .map_err(|_| bad("bad vertex coordinate"))?;
-                    if c.len() != 3 || !c.iter().all(|x| x.is_finite()) {
-                        return Err(bad("a vertex needs three finite coordinates"));
-                    }
-                    m.vertices.push(P3::new(c[0], c[1], c[2]));
-                }
-                Some("f") => {
-                    let n = m.vertices.len() as i64;
-                    let idx: Vec<u32> = tok
-                        .map(|t| {
-                            let k: i64 = t
-                                .split('/')
-                                .next()
-                                .unwrap_or("")
-                                .parse()
-                                .map_err(|_| bad("bad face index"))?;
-                            let i = if k > 0 { k - 1 } else { n + k };
-                            if k == 0 || i < 0 || i >= n {
-                                return Err(bad(&format!(
-                                    "face index {k} with {n} vertices so far"
-                                )));
-                            }
-                            Ok(i as u32)
-                        })
-                        .collect::<Result<_, _>>()?;
-                    if idx.len() < 3 {
-                        return Err(bad("a face needs at least three vertices"));
-                    }
-                    for k in 1..idx.len() - 1 {
-                        m.triangles.push([idx[0], idx[k], idx[k + 1]]);
-                    }
+        // Lines other than `v` and `f` are skipped unread (a material name need not be
+        // UTF-8), so the text is taken a line at a time, never copied whole.
+        let lines = || bytes.split(|&b| b == b'\n');
+        let word = |l: &[u8]| -> Option<u8> {
+            let mut t = l
+                .split(|b| b.is_ascii_whitespace())
+                .filter(|t| !t.is_empty());
+            match t.next()? {
+                b"v" => Some(b'v'),
+                b"f" => Some(b'f'),
+                _ => None,
+            }
+        };
+        // A first pass counts what the second stores, so both lists are allocated once at
+        // their size (no doubling): at most 3 and 4 bytes held per byte of `v` and `f`
+        // lines.
+        let (mut nv, mut nt) = (0usize, 0usize);
+        for l in lines() {
+            match word(l) {
+                Some(b'v') => nv += 1,
+                Some(b'f') => {
+                    let corners = l
+                        .split(|b| b.is_ascii_whitespace())
+                        .filter(|t| !t.is_empty())
+                        .count()
+                        - 1;
+                    // A face of distinct corners spends at least 3 bytes on each beyond its
+                    // first nine (one-digit indices): never reserve more triangles than that
+                    // (a line repeating `1` is refused below).
+                    nt += corners
+                        .min(ply::MAX_CORNERS)
+                        .saturating_sub(2)
+                        .min((l.len() + 8) / 3);
                 }
                 _ => {}
+            }
+        }
+        let mut m = TriMesh::default();
+        m.vertices.reserve_exact(nv);
+        m.triangles.reserve_exact(nt);
+        for (ln, raw) in lines().enumerate() {
+            let Some(w) = word(raw) else { continue };
+            let bad = |what: &str| {
+                parse_err(
+                    path,
+                    format!(
+                        "line {}: {what}: {:?}",
+                        ln + 1,
+                        String::from_utf8_lossy(&raw[..raw.len().min(120)]).trim()
+                    ),
+                )
+            };
+            let line = std::str::from_utf8(raw).map_err(|_| bad("not UTF-8 text"))?;
+            let mut tok = line.split_whitespace();
+            tok.next();
+            if w == b'v' {
+                let mut c = [0.0; 3];
+                for x in c.iter_mut() {
+                    *x = tok
+                        .next()
+                        .ok_or_else(|| bad("a vertex needs three finite coordinates"))?
+                        .parse::<f64>()
+                        .map_err(|_| bad("bad vertex coordinate"))?;
+                }
+                if !c.iter().all(|x| x.is_finite()) {
+                    return Err(bad("a vertex needs three finite coordinates"));
+                }
+                m.vertices.push(P3::new(c[0], c[1], c[2]));
+                continue;
+            }
+            let n = m.vertices.len() as i64;
+            let mut idx = [0u32; ply::MAX_CORNERS];
+            let mut k = 0;
+            for t in tok {
+                if k == ply::MAX_CORNERS {
+                    return Err(bad(&format!(
+                        "a face of more than {} corners",
+                        ply::MAX_CORNERS
+                    )));
+                }
+                let v: i64 = t
+                    .split('/')
+                    .next()
+                    .unwrap_or("")
+                    .parse()
+                    .map_err(|_| bad("bad face index"))?;
+                let i = if v > 0 { v - 1 } else { n + v };
+                if v == 0 || i < 0 || i >= n {
+                    return Err(bad(&format!("face index {v} with {n} vertices so far")));
+                }
+                idx[k] = i as u32;
+                k += 1;
+            }
+            if k < 3 {
+                return Err(bad("a face needs at least three vertices"));
+            }
+            if (1..k).any(|a| idx[..a].contains(&idx[a])) {
+                return Err(bad("a face visits one vertex twice"));
+            }
+            if m.triangles.len() + k - 2 > m.triangles.capacity() {
+                return Err(bad("more triangles than the faces' text allows"));
+            }
+            for j in 1..k - 1 {
+                m.triangles.push([idx[0], idx[j], idx[j + 1]]);
             }
         }
         Ok(m)
@@ -531,9 +606,55 @@ mod ply {
             tokens: text.split_ascii_whitespace(),
         };
         let mut m = TriMesh::default();
+        // Allocation follows the body's size, whatever the header says: a triangle (12
+        // bytes held) per 5 body bytes at most, which every real mesh meets (a triangle of
+        // int indices takes 13 bytes, and its vertices take more), and vertices only as
+        // many as the body can hold.
+        let max_triangles = rest.len() / 5 + 64;
         for e in &elems {
             let pos_of = |n: &str| e.props.iter().position(|p| p.name == n && p.list.is_none());
             let xyz = [pos_of("x"), pos_of("y"), pos_of("z")];
+            if e.name == "vertex" {
+                if let Some(p) = xyz
+                    .iter()
+                    .flatten()
+                    .map(|&i| &e.props[i])
+                    .find(|p| p.ty.size() < 2)
+                {
+                    return Err(parse_err(
+                        path,
+                        format!(
+                            "PLY vertex property {} is 8-bit: 256 steps cannot describe a foot \
+                             or a last (use float)",
+                            p.name
+                        ),
+                    ));
+                }
+                // The least a vertex takes: each property's size (binary), or a digit and a
+                // separator (ASCII).
+                let least: usize = e
+                    .props
+                    .iter()
+                    .map(|p| match (enc, p.list) {
+                        (Enc::Ascii, _) => 2,
+                        (_, Some(ct)) => ct.size(),
+                        (_, None) => p.ty.size(),
+                    })
+                    .sum::<usize>()
+                    .max(1);
+                let room = rest.len().saturating_sub(body.pos) / least;
+                if e.count > room {
+                    return Err(parse_err(
+                        path,
+                        format!(
+                            "PLY header says {} vertices; the {}-byte body holds at most {room}",
+                            e.count,
+                            rest.len()
+                        ),
+                    ));
+                }
+                m.vertices.reserve_exact(e.count);
+            }
             let face_list = e.props.iter().position(|p| {
                 p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index")
             });
@@ -548,34 +669,60 @@ mod ply {
                 for (pi, p) in e.props.iter().enumerate() {
                     if let Some(ct) = p.list {
                         let n = body.value(ct).ok_or_else(short)?;
-                        let mut idx = Vec::with_capacity(n as usize);
-                        for _ in 0..n as usize {
-                            idx.push(body.value(p.ty).ok_or_else(short)?);
+                        // Each entry takes at least one byte of what is left: a count beyond
+                        // that (4294967295, 1e300) is refused before anything is reserved.
+                        let left = rest.len().saturating_sub(body.pos);
+                        if !(n >= 0.0 && n.fract() == 0.0 && n <= left as f64) {
+                            return Err(parse_err(
+                                path,
+                                format!(
+                                    "PLY {} {k}: a list of {n} entries, but {left} bytes are left",
+                                    e.name
+                                ),
+                            ));
                         }
-                        if e.name == "face" && Some(pi) == face_list {
-                            if idx.len() < 3 {
+                        let n = n as usize;
+                        let is_face = e.name == "face" && Some(pi) == face_list;
+                        if !is_face {
+                            // Another list (texture coordinates, ...): read past it.
+                            for _ in 0..n {
+                                body.value(p.ty).ok_or_else(short)?;
+                            }
+                            continue;
+                        }
+                        if !(3..=MAX_CORNERS).contains(&n) {
+                            return Err(parse_err(
+                                path,
+                                format!(
+                                    "PLY face {k} has {n} vertices; a face has 3 to {MAX_CORNERS}"
+                                ),
+                            ));
+                        }
+                        let nv = e_vertex_count(&elems);
+                        let mut ids = [0u32; MAX_CORNERS];
+                        for id in ids.iter_mut().take(n) {
+                            let i = body.value(p.ty).ok_or_else(short)?;
+                            if i < 0.0 || i >= nv as f64 || i.fract() != 0.0 {
                                 return Err(parse_err(
                                     path,
-                                    format!("PLY face {k} has {} vertices", idx.len()),
+                                    format!("PLY face {k} refers to vertex {i} of {nv}"),
                                 ));
                             }
-                            let nv = e_vertex_count(&elems);
-                            let ids: Vec<u32> = idx
-                                .iter()
-                                .map(|&i| {
-                                    if i < 0.0 || i >= nv as f64 || i.fract() != 0.0 {
-                                        Err(parse_err(
-                                            path,
-                                            format!("PLY face {k} refers to vertex {i} of {nv}"),
-                                        ))
-                                    } else {
-                                        Ok(i as u32)
-                                    }
-                                })
-                                .collect::<Result<_, _>>()?;
-                            for j in 1..ids.len() - 1 {
-                                m.triangles.push([ids[0], ids[j], ids[j + 1]]);
-                            }
+                            *id = i as u32;
+                        }
+                        if m.triangles.len() + n - 2 > max_triangles {
+                            return Err(parse_err(
+                                path,
+                                format!(
+                                    "PLY faces make more than {max_triangles} triangles from a \
+                                     {}-byte body: more than a mesh of that size holds",
+                                    rest.len()
+                                ),
+                            ));
+                        }
+                        grow_capped(&mut m.triangles, n - 2, max_triangles);
+                        for j in 1..n - 1 {
+                            m.triangles.push([ids[0], ids[j], ids[j + 1]]);
                         }
                     } else {
                         let v = body.value(p.ty).ok_or_else(short)?;
@@ -596,6 +743,19 @@ mod ply {
             }
         }
         Ok(m)
+    }
+
+    /// Corners of one face, at most: a fan of more is not a mesh of a foot or a last.
+    pub(super) const MAX_CORNERS: usize = 256;
+
+    /// Room for `more` items in `v`, doubling its capacity as `push` would but never past
+    /// `cap` (what the input's size allows).
+    pub(super) fn grow_capped<T>(v: &mut Vec<T>, more: usize, cap: usize) {
+        let need = v.len() + more;
+        if need > v.capacity() {
+            let want = (v.capacity() * 2).max(need).max(64).min(cap.max(need));
+            v.reserve_exact(want - v.len());
+        }
     }
 
     fn e_vertex_count(elems: &[Element]) -> usize {

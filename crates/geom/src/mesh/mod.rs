@@ -55,11 +55,16 @@ impl TriMesh {
     /// A mesh from triangle soup (three corners per triangle), corners at bit-identical
     /// positions merged (+0 and -0 are the same position).
     pub fn from_soup(corners: &[[P3; 3]]) -> TriMesh {
+        Self::from_triangles(corners.len(), corners.iter().copied())
+    }
+
+    /// [`TriMesh::from_soup`] from `n` triangles given one at a time, so a reader need not
+    /// hold them all as a soup beside the mesh it builds.
+    pub fn from_triangles(n: usize, corners: impl Iterator<Item = [P3; 3]>) -> TriMesh {
         let mut map: std::collections::HashMap<[u64; 3], u32> =
-            std::collections::HashMap::with_capacity(corners.len() * 2);
-        let mut vertices = Vec::with_capacity(corners.len() / 2 + 3);
+            std::collections::HashMap::with_capacity(n * 2);
+        let mut vertices = Vec::with_capacity(n / 2 + 3);
         let triangles = corners
-            .iter()
             .map(|tri| {
                 tri.map(|p| {
                     let key = [p.x, p.y, p.z].map(|c| (c + 0.0).to_bits());

@@ -157,7 +157,11 @@ async function calAnswer(what) {
   // One answer per shown step: the buttons stay off until the job shows the next one.
   for (const id of ['cal-confirm', 'cal-repeat']) $(id).disabled = true;
   try {
-    await api('POST', `/api/calibrations/${encodeURIComponent(calJob.id)}/${what}`);
+    // The step this answer is for: the daemon refuses it (409) if the job has moved on.
+    const seen = { phase: calJob.phase, attempt: calJob.attempt };
+    if (calJob.step) seen.step = calJob.step.index;
+    const body = what === 'abort' ? {} : seen;
+    await api('POST', `/api/calibrations/${encodeURIComponent(calJob.id)}/${what}`, body);
   } catch (e) {
     showError(e);
   }

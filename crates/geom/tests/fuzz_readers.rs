@@ -1,0 +1,328 @@
+//! Fuzzing of the mesh readers (STL ASCII and binary, OBJ, PLY ascii and binary) on stable
+//! Rust: proptest feeds them arbitrary bytes and mutations of valid files, and a counting
+//! global allocator measures the most each call holds at once.
+//! Every reader must return (Ok or a clear error, never a panic) and hold at most
+//! [`RATIO`] x its input size plus [`FIXED`] bytes, whatever the bytes.
+//!
+//! The normal test run tries a bounded number of cases (a few seconds); a longer run:
+//!
+//! ```text
+//! FOOTSCAN_FUZZ_CASES=200000 cargo test -p footscan-geom --release --test fuzz_readers
+//! ```
+//!
+//! Inputs that failed are kept as regression cases (`regressions` below and proptest's
+//! `fuzz_readers.proptest-regressions`).
+
+use footscan_geom::mesh::TriMesh;
+use proptest::prelude::*;
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::path::Path;
+
+/// Bytes held per byte of input, at most.
+const RATIO: usize = 4;
+/// Bytes held whatever the input (error messages, the header's elements, small buffers).
+const FIXED: usize = 64 * 1024;
+
+/// Counts the bytes each thread holds, and the most it held since the last reset.
+struct Counting;
+
+thread_local! {
+    static HELD: Cell<usize> = const { Cell::new(0) };
+    static PEAK: Cell<usize> = const { Cell::new(0) };
+}
+
+fn note(add: usize, sub: usize) {
+    let _ = HELD.try_with(|h| {
+        let now = h.get().wrapping_add(add).wrapping_sub(sub);
+        h.set(now);
+        let _ = PEAK.try_with(|p| {
+            if now > p.get() && now < usize::MAX / 2 {
+                p.set(now)
+            }
+        });
+    });
+}
+
+// SAFETY: every call forwards to the system allocator; the counting touches only
+// const-initialised thread locals, which do not allocate.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        let p = unsafe { System.alloc(l) };
+        if !p.is_null() {
+            note(l.size(), 0);
+        }
+        p
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) };
+        note(0, l.size());
+    }
+    unsafe fn alloc_zeroed(&self, l: Layout) -> *mut u8 {
+        let p = unsafe { System.alloc_zeroed(l) };
+        if !p.is_null() {
+            note(l.size(), 0);
+        }
+        p
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
+        let q = unsafe { System.realloc(p, l, new) };
+        if !q.is_null() {
+            // Old and new blocks may both exist during the move.
+            note(new, 0);
+            note(0, l.size());
+        }
+        q
+    }
+}
+
+#[global_allocator]
+static A: Counting = Counting;
+
+/// The most `f` held at once beyond what the thread held before, and whether it panicked.
+fn peak_of(f: impl FnOnce()) -> (usize, bool) {
+    let base = HELD.with(Cell::get);
+    PEAK.with(|p| p.set(base));
+    let panicked = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).is_err();
+    (PEAK.with(Cell::get).saturating_sub(base), panicked)
+}
+
+type Reader = fn(&[u8]);
+
+fn readers() -> [(&'static str, Reader); 3] {
+    [
+        ("stl", |b| {
+            drop(TriMesh::parse_stl(b, Path::new("fuzz.stl")))
+        }),
+        ("obj", |b| {
+            drop(TriMesh::parse_obj(b, Path::new("fuzz.obj")))
+        }),
+        ("ply", |b| {
+            drop(TriMesh::parse_ply(b, Path::new("fuzz.ply")))
+        }),
+    ]
+}
+
+/// Run every reader on `bytes`: none panics, none holds more than the bound.
+fn check(bytes: &[u8]) -> Result<(), String> {
+    for (name, read) in readers() {
+        let (peak, panicked) = peak_of(|| read(bytes));
+        if panicked {
+            return Err(format!("{name} reader panicked on {} bytes", bytes.len()));
+        }
+        let bound = RATIO * bytes.len() + FIXED;
+        if peak > bound {
+            return Err(format!(
+                "{name} reader held {peak} bytes for {} bytes of input (bound {bound})",
+                bytes.len()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Valid files of each format, to mutate.
+fn seeds() -> Vec<Vec<u8>> {
+    let m = TriMesh::cuboid(
+        footscan_geom::P3::new(0.0, 0.0, 0.0),
+        footscan_geom::P3::new(1.0, 2.0, 3.0),
+    );
+    vec![
+        m.to_stl_binary(),
+        m.to_stl_ascii("seed").into_bytes(),
+        m.to_obj().into_bytes(),
+        m.to_ply(false),
+        m.to_ply(true),
+    ]
+}
+
+/// A seed with some bytes replaced, inserted or cut.
+fn mutated() -> impl Strategy<Value = Vec<u8>> {
+    let edits = prop::collection::vec((0usize..1 << 16, any::<u8>(), 0u8..4), 1..12);
+    (0..seeds().len(), edits).prop_map(|(i, edits)| {
+        let mut b = seeds()[i].clone();
+        for (at, byte, kind) in edits {
+            if b.is_empty() {
+                b.push(byte);
+                continue;
+            }
+            let at = at % b.len();
+            match kind {
+                0 => b[at] = byte,
+                1 => b.insert(at, byte),
+                2 => b.truncate(at),
+                _ => {
+                    // A digit run: counts and indices far from the real ones.
+                    let digits = format!("{}", (byte as u64).pow(5) * 7919);
+                    for (k, d) in digits.bytes().enumerate() {
+                        b.insert((at + k).min(b.len()), d);
+                    }
+                }
+            }
+        }
+        b
+    })
+}
+
+/// Text made of the formats' own words and numbers, in any order.
+fn wordy() -> impl Strategy<Value = Vec<u8>> {
+    let word = prop_oneof![
+        Just("solid".to_string()),
+        Just("facet normal 0 0 1".into()),
+        Just("outer loop".into()),
+        Just("vertex".into()),
+        Just("endloop".into()),
+        Just("endfacet".into()),
+        Just("v".into()),
+        Just("f".into()),
+        Just("ply".into()),
+        Just("format ascii 1.0".into()),
+        Just("format binary_little_endian 1.0".into()),
+        Just("element vertex".into()),
+        Just("element face".into()),
+        Just("property float x".into()),
+        Just("property float y".into()),
+        Just("property float z".into()),
+        Just("property list uchar int vertex_indices".into()),
+        Just("property list uint uint vertex_indices".into()),
+        Just("property list double double vertex_indices".into()),
+        Just("end_header".into()),
+        Just("\n".into()),
+        (-5i64..5).prop_map(|n| n.to_string()),
+        any::<u32>().prop_map(|n| n.to_string()),
+        Just("1e300".into()),
+        Just("4294967295".into()),
+        Just("-1".into()),
+        Just("nan".into()),
+        any::<f32>().prop_map(|x| x.to_string()),
+    ];
+    prop::collection::vec(word, 0..200).prop_map(|w| w.join(" ").into_bytes())
+}
+
+fn cases() -> u32 {
+    std::env::var("FOOTSCAN_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1500)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: cases(), ..ProptestConfig::default() })]
+
+    #[test]
+    fn arbitrary_bytes(b in prop::collection::vec(any::<u8>(), 0..2048)) {
+        check(&b).map_err(TestCaseError::fail)?;
+    }
+
+    #[test]
+    fn mutated_files(b in mutated()) {
+        check(&b).map_err(TestCaseError::fail)?;
+    }
+
+    #[test]
+    fn format_words(b in wordy()) {
+        check(&b).map_err(TestCaseError::fail)?;
+    }
+}
+
+/// Inputs the fuzzing found, kept.
+#[test]
+fn regressions() {
+    let cases: &[&[u8]] = &[
+        // A list count of 1e300 in an ASCII PLY: `Vec::with_capacity(1e300 as usize)`.
+        b"ply\nformat ascii 1.0\nelement face 1\nproperty list double int vertex_indices\nend_header\n1e300 0 1 2\n",
+        // A list count of 4294967295 with no body behind it.
+        b"ply\nformat binary_little_endian 1.0\nelement face 1\nproperty list uint uint vertex_indices\nend_header\n\xff\xff\xff\xff",
+    ];
+    for c in cases {
+        check(c).unwrap();
+    }
+}
+
+/// The densest inputs each format allows: the most a reader holds per input byte, printed
+/// (docs/method.md, issue 37), and checked against the bound.
+#[test]
+fn densest_inputs_stay_within_the_bound() {
+    let n = 20_000;
+    let mut obj_fan = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1".to_vec();
+    for _ in 0..n {
+        obj_fan.extend_from_slice(b" 1");
+    }
+    // Nine distinct one-digit corners: the densest a face of distinct corners can be.
+    let mut obj_nine = Vec::new();
+    for _ in 0..9 {
+        obj_nine.extend_from_slice(b"v 0 0 0\n");
+    }
+    for _ in 0..n / 10 {
+        obj_nine.extend_from_slice(b"f 1 2 3 4 5 6 7 8 9\n");
+    }
+    let mut obj_vertices = Vec::new();
+    for _ in 0..n {
+        obj_vertices.extend_from_slice(b"v 0 0 0\n");
+    }
+    let mut ply_uchar = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {n}\nproperty uchar x\n\
+         property uchar y\nproperty uchar z\nend_header\n"
+    )
+    .into_bytes();
+    ply_uchar.extend(std::iter::repeat_n(7u8, 3 * n));
+    let mut ply_faces = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\n\
+        property short x\nproperty short y\nproperty short z\nelement face 1\n\
+        property list ushort uchar vertex_indices\nend_header\n"
+        .to_vec();
+    ply_faces.extend([0u8; 18]);
+    ply_faces.extend(u16::MAX.to_le_bytes());
+    ply_faces.extend(std::iter::repeat_n(0u8, u16::MAX as usize));
+    let mut stl_ascii = b"solid s\n".to_vec();
+    for _ in 0..n / 10 {
+        stl_ascii
+            .extend_from_slice(b"outer loop\nvertex 0 0 0\nvertex 0 0 0\nvertex 0 0 0\nendloop\n");
+    }
+    let m = TriMesh::cuboid(
+        footscan_geom::P3::new(0.0, 0.0, 0.0),
+        footscan_geom::P3::new(1.0, 1.0, 1.0),
+    );
+    let mut stl_binary = m.to_stl_binary();
+    for _ in 0..n / 12 {
+        stl_binary.extend_from_within(84..84 + 50 * 12);
+    }
+    let count = ((stl_binary.len() - 84) / 50) as u32;
+    stl_binary[80..84].copy_from_slice(&count.to_le_bytes());
+    let mut worst = Vec::new();
+    for (name, bytes, read) in [
+        ("OBJ fan", &obj_fan, readers()[1].1),
+        ("OBJ nine-corner faces", &obj_nine, readers()[1].1),
+        ("OBJ vertices", &obj_vertices, readers()[1].1),
+        ("PLY uchar vertices", &ply_uchar, readers()[2].1),
+        ("PLY one long face", &ply_faces, readers()[2].1),
+        ("STL ASCII", &stl_ascii, readers()[0].1),
+        ("STL binary", &stl_binary, readers()[0].1),
+    ] {
+        let (peak, panicked) = peak_of(|| read(bytes));
+        assert!(!panicked, "{name}");
+        let ratio = peak as f64 / bytes.len() as f64;
+        worst.push(format!(
+            "{name}: {peak} bytes for {} ({ratio:.2}x)",
+            bytes.len()
+        ));
+    }
+    println!("{}", worst.join("\n"));
+    for (name, bytes) in [
+        ("OBJ fan", &obj_fan),
+        ("OBJ vertices", &obj_vertices),
+        ("PLY uchar vertices", &ply_uchar),
+        ("PLY one long face", &ply_faces),
+        ("STL ASCII", &stl_ascii),
+        ("STL binary", &stl_binary),
+    ] {
+        check(bytes).map_err(|e| format!("{name}: {e}")).unwrap();
+    }
+}
+
+/// The seeds themselves read, and within the bound: the bound is not one only errors meet.
+#[test]
+fn valid_files_read_within_the_bound() {
+    for s in seeds() {
+        check(&s).unwrap();
+    }
+}
