@@ -326,7 +326,7 @@ pub fn segment_distance(q: &P2, a: &P2, b: &P2) -> f64 {
 /// lowest-then-leftmost point, collinear points dropped.
 pub fn convex_hull(points: &[P2]) -> Polygon {
     let mut p: Vec<P2> = points.to_vec();
-    p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    p.sort_unstable_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     p.dedup();
     if p.len() < 3 {
         return Polygon::new(p);

@@ -430,7 +430,20 @@ fn clinic_rows(
                         .rules
                         .iter()
                         .filter(|x| x.applies)
-                        .map(|x| format!("{} {:+.3}", x.rule, x.error_mm))
+                        .map(|x| {
+                            // The solve's error, and apart from it what the build-up for
+                            // the footprint grew.
+                            if x.built_up_mm != 0.0 {
+                                format!(
+                                    "{} {:+.3} (built up {:+.1})",
+                                    x.rule,
+                                    x.error_mm - x.built_up_mm,
+                                    x.built_up_mm
+                                )
+                            } else {
+                                format!("{} {:+.3}", x.rule, x.error_mm)
+                            }
+                        })
                         .collect();
                     let na: Vec<&str> = c
                         .rules
