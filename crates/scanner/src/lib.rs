@@ -1,10 +1,10 @@
 //! footscan: a laser-line foot scanner and last-design toolkit.
 //!
-//! The library holds the scanner's logic; the binary `footscan` (command line) and the daemon
-//! (crate `footscand`) are thin shells over it. Hardware is reached only through `footscan-hal`, so the
-//! simulator (`footscan-sim`) is one more backend behind the same traits.
+//! The library (package `footscan-scanner`, imported as `footscan`) holds the scanner's logic;
+//! the CLI `footscan` (the workspace's root package) and the daemon (crate `footscand`) are thin
+//! shells over it. Hardware is reached only through `footscan-hal`, so the simulator
+//! (`footscan-sim`) is one more backend behind the same traits.
 
-pub mod bench;
 pub mod cad;
 pub mod calib;
 pub mod detect;
@@ -18,7 +18,9 @@ pub mod scan;
 pub mod scandata;
 pub mod startup;
 pub mod surface;
-pub mod util;
 
 /// The generic pipeline runtime (crate `footscan-pipeline`).
 pub use footscan_pipeline as pipeline;
+
+/// The general helpers (crate `footscan-util`), for callers written before it was a crate.
+pub use footscan_util as util;

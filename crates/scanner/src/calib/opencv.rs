@@ -348,7 +348,7 @@ pub fn calibrate(
     residuals.insert("fx_over_fy".to_string(), fx / fy);
     Ok(Calibration {
         method: "opencv".into(),
-        date: crate::util::now_rfc3339(),
+        date: footscan_util::now_rfc3339(),
         model,
         stddev,
         residuals,

@@ -70,7 +70,7 @@ pub fn from_insystem(
     let fit = fit_insystem(data, &InsystemOptions::default())?;
     let mut calibration = Calibration {
         method: Method::Insystem.name().into(),
-        date: crate::util::now_rfc3339(),
+        date: footscan_util::now_rfc3339(),
         model: fit.model.clone(),
         stddev: fit.stddev.clone(),
         residuals: fit.residuals.clone(),

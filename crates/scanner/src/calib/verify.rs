@@ -155,7 +155,7 @@ pub fn check(
         ));
     }
     CheckReport {
-        date: crate::util::now_rfc3339(),
+        date: footscan_util::now_rfc3339(),
         calibration: format!("{} of {}", cal.method, cal.date),
         tolerance_mm,
         width_tolerance_mm,

@@ -190,7 +190,7 @@ pub fn true_calibration(cfg: &ScanConfig) -> Calibration {
     let o: &Optics = &cfg.sim.optics;
     Calibration {
         method: "simulator-truth".into(),
-        date: crate::util::now_rfc3339(),
+        date: footscan_util::now_rfc3339(),
         model: CameraModel {
             width: o.width,
             height: o.height,
