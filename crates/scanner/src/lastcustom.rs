@@ -5,6 +5,7 @@
 //! --scan` and footscand's last job share it, so both read a scan the same way.
 
 use crate::measure::Measurements;
+use crate::scandata::{ScanDir, ScanDirError};
 use footscan_geom::mesh::{TriMesh, Units};
 use footscan_last::customize::clinic::{customize_stock, Plantar, TapeGirths};
 use footscan_last::customize::measure::Side;
@@ -79,23 +80,22 @@ pub fn plantar_of(m: &Measurements) -> Plantar {
 
 /// The plantar figures of a scan directory's measurements.json.
 pub fn plantar_of_scan(dir: &Path) -> Result<Plantar, ClinicLastError> {
-    let p = dir.join("measurements.json");
-    let text = match std::fs::read_to_string(&p) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            return Err(ClinicLastError::NoMeasurements { dir: dir.into() })
-        }
-        Err(e) => {
+    let m = match ScanDir::new(dir).load_measurements() {
+        Ok(Some(m)) => m,
+        Ok(None) => return Err(ClinicLastError::NoMeasurements { dir: dir.into() }),
+        Err(ScanDirError::Read { path, source }) => {
             return Err(ClinicLastError::Input {
-                path: p,
-                why: e.to_string(),
+                path,
+                why: source.to_string(),
+            })
+        }
+        Err(ScanDirError::Parse { path, source, .. }) => {
+            return Err(ClinicLastError::Input {
+                path,
+                why: format!("not the measurements of a scan: {source}"),
             })
         }
     };
-    let m: Measurements = serde_json::from_str(&text).map_err(|e| ClinicLastError::Input {
-        path: p.clone(),
-        why: format!("not the measurements of a scan: {e}"),
-    })?;
     Ok(plantar_of(&m))
 }
 

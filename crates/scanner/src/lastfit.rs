@@ -11,7 +11,7 @@
 
 use crate::geom::HeightMap;
 use crate::measure::{rasterize_grid, MeasureError, Measurements, Side};
-use crate::scandata::ScanGrid;
+use crate::scandata::{ScanDir, ScanDirError, ScanGrid};
 use footscan_last::adjust::last::{
     deform_last, prepare_last, scanned_bottom, DeformReport, LastOptions, PreparedLast,
 };
@@ -96,24 +96,27 @@ pub fn foot_from_scan_dir(dir: &Path, cell_mm: f64) -> Result<FootPlantar, LastF
         what: what.to_string(),
         why,
     };
-    let mpath = dir.join("measurements.json");
-    let text = match std::fs::read(&mpath) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+    let scan = ScanDir::new(dir);
+    let m = match scan.load_measurements() {
+        Ok(Some(m)) => m,
+        Ok(None) => {
             return Err(LastFitError::NoMeasurements {
                 dir: dir.to_path_buf(),
             })
         }
-        Err(e) => return Err(scan_err("measurements.json", e.to_string())),
+        Err(ScanDirError::Read { source, .. }) => {
+            return Err(scan_err(ScanDir::MEASUREMENTS, source.to_string()))
+        }
+        Err(ScanDirError::Parse { source, .. }) => {
+            return Err(scan_err(
+                ScanDir::MEASUREMENTS,
+                format!("not the scanner's measurements ({source})"),
+            ))
+        }
     };
-    let m: Measurements = serde_json::from_slice(&text).map_err(|e| {
-        scan_err(
-            "measurements.json",
-            format!("not the scanner's measurements ({e})"),
-        )
-    })?;
-    let gpath = dir.join("grid.bin");
-    let grid = ScanGrid::load(&gpath).map_err(|e| scan_err("grid.bin", e.to_string()))?;
+    let grid = scan
+        .load_grid()
+        .map_err(|e| scan_err(ScanDir::GRID, e.to_string()))?;
     Ok(foot_plantar(
         &dir.display().to_string(),
         &grid,
@@ -170,12 +173,16 @@ impl LastSource {
     /// A directory is a scan of a last bottom (its grid.bin), anything else a mesh file.
     pub fn load(path: &Path, opts: &LastOptions, cell_mm: f64) -> Result<Self, LastFitError> {
         if path.is_dir() {
-            let gpath = path.join("grid.bin");
-            let grid = ScanGrid::load(&gpath).map_err(|e| LastFitError::Scan {
-                dir: path.to_path_buf(),
-                what: "grid.bin (a last scan directory needs its scan grid)".into(),
-                why: e.to_string(),
-            })?;
+            let grid = ScanDir::new(path)
+                .load_grid()
+                .map_err(|e| LastFitError::Scan {
+                    dir: path.to_path_buf(),
+                    what: format!(
+                        "{} (a last scan directory needs its scan grid)",
+                        ScanDir::GRID
+                    ),
+                    why: e.to_string(),
+                })?;
             let map = rasterize_grid(&grid, cell_mm)?;
             let below = height_grid(map);
             let source = format!("last scan {}", path.display());

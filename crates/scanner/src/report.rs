@@ -7,6 +7,7 @@
 //! length on the page is `mm * 72 / 25.4`, so the scale does not depend on a renderer's DPI.
 //! Text uses the standard Helvetica font (no font file embedded).
 
+use crate::scandata::ScanDir;
 use anyhow::{bail, Context, Result};
 use pdf_writer::{Content, Finish, Name, Pdf, Rect, Ref, Str};
 use serde_json::Value;
@@ -66,19 +67,10 @@ impl ReportInput {
     /// Read `dir`'s measurements.json (required: the report is about a measured foot),
     /// scan.json and record.json (optional).
     pub fn from_scan_dir(dir: &Path) -> Result<ReportInput> {
-        let read = |name: &str| -> Result<Option<Value>> {
-            let p = dir.join(name);
-            match std::fs::read(&p) {
-                Ok(b) => {
-                    Ok(Some(serde_json::from_slice(&b).with_context(|| {
-                        format!("{}: not valid JSON", p.display())
-                    })?))
-                }
-                Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-                Err(e) => Err(e).with_context(|| format!("reading {}", p.display())),
-            }
-        };
-        let Some(measurements) = read("measurements.json")? else {
+        let scan = ScanDir::new(dir);
+        let read =
+            |name: &str| -> Result<Option<Value>> { Ok(scan.load_json(name, "valid JSON")?) };
+        let Some(measurements) = read(ScanDir::MEASUREMENTS)? else {
             bail!(
                 "{}: no measurements.json: the report needs a scan whose foot was measured \
                  (a scan directory written by `footscan scan` or footscand with measure.foot)",
@@ -92,8 +84,8 @@ impl ReportInput {
         Ok(ReportInput {
             title,
             measurements,
-            summary: read("scan.json")?.unwrap_or(Value::Null),
-            record: read("record.json")?.unwrap_or(Value::Null),
+            summary: read(ScanDir::SUMMARY)?.unwrap_or(Value::Null),
+            record: read(ScanDir::RECORD)?.unwrap_or(Value::Null),
         })
     }
 }

@@ -24,6 +24,7 @@ pub use outbox::{OutboxCounts, OutboxEntry};
 pub use record::{ArchiveError, NewScan, Record, ScanEnd, Status};
 pub use visits::{ClinicZone, Visit, VisitError};
 
+use footscan::scandata::ScanDir;
 use index::Index;
 use serde::Serialize;
 use std::collections::HashMap;
@@ -37,7 +38,7 @@ use std::time::{Duration, Instant};
 const RESERVE_BYTES: usize = 256 * 1024;
 const RESERVE: &str = ".reserve";
 const TMP_PREFIX: &str = ".tmp-";
-pub const RECORD: &str = "record.json";
+pub const RECORD: &str = ScanDir::RECORD;
 pub const INDEX: &str = "index.sqlite";
 /// The lock file: held (flock, exclusive) by the one process writing into the archive, and
 /// naming it (`pid <n> <program>`) for whoever finds it taken.
@@ -631,7 +632,7 @@ struct Summary {
 
 fn read_summary(dir: &Path) -> Option<Summary> {
     let v: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("scan.json")).ok()?).ok()?;
+        serde_json::from_slice(&std::fs::read(ScanDir::new(dir).summary_path()).ok()?).ok()?;
     Some(Summary {
         status: v["status"].as_str().unwrap_or("?").to_string(),
         reason: v["reason"].as_str().map(str::to_string),

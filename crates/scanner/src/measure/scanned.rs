@@ -10,7 +10,7 @@ use super::{
 };
 use crate::geom::HeightMap;
 use crate::io::render_plantar;
-use crate::scandata::ScanGrid;
+use crate::scandata::{ScanDir, ScanDirError, ScanGrid};
 use crate::surface::BezierNetwork;
 use std::path::{Path, PathBuf};
 
@@ -97,8 +97,9 @@ pub fn measure_scan_dir(
     cell_mm: f64,
     use_model: bool,
 ) -> Result<MeasureOutput, MeasureError> {
-    let grid_path = dir.join("grid.bin");
-    let grid = ScanGrid::load(&grid_path).map_err(|source| MeasureError::Io {
+    let scan = ScanDir::new(dir);
+    let grid_path = scan.grid_path();
+    let grid = scan.load_grid().map_err(|source| MeasureError::Io {
         path: grid_path.clone(),
         source,
     })?;
@@ -110,10 +111,10 @@ pub fn measure_scan_dir(
         None
     };
     let (map, m) = measure_grid(&grid, model.as_ref(), cell_mm)?;
-    let json = json.map_or_else(|| dir.join("measurements.json"), Path::to_path_buf);
-    let png = png.map_or_else(|| dir.join("plantar.png"), Path::to_path_buf);
+    let json = json.map_or_else(|| scan.measurements_path(), Path::to_path_buf);
+    let png = png.map_or_else(|| scan.plantar_path(), Path::to_path_buf);
     write_measurements(&m, &map, &json, &png)?;
-    let truth_path = dir.join("truth.json");
+    let truth_path = scan.truth_path();
     let comparison = match std::fs::read_to_string(&truth_path) {
         Ok(t) => Some(compare_with_truth(&m, &t).map_err(|e| MeasureError::Io {
             path: truth_path.clone(),
@@ -133,4 +134,13 @@ pub fn measure_scan_dir(
         png,
         comparison,
     })
+}
+
+impl ScanDir {
+    /// measurements.json as the scanner's [`Measurements`], or None when the foot was not
+    /// measured. Here rather than in `scandata` because measurements are this module's type
+    /// and scandata sits below it.
+    pub fn load_measurements(&self) -> Result<Option<Measurements>, ScanDirError> {
+        self.load_json(Self::MEASUREMENTS, "the scanner's measurements")
+    }
 }

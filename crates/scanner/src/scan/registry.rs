@@ -9,6 +9,7 @@ use super::{item::Item, Devices, ScanCounters, ScanPlan, TruthSource};
 use crate::calib::Calibration;
 use crate::detect::{build, DetectParams, DETECTORS};
 use crate::pipeline::{BoxError, Node, Registry};
+use crate::scandata::ScanDir;
 use serde::de::DeserializeOwned;
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -157,7 +158,7 @@ pub fn registry() -> Registry<Item, ScanContext> {
         |p, ctx: &ScanContext| {
             let p: FileParams = params(p)?;
             Ok(Node::stage(PlySink {
-                path: file_in(ctx, p.file, "points.ply")?,
+                path: file_in(ctx, p.file, ScanDir::POINTS)?,
             }))
         },
     );
@@ -171,7 +172,7 @@ pub fn registry() -> Registry<Item, ScanContext> {
                 return Err(format!("cell_mm = {cell_mm}: valid range is (0.01, 10]").into());
             }
             Ok(Node::stage(HeightMapSink {
-                path: file_in(ctx, p.file, "heightmap.png")?,
+                path: file_in(ctx, p.file, ScanDir::HEIGHTMAP)?,
                 cell_mm,
                 label: ctx.label.clone(),
                 points: None,
@@ -184,7 +185,7 @@ pub fn registry() -> Registry<Item, ScanContext> {
         |p, ctx: &ScanContext| {
             let p: FileParams = params(p)?;
             Ok(Node::stage(GridSink {
-                path: file_in(ctx, p.file, "grid.bin")?,
+                path: file_in(ctx, p.file, ScanDir::GRID)?,
             }))
         },
     );

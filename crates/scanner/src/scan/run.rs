@@ -82,7 +82,7 @@ pub fn run_scan(
         let (devices, backend, calibration) =
             super::backend::open_backend(cfg, opts.calibration.as_deref())?;
         if let Some(foot) = &backend.foot {
-            let path = opts.out_dir.join("truth.json");
+            let path = crate::scandata::ScanDir::new(&opts.out_dir).truth_path();
             let json = serde_json::to_vec_pretty(&foot.truth()).expect("truth serialises");
             crate::io::write_atomic(&path, &json)
                 .map_err(|source| ScanError::Write { path, source })?;
@@ -196,7 +196,7 @@ fn finish(s: &mut ScanSummary, counters: &ScanCounters, started: Instant) {
 }
 
 fn write_summary(dir: &Path, s: &ScanSummary) -> Result<(), ScanError> {
-    let path = dir.join("scan.json");
+    let path = crate::scandata::ScanDir::new(dir).summary_path();
     let json = serde_json::to_vec_pretty(s).expect("summary serialises");
     crate::io::write_atomic(&path, &json).map_err(|source| ScanError::Write { path, source })
 }

@@ -2,8 +2,10 @@
 //! the line found in each of its rows, the 3D points, and the grid (frame x row) they fill,
 //! saved as `grid.bin`. The scan orchestrator produces it; the models and measurements read it.
 
+mod dir;
 mod scan_grid;
 
+pub use dir::{ScanDir, ScanDirError};
 pub use scan_grid::ScanGrid;
 
 use crate::detect::LinePeak;

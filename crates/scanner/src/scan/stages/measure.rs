@@ -6,7 +6,7 @@ use super::out_file;
 use crate::measure::{measure_grid, write_measurements};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::Item;
-use crate::scandata::ScanGrid;
+use crate::scandata::{ScanDir, ScanGrid};
 use crate::surface::BezierNetwork;
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -30,10 +30,10 @@ pub struct MeasureParams {
 }
 
 fn default_json() -> String {
-    "measurements.json".into()
+    ScanDir::MEASUREMENTS.into()
 }
 fn default_png() -> String {
-    "plantar.png".into()
+    ScanDir::PLANTAR.into()
 }
 fn default_cell() -> f64 {
     crate::measure::DEFAULT_CELL_MM
