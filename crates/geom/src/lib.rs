@@ -1,7 +1,7 @@
 //! footscan-geom: the geometry every last stage stands on.
 //!
 //! One job: exact, fast geometry on f64 millimetres. It depends on nothing else in footscan
-//! (only nalgebra and thiserror), so the scanner, the simulator and the last stages can all use
+//! (only nalgebra, thiserror and serde), so the scanner, the simulator and the last stages can all use
 //! it, and it sits at the bottom of the layer map in ARCHITECTURE.md.
 //!
 //! - [`bernstein`]: Bernstein polynomials in the shapes the detector, the calibration's depth
@@ -36,6 +36,9 @@ pub mod plane;
 pub mod polygon;
 pub mod polyline;
 pub mod rotation;
+pub mod side;
+
+pub use side::Side;
 
 /// A point in millimetres.
 pub type P3 = nalgebra::Point3<f64>;

@@ -8,7 +8,6 @@ use crate::measure::Measurements;
 use crate::scandata::{ScanDir, ScanDirError};
 use footscan_geom::mesh::{TriMesh, Units};
 use footscan_last::customize::clinic::{customize_stock, Plantar, TapeGirths};
-use footscan_last::customize::measure::Side;
 use footscan_last::customize::rules::RuleSet;
 use footscan_last::customize::{CustomizeError, Customized, Inputs};
 use std::path::{Path, PathBuf};
@@ -66,10 +65,7 @@ pub fn plantar_of(m: &Measurements) -> Plantar {
         .map(|l| l.iter().map(frame).collect())
         .collect();
     Plantar {
-        side: match m.side {
-            crate::measure::Side::Left => Side::Left,
-            crate::measure::Side::Right => Side::Right,
-        },
+        side: m.side,
         length: m.foot_length_mm,
         ball_width: m.ball_width_mm,
         waist_width: waist,

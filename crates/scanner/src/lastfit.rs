@@ -10,7 +10,7 @@
 //! bottom surface, and cells the network leaves out at the outline are kept.
 
 use crate::geom::HeightMap;
-use crate::measure::{rasterize_grid, MeasureError, Measurements, Side};
+use crate::measure::{rasterize_grid, MeasureError, Measurements};
 use crate::scandata::{ScanDir, ScanDirError, ScanGrid};
 use footscan_last::adjust::last::{
     deform_last, prepare_last, scanned_bottom, DeformReport, LastOptions, PreparedLast,
@@ -56,10 +56,7 @@ pub fn foot_plantar(
     let map = rasterize_grid(grid, cell_mm)?;
     Ok(FootPlantar {
         source: source.to_string(),
-        side: match m.side {
-            Side::Left => adjust::Side::Left,
-            Side::Right => adjust::Side::Right,
-        },
+        side: m.side,
         outline: m.outline.clone(),
         toe_outlines: m.toe_outlines.clone(),
         landmarks: FootLandmarks {

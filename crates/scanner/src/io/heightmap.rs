@@ -20,10 +20,7 @@ impl HeightMapLabel {
     /// The title's first line: side (and where it comes from), the view, the subject.
     /// Characters the 8x8 font lacks are shown as '?'.
     pub fn title(&self) -> String {
-        let word = |s: Side| match s {
-            Side::Left => "left",
-            Side::Right => "right",
-        };
+        let word = Side::as_str;
         let side = match (self.measured, self.chosen) {
             (Some(m), Some(c)) if m != c => format!(
                 "{} foot (measured; chosen: {})",

@@ -241,10 +241,7 @@ pub fn render_plantar(map: &HeightMap, m: &Measurements) -> PlantarImage {
     }
 
     // Title.
-    let side = match m.side {
-        Side::Right => "right",
-        Side::Left => "left",
-    };
+    let side = m.side.as_str();
     text(
         &mut img,
         10,

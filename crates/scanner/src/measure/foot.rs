@@ -8,12 +8,8 @@ use super::MeasureError;
 use crate::geom::HeightMap;
 use serde::{Deserialize, Serialize};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Side {
-    Left,
-    Right,
-}
+/// Which foot (one type for every crate, in footscan-geom).
+pub use footscan_geom::Side;
 
 /// Foot measurements, world millimetres; points are [x, y] on the glass.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

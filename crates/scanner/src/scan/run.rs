@@ -169,10 +169,7 @@ fn gate(
         return; // no grid: nothing to judge
     };
     q.dropped_frames = s.dropped_frames;
-    let name = |side: crate::measure::Side| match side {
-        crate::measure::Side::Left => "left".to_string(),
-        crate::measure::Side::Right => "right".to_string(),
-    };
+    let name = |side: crate::measure::Side| side.as_str().to_string();
     let measured = counters.foot_side();
     q.measure_warnings = counters.measure_warnings();
     q.side = measured.map(|d| SideCheck {
