@@ -748,7 +748,8 @@ fn wrap(s: &str, width: usize) -> Vec<String> {
 pub fn write_report(dir: &Path, out: &Path) -> Result<Layout> {
     let input = ReportInput::from_scan_dir(dir)?;
     let (bytes, layout) = render(&input)?;
-    crate::io::write_atomic(out, &bytes).with_context(|| format!("writing {}", out.display()))?;
+    footscan_util::write_atomic(out, &bytes)
+        .with_context(|| format!("writing {}", out.display()))?;
     Ok(layout)
 }
 

@@ -87,9 +87,11 @@ impl Calibration {
                 message,
             })?;
         let text = toml::to_string_pretty(self).expect("calibration serialises");
-        crate::io::write_atomic(path, text.as_bytes()).map_err(|source| CalibrationError::Write {
-            path: path.to_owned(),
-            source,
+        footscan_util::write_atomic(path, text.as_bytes()).map_err(|source| {
+            CalibrationError::Write {
+                path: path.to_owned(),
+                source,
+            }
         })
     }
 }

@@ -1,4 +1,4 @@
-use crate::measure::Side;
+use footscan_geom::Side;
 use image::{Rgb, RgbImage};
 use std::path::Path;
 

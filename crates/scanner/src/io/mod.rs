@@ -1,14 +1,12 @@
-//! File formats and renderings: PLY point clouds, PNG height maps; the atomic file writes
+//! File formats and renderings: PLY point clouds, meshes, PNG height maps; the atomic file writes
 //! (from `footscan-util`) re-exported for the modules that write them.
 
-mod heightmap;
+pub(crate) mod heightmap;
 mod mesh;
-mod plantar;
 mod ply;
 
 pub use heightmap::{render_heightmap, HeightMapImage, HeightMapLabel};
 pub use mesh::{write_obj, write_ply_mesh, write_stl};
-pub use plantar::{render_plantar, PlantarImage};
 pub use ply::write_ply_points;
 
 pub use footscan_util::{write_atomic, write_atomic_with};

@@ -5,7 +5,7 @@
 //! from the scan grid ([`rasterize_grid`], 0.1 mm cells) and the heights from the Bezier model
 //! where it has them ([`scan_heightmap`]). Output:
 //! [`Measurements`], written as `measurements.json`, and a labelled PNG
-//! ([`crate::io::render_plantar`]). Everything is computed from the height map alone; the
+//! ([`render_plantar`]). Everything is computed from the height map alone; the
 //! simulator's truth only enters through [`compare_with_truth`] for tests and reports.
 //!
 //! # Operational definitions
@@ -75,6 +75,7 @@
 mod fit;
 mod foot;
 mod outline;
+mod picture;
 mod profile;
 mod rasterize;
 mod scanned;
@@ -82,6 +83,7 @@ mod truth;
 
 pub use foot::{measure_foot, Measurements, Side};
 pub use outline::{line_crossings, regions, signed_area, simplify, Region};
+pub use picture::{render_plantar, PlantarImage};
 pub use rasterize::{grid_truncation, rasterize_grid};
 pub use scanned::{
     measure_grid, measure_scan_dir, scan_heightmap, write_measurements, MeasureOutput,

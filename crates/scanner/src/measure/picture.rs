@@ -3,9 +3,9 @@
 //! thirds, a colour bar and a table of the figures. Seen from below, as the scanner sees the
 //! sole: x (heel to toe) left to right, y top to bottom, like heightmap.png.
 
-use super::heightmap::{colour, colour_bar, nice_step, BG, FG};
+use super::{line_crossings, Measurements, Side};
 use crate::geom::HeightMap;
-use crate::measure::{line_crossings, Measurements, Side};
+use crate::io::heightmap::{colour, colour_bar, nice_step, BG, FG};
 use image::{Rgb, RgbImage};
 use std::path::Path;
 
@@ -27,7 +27,7 @@ pub struct PlantarImage {
 
 impl PlantarImage {
     pub fn save(&self, path: &Path) -> std::io::Result<()> {
-        super::write_png_atomic(path, &self.image)
+        crate::io::write_png_atomic(path, &self.image)
     }
 }
 

@@ -4,12 +4,12 @@
 //! segments whose 4 x 4 grid points all have a return, so its own footprint stops up to a
 //! segment (1.5 mm) short of the outline, which would shorten every length and width.
 
+use super::picture::render_plantar;
 use super::{
     compare_with_truth, grid_truncation, measure_foot, rasterize_grid, MeasureError, Measurements,
     TruthComparison,
 };
 use crate::geom::HeightMap;
-use crate::io::render_plantar;
 use crate::scandata::{ScanDir, ScanDirError, ScanGrid};
 use crate::surface::BezierNetwork;
 use std::path::{Path, PathBuf};
@@ -71,7 +71,7 @@ pub fn write_measurements(
         move |source| MeasureError::Io { path, source }
     };
     let text = serde_json::to_vec_pretty(m).expect("measurements serialise");
-    crate::io::write_atomic(json, &text).map_err(io(json))?;
+    footscan_util::write_atomic(json, &text).map_err(io(json))?;
     render_plantar(map, m).save(png).map_err(io(png))?;
     Ok(())
 }

@@ -58,7 +58,7 @@ const MAGIC: &[u8; 8] = b"FSGRID01";
 /// u8 reject code (0 = accepted), f64 x, y, z.
 impl ScanGrid {
     pub fn save(&self, path: &std::path::Path) -> std::io::Result<()> {
-        crate::io::write_atomic_with(path, |w| {
+        footscan_util::write_atomic_with(path, |w| {
             w.write_all(MAGIC)?;
             w.write_all(&(self.frames.len() as u32).to_le_bytes())?;
             w.write_all(&(self.rows as u32).to_le_bytes())?;
