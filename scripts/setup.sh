@@ -1,7 +1,12 @@
 #!/usr/bin/env bash
 # Install what footscan needs to build on Debian: the system packages below and, if cargo is
 # missing, a Rust toolchain through rustup. Safe to run again; it only installs what is absent.
+# `setup.sh --build` (what scripts/scan-sim.sh runs) installs only what the build needs; the
+# test tools below (Chromium, PostgreSQL, poppler, the OpenCASCADE venv) come with scripts/test.sh.
 set -euo pipefail
+mode="${1:-all}"
+# The build: bindgen for OpenCV (clang), OpenCV, and OpenSSL for the fleet client's TLS.
+build_packages=(pkg-config libudev-dev gcc clang libclang-dev libopencv-dev libssl-dev)
 
 packages=(pkg-config libudev-dev gcc clang libclang-dev libopencv-dev)
 # The dashboard's screenshot test (tests/dashboard_chromium.rs) runs Debian's headless Chromium.
@@ -15,6 +20,7 @@ packages+=(python3-venv)
 # The fleet tests (crates/fleet, crates/daemon/tests/daemon_fleet.rs, tests/fleet_cli.rs) start
 # a PostgreSQL server of their own (initdb + pg_ctl); footscan-fleet's TLS links OpenSSL.
 packages+=(postgresql libssl-dev openssl)
+[ "$mode" = "--build" ] && packages=("${build_packages[@]}")
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
@@ -32,6 +38,8 @@ if ! command -v cargo >/dev/null 2>&1; then
     exit 1
   }
 fi
+
+[ "$mode" = "--build" ] && exit 0
 
 # crates/geom/tests/export_occt.rs reads every exported IGES and STEP file back with
 # OpenCASCADE 8 (scripts/occt_readback.py); it runs in a venv of its own under target/, made
