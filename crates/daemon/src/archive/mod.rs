@@ -287,7 +287,7 @@ impl Archive {
         record.reason = outcome.reason;
         record.frames = outcome.frames;
         record.points = outcome.points;
-        record.finished = Some(footscan::util::now_rfc3339());
+        record.finished = Some(footscan_util::now_rfc3339());
         match self.seal(&scan.dir, &record) {
             Ok(_) => {
                 self.index_upsert(&record);
@@ -302,7 +302,7 @@ impl Archive {
                 if scan.dir.is_dir() {
                     let rec_path = scan.dir.join(RECORD);
                     let json = serde_json::to_vec_pretty(&record).expect("record serialises");
-                    if let Err(we) = footscan::io::write_atomic(&rec_path, &json) {
+                    if let Err(we) = footscan_util::write_atomic(&rec_path, &json) {
                         tracing::error!(
                             "archive: scan {}: the failure could not be recorded in {}: {we}",
                             record.id,
@@ -330,7 +330,7 @@ impl Archive {
         }
         let rec_path = dir.join(RECORD);
         let json = serde_json::to_vec_pretty(record).expect("record serialises");
-        footscan::io::write_atomic(&rec_path, &json).map_err(io_at(&rec_path))?;
+        footscan_util::write_atomic(&rec_path, &json).map_err(io_at(&rec_path))?;
         sync_dir(dir)?;
         let done = self.root.join(&record.id);
         std::fs::rename(dir, &done).map_err(io_at(&done))?;
@@ -389,7 +389,7 @@ impl Archive {
                         None => r.reason = Some(INTERRUPTED.into()),
                     }
                     r.status = Status::Failed;
-                    r.finished = Some(footscan::util::now_rfc3339());
+                    r.finished = Some(footscan_util::now_rfc3339());
                     r
                 }
             };
