@@ -4,7 +4,7 @@
 ///
 /// Index order: row-major by y, x fastest: cell (i, j) is `z[j * nx + i]` ([`Self::index`],
 /// [`Self::cell`] for the way back). This is an image's order (a row of the height-map PNG is
-/// one y), unlike [`crate::surface::PointGrid`], which keeps the scan's order (frame outer,
+/// one y), unlike the scanner's `surface::PointGrid`, which keeps the scan's order (frame outer,
 /// `points[i * nv + j]`). Use [`Self::get`], [`Self::set`], [`Self::index`] and
 /// [`Self::cell`] rather than indexing `z` by hand, so the two orders are never confused.
 #[derive(Clone, Debug, PartialEq)]

@@ -16,6 +16,8 @@
 //!   interpolation, least-squares approximation, skinning.
 //! - [`rotation`]: the world's Euler-angle convention (camera tilt, calibration board poses).
 //! - [`export`]: curves and surfaces to IGES 5.3 and STEP AP214.
+//! - [`Side`], [`HeightMap`]: which foot, and heights on a regular (x, y) grid: the vocabulary the
+//!   scanner, the simulator and the last stages share.
 //!
 //! Why written here rather than taken from a crate: curvo (NURBS) is on nalgebra 0.34 while the
 //! workspace (and levenberg-marquardt) is on 0.33, and it has no least-squares fit with fixed
@@ -30,6 +32,7 @@
 pub mod bbox;
 pub mod bernstein;
 pub mod export;
+pub mod height_map;
 pub mod mesh;
 pub mod nurbs;
 pub mod plane;
@@ -38,6 +41,7 @@ pub mod polyline;
 pub mod rotation;
 pub mod side;
 
+pub use height_map::HeightMap;
 pub use side::Side;
 
 /// A point in millimetres.
