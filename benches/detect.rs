@@ -2,9 +2,9 @@
 //! detector per frame, the coarse block-maximum pass, and the byte-sum floor.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use footscan::bench::detect::{noise_config, sweep_frames};
 use footscan::detect::coarse::{block_max, BLOCK};
 use footscan::detect::{build, sum_bytes, DetectParams, LinePeak, NAMES};
+use footscan_bench::detect::{noise_config, sweep_frames};
 use footscan_hal::Pixels;
 
 fn bench(c: &mut Criterion) {

@@ -1,9 +1,14 @@
 #!/usr/bin/env bash
 # Install what footscan needs to build on Debian: the system packages below and, if cargo is
 # missing, a Rust toolchain through rustup. Safe to run again; it only installs what is absent.
+# `setup.sh --build` (what scripts/scan-sim.sh runs) installs only what the build needs; the
+# test tools below (Chromium, PostgreSQL, poppler, the OpenCASCADE venv) come with scripts/test.sh.
 set -euo pipefail
+mode="${1:-all}"
+# The build: bindgen for OpenCV (clang), OpenCV, and OpenSSL for the fleet client's TLS.
+build_packages=(pkg-config libudev-dev gcc clang libclang-dev libopencv-dev libssl-dev)
 
-packages=(pkg-config libudev-dev gcc clang libclang-dev libopencv-dev)
+packages=("${build_packages[@]}")
 # The dashboard's screenshot test (tests/dashboard_chromium.rs) runs Debian's headless Chromium.
 packages+=(chromium fonts-dejavu-core)
 # tests/daemon_api.rs runs the curl examples of docs/API.md.
@@ -17,6 +22,7 @@ packages+=(python3-venv)
 packages+=(postgresql libssl-dev openssl)
 # drivers/grbl/tests/firmware.rs builds GRBL 1.1h's simulator (gcc, make) and runs it on a pty.
 packages+=(make socat)
+[ "$mode" = "--build" ] && packages=("${build_packages[@]}")
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
@@ -34,6 +40,8 @@ if ! command -v cargo >/dev/null 2>&1; then
     exit 1
   }
 fi
+
+[ "$mode" = "--build" ] && exit 0
 
 # crates/geom/tests/export_occt.rs reads every exported IGES and STEP file back with
 # OpenCASCADE 8 (scripts/occt_readback.py); it runs in a venv of its own under target/, made

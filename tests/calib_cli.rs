@@ -1,9 +1,9 @@
 //! `footscan calibrate` refuses bad input with a message that says what is missing and writes
 //! nothing; `footscan bench calibrate`'s JSON has the documented shape.
 
-use footscan::bench::calibrate::{self as bc, BenchOptions};
 use footscan::calib::{CalibrationPlan, Method};
 use footscan::scan::LoadedConfig;
+use footscan_bench::calibrate::{self as bc, BenchOptions};
 use std::path::Path;
 use std::process::Command;
 

@@ -4,7 +4,6 @@
 //! slider fault mid-step repeated without losing the earlier steps, the controller's limits
 //! and the calibration limits enforced.
 
-use footscan::bench::calibrate::{self as bc, BenchOptions};
 use footscan::calib::acquire::{Mistake, Target};
 use footscan::calib::guided::{
     check_controller, AutoGuide, Decision, Guide, Ready, Step, StepKind, StepResult,
@@ -12,6 +11,7 @@ use footscan::calib::guided::{
 use footscan::calib::{CalibError, Calibration, CalibrationPlan, Method};
 use footscan::scan::calibrate as procedure;
 use footscan::scan::LoadedConfig;
+use footscan_bench::calibrate::{self as bc, BenchOptions};
 use footscan_sim::grbl::{Fault, GrblEmulator};
 use footscan_targets::Placement;
 use std::path::Path;

@@ -1,11 +1,11 @@
 //! In-system calibration and the Bezier depth network against the simulator's ground truth,
 //! on frames rendered directly (the mathematics; `calib_e2e.rs` goes through the devices).
 
-use footscan::bench::calibrate::validation_staircase;
 use footscan::calib::acquire::{InsystemData, PlateObservation, RenderRig};
 use footscan::calib::insystem::{fit_insystem, InsystemOptions};
 use footscan::calib::{CalibError, Calibration, CalibrationPlan};
 use footscan::scan::calibrate::{self as run, Method};
+use footscan_bench::calibrate::validation_staircase;
 use footscan_sim::foot::{Foot, FootParams};
 use footscan_sim::optics::Optics;
 use footscan_sim::render::{NoiseConfig, Renderer, RowTruth, Scene};

@@ -84,7 +84,7 @@ mod with_opencv {
         let rr = Renderer::new(
             o.clone(),
             NoiseConfig::noise_free(),
-            Scene::Surface(Arc::new(footscan::bench::calibrate::validation_staircase())),
+            Scene::Surface(Arc::new(footscan_bench::calibrate::validation_staircase())),
             1,
         )
         .unwrap();

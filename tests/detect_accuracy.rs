@@ -2,8 +2,8 @@
 //! 2.4): the accuracy targets of the improved Bezier detector, and robustness to a glass
 //! reflection, specular spikes and Gray16 frames.
 
-use footscan::bench::detect::{accuracy, noise_config, sweep_frames, Accuracy};
 use footscan::detect::{build, DetectParams, Threshold, ThresholdParam};
+use footscan_bench::detect::{accuracy, noise_config, sweep_frames, Accuracy};
 use footscan_hal::PixelFormat;
 use footscan_sim::render::NoiseConfig;
 

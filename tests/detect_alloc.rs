@@ -2,8 +2,8 @@
 //! driver's colour conversions (MJPG aside: its decoder allocates inside) and the detect
 //! stage's channel conversion of colour files.
 
-use footscan::bench::detect::{noise_config, sweep_frames};
 use footscan::detect::{build, DetectParams, LinePeak, NAMES};
+use footscan_bench::detect::{noise_config, sweep_frames};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 

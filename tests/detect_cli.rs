@@ -1,7 +1,7 @@
 //! `footscan detect` on recorded frames: PNG Gray8 and Gray16 files and a directory of them,
 //! any image size; the CSV read back and checked against the simulator's truth.
 
-use footscan::bench::detect::{noise_config, sweep_frames};
+use footscan_bench::detect::{noise_config, sweep_frames};
 use footscan_hal::{PixelFormat, Pixels};
 use footscan_sim::render::{NoiseConfig, RowTruth};
 use std::path::Path;

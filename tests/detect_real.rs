@@ -5,7 +5,7 @@
 //! of the targets (every visible row found, the straightest of all detectors) the figure is
 //! asserted as it stands so a regression shows.
 
-use footscan::bench::real::{all_detectors, default_data_dir, run, table};
+use footscan_bench::real::{all_detectors, default_data_dir, run, table};
 
 #[test]
 fn default_detector_on_real_flat_boards_and_laser_off_frames() {

@@ -3,11 +3,11 @@
 //! The height map sees the whole sole up to its vertical edge, so these bounds are tighter
 //! than the scan's (tests/measure_scan.rs).
 
-use footscan::bench::measure::{analytic_map, population_rows};
 use footscan::geom::HeightMap;
 use footscan::measure::{
     compare_with_truth, measure_foot, ErrorKind, MeasureError, Measurements, Side, TruthComparison,
 };
+use footscan_bench::measure::{analytic_map, population_rows};
 use footscan_sim::foot::{Foot, FootParams, Side as SimSide};
 
 const CELL: f64 = 0.1;
@@ -179,7 +179,7 @@ fn empty_and_tiny_footprints_are_errors() {
     assert!(e.to_string().contains("200 mm^2"), "{e}");
 }
 
-/// The targets on a population (footscan::bench::measure: heads 3 mm, widths 0.5 mm, length
+/// The targets on a population (footscan_bench::measure: heads 3 mm, widths 0.5 mm, length
 /// 0.3 mm): a foot outside any of them must carry a warning, a plain foot none, and nearly
 /// every foot is within them (flagging is the fallback, not the method).
 #[test]

@@ -5,9 +5,9 @@
 //! alike within 2 % in length, ball width and heel width: on the meshes' lower envelopes and
 //! through whole simulated scans of the mesh scene.
 
-use footscan::bench::measure::{mesh_map, pair_difference, RealRow};
 use footscan::measure::{measure_foot, Measurements, Side};
 use footscan::scan::{run_scan, LoadedConfig, ScanOptions};
+use footscan_bench::measure::{mesh_map, pair_difference, RealRow};
 use footscan_geom::mesh::{IntakeOptions, TriMesh};
 use std::path::{Path, PathBuf};
 

@@ -1,4 +1,4 @@
-//! The printable report (src/report.rs) read back with Debian's poppler-utils: a simulated
+//! The printable report (crates/scanner/src/report.rs) read back with Debian's poppler-utils: a simulated
 //! scan's `footscan report` PDF is an A4 page whose calibration bar is 100 mm (283.46 pt) in
 //! the PDF itself and 100.0 +- 0.5 mm when rendered (pdftoppm at 254 dpi: 10 px a mm), and
 //! whose heel-to-toe line is the measured foot length at 1:1.

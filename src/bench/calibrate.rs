@@ -7,10 +7,10 @@
 //! of every row (the calibration's own error, free of detection noise); `val_detected_*` runs
 //! the calibration detector on the rendered noisy frames (what a scan would see).
 
-use crate::calib::{untilted_equivalent, CalibError, Calibration, CalibrationPlan};
-use crate::detect::LinePeak;
-use crate::scan::calibrate::{self as run, Method};
-use crate::scan::{sim, ScanConfig};
+use footscan::calib::{untilted_equivalent, CalibError, Calibration, CalibrationPlan};
+use footscan::detect::LinePeak;
+use footscan::scan::calibrate::{self as run, Method};
+use footscan::scan::{sim, ScanConfig};
 use footscan_hal::{Frame, Timestamp};
 use footscan_sim::foot::Foot;
 use footscan_sim::render::{Renderer, RowTruth, Scene};
@@ -36,7 +36,7 @@ pub struct MethodRow {
     pub method: String,
     pub params: BTreeMap<String, ParamError>,
     /// The method's model and the truth both reduced to their untilted equivalents
-    /// ([`crate::calib::untilted_equivalent`]): the parameters laser-line data determine.
+    /// ([`footscan::calib::untilted_equivalent`]): the parameters laser-line data determine.
     pub params_untilted: BTreeMap<String, ParamError>,
     /// Height error on the validation scans (staircase and foot), exact line positions.
     pub val_rms_mm: f64,

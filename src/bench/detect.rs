@@ -27,7 +27,7 @@
 //! the floor is [`sum_bytes`] over the same frames in the same run, one core. Time is the
 //! thread's CPU time, so other processes sharing the core do not count against either.
 
-use crate::detect::{build, sum_bytes, DetectParams, Detector, LinePeak, NAMES};
+use footscan::detect::{build, sum_bytes, DetectParams, Detector, LinePeak, NAMES};
 use footscan_hal::{Frame, PixelFormat, Pixels, Timestamp};
 use footscan_sim::foot::{Foot, FootParams};
 use footscan_sim::optics::Optics;

@@ -3,8 +3,8 @@
 //! directory against themselves (heads where feet have them, a person's left and right foot
 //! alike).
 
-use crate::geom::HeightMap;
-use crate::measure::{compare_with_truth, measure_foot, Measurements};
+use footscan::geom::HeightMap;
+use footscan::measure::{compare_with_truth, measure_foot, Measurements};
 use footscan_geom::mesh::TriMesh;
 use footscan_sim::foot::{population, Foot};
 use footscan_sim::mesh_scene::{MeshSurface, Placement};

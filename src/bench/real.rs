@@ -17,7 +17,7 @@
 //! - static groups: per row present in every frame of the group, the spread (standard
 //!   deviation) of the column across frames, RMS over those rows.
 
-use crate::detect::{build_with_prep, files, DetectParams, Detector, Image, LinePeak, NAMES};
+use footscan::detect::{build_with_prep, files, DetectParams, Detector, Image, LinePeak, NAMES};
 use footscan_hal::Pixels;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -172,7 +172,7 @@ fn region(img: &Image, r: [u32; 4], transpose: bool) -> Image {
 
 fn params(channel: &str) -> Result<DetectParams, String> {
     Ok(DetectParams {
-        channel: Some(crate::detect::Channel::parse(channel).map_err(|e| e.to_string())?),
+        channel: Some(footscan::detect::Channel::parse(channel).map_err(|e| e.to_string())?),
         ..Default::default()
     })
 }

@@ -1,6 +1,6 @@
 //! The simulator's frame renderer: frames per second on one core.
 
-use crate::scan::ScanConfig;
+use footscan::scan::ScanConfig;
 use footscan_hal::Pixels;
 use footscan_sim::foot::Foot;
 use footscan_sim::render::{FrameTruth, Renderer, Scene};
@@ -21,7 +21,7 @@ pub struct RenderRow {
 
 /// Render `frames` frames sweeping the head over the scan range, for the foot, a plate and an
 /// empty platform.
-pub fn run(cfg: &ScanConfig, frames: u64) -> Result<Vec<RenderRow>, crate::pipeline::BoxError> {
+pub fn run(cfg: &ScanConfig, frames: u64) -> Result<Vec<RenderRow>, footscan::pipeline::BoxError> {
     let sim = &cfg.sim;
     let scenes = [
         ("foot", Scene::Foot(Foot::new(sim.foot.clone())?)),

@@ -4,20 +4,21 @@
 //! Table-1 configuration (an 88 x 91 sub-grid: 29 x 30 = 870 lattice segments, 32 evaluated
 //! points per segment) and for the full-resolution grid.
 //!
-//! See [`crate::surface::compare`] for what each accuracy figure means. Timings are on one
+//! See [`footscan::surface::compare`] for what each accuracy figure means. Timings are on one
 //! pinned core, the best of repeated runs for anything under 50 ms.
 
-use crate::scan::{LoadedConfig, ScanConfig, ScanGrid, ScanOptions};
-use crate::surface::compare::{
+use footscan::scan::{LoadedConfig, ScanConfig, ScanGrid, ScanOptions};
+use footscan::scandata::ScanDir;
+use footscan::surface::compare::{
     eval_params, held_out, model_errors, representation_errors, rms, Fitted, Method,
 };
-use crate::surface::{BezierNetwork, Continuity, PointGrid, Subsample};
+use footscan::surface::{BezierNetwork, Continuity, PointGrid, Subsample};
 use footscan_sim::foot::Foot;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
 
-type BoxError = crate::pipeline::BoxError;
+type BoxError = footscan::pipeline::BoxError;
 
 #[derive(Clone, Debug, Serialize)]
 pub struct SurfaceRow {
@@ -68,15 +69,17 @@ pub struct SurfaceBench {
 /// The grid of a saved scan (DIR/grid.bin), or of a fresh simulated scan with `cfg`.
 pub fn scan_or_load(cfg: &LoadedConfig, scan: Option<&Path>) -> Result<ScanGrid, BoxError> {
     if let Some(dir) = scan {
-        let p = dir.join("grid.bin");
-        return ScanGrid::load(&p).map_err(|e| format!("{}: {e}", p.display()).into());
+        let dir = ScanDir::new(dir);
+        return dir
+            .load_grid()
+            .map_err(|e| format!("{}: {e}", dir.grid_path().display()).into());
     }
     let dir = std::env::temp_dir().join(format!("footscan-bench-surface-{}", std::process::id()));
     let opts = ScanOptions::new(&dir);
-    let r = crate::scan::run_scan(cfg, &opts, |_| {});
+    let r = footscan::scan::run_scan(cfg, &opts, |_| {});
     let grid = r
         .map_err(BoxError::from)
-        .and_then(|_| ScanGrid::load(&dir.join("grid.bin")).map_err(BoxError::from));
+        .and_then(|_| ScanDir::new(&dir).load_grid().map_err(BoxError::from));
     let _ = std::fs::remove_dir_all(&dir);
     grid.map_err(|e| format!("simulated scan for the bench: {e}").into())
 }

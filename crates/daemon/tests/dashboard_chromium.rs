@@ -155,7 +155,7 @@ fn unescape(s: &str) -> String {
         .replace("&amp;", "&")
 }
 
-/// The five stops of the height-map colour ramp (src/io/heightmap.rs).
+/// The five stops of the height-map colour ramp (crates/scanner/src/io/heightmap.rs).
 const RAMP: [[u8; 3]; 5] = [
     [68, 1, 84],
     [59, 82, 139],

@@ -1,7 +1,7 @@
 //! footscan-geom: the geometry every last stage stands on.
 //!
 //! One job: exact, fast geometry on f64 millimetres. It depends on nothing else in footscan
-//! (only nalgebra and thiserror), so the scanner, the simulator and the last stages can all use
+//! (only nalgebra, thiserror and serde), so the scanner, the simulator and the last stages can all use
 //! it, and it sits at the bottom of the layer map in ARCHITECTURE.md.
 //!
 //! - [`bernstein`]: Bernstein polynomials in the shapes the detector, the calibration's depth
@@ -16,6 +16,8 @@
 //!   interpolation, least-squares approximation, skinning.
 //! - [`rotation`]: the world's Euler-angle convention (camera tilt, calibration board poses).
 //! - [`export`]: curves and surfaces to IGES 5.3 and STEP AP214.
+//! - [`Side`], [`HeightMap`]: which foot, and heights on a regular (x, y) grid: the vocabulary the
+//!   scanner, the simulator and the last stages share.
 //!
 //! Why written here rather than taken from a crate: curvo (NURBS) is on nalgebra 0.34 while the
 //! workspace (and levenberg-marquardt) is on 0.33, and it has no least-squares fit with fixed
@@ -30,12 +32,17 @@
 pub mod bbox;
 pub mod bernstein;
 pub mod export;
+pub mod height_map;
 pub mod mesh;
 pub mod nurbs;
 pub mod plane;
 pub mod polygon;
 pub mod polyline;
 pub mod rotation;
+pub mod side;
+
+pub use height_map::HeightMap;
+pub use side::Side;
 
 /// A point in millimetres.
 pub type P3 = nalgebra::Point3<f64>;

@@ -5,7 +5,6 @@
 //! and top views), so one small canvas serves them all rather than each stage its own.
 
 use image::{Rgb, RgbImage};
-use std::io::Write;
 use std::path::Path;
 
 pub type Colour = Rgb<u8>;
@@ -260,35 +259,11 @@ pub fn sequential(t: f64) -> Colour {
     Rgb([c(0), c(1), c(2)])
 }
 
-/// Write `bytes` to `path` so a reader sees the old file or the whole new one: a temporary
-/// file in the same directory, fsync, rename, fsync of the directory. Errors name the path.
+/// [`footscan_util::write_atomic`] with errors that name the path, as the last stages' error
+/// messages expect.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let named = |e: std::io::Error| {
-        std::io::Error::new(e.kind(), format!("writing {}: {e}", path.display()))
-    };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| std::io::Error::other(format!("{}: not a file path", path.display())))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| {
-        let mut file = std::fs::File::create(&tmp)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)?;
-        std::fs::File::open(dir)?.sync_all()
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(named)
+    footscan_util::write_atomic(path, bytes)
+        .map_err(|e| std::io::Error::new(e.kind(), format!("writing {}: {e}", path.display())))
 }
 
 #[cfg(test)]

@@ -5,12 +5,7 @@ use crate::optics::{check_range, SimError};
 use crate::surface::Surface;
 use serde::{Deserialize, Serialize};
 
-#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "lowercase")]
-pub enum Side {
-    Left,
-    Right,
-}
+pub use footscan_geom::Side;
 
 /// Foot shape and placement on the platform.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -150,10 +145,7 @@ impl FootParams {
     /// The mirror image: other side, opposite yaw and axis offset.
     pub fn mirrored(&self) -> FootParams {
         FootParams {
-            side: match self.side {
-                Side::Left => Side::Right,
-                Side::Right => Side::Left,
-            },
+            side: self.side.other(),
             yaw_deg: -self.yaw_deg,
             axis_y_mm: -self.axis_y_mm,
             ..self.clone()

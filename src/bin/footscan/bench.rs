@@ -163,8 +163,8 @@ pub fn run(args: Args) -> Result<()> {
             direct,
             json,
         } => {
-            use footscan::bench::calibrate as bc;
             use footscan::calib::{CalibrationPlan, Method};
+            use footscan_bench::calibrate as bc;
             let cfg = crate::load_config(&config)?;
             let methods: Vec<Method> = if methods.is_empty() {
                 Method::ALL.to_vec()
@@ -193,14 +193,14 @@ pub fn run(args: Args) -> Result<()> {
         }
         What::Surface { config, scan, json } => {
             let cfg = crate::load_config(&config)?;
-            let grid = footscan::bench::surface::scan_or_load(&cfg, scan.as_deref())
+            let grid = footscan_bench::surface::scan_or_load(&cfg, scan.as_deref())
                 .map_err(|e| anyhow::anyhow!(e))?;
-            let b = footscan::bench::surface::run(&cfg.config, &grid)
-                .map_err(|e| anyhow::anyhow!(e))?;
+            let b =
+                footscan_bench::surface::run(&cfg.config, &grid).map_err(|e| anyhow::anyhow!(e))?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&b.rows)?);
             } else {
-                println!("{}", footscan::bench::surface::table(&b));
+                println!("{}", footscan_bench::surface::table(&b));
             }
             Ok(())
         }
@@ -210,12 +210,12 @@ pub fn run(args: Args) -> Result<()> {
             json,
         } => {
             let cfg = crate::load_config(&config)?;
-            let rows = footscan::bench::render::run(&cfg.config, frames)
-                .map_err(|e| anyhow::anyhow!(e))?;
+            let rows =
+                footscan_bench::render::run(&cfg.config, frames).map_err(|e| anyhow::anyhow!(e))?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&rows)?);
             } else {
-                println!("{}", footscan::bench::render::table(&rows));
+                println!("{}", footscan_bench::render::table(&rows));
             }
             Ok(())
         }
@@ -224,7 +224,7 @@ pub fn run(args: Args) -> Result<()> {
             detectors,
             json,
         } => {
-            use footscan::bench::real;
+            use footscan_bench::real;
             let dir = data.unwrap_or_else(real::default_data_dir);
             let detectors = if detectors.is_empty() {
                 real::all_detectors()
@@ -252,7 +252,7 @@ pub fn run(args: Args) -> Result<()> {
             detectors,
             sigmas,
         } => {
-            use footscan::bench::detect as bd;
+            use footscan_bench::detect as bd;
             let mut opts = bd::Options {
                 speed_frames,
                 seconds,

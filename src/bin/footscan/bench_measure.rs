@@ -3,11 +3,11 @@
 //! come, seen from below as the simulator's mesh scene sees them) against what holds for feet.
 
 use anyhow::{anyhow, Result};
-use footscan::bench::measure::{
+use footscan::measure::measure_foot;
+use footscan_bench::measure::{
     mesh_map, pair_difference, population_rows, PopulationRow, RealRow, TARGET_HEAD_MM,
     TARGET_LENGTH_MM, TARGET_WIDTH_MM,
 };
-use footscan::measure::measure_foot;
 use footscan_geom::mesh::{IntakeOptions, TriMesh};
 use serde_json::json;
 use std::path::Path;

@@ -3,7 +3,6 @@
 mod bench;
 mod calibrate;
 mod detect;
-#[cfg(feature = "fleet")]
 mod fleet;
 mod last;
 mod last_choose;
@@ -102,7 +101,6 @@ enum Command {
     /// The simulator's objects as files with their truth (see `footscan sim --help`).
     Sim(sim::Args),
     /// The fleet database the daemons push scans to: migrate, list, show, fetch.
-    #[cfg(feature = "fleet")]
     Fleet(fleet::Args),
 }
 
@@ -168,7 +166,6 @@ fn run() -> Result<()> {
         Command::Detect(args) => detect::run(args),
         Command::Last(args) => last::run(args),
         Command::Sim(args) => sim::run(args),
-        #[cfg(feature = "fleet")]
         Command::Fleet(args) => fleet::run(args),
     }
 }

@@ -5,6 +5,7 @@
 use anyhow::{Context, Result};
 use clap::Parser;
 use footscan::measure::{measure_scan_dir, DEFAULT_CELL_MM};
+use footscan::scandata::ScanDir;
 use std::path::{Path, PathBuf};
 
 #[derive(Parser)]
@@ -33,7 +34,8 @@ fn outputs(out: &Path) -> (PathBuf, PathBuf) {
     {
         (out.to_path_buf(), out.with_extension("png"))
     } else {
-        (out.join("measurements.json"), out.join("plantar.png"))
+        let dir = ScanDir::new(out);
+        (dir.measurements_path(), dir.plantar_path())
     }
 }
 

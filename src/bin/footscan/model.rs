@@ -5,7 +5,7 @@
 use anyhow::{Context, Result};
 use clap::Parser;
 use footscan::cad::{check_cell, model_scan, ModelFiles, DEFAULT_STEP_CELL_MM};
-use footscan::scan::ScanGrid;
+use footscan::scandata::ScanDir;
 use std::path::PathBuf;
 
 #[derive(Parser)]
@@ -46,8 +46,10 @@ pub fn run(a: Args) -> Result<()> {
     if a.formats.contains(&Format::Step) || a.formats.contains(&Format::Iges) {
         check_cell("--step-cell-mm", a.step_cell_mm, None)?;
     }
-    let grid_path = a.scan.join("grid.bin");
-    let grid = ScanGrid::load(&grid_path)
+    let scan = ScanDir::new(&a.scan);
+    let grid_path = scan.grid_path();
+    let grid = scan
+        .load_grid()
         .with_context(|| format!("loading the scan grid {}", grid_path.display()))?;
     let out = a.out.unwrap_or_else(|| a.scan.clone());
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;

@@ -1,4 +1,4 @@
-//! `footscan report`: the printable PDF of a measured scan (src/report.rs): the foot at 1:1
+//! `footscan report`: the printable PDF of a measured scan (crates/scanner/src/report.rs): the foot at 1:1
 //! with a 100 mm calibration bar, the measurements with their definitions, shoe sizes; or,
 //! with `--left` and `--right`, both feet side by side with a left/right comparison.
 

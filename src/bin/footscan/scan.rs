@@ -8,6 +8,7 @@ use crate::scan_dir::Staged;
 use anyhow::{bail, Context, Result};
 use footscan::measure::Side;
 use footscan::scan::{self, ScanOptions, ScanStatus};
+use footscan::scandata::ScanDir;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
@@ -65,7 +66,7 @@ pub fn run(
     });
     bar.finish_and_clear();
     // Ended, whichever way: the new scan (even a failed one, with its reason) goes to --out.
-    let json_written = staged.partial.join("scan.json").is_file();
+    let json_written = ScanDir::new(&staged.partial).summary_path().is_file();
     let placed = staged.finish()?;
     if let Some(prev) = &placed.previous {
         eprintln!(
@@ -75,7 +76,7 @@ pub fn run(
         );
     }
     let summary = result.with_context(|| {
-        let json = out.join("scan.json");
+        let json = ScanDir::new(&out).summary_path();
         if json_written {
             format!("scan failed (the reason is kept in {})", json.display())
         } else {
@@ -99,7 +100,7 @@ pub fn run(
                 "scan cancelled: {} ({} frames; kept in {})",
                 summary.reason.as_deref().unwrap_or(""),
                 summary.frames,
-                out.join("scan.json").display()
+                ScanDir::new(&out).summary_path().display()
             );
             std::process::exit(130);
         }

@@ -56,9 +56,7 @@ fn unused(base: PathBuf) -> PathBuf {
 
 /// Now as a UTC time for a folder name: `20260125T101502Z`.
 fn utc_stamp() -> String {
-    humantime::format_rfc3339_seconds(std::time::SystemTime::now())
-        .to_string()
-        .replace(['-', ':'], "")
+    footscan_util::now_rfc3339().replace(['-', ':'], "")
 }
 
 impl Staged {

@@ -10,6 +10,7 @@ use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use axum::Json;
 use footscan::scan::quality::{Issue, Level};
+use footscan::scandata::ScanDir;
 use serde::Deserialize;
 
 #[derive(Deserialize)]
@@ -65,7 +66,7 @@ pub async fn confirm_side(
             ));
         }
         let summary: serde_json::Value = a
-            .artifact_path(&rec, "scan.json")
+            .artifact_path(&rec, ScanDir::SUMMARY)
             .and_then(|p| std::fs::read(p).ok())
             .and_then(|b| serde_json::from_slice(&b).ok())
             .unwrap_or_default();

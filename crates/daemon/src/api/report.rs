@@ -1,5 +1,5 @@
 //! `GET /api/scans/{id}/report.pdf`: the printable report of a measured scan (the library's
-//! src/report.rs: the foot at 1:1 with a 100 mm calibration bar), made from the scan's files
+//! crates/scanner/src/report.rs: the foot at 1:1 with a 100 mm calibration bar), made from the scan's files
 //! when asked for, so a record corrected later (its side, its subject) prints as corrected.
 
 use super::{ApiError, AppState};

@@ -8,6 +8,7 @@ use axum::extract::{Path, State};
 use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
+use footscan::scandata::ScanDir;
 use serde::Deserialize;
 use tokio::io::AsyncReadExt;
 
@@ -134,8 +135,8 @@ pub async fn show(
         let artifacts = a.artifacts(&r).unwrap_or_default();
         let mut v = serde_json::to_value(&r).map_err(ApiError::internal)?;
         v["artifacts"] = serde_json::to_value(&artifacts).map_err(ApiError::internal)?;
-        v["summary"] = read_json(a.artifact_path(&r, "scan.json"));
-        v["measurements"] = read_json(a.artifact_path(&r, "measurements.json"));
+        v["summary"] = read_json(a.artifact_path(&r, ScanDir::SUMMARY));
+        v["measurements"] = read_json(a.artifact_path(&r, ScanDir::MEASUREMENTS));
         v["history"] =
             serde_json::to_value(a.history(&r).unwrap_or_default()).map_err(ApiError::internal)?;
         Ok(Json(v))

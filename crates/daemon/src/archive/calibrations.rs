@@ -112,13 +112,13 @@ impl Calibrations {
         }
         c.save(&toml_path).map_err(|e| e.to_string())?;
         let json = serde_json::to_vec_pretty(entry).expect("entry serialises");
-        if let Err(e) = footscan::io::write_atomic(&json_path, &json) {
+        if let Err(e) = footscan_util::write_atomic(&json_path, &json) {
             // Half an entry is none: the id stays free and the current one unchanged.
             let _ = std::fs::remove_file(&toml_path);
             return Err(err(&json_path, e));
         }
         let pointer = self.dir.join(POINTER);
-        footscan::io::write_atomic(&pointer, format!("{}\n", entry.id).as_bytes())
+        footscan_util::write_atomic(&pointer, format!("{}\n", entry.id).as_bytes())
             .map_err(|e| err(&pointer, e))?;
         Ok(toml_path)
     }
@@ -167,7 +167,7 @@ impl Calibrations {
             return Err(format!("check {} is already in the trend", entry.id));
         }
         let json = serde_json::to_vec_pretty(entry).expect("check serialises");
-        footscan::io::write_atomic(&p, &json).map_err(|e| err(&p, e))?;
+        footscan_util::write_atomic(&p, &json).map_err(|e| err(&p, e))?;
         Ok(p)
     }
 
@@ -268,7 +268,7 @@ mod tests {
         model.d_mm = d_mm;
         Calibration {
             method: "insystem".into(),
-            date: footscan::util::now_rfc3339(),
+            date: footscan_util::now_rfc3339(),
             model,
             stddev: [("d_mm".to_string(), 0.02)].into(),
             residuals: [("u_h_mm".to_string(), f64::NAN)].into(),
@@ -350,7 +350,7 @@ mod tests {
         .unwrap();
         assert!(w(&h, 26.0).as_str().unwrap().contains("older than"));
         assert!(w(&h, 72.0).is_null());
-        let now = footscan::util::now_rfc3339();
+        let now = footscan_util::now_rfc3339();
         h.add_check(&CheckEntry::new("c2".into(), None, &report(&now, false)))
             .unwrap();
         let st = h.check_status(72.0);
@@ -395,7 +395,7 @@ mod tests {
     fn ids_and_ages() {
         assert!(valid_id("20261124T223000Z-abc"));
         assert!(!valid_id("../x") && !valid_id("") && !valid_id("a/b"));
-        let a = age_h(&footscan::util::now_rfc3339()).unwrap();
+        let a = age_h(&footscan_util::now_rfc3339()).unwrap();
         assert!(a < 0.01, "{a}");
         assert!(age_h("2020-01-01T00:00:00Z").unwrap() > 24.0 * 365.0);
         assert!(age_h("yesterday").is_none());

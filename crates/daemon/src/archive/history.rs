@@ -69,7 +69,7 @@ impl Archive {
             return Ok(Err(e));
         }
         after.id = before.id.clone();
-        let at = footscan::util::now_rfc3339();
+        let at = footscan_util::now_rfc3339();
         let change = |field: &str, from: Option<&str>, to: Option<&str>| {
             (from != to).then(|| Change {
                 at: at.clone(),
@@ -105,10 +105,10 @@ impl Archive {
         history.extend(changes.iter().cloned());
         let hist_path = dir.join(HISTORY);
         let json = serde_json::to_vec_pretty(&history).expect("history serialises");
-        footscan::io::write_atomic(&hist_path, &json).map_err(io_at(&hist_path))?;
+        footscan_util::write_atomic(&hist_path, &json).map_err(io_at(&hist_path))?;
         let rec_path = dir.join(RECORD);
         let json = serde_json::to_vec_pretty(&after).expect("record serialises");
-        footscan::io::write_atomic(&rec_path, &json).map_err(io_at(&rec_path))?;
+        footscan_util::write_atomic(&rec_path, &json).map_err(io_at(&rec_path))?;
         self.index_upsert(&after);
         for c in &changes {
             tracing::info!(

@@ -24,6 +24,7 @@ pub use outbox::{OutboxCounts, OutboxEntry};
 pub use record::{ArchiveError, NewScan, Record, ScanEnd, Status};
 pub use visits::{ClinicZone, Visit, VisitError};
 
+use footscan::scandata::ScanDir;
 use index::Index;
 use serde::Serialize;
 use std::collections::HashMap;
@@ -37,7 +38,7 @@ use std::time::{Duration, Instant};
 const RESERVE_BYTES: usize = 256 * 1024;
 const RESERVE: &str = ".reserve";
 const TMP_PREFIX: &str = ".tmp-";
-pub const RECORD: &str = "record.json";
+pub const RECORD: &str = ScanDir::RECORD;
 pub const INDEX: &str = "index.sqlite";
 /// The lock file: held (flock, exclusive) by the one process writing into the archive, and
 /// naming it (`pid <n> <program>`) for whoever finds it taken.
@@ -286,7 +287,7 @@ impl Archive {
         record.reason = outcome.reason;
         record.frames = outcome.frames;
         record.points = outcome.points;
-        record.finished = Some(footscan::util::now_rfc3339());
+        record.finished = Some(footscan_util::now_rfc3339());
         match self.seal(&scan.dir, &record) {
             Ok(_) => {
                 self.index_upsert(&record);
@@ -301,7 +302,7 @@ impl Archive {
                 if scan.dir.is_dir() {
                     let rec_path = scan.dir.join(RECORD);
                     let json = serde_json::to_vec_pretty(&record).expect("record serialises");
-                    if let Err(we) = footscan::io::write_atomic(&rec_path, &json) {
+                    if let Err(we) = footscan_util::write_atomic(&rec_path, &json) {
                         tracing::error!(
                             "archive: scan {}: the failure could not be recorded in {}: {we}",
                             record.id,
@@ -329,7 +330,7 @@ impl Archive {
         }
         let rec_path = dir.join(RECORD);
         let json = serde_json::to_vec_pretty(record).expect("record serialises");
-        footscan::io::write_atomic(&rec_path, &json).map_err(io_at(&rec_path))?;
+        footscan_util::write_atomic(&rec_path, &json).map_err(io_at(&rec_path))?;
         sync_dir(dir)?;
         let done = self.root.join(&record.id);
         std::fs::rename(dir, &done).map_err(io_at(&done))?;
@@ -392,7 +393,7 @@ impl Archive {
                         None => r.reason = Some(INTERRUPTED.into()),
                     }
                     r.status = Status::Failed;
-                    r.finished = Some(footscan::util::now_rfc3339());
+                    r.finished = Some(footscan_util::now_rfc3339());
                     r
                 }
             };
@@ -698,7 +699,7 @@ struct Summary {
 
 fn read_summary(dir: &Path) -> Option<Summary> {
     let v: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("scan.json")).ok()?).ok()?;
+        serde_json::from_slice(&std::fs::read(ScanDir::new(dir).summary_path()).ok()?).ok()?;
     Some(Summary {
         status: v["status"].as_str().unwrap_or("?").to_string(),
         reason: v["reason"].as_str().map(str::to_string),

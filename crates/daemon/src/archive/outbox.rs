@@ -40,7 +40,7 @@ pub struct OutboxCounts {
 impl Archive {
     /// Queue scan `id` for the fleet (a no-op if it was queued before).
     pub fn outbox_enqueue(&self, id: &str) -> Result<(), ArchiveError> {
-        let now = footscan::util::now_rfc3339();
+        let now = footscan_util::now_rfc3339();
         self.with_index(|i| {
             i.conn().execute_batch(SCHEMA)?;
             i.conn().execute(
@@ -62,7 +62,7 @@ impl Archive {
             .map(|r| r.id)
             .collect();
         ended.sort();
-        let now = footscan::util::now_rfc3339();
+        let now = footscan_util::now_rfc3339();
         self.with_index(|i| {
             i.conn().execute_batch(SCHEMA)?;
             let tx = i.conn().unchecked_transaction()?;
@@ -111,7 +111,7 @@ impl Archive {
 
     /// The entry is done: `pushed`, or `rejected` with the reason (it is not retried).
     pub fn outbox_done(&self, seq: i64, rejected: Option<&str>) -> Result<(), ArchiveError> {
-        let now = footscan::util::now_rfc3339();
+        let now = footscan_util::now_rfc3339();
         let state = if rejected.is_some() {
             "rejected"
         } else {

@@ -39,7 +39,7 @@ impl Record {
             notes: meta.notes,
             status: Status::Running,
             reason: None,
-            started: footscan::util::now_rfc3339(),
+            started: footscan_util::now_rfc3339(),
             finished: None,
             frames: 0,
             points: 0,

@@ -153,7 +153,7 @@ impl Archive {
     fn write_visit(&self, v: &Visit) -> Result<(), ArchiveError> {
         let p = self.visits_dir()?.join(format!("{}.json", v.id));
         let json = serde_json::to_vec_pretty(v).expect("visit serialises");
-        footscan::io::write_atomic(&p, &json).map_err(io_at(&p))
+        footscan_util::write_atomic(&p, &json).map_err(io_at(&p))
     }
 
     /// A new visit for `patient` (validated by the caller), starting now.
@@ -168,7 +168,7 @@ impl Archive {
             id: id.to_string(),
             patient: patient.to_string(),
             notes: notes.to_string(),
-            started: footscan::util::now_rfc3339(),
+            started: footscan_util::now_rfc3339(),
             left: None,
             right: None,
         };
@@ -423,7 +423,7 @@ impl Archive {
         let dir = self.visits_dir()?;
         let log = dir.join(DELETED_LOG);
         let line = serde_json::json!({
-            "at": footscan::util::now_rfc3339(),
+            "at": footscan_util::now_rfc3339(),
             "visit": v.id,
             "patient": v.patient,
             "scans": deleted,

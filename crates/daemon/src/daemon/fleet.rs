@@ -176,7 +176,7 @@ impl Pusher {
                         continue;
                     }
                     self.backoff = FIRST_BACKOFF;
-                    let now = footscan::util::now_rfc3339();
+                    let now = footscan_util::now_rfc3339();
                     self.set(|s| {
                         s.failures = 0;
                         match &rejected {
@@ -319,7 +319,7 @@ impl Pusher {
     fn failed(&mut self, why: &str) {
         let wait = self.backoff;
         self.backoff = (self.backoff * 2).min(self.settings.retry_max);
-        let now = footscan::util::now_rfc3339();
+        let now = footscan_util::now_rfc3339();
         let failures = {
             let mut s = self.shared.status.lock().unwrap();
             s.state = "retrying";

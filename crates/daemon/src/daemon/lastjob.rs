@@ -302,7 +302,7 @@ impl Daemon {
             scan: id.to_string(),
             state: LastState::Running,
             request: req.clone(),
-            started: footscan::util::now_rfc3339(),
+            started: footscan_util::now_rfc3339(),
             finished: None,
             seconds: None,
             reason: None,
@@ -332,7 +332,7 @@ impl Daemon {
                 Err("the customization panicked (a defect: please report it)".into())
             });
             job.seconds = Some(t0.elapsed().as_secs_f64());
-            job.finished = Some(footscan::util::now_rfc3339());
+            job.finished = Some(footscan_util::now_rfc3339());
             match made {
                 Ok(()) => job.state = LastState::Done,
                 Err(why) => {
@@ -486,6 +486,6 @@ fn make_last(
 fn write_job(dir: &Path, job: &LastJob) -> Result<(), DaemonError> {
     let p = dir.join(JOB_FILE);
     let j = serde_json::to_vec_pretty(job).expect("a job record serialises");
-    footscan::io::write_atomic(&p, &j)
+    footscan_util::write_atomic(&p, &j)
         .map_err(|e| DaemonError::Setup(format!("cannot write {}: {e}", p.display())))
 }

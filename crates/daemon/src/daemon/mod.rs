@@ -17,6 +17,7 @@ pub use preview::Preview;
 use crate::archive::calibrations::Calibrations;
 use crate::archive::{Archive, ArchiveError, Status};
 use footscan::scan::{CancelToken, LoadedConfig, ScanFault};
+use footscan::scandata::ScanDir;
 use serde::Serialize;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -234,7 +235,7 @@ impl Daemon {
         // The last scan, as status shows it until the next one starts.
         let last_scan = archive.list()?.into_iter().next().map(|r| {
             let summary: Option<serde_json::Value> = archive
-                .artifact_path(&r, "scan.json")
+                .artifact_path(&r, ScanDir::SUMMARY)
                 .and_then(|p| std::fs::read(p).ok())
                 .and_then(|b| serde_json::from_slice(&b).ok());
             let num = |k: &str| summary.as_ref().and_then(|s| s[k].as_f64());
@@ -291,7 +292,7 @@ impl Daemon {
             .ok_or_else(|| DaemonError::NotFound(format!("scan {id}: its directory is missing")))?;
         if self
             .archive
-            .artifact_path(&rec, "measurements.json")
+            .artifact_path(&rec, ScanDir::MEASUREMENTS)
             .is_none()
         {
             return Err(DaemonError::Conflict(format!(

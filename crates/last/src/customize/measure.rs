@@ -55,12 +55,7 @@ pub const TOP_Z: f64 = 0.35;
 /// Fraction of the way from MT1 to MT5 where the axis crosses the ball line.
 pub const MT2_FRACTION: f64 = 0.46;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Side {
-    Left,
-    Right,
-}
+pub use footscan_geom::Side;
 
 /// The foot's frame: world point = origin + x ex + y ey + z ez.
 #[derive(Clone, Debug, Serialize)]

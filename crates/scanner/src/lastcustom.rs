@@ -1,0 +1,155 @@
+//! A saved scan as the foot of the clinic's customized last: the plantar figures of its
+//! measurements.json, the girths a fitter measured with a tape, and a stock last from the
+//! shop's collection, customized by the comfort rules
+//! ([`footscan_last::customize::clinic`], docs/method.md 10.7). `footscan last customize
+//! --scan` and footscand's last job share it, so both read a scan the same way.
+
+use crate::measure::Measurements;
+use crate::scandata::{ScanDir, ScanDirError};
+use footscan_geom::mesh::{TriMesh, Units};
+use footscan_last::customize::clinic::{customize_stock, Plantar, TapeGirths};
+use footscan_last::customize::rules::RuleSet;
+use footscan_last::customize::{CustomizeError, Customized, Inputs};
+use std::path::{Path, PathBuf};
+
+/// Why a scan could not be customized into a last; every variant names its input.
+#[derive(Debug, thiserror::Error)]
+pub enum ClinicLastError {
+    #[error(
+        "scan {}: no measurements.json: a customized last needs a measured foot (a scan whose \
+         pipeline ran measure.foot, or `footscan measure --scan {}`)",
+        dir.display(), dir.display()
+    )]
+    NoMeasurements { dir: PathBuf },
+    #[error("{}", prefixed(path, why))]
+    Input { path: PathBuf, why: String },
+    #[error("{}", named(stock, source))]
+    Customize {
+        stock: PathBuf,
+        source: Box<CustomizeError>,
+    },
+}
+
+/// `why` with the file in front unless it names it already.
+pub fn prefixed(path: &Path, why: &str) -> String {
+    let name = path.display().to_string();
+    if why.contains(&name) {
+        why.to_string()
+    } else {
+        format!("{name}: {why}")
+    }
+}
+
+fn named(stock: &Path, e: &CustomizeError) -> String {
+    prefixed(stock, &e.to_string())
+}
+
+/// The plantar figures the rules need from a scan's measurements (docs/method.md section 8).
+pub fn plantar_of(m: &Measurements) -> Plantar {
+    // Waist width across the axis, between the waist points.
+    let (d, wi, wo) = (m.axis_dir, m.waist_inner, m.waist_outer);
+    let waist = ((wi[0] - wo[0]) * -d[1] + (wi[1] - wo[1]) * d[0]).abs();
+    // The footprint in the foot's frame: x along the axis from the heel point, y across it,
+    // positive on the side of the first metatarsal head (medial).
+    let h = m.heel_point;
+    let across = |p: [f64; 2]| (p[0] - h[0]) * -d[1] + (p[1] - h[1]) * d[0];
+    let medial = if across(m.mt1_head) >= 0.0 { 1.0 } else { -1.0 };
+    let frame = |p: &[f64; 2]| {
+        [
+            (p[0] - h[0]) * d[0] + (p[1] - h[1]) * d[1],
+            medial * across(*p),
+        ]
+    };
+    let footprint = std::iter::once(&m.outline)
+        .chain(&m.toe_outlines)
+        .map(|l| l.iter().map(frame).collect())
+        .collect();
+    Plantar {
+        side: m.side,
+        length: m.foot_length_mm,
+        ball_width: m.ball_width_mm,
+        waist_width: waist,
+        heel_width: m.heel_width_mm,
+        footprint,
+    }
+}
+
+/// The plantar figures of a scan directory's measurements.json.
+pub fn plantar_of_scan(dir: &Path) -> Result<Plantar, ClinicLastError> {
+    let m = match ScanDir::new(dir).load_measurements() {
+        Ok(Some(m)) => m,
+        Ok(None) => return Err(ClinicLastError::NoMeasurements { dir: dir.into() }),
+        Err(ScanDirError::Read { path, source }) => {
+            return Err(ClinicLastError::Input {
+                path,
+                why: source.to_string(),
+            })
+        }
+        Err(ScanDirError::Parse { path, source, .. }) => {
+            return Err(ClinicLastError::Input {
+                path,
+                why: format!("not the measurements of a scan: {source}"),
+            })
+        }
+    };
+    Ok(plantar_of(&m))
+}
+
+/// Mesh formats a stock last is read from.
+pub const STOCK_EXTENSIONS: [&str; 3] = ["stl", "obj", "ply"];
+
+/// Read a stock last: a closed mesh (STL, OBJ or PLY; millimetres or metres, z up).
+pub fn load_stock(path: &Path) -> Result<TriMesh, ClinicLastError> {
+    load_stock_as(path, Units::Auto, None)
+}
+
+/// [`load_stock`] with the file's units given, or its length (mm) for a last in model
+/// units (`--units`, `--length`, as every last command takes them).
+pub fn load_stock_as(
+    path: &Path,
+    units: Units,
+    length_mm: Option<f64>,
+) -> Result<TriMesh, ClinicLastError> {
+    let (m, _) =
+        TriMesh::load_solid(path, units, length_mm).map_err(|e| ClinicLastError::Input {
+            path: path.into(),
+            // No unit or length option for a stock last: say what the file must be.
+            why: e
+                .retold(
+                    "a stock last is read in millimetres or metres; save it in one of them",
+                    "a stock last is read in millimetres or metres (no length can be given \
+                     for it); save it scaled to its real size",
+                )
+                .to_string(),
+        })?;
+    footscan_last::size::check_last_size(path, &m).map_err(|e| ClinicLastError::Input {
+        path: path.into(),
+        why: e.to_string(),
+    })?;
+    Ok(m)
+}
+
+/// The clinic's last for the scan in `dir`: its plantar figures and `girths` applied to
+/// the rules, the stock last at `stock` deformed to the targets. Nothing is written.
+pub fn customize_scan(
+    dir: &Path,
+    girths: &TapeGirths,
+    stock: &Path,
+    rules: &RuleSet,
+    inp: &Inputs,
+) -> Result<Customized, ClinicLastError> {
+    let plantar = plantar_of_scan(dir)?;
+    let m = load_stock(stock)?;
+    customize_stock(
+        m,
+        &stock.display().to_string(),
+        &plantar,
+        girths,
+        rules,
+        inp,
+    )
+    .map_err(|source| ClinicLastError::Customize {
+        stock: stock.into(),
+        source: Box::new(source),
+    })
+}

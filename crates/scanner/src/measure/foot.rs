@@ -1,0 +1,805 @@
+//! The measurement procedure of docs/method.md section 8 on a height map (definitions in the
+//! module doc of [`crate::measure`]).
+
+use super::fit::{fit_circle, local_quadratic, peak_vertex};
+use super::outline::{line_crossings, regions, simplify, Region};
+use super::profile::{peaks, pick, valleys, Profiles};
+use super::MeasureError;
+use crate::geom::HeightMap;
+use serde::{Deserialize, Serialize};
+
+/// Which foot (one type for every crate, in footscan-geom).
+pub use footscan_geom::Side;
+
+/// Foot measurements, world millimetres; points are [x, y] on the glass.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Measurements {
+    pub side: Side,
+    pub heel_point: [f64; 2],
+    pub toe_tip: [f64; 2],
+    /// The foot axis: heel centre to second metatarsal head, and its unit direction.
+    pub heel_centre: [f64; 2],
+    pub mt2_head: [f64; 2],
+    pub axis_dir: [f64; 2],
+    /// Axis direction counterclockwise from +x, degrees.
+    pub axis_angle_deg: f64,
+    pub foot_length_mm: f64,
+    pub mt1_head: [f64; 2],
+    pub mt5_head: [f64; 2],
+    pub ball_width_mm: f64,
+    pub waist_inner: [f64; 2],
+    pub waist_outer: [f64; 2],
+    pub midfoot_width_mm: f64,
+    pub midfoot_inner: [f64; 2],
+    pub midfoot_outer: [f64; 2],
+    pub heel_width_mm: f64,
+    pub heel_width_inner: [f64; 2],
+    pub heel_width_outer: [f64; 2],
+    pub hallux_point: [f64; 2],
+    pub arch_height_mm: f64,
+    pub arch_point: [f64; 2],
+    pub arch_index: f64,
+    /// Toe-less contact area (h <= 1 mm) and its thirds, heel first (mm^2).
+    pub contact_area_mm2: f64,
+    pub contact_thirds_mm2: [f64; 3],
+    /// Most anterior point of the toe-less footprint along the axis (end of the arch-index
+    /// interval).
+    pub body_front: [f64; 2],
+    /// Body outline (toes excluded), counterclockwise, simplified to 0.02 mm.
+    pub outline: Vec<[f64; 2]>,
+    /// Toe pad outlines, hallux first.
+    pub toe_outlines: Vec<Vec<[f64; 2]>>,
+    /// Cell size of the height map measured (mm).
+    pub cell_mm: f64,
+    /// Where the heights came from ("height map", "scan grid", "bezier model ...").
+    #[serde(default)]
+    pub heights_from: String,
+    /// Why some figures may be wrong (e.g. the footprint is cut off); empty when none.
+    #[serde(default)]
+    pub warnings: Vec<String>,
+}
+
+/// Contact threshold of the arch index (mm).
+const CONTACT_MM: f64 = 1.0;
+/// Toe pads: regions of at least this fraction of the body's area.
+const MIN_TOE_FRACTION: f64 = 0.005;
+/// Smallest body accepted as a foot (mm^2).
+const MIN_BODY_MM2: f64 = 4000.0;
+/// Arch vault: slope limit and plane-fit radius (mm).
+const ARCH_SLOPE: f64 = 0.1;
+/// Looser slope limits tried in turn when no point of the medial midfoot slopes under
+/// [`ARCH_SLOPE`] (a foot not bearing weight: the real FIND meshes slope 9 and 14 degrees at
+/// the flattest), each noted in the warnings.
+const ARCH_SLOPE_FALLBACK: [f64; 4] = [0.2, 0.3, 0.4, 0.5];
+const ARCH_FIT_RADIUS: f64 = 1.0;
+/// Depth of the body front used to locate its most anterior point (mm).
+const FRONT_DEPTH: f64 = 3.0;
+/// Side profile stations (mm) and the least prominence of a head or depth of a waist (mm):
+/// the outline's steps are 0.1 mm and the smoothing leaves wiggles of about 0.1 mm.
+const PROFILE_STEP: f64 = 0.25;
+const MIN_PROMINENCE: f64 = 0.5;
+/// The extremes are refined over the outline where the profile stays this close to the peak
+/// (mm): more than the parabola's own depth (0.7 mm), so it sees both flanks whole.
+const REFINE_DEPTH: f64 = 1.5;
+/// Where the heads are sought, as fractions of the length from the heel point (first,
+/// fifth), and where they are plausible (docs/method.md section 8.2).
+const MT1_WINDOW: (f64, f64) = (0.50, 0.88);
+const MT5_WINDOW: (f64, f64) = (0.50, 0.85);
+const HEADS_PLAUSIBLE: (f64, f64) = (0.60, 0.80);
+/// The second metatarsal head's place on the ball line, as a fraction of the way from the
+/// first head to the fifth (the simulator's foot has it at 0.46; real feet 0.35-0.5).
+const MT2_ON_BALL_LINE: f64 = 0.46;
+/// Where a foot has its first and fifth metatarsal heads and its inner and outer waists
+/// (fractions of the length): only to choose between bulges (or hollows) within `TIE_MM` of
+/// each other's height.
+const PRIOR: (f64, f64, f64, f64) = (0.72, 0.64, 0.42, 0.35);
+const TIE_MM: f64 = 2.0;
+/// The waists are sought from a fifth of the length (or the heel centre) to a tenth of the
+/// length behind the head.
+const WAIST_FROM: f64 = 0.20;
+const WAIST_BEHIND_HEAD: f64 = 0.10;
+/// A heel breadth this close to the end of the rear quarter (mm) is the foot still widening.
+const HEEL_EDGE_MM: f64 = 3.0;
+/// Plausible widths over the length, and the arch height under which the arch lies on the
+/// glass (mm).
+const BALL_RATIO: (f64, f64) = (0.33, 0.47);
+const HEEL_RATIO: (f64, f64) = (0.20, 0.32);
+const FLAT_ARCH_MM: f64 = 2.0;
+/// A standing foot touches the glass (h <= 1 mm) over at least this share of its footprint,
+/// and no arch index (middle third's share of the contact) exceeds about 0.4.
+const MIN_CONTACT_SHARE: f64 = 0.3;
+const MAX_ARCH_INDEX: f64 = 0.45;
+
+fn missing_landmark(what: &'static str) -> MeasureError {
+    MeasureError::Landmark {
+        what,
+        why: "no outline point in its search region".into(),
+    }
+}
+
+/// Where the side profiles put the metatarsal heads and the waists: stations along the axis
+/// (mm from the heel point) and the heads' points at their profile values.
+struct Heads {
+    mt1: [f64; 2],
+    mt5: [f64; 2],
+    /// The stretch of each side around its station where the profile stays within
+    /// `REFINE_DEPTH` of it (mm from the heel point): the extreme is refined there.
+    mt1_x: (f64, f64),
+    mt5_x: (f64, f64),
+    waist_inner_x: (f64, f64),
+    waist_outer_x: (f64, f64),
+}
+
+/// The stations around `k` down the flanks of its peak (or up those of its valley when not
+/// `peak`) by at most `tol`, as positions (mm).
+fn basin(prof: &Profiles, y: &[f64], k: usize, tol: f64, peak: bool) -> (f64, f64) {
+    // The peak's own flanks: down from it by at most `tol`, and only while the profile keeps
+    // falling (past a hollow lies the next bulge, a big toe past the head, not this one).
+    let fall = |j: usize| if peak { y[k] - y[j] } else { y[j] - y[k] };
+    let flank =
+        |j: usize, prev: usize| y[j].is_finite() && fall(j) <= tol && fall(j) >= fall(prev) - 0.02;
+    let (mut a, mut b) = (k, k);
+    while a > 0 && flank(a - 1, a) {
+        a -= 1;
+    }
+    while b + 1 < y.len() && flank(b + 1, b) {
+        b += 1;
+    }
+    (prof.x(a) - 0.5, prof.x(b) + 0.5)
+}
+
+impl Heads {
+    /// The heads as the most prominent peaks of the medial and lateral profiles in the
+    /// forefoot, the waists as the deepest valleys between the heel centre and each head;
+    /// where a side has no such peak or valley (a border running straight, or still rising
+    /// toward the heel) the extreme in the window is taken and a warning says so.
+    fn find(
+        bo: &[[f64; 2]],
+        tips: &[&[[f64; 2]]],
+        centre: [f64; 2],
+        radius: f64,
+        u: [f64; 2],
+        sign: f64,
+        warnings: &mut Vec<String>,
+    ) -> Option<Heads> {
+        let m = [sign * -u[1], sign * u[0]];
+        let heel = add_scaled(centre, u, -radius);
+        let length = tips
+            .iter()
+            .flat_map(|o| o.iter())
+            .map(|&p| dot(sub(p, heel), u))
+            .fold(f64::NEG_INFINITY, f64::max);
+        if length.is_nan() || length <= 0.0 {
+            return None;
+        }
+        let prof = Profiles::of(&[bo], heel, u, m, length, PROFILE_STEP);
+        let k = |f: f64| prof.index(f * length);
+        let pct = |k: usize| 100.0 * prof.x(k) / length;
+        let extreme_in = |y: &[f64], k0: usize, k1: usize, hi: bool| {
+            (k0..=k1.min(y.len() - 1))
+                .filter(|&j| y[j].is_finite())
+                .max_by(|&a, &b| {
+                    let o = y[a].total_cmp(&y[b]);
+                    if hi {
+                        o
+                    } else {
+                        o.reverse()
+                    }
+                })
+        };
+        let mut head = |y: &[f64], win: (f64, f64), prior: f64, name: &str, border: &str| {
+            let found = peaks(y, k(win.0), k(win.1), MIN_PROMINENCE);
+            match pick(y, &found, k(prior), TIE_MM) {
+                Some(p) => Some(p.k),
+                None => {
+                    // A footprint cut short (a partial scan) may not reach the window: the
+                    // extreme of what there is, said in the warning's figure.
+                    let j = extreme_in(y, k(win.0), k(win.1), true)
+                        .or_else(|| extreme_in(y, k(0.4), y.len() - 1, true))
+                        .or_else(|| extreme_in(y, 0, y.len() - 1, true))?;
+                    warnings.push(format!(
+                        "{name} head: the {border} border has no prominence between {:.0} % and \
+                         {:.0} % of the length (it runs straight or widens toward the heel); \
+                         taken at its {border}-most point there, {:.0} % of the length",
+                        100.0 * win.0,
+                        100.0 * win.1,
+                        pct(j)
+                    ));
+                    Some(j)
+                }
+            }
+        };
+        let k1 = head(&prof.med, MT1_WINDOW, PRIOR.0, "first metatarsal", "medial")?;
+        let k5 = head(
+            &prof.lat,
+            MT5_WINDOW,
+            PRIOR.1,
+            "fifth metatarsal",
+            "lateral",
+        )?;
+        // The waists lie in the midfoot: behind the head by a tenth of the length, in front
+        // of the heel's own bulge and of a fifth of the length.
+        let kc = prof.index(radius.max(WAIST_FROM * length));
+        let mut waist = |y: &[f64], kh: usize, prior: f64, name: &str| {
+            let kh = kh.saturating_sub(k(WAIST_BEHIND_HEAD));
+            if kh <= kc + 1 {
+                return Some(kc);
+            }
+            let found = valleys(y, kc, kh, MIN_PROMINENCE);
+            let neg: Vec<f64> = y.iter().map(|v| -v).collect();
+            match pick(&neg, &found, k(prior), TIE_MM) {
+                Some(p) => Some(p.k),
+                None => {
+                    let j = extreme_in(y, kc, kh, false).unwrap_or(kc);
+                    warnings.push(format!(
+                        "{name} waist: the border does not curve in between the heel and the \
+                         metatarsal head (a flat or full midfoot); taken at its narrowest point \
+                         there, {:.0} % of the length",
+                        pct(j)
+                    ));
+                    Some(j)
+                }
+            }
+        };
+        let ki = waist(&prof.med, k1, PRIOR.2, "inner")?;
+        let ko = waist(&prof.lat, k5, PRIOR.3, "outer")?;
+        let at = |k: usize, w: f64| add_scaled(add_scaled(heel, u, prof.x(k)), m, w);
+        Some(Heads {
+            mt1: at(k1, prof.med[k1]),
+            mt5: at(k5, -prof.lat[k5]),
+            mt1_x: basin(&prof, &prof.med, k1, REFINE_DEPTH, true),
+            mt5_x: basin(&prof, &prof.lat, k5, REFINE_DEPTH, true),
+            waist_inner_x: basin(&prof, &prof.med, ki, REFINE_DEPTH, false),
+            waist_outer_x: basin(&prof, &prof.lat, ko, REFINE_DEPTH, false),
+        })
+    }
+
+    /// Where the second metatarsal head lies on the line from the first head to the fifth.
+    fn mt2_on_ball_line(&self) -> [f64; 2] {
+        add_scaled(self.mt1, sub(self.mt5, self.mt1), MT2_ON_BALL_LINE)
+    }
+}
+
+fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
+    a[0] * b[0] + a[1] * b[1]
+}
+fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    [a[0] - b[0], a[1] - b[1]]
+}
+fn add_scaled(a: [f64; 2], d: [f64; 2], s: f64) -> [f64; 2] {
+    [a[0] + s * d[0], a[1] + s * d[1]]
+}
+fn perp(d: [f64; 2]) -> [f64; 2] {
+    [-d[1], d[0]]
+}
+fn unit(d: [f64; 2]) -> [f64; 2] {
+    let n = d[0].hypot(d[1]);
+    [d[0] / n, d[1] / n]
+}
+
+/// Extreme point of a closed outline in direction `dir`, among vertices passing `keep`: the
+/// best vertex, then a two-sided parabola over the contiguous run of kept vertices within
+/// `depth` mm of it. None when no vertex is kept.
+fn extreme(
+    outline: &[[f64; 2]],
+    dir: [f64; 2],
+    depth: f64,
+    quartic: bool,
+    keep: impl Fn([f64; 2]) -> bool,
+) -> Option<[f64; 2]> {
+    let n = outline.len();
+    let s = |k: usize| dot(outline[k % n], dir);
+    let best = (0..n)
+        .filter(|&k| keep(outline[k]))
+        .max_by(|&a, &b| s(a).total_cmp(&s(b)))?;
+    let top = s(best);
+    let within = |k: usize| keep(outline[k % n]) && s(k) >= top - depth;
+    let mut ks = vec![best];
+    let mut k = best;
+    while ks.len() < n && within(k + 1) {
+        k += 1;
+        ks.push(k % n);
+    }
+    let mut k = best + n;
+    while ks.len() < n && within(k - 1) {
+        k -= 1;
+        ks.push(k % n);
+    }
+    let across = perp(dir);
+    let ts: Vec<f64> = ks.iter().map(|&k| dot(outline[k], across)).collect();
+    let ss: Vec<f64> = ks.iter().map(|&k| dot(outline[k], dir)).collect();
+    let (t0, s0) = peak_vertex(&ts, &ss, quartic).unwrap_or((dot(outline[best], across), top));
+    Some([s0 * dir[0] + t0 * across[0], s0 * dir[1] + t0 * across[1]])
+}
+
+/// Principal direction of a region's cells (unit, sign arbitrary).
+fn principal_axis(map: &HeightMap, r: &Region) -> [f64; 2] {
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for &k in &r.cells {
+        let (i, j) = map.cell(k);
+        let (dx, dy) = (map.x(i) - r.centroid[0], map.y(j) - r.centroid[1]);
+        sxx += dx * dx;
+        sxy += dx * dy;
+        syy += dy * dy;
+    }
+    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    [angle.cos(), angle.sin()]
+}
+
+/// Measure a foot on `map` (see the module doc of [`crate::measure`] for every definition).
+pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
+    let mut regs = regions(map);
+    if regs.is_empty() {
+        return Err(MeasureError::NoFootprint);
+    }
+    let body = regs.remove(0);
+    if body.area_mm2 < MIN_BODY_MM2 {
+        return Err(MeasureError::TooSmall {
+            area_mm2: body.area_mm2,
+            min_mm2: MIN_BODY_MM2,
+        });
+    }
+    let bo = &body.outline;
+    // Initial axis: principal direction, toes (or else +x, the scanner's heel-to-toe
+    // direction) in front.
+    let mut u = principal_axis(map, &body);
+    let extent = {
+        let s: Vec<f64> = bo.iter().map(|&p| dot(p, u)).collect();
+        s.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+            - s.iter().copied().fold(f64::INFINITY, f64::min)
+    };
+    let big: Vec<&Region> = regs
+        .iter()
+        .filter(|r| r.area_mm2 >= MIN_TOE_FRACTION * body.area_mm2)
+        .collect();
+    let toe_pull = big.iter().fold([0.0, 0.0], |acc, r| {
+        add_scaled(acc, sub(r.centroid, body.centroid), r.area_mm2)
+    });
+    let forward = if big.is_empty() { [1.0, 0.0] } else { toe_pull };
+    if dot(u, forward) < 0.0 {
+        u = [-u[0], -u[1]];
+    }
+    let mut toes: Vec<&Region> = big
+        .into_iter()
+        .filter(|r| dot(sub(r.centroid, body.centroid), u) > 0.25 * extent)
+        .collect();
+    toes.sort_by(|a, b| b.area_mm2.total_cmp(&a.area_mm2));
+
+    // Axis: heel circle centre to the body front, iterated to the fixed point. Toes joined to
+    // the ball (a weight-bearing foot seen from below: no toe pad stands apart) put the body
+    // front on a toe, so there the axis runs to the second metatarsal head's place on the ball
+    // line instead (below).
+    let joined = toes.is_empty();
+    let tips: Vec<&[[f64; 2]]> = std::iter::once(bo.as_slice())
+        .chain(toes.iter().map(|t| t.outline.as_slice()))
+        .collect();
+    let heel_circle = |u: [f64; 2], band: f64| {
+        let s_min = bo.iter().map(|&p| dot(p, u)).fold(f64::INFINITY, f64::min);
+        let heel: Vec<[f64; 2]> = bo
+            .iter()
+            .copied()
+            .filter(|&p| dot(p, u) <= s_min + band)
+            .collect();
+        fit_circle(&heel).ok_or_else(|| MeasureError::Landmark {
+            what: "heel centre",
+            why: format!("{} heel outline points do not fit a circle", heel.len()),
+        })
+    };
+    let mut band = 0.12 * extent;
+    let mut centre = body.centroid;
+    let mut radius = 0.0;
+    let mut front = body.centroid;
+    for it in 0..60 {
+        let (c, r) = heel_circle(u, band)?;
+        (centre, radius, band) = (c, r, r.min(0.3 * extent));
+        front = extreme(bo, u, FRONT_DEPTH, true, |_| true).expect("non-empty outline");
+        if joined {
+            break;
+        }
+        let nu = unit(sub(front, centre));
+        let change = (nu[0] * u[1] - nu[1] * u[0]).abs();
+        u = nu;
+        if it > 2 && change < 1e-9 {
+            break;
+        }
+    }
+
+    // Medial side: the hallux side, else the higher midfoot.
+    let sign = match toes.first() {
+        Some(h) => dot(sub(h.centroid, centre), perp(u)).signum(),
+        None => arch_side(map, &body, centre, u, extent),
+    };
+    let side = if sign > 0.0 { Side::Right } else { Side::Left };
+    let mut warnings = Vec::new();
+
+    // The metatarsal heads from the side profiles; with joined toes the axis follows them.
+    let mut heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut Vec::new());
+    if joined {
+        for _ in 0..30 {
+            let Some(h) = &heads else { break };
+            let (c, r) = heel_circle(u, band)?;
+            (centre, radius, band) = (c, r, r.min(0.3 * extent));
+            let nu = unit(sub(h.mt2_on_ball_line(), centre));
+            let change = (nu[0] * u[1] - nu[1] * u[0]).abs();
+            u = nu;
+            heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut Vec::new());
+            if change < 1e-9 {
+                break;
+            }
+        }
+        warnings.push(
+            "the toes are joined to the ball in the footprint (no toe stands apart): the axis \
+             runs to the second metatarsal head's place on the ball line, the arch index's \
+             thirds include the toes' contact and there is no hallux point"
+                .to_string(),
+        );
+    }
+    let heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut warnings)
+        .ok_or_else(|| missing_landmark("metatarsal heads"))?;
+    let m = [sign * -u[1], sign * u[0]];
+
+    // Rearmost point of the heel circle along the axis (on the axis by construction).
+    let heel_point = add_scaled(centre, u, -radius);
+    // Toe tip: most anterior point over the body and the toe pads.
+    let mut toe_tip = extreme(bo, u, 1.0, false, |_| true).expect("non-empty outline");
+    for t in &toes {
+        let p = extreme(&t.outline, u, 1.0, false, |_| true).expect("non-empty outline");
+        if dot(p, u) > dot(toe_tip, u) {
+            toe_tip = p;
+        }
+    }
+    let xl = |p: [f64; 2]| dot(sub(p, heel_point), u);
+    let yl = |p: [f64; 2]| dot(sub(p, heel_point), m);
+    let to_world = |x: f64, y: f64| add_scaled(add_scaled(heel_point, u, x), m, y);
+    let length = xl(toe_tip);
+    let missing = missing_landmark;
+    let neg_m = [-m[0], -m[1]];
+    // Each extreme refined on the outline near the station the profile found it at.
+    let near = |r: (f64, f64)| move |p: [f64; 2]| (r.0..=r.1).contains(&xl(p));
+    let mt1 = extreme(bo, m, 0.7, false, near(heads.mt1_x)).ok_or_else(|| missing("MT1 head"))?;
+    let mt5 =
+        extreme(bo, neg_m, 0.7, false, near(heads.mt5_x)).ok_or_else(|| missing("MT5 head"))?;
+    let ball_width = yl(mt1) - yl(mt5);
+    // The axis passes through the heel centre; coordinates relative to the heel point,
+    // which lies on it.
+    let yc = yl(centre);
+    let mt2 = to_world(xl(mt1), yc);
+    let waist_inner = extreme(bo, neg_m, 0.5, false, |p| {
+        yl(p) > yc && near(heads.waist_inner_x)(p)
+    })
+    .ok_or_else(|| missing("inner waist point"))?;
+    let waist_outer = extreme(bo, m, 0.5, false, |p| {
+        yl(p) < yc && near(heads.waist_outer_x)(p)
+    })
+    .ok_or_else(|| missing("outer waist point"))?;
+
+    // Mid-foot width over every outline (body and toes).
+    let all: Vec<&[[f64; 2]]> = std::iter::once(bo.as_slice())
+        .chain(toes.iter().map(|t| t.outline.as_slice()))
+        .collect();
+    let mid = to_world(length / 2.0, 0.0);
+    let ts: Vec<f64> = all.iter().flat_map(|o| line_crossings(o, mid, m)).collect();
+    if ts.len() < 2 {
+        return Err(missing("mid-foot breadth"));
+    }
+    let (t_lo, t_hi) = (
+        ts.iter().copied().fold(f64::INFINITY, f64::min),
+        ts.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    );
+    let (midfoot_inner, midfoot_outer) = (add_scaled(mid, m, t_hi), add_scaled(mid, m, t_lo));
+
+    let (heel_width, hw_in, hw_out) = heel_width(bo, map.cell_mm, length, radius, to_world, m)
+        .ok_or_else(|| missing("heel width"))?;
+
+    let hallux_point = match toes.first() {
+        Some(h) => extreme(&h.outline, m, 1.0, false, |_| true).expect("non-empty outline"),
+        None => toe_tip,
+    };
+
+    let x_front = xl(front);
+    // The arch: where the medial midfoot faces the glass; on a foot that bears no weight the
+    // whole vault may slope more, and a looser limit is taken (said in the warnings) rather
+    // than losing every other measurement and the side with it.
+    let mut arch = arch_height(map, &body, x_front, &xl, &yl, yc, ARCH_SLOPE);
+    for limit in ARCH_SLOPE_FALLBACK {
+        if arch.is_some() {
+            break;
+        }
+        arch = arch_height(map, &body, x_front, &xl, &yl, yc, limit);
+        if arch.is_some() {
+            warnings.push(format!(
+                "arch height taken where the medial midfoot slopes under {:.0} degrees: it slopes \
+                 over {:.0} everywhere (a foot not bearing weight?)",
+                limit.atan().to_degrees(),
+                ARCH_SLOPE.atan().to_degrees()
+            ));
+        }
+    }
+    let (arch_height, arch_point) =
+        arch.ok_or_else(|| missing("arch height (no gently sloping medial midfoot)"))?;
+    let thirds = contact_thirds(map, &body, x_front, &xl);
+    let total: f64 = thirds.iter().sum();
+    if total <= 0.0 {
+        return Err(missing("contact area"));
+    }
+
+    // Plausibility: a figure that breaks what holds for feet is said, never passed on silently.
+    let frac = |p: [f64; 2]| xl(p) / length;
+    for (name, p) in [("first", mt1), ("fifth", mt5)] {
+        let f = frac(p);
+        if !(HEADS_PLAUSIBLE.0..=HEADS_PLAUSIBLE.1).contains(&f) {
+            warnings.push(format!(
+                "the {name} metatarsal head is at {:.1} % of the length from the heel; heads lie \
+                 between {:.0} % and {:.0} %: the ball width and the axis may be wrong",
+                100.0 * f,
+                100.0 * HEADS_PLAUSIBLE.0,
+                100.0 * HEADS_PLAUSIBLE.1
+            ));
+        }
+    }
+    let forefoot = Profiles::of(&tips, heel_point, u, m, length, PROFILE_STEP);
+    let (kf0, kf1) = (forefoot.index(0.5 * length), forefoot.index(0.9 * length));
+    if let Some((x, b)) = (kf0..=kf1)
+        .map(|k| (forefoot.x(k), forefoot.breadth(k)))
+        .filter(|(_, b)| b.is_finite())
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+    {
+        if b > ball_width + 1.0 {
+            warnings.push(format!(
+                "the forefoot is {b:.1} mm wide at {:.0} % of the length, wider than the ball \
+                 ({ball_width:.1} mm between the metatarsal heads): the heads may be misplaced",
+                100.0 * x / length
+            ));
+        }
+    }
+    for (name, w, h) in [("inner", waist_inner, mt1), ("outer", waist_outer, mt5)] {
+        if xl(w) > xl(h) - 0.05 * length {
+            warnings.push(format!(
+                "the {name} waist point ({:.0} % of the length) is not behind its metatarsal head \
+                 ({:.0} %)",
+                100.0 * frac(w),
+                100.0 * frac(h)
+            ));
+        }
+    }
+    let midfoot_width = t_hi - t_lo;
+    if heel_width >= ball_width || midfoot_width > ball_width + 1.0 {
+        warnings.push(format!(
+            "the widths are out of order: heel {heel_width:.1}, mid-foot {midfoot_width:.1}, \
+             ball {ball_width:.1} mm (a foot is widest at the ball)"
+        ));
+    }
+    for (name, w, (lo, hi)) in [
+        ("ball", ball_width, BALL_RATIO),
+        ("heel", heel_width, HEEL_RATIO),
+    ] {
+        let r = w / length;
+        if !(lo..=hi).contains(&r) {
+            warnings.push(format!(
+                "the {name} width is {:.2} of the length ({w:.1} of {length:.1} mm); feet have \
+                 {lo:.2} to {hi:.2}",
+                r
+            ));
+        }
+    }
+    let share = total / body.area_mm2;
+    if share < MIN_CONTACT_SHARE || thirds[1] / total > MAX_ARCH_INDEX {
+        warnings.push(format!(
+            "{:.0} % of the footprint touches the glass and the arch index is {:.2}: the foot \
+             did not stand on the glass with its weight, so the arch index describes its pose, \
+             not its arch",
+            100.0 * share,
+            thirds[1] / total
+        ));
+    }
+    if arch_height < FLAT_ARCH_MM {
+        warnings.push(format!(
+            "arch height {arch_height:.1} mm: the medial midfoot lies on the glass (a flat foot, \
+             or an arch the scan did not see); judge the arch by eye"
+        ));
+    }
+
+    Ok(Measurements {
+        side,
+        heel_point,
+        toe_tip,
+        heel_centre: centre,
+        mt2_head: mt2,
+        axis_dir: u,
+        axis_angle_deg: u[1].atan2(u[0]).to_degrees(),
+        foot_length_mm: length,
+        mt1_head: mt1,
+        mt5_head: mt5,
+        ball_width_mm: ball_width,
+        waist_inner,
+        waist_outer,
+        midfoot_width_mm: midfoot_width,
+        midfoot_inner,
+        midfoot_outer,
+        heel_width_mm: heel_width,
+        heel_width_inner: hw_in,
+        heel_width_outer: hw_out,
+        hallux_point,
+        arch_height_mm: arch_height,
+        arch_point,
+        arch_index: thirds[1] / total,
+        contact_area_mm2: total,
+        contact_thirds_mm2: thirds,
+        body_front: front,
+        outline: simplify(bo, 0.02),
+        toe_outlines: toes.iter().map(|t| simplify(&t.outline, 0.02)).collect(),
+        cell_mm: map.cell_mm,
+        heights_from: "height map".into(),
+        warnings,
+    })
+}
+
+/// +1 when the midfoot is higher to the left of the axis `u` than to the right, else -1.
+fn arch_side(map: &HeightMap, body: &Region, c: [f64; 2], u: [f64; 2], extent: f64) -> f64 {
+    let left = perp(u);
+    let (mut l, mut r) = (0.0, 0.0);
+    for &k in &body.cells {
+        let (i, j) = map.cell(k);
+        let p = [map.x(i), map.y(j)];
+        let x = dot(sub(p, c), u);
+        if (0.15 * extent..0.45 * extent).contains(&x) {
+            if dot(sub(p, c), left) > 0.0 {
+                l += map.z[k];
+            } else {
+                r += map.z[k];
+            }
+        }
+    }
+    if l >= r {
+        1.0
+    } else {
+        -1.0
+    }
+}
+
+/// Maximum breadth perpendicular to the axis over the rear quarter, on side profiles
+/// smoothed over +-2 mm; where the foot still widens at the quarter (no heel bulge: many
+/// real feet widen steadily from heel to ball), the breadth through the heel centre
+/// (`x_centre` from the heel point) instead, so the figure stays the heel's own. Returns
+/// (width, medial end, lateral end).
+fn heel_width(
+    bo: &[[f64; 2]],
+    cell: f64,
+    length: f64,
+    x_centre: f64,
+    to_world: impl Fn(f64, f64) -> [f64; 2],
+    m: [f64; 2],
+) -> Option<(f64, [f64; 2], [f64; 2])> {
+    let step = (cell / 2.0).max(0.05);
+    let n = (length / 4.0 / step).ceil() as usize;
+    let (mut xs, mut med, mut lat) = (Vec::new(), Vec::new(), Vec::new());
+    // Stations from 2 mm behind the heel point (none cross) to 2 mm past the quarter, so the
+    // smoothing has samples on both sides of the range.
+    let extra = (2.0 / step).ceil() as usize;
+    for q in 0..=n + extra {
+        let x = q as f64 * step;
+        let o = to_world(x, 0.0);
+        let ts = line_crossings(bo, o, m);
+        if ts.len() >= 2 {
+            xs.push(x);
+            med.push(ts.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+            lat.push(ts.iter().copied().fold(f64::INFINITY, f64::min));
+        }
+    }
+    let at = |x: f64| {
+        Some((
+            local_quadratic(&xs, &med, x, 2.0)?,
+            local_quadratic(&xs, &lat, x, 2.0)?,
+        ))
+    };
+    let mut best: Option<(f64, f64, f64, f64)> = None;
+    for &x in xs.iter().filter(|&&x| x <= length / 4.0) {
+        let Some((a, b)) = at(x) else {
+            continue;
+        };
+        if best.is_none_or(|bw| a - b > bw.0) {
+            best = Some((a - b, x, a, b));
+        }
+    }
+    let (mut w, mut x, mut a, mut b) = best?;
+    if x > length / 4.0 - HEEL_EDGE_MM {
+        x = x_centre;
+        (a, b) = at(x)?;
+        w = a - b;
+    }
+    Some((w, to_world(x, a), to_world(x, b)))
+}
+
+/// Highest sole point sloping under `max_slope` over the medial half of the middle third of
+/// the body (x' in [x_f/3, 2 x_f/3], medial of the axis): plane fits over ARCH_FIT_RADIUS.
+fn arch_height(
+    map: &HeightMap,
+    body: &Region,
+    x_front: f64,
+    xl: &impl Fn([f64; 2]) -> f64,
+    yl: &impl Fn([f64; 2]) -> f64,
+    y_axis: f64,
+    max_slope: f64,
+) -> Option<(f64, [f64; 2])> {
+    let cell = map.cell_mm;
+    let rad = (ARCH_FIT_RADIUS / cell).ceil() as isize;
+    // Evaluate on cells about 0.2 mm apart.
+    let stride = ((0.2 / cell).round() as usize).max(1);
+    let mut best: Option<(f64, [f64; 2])> = None;
+    for &k in &body.cells {
+        let (i, j) = map.cell(k);
+        if i % stride != 0 || j % stride != 0 {
+            continue;
+        }
+        let p = [map.x(i), map.y(j)];
+        let x = xl(p);
+        if x < x_front / 3.0 || x > 2.0 * x_front / 3.0 || yl(p) < y_axis {
+            continue;
+        }
+        // Plane z = a + b dx + c dy over the disc.
+        let (mut n, mut total) = (0usize, 0usize);
+        let mut s = [0.0f64; 9]; // sums: 1, dx, dy, dx2, dxdy, dy2, z, zdx, zdy
+        for dj in -rad..=rad {
+            for di in -rad..=rad {
+                let (dx, dy) = (di as f64 * cell, dj as f64 * cell);
+                if dx * dx + dy * dy > ARCH_FIT_RADIUS * ARCH_FIT_RADIUS {
+                    continue;
+                }
+                total += 1;
+                let (ii, jj) = (i as isize + di, j as isize + dj);
+                if ii < 0 || jj < 0 || ii >= map.nx as isize || jj >= map.ny as isize {
+                    continue;
+                }
+                let z = map.get(ii as usize, jj as usize);
+                if !z.is_finite() {
+                    continue;
+                }
+                n += 1;
+                for (v, add) in
+                    s.iter_mut()
+                        .zip([1.0, dx, dy, dx * dx, dx * dy, dy * dy, z, z * dx, z * dy])
+                {
+                    *v += add;
+                }
+            }
+        }
+        // The whole disc must be on the sole: no fits across the outline.
+        if n < total {
+            continue;
+        }
+        let a = nalgebra::Matrix3::new(s[0], s[1], s[2], s[1], s[3], s[4], s[2], s[4], s[5]);
+        let Some(c) = a.lu().solve(&nalgebra::Vector3::new(s[6], s[7], s[8])) else {
+            continue;
+        };
+        if c[1].hypot(c[2]) > max_slope {
+            continue;
+        }
+        if best.is_none_or(|b| c[0] > b.0) {
+            best = Some((c[0], p));
+        }
+    }
+    best
+}
+
+/// Contact area (h <= 1 mm) of the body in the three equal thirds of [0, x_front].
+fn contact_thirds(
+    map: &HeightMap,
+    body: &Region,
+    x_front: f64,
+    xl: &impl Fn([f64; 2]) -> f64,
+) -> [f64; 3] {
+    let mut t = [0.0; 3];
+    let a = map.cell_mm * map.cell_mm;
+    for &k in &body.cells {
+        if map.z[k] > CONTACT_MM {
+            continue;
+        }
+        let (i, j) = map.cell(k);
+        let x = xl([map.x(i), map.y(j)]);
+        if !(0.0..x_front).contains(&x) {
+            continue;
+        }
+        t[((3.0 * x / x_front) as usize).min(2)] += a;
+    }
+    t
+}

@@ -1,0 +1,146 @@
+//! Measurement of a scan: [`measure_grid`] (what the `measure.foot` pipeline stage calls) and
+//! [`measure_scan_dir`] for a saved scan directory. Both take the footprint from the scan grid ([`rasterize_grid`]) and
+//! the heights from the plantar model where it has them: the Bezier network only keeps
+//! segments whose 4 x 4 grid points all have a return, so its own footprint stops up to a
+//! segment (1.5 mm) short of the outline, which would shorten every length and width.
+
+use super::picture::render_plantar;
+use super::{
+    compare_with_truth, grid_truncation, measure_foot, rasterize_grid, MeasureError, Measurements,
+    TruthComparison,
+};
+use crate::geom::HeightMap;
+use crate::scandata::{ScanDir, ScanDirError, ScanGrid};
+use crate::surface::BezierNetwork;
+use std::path::{Path, PathBuf};
+
+/// Default cell of the measured height map (mm): outline vertices are within half a cell of
+/// the footprint's edge, and extreme points on flat stretches of the outline need it fine.
+pub const DEFAULT_CELL_MM: f64 = 0.1;
+
+/// The height map of a scan: footprint from `grid`, heights from `model` where it covers a
+/// cell, else from the grid. Also says which heights were used.
+pub fn scan_heightmap(
+    grid: &ScanGrid,
+    model: Option<&BezierNetwork>,
+    cell_mm: f64,
+) -> Result<(HeightMap, &'static str), MeasureError> {
+    let mut map = rasterize_grid(grid, cell_mm)?;
+    let Some(net) = model else {
+        return Ok((map, "scan grid"));
+    };
+    let mm = net.eval_heightmap(cell_mm);
+    for j in 0..map.ny {
+        for i in 0..map.nx {
+            if !map.get(i, j).is_finite() {
+                continue;
+            }
+            if let Some((a, b)) = mm.cell_of(map.x(i), map.y(j)) {
+                let z = mm.get(a, b);
+                if z.is_finite() {
+                    map.set(i, j, z);
+                }
+            }
+        }
+    }
+    Ok((map, "bezier model (footprint from the scan grid)"))
+}
+
+/// Measure a scan grid (with its model, if any); warnings note a cut-off footprint.
+pub fn measure_grid(
+    grid: &ScanGrid,
+    model: Option<&BezierNetwork>,
+    cell_mm: f64,
+) -> Result<(HeightMap, Measurements), MeasureError> {
+    let (map, heights) = scan_heightmap(grid, model, cell_mm)?;
+    let mut m = measure_foot(&map)?;
+    m.heights_from = heights.to_string();
+    m.warnings.extend(grid_truncation(grid));
+    Ok((map, m))
+}
+
+/// Write `m` as JSON to `json` and its drawing over `map` as PNG to `png` (atomically).
+pub fn write_measurements(
+    m: &Measurements,
+    map: &HeightMap,
+    json: &Path,
+    png: &Path,
+) -> Result<(), MeasureError> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| MeasureError::Io { path, source }
+    };
+    let text = serde_json::to_vec_pretty(m).expect("measurements serialise");
+    footscan_util::write_atomic(json, &text).map_err(io(json))?;
+    render_plantar(map, m).save(png).map_err(io(png))?;
+    Ok(())
+}
+
+/// What [`measure_scan_dir`] did.
+#[derive(Debug)]
+pub struct MeasureOutput {
+    pub measurements: Measurements,
+    pub json: PathBuf,
+    pub png: PathBuf,
+    /// Against the scan's truth.json, for simulated scans.
+    pub comparison: Option<TruthComparison>,
+}
+
+/// Measure the saved scan in `dir` (grid.bin; the Bezier model is rebuilt from it unless
+/// `use_model` is false), write `json` and `png` (default dir/measurements.json and
+/// dir/plantar.png; nothing else is written), and compare with dir/truth.json when there is
+/// one.
+pub fn measure_scan_dir(
+    dir: &Path,
+    json: Option<&Path>,
+    png: Option<&Path>,
+    cell_mm: f64,
+    use_model: bool,
+) -> Result<MeasureOutput, MeasureError> {
+    let scan = ScanDir::new(dir);
+    let grid_path = scan.grid_path();
+    let grid = scan.load_grid().map_err(|source| MeasureError::Io {
+        path: grid_path.clone(),
+        source,
+    })?;
+    let model = if use_model {
+        let (net, _) = crate::surface::build_scan_model(&grid)
+            .map_err(|e| MeasureError::Model(format!("{}: {e}", grid_path.display())))?;
+        Some(net)
+    } else {
+        None
+    };
+    let (map, m) = measure_grid(&grid, model.as_ref(), cell_mm)?;
+    let json = json.map_or_else(|| scan.measurements_path(), Path::to_path_buf);
+    let png = png.map_or_else(|| scan.plantar_path(), Path::to_path_buf);
+    write_measurements(&m, &map, &json, &png)?;
+    let truth_path = scan.truth_path();
+    let comparison = match std::fs::read_to_string(&truth_path) {
+        Ok(t) => Some(compare_with_truth(&m, &t).map_err(|e| MeasureError::Io {
+            path: truth_path.clone(),
+            source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+        })?),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+        Err(source) => {
+            return Err(MeasureError::Io {
+                path: truth_path,
+                source,
+            })
+        }
+    };
+    Ok(MeasureOutput {
+        measurements: m,
+        json,
+        png,
+        comparison,
+    })
+}
+
+impl ScanDir {
+    /// measurements.json as the scanner's [`Measurements`], or None when the foot was not
+    /// measured. Here rather than in `scandata` because measurements are this module's type
+    /// and scandata sits below it.
+    pub fn load_measurements(&self) -> Result<Option<Measurements>, ScanDirError> {
+        self.load_json(Self::MEASUREMENTS, "the scanner's measurements")
+    }
+}

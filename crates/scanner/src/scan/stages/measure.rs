@@ -1,0 +1,125 @@
+//! `measure.foot`: measures the foot at the end of the stream from the grid and, when one
+//! comes down the pipeline, the plantar model; the measurements go on down the pipeline for
+//! the last stages (`last.adjust`).
+
+use super::out_file;
+use crate::measure::{measure_grid, write_measurements};
+use crate::pipeline::{BoxError, Emitter, Stage};
+use crate::scan::item::Item;
+use crate::scandata::{ScanDir, ScanGrid};
+use crate::surface::BezierNetwork;
+use serde::Deserialize;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeasureParams {
+    #[serde(default = "default_json")]
+    pub json: String,
+    #[serde(default = "default_png")]
+    pub png: String,
+    #[serde(default = "default_cell")]
+    pub cell_mm: f64,
+    /// Heights from the model when one comes down the pipeline.
+    #[serde(default = "yes")]
+    pub use_model: bool,
+    /// A foot that cannot be measured fails the scan; false: a warning in the log.
+    #[serde(default = "yes")]
+    pub required: bool,
+}
+
+fn default_json() -> String {
+    ScanDir::MEASUREMENTS.into()
+}
+fn default_png() -> String {
+    ScanDir::PLANTAR.into()
+}
+fn default_cell() -> f64 {
+    crate::measure::DEFAULT_CELL_MM
+}
+fn yes() -> bool {
+    true
+}
+
+/// `measure.foot`: keeps the grid (and the model, which comes after it) and measures at the
+/// end of the stream; passes every item on.
+pub struct MeasureStage {
+    json: PathBuf,
+    png: PathBuf,
+    cell_mm: f64,
+    use_model: bool,
+    required: bool,
+    grid: Option<Arc<ScanGrid>>,
+    model: Option<Arc<BezierNetwork>>,
+    counters: Option<Arc<crate::scan::ScanCounters>>,
+}
+
+impl MeasureStage {
+    /// The stage of `p`, writing into `out_dir`; checks the cell and the file names.
+    pub fn new(p: MeasureParams, out_dir: &std::path::Path) -> Result<Self, BoxError> {
+        if !(p.cell_mm >= 0.05 && p.cell_mm <= 1.0) {
+            return Err(format!("cell_mm = {}: valid range is [0.05, 1]", p.cell_mm).into());
+        }
+        Ok(MeasureStage {
+            json: out_file(out_dir, "json", &p.json)?,
+            png: out_file(out_dir, "png", &p.png)?,
+            cell_mm: p.cell_mm,
+            use_model: p.use_model,
+            required: p.required,
+            grid: None,
+            model: None,
+            counters: None,
+        })
+    }
+
+    /// Tell the quality gate the measured foot's side (checked against the operator's).
+    pub fn with_counters(mut self, counters: Arc<crate::scan::ScanCounters>) -> Self {
+        self.counters = Some(counters);
+        self
+    }
+}
+
+impl Stage<Item> for MeasureStage {
+    fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        match &item {
+            Item::Grid(g) => self.grid = Some(g.clone()),
+            Item::Model(n) if self.use_model => self.model = Some(n.clone()),
+            _ => {}
+        }
+        let _ = out.emit(item);
+        Ok(())
+    }
+
+    fn finish(&mut self, out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        let Some(grid) = self.grid.take() else {
+            return Err("measure.foot received no scan grid: put it after accumulate".into());
+        };
+        let result = measure_grid(&grid, self.model.as_deref(), self.cell_mm)
+            .and_then(|(map, m)| write_measurements(&m, &map, &self.json, &self.png).map(|_| m));
+        match result {
+            Ok(m) => {
+                tracing::info!(
+                    length_mm = m.foot_length_mm,
+                    ball_width_mm = m.ball_width_mm,
+                    arch_index = m.arch_index,
+                    "foot measured"
+                );
+                for w in &m.warnings {
+                    tracing::warn!("{w}");
+                }
+                if let Some(c) = &self.counters {
+                    c.set_foot_side(m.side);
+                    c.set_measure_warnings(m.warnings.clone());
+                }
+                let _ = out.emit(Item::Foot(Arc::new(m)));
+                Ok(())
+            }
+            Err(e) if !self.required => {
+                tracing::warn!("foot not measured: {e}");
+                Ok(())
+            }
+            Err(e) => Err(format!("measure.foot: {e}").into()),
+        }
+    }
+}
