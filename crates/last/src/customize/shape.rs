@@ -996,8 +996,8 @@ fn fd_columns(
         return (0..NPARAM).map(one).collect();
     }
     let next = std::sync::atomic::AtomicUsize::new(0);
-    let out: Vec<std::sync::Mutex<Option<Result<[f64; 8], CustomizeError>>>> =
-        (0..NPARAM).map(|_| std::sync::Mutex::new(None)).collect();
+    type Slot = std::sync::Mutex<Option<Result<[f64; 8], CustomizeError>>>;
+    let out: Vec<Slot> = (0..NPARAM).map(|_| std::sync::Mutex::new(None)).collect();
     std::thread::scope(|sc| {
         for _ in 0..threads {
             sc.spawn(|| loop {
