@@ -85,8 +85,45 @@ fn assert_at_rest(s: &mut GrblSlider, what: &str) -> f64 {
     b.x_mm
 }
 
+/// grbl-sim stalls now and then on a busy machine, for seconds or for good (no status report
+/// in 30 s: docs/method.md 14.1), and a test then fails on a timeout that is the simulator's,
+/// not the driver's. Each test runs on a fresh simulator up to three times; every failed
+/// attempt is printed with its reason, and the test fails if all three do (a driver fault
+/// fails every time).
+fn attempts(name: &str, once: fn()) {
+    const TRIES: usize = 3;
+    for k in 1..=TRIES {
+        match std::panic::catch_unwind(once) {
+            Ok(()) => {
+                if k > 1 {
+                    println!("{name}: passed on attempt {k} of {TRIES} (grbl-sim)");
+                }
+                return;
+            }
+            Err(e) => {
+                let why = e
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| e.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_default();
+                eprintln!("{name}: attempt {k} of {TRIES} failed on grbl-sim: {why}");
+                if k == TRIES {
+                    std::panic::resume_unwind(e);
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn connect_settings_status_and_error_decoding() {
+    attempts(
+        "connect_settings_status_and_error_decoding",
+        connect_settings_status_and_error_decoding_once,
+    );
+}
+
+fn connect_settings_status_and_error_decoding_once() {
     let Some((_sim, mut s)) = rig(None) else {
         return;
     };
@@ -131,6 +168,13 @@ fn connect_settings_status_and_error_decoding() {
 
 #[test]
 fn moves_hold_resume_and_jog_cancel() {
+    attempts(
+        "moves_hold_resume_and_jog_cancel",
+        moves_hold_resume_and_jog_cancel_once,
+    );
+}
+
+fn moves_hold_resume_and_jog_cancel_once() {
     let Some((_sim, mut s)) = rig(Some(50.0)) else {
         return;
     };
@@ -190,6 +234,13 @@ fn moves_hold_resume_and_jog_cancel() {
 
 #[test]
 fn jog_cancel_and_stop_at_the_slow_default_deceleration() {
+    attempts(
+        "jog_cancel_and_stop_at_the_slow_default_deceleration",
+        jog_cancel_and_stop_at_the_slow_default_deceleration_once,
+    );
+}
+
+fn jog_cancel_and_stop_at_the_slow_default_deceleration_once() {
     // $120=10: stopping from 500 mm/min takes 0.83 s simulated, about 2 s here; the fixed 2 s
     // response timeout used to run out first.
     let Some((_sim, mut s)) = rig(None) else {
@@ -214,6 +265,13 @@ fn jog_cancel_and_stop_at_the_slow_default_deceleration() {
 /// `FOOTSCAN_GRBL_SIM_STOPS` (default 4; the study in examples/grbl_sim_study.rs runs 50).
 #[test]
 fn stop_and_reconnect_during_moves_never_alarm() {
+    attempts(
+        "stop_and_reconnect_during_moves_never_alarm",
+        stop_and_reconnect_during_moves_never_alarm_once,
+    );
+}
+
+fn stop_and_reconnect_during_moves_never_alarm_once() {
     let Some((_sim, mut s)) = rig(Some(50.0)) else {
         return;
     };
@@ -248,6 +306,13 @@ fn stop_and_reconnect_during_moves_never_alarm() {
 
 #[test]
 fn laser_on_and_off_in_both_laser_modes() {
+    attempts(
+        "laser_on_and_off_in_both_laser_modes",
+        laser_on_and_off_in_both_laser_modes_once,
+    );
+}
+
+fn laser_on_and_off_in_both_laser_modes_once() {
     let Some((_sim, mut s)) = rig(Some(50.0)) else {
         return;
     };
@@ -286,6 +351,13 @@ fn laser_on_and_off_in_both_laser_modes() {
 
 #[test]
 fn homing_alarm_8_then_unlock_and_settings() {
+    attempts(
+        "homing_alarm_8_then_unlock_and_settings",
+        homing_alarm_8_then_unlock_and_settings_once,
+    );
+}
+
+fn homing_alarm_8_then_unlock_and_settings_once() {
     let Some((_sim, mut s)) = rig(None) else {
         return;
     };
@@ -310,6 +382,13 @@ fn homing_alarm_8_then_unlock_and_settings() {
 
 #[test]
 fn the_port_vanishing_is_a_disconnect() {
+    attempts(
+        "the_port_vanishing_is_a_disconnect",
+        the_port_vanishing_is_a_disconnect_once,
+    );
+}
+
+fn the_port_vanishing_is_a_disconnect_once() {
     let Some((mut sim, mut s)) = rig(Some(50.0)) else {
         return;
     };
