@@ -43,6 +43,7 @@ const CRATE_RULES: &[(&str, &[&str])] = &[
             "footscan-hal",
             "footscan-fleet",
             "footscan-last",
+            "footscan-geom",
             "footscan-util",
         ],
     ),
