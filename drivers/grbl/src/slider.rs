@@ -117,6 +117,10 @@ pub struct GrblSlider {
     build_info: Option<BuildInfo>,
     /// `$$` of the last connect: the stopping deadlines and laser mode come from it.
     settings: Option<GrblSettings>,
+    /// The target of the last accepted move and the banner count when it was sent (a reset
+    /// since flushed it): [`Slider::wait_idle`] does not take an `Idle` reported before the
+    /// move has begun for its end.
+    moving_to: Option<(f64, u64)>,
 }
 
 impl std::fmt::Debug for GrblSlider {
@@ -140,6 +144,7 @@ impl GrblSlider {
             config,
             build_info: None,
             settings: None,
+            moving_to: None,
         }
     }
 
@@ -293,17 +298,32 @@ impl GrblSlider {
         }
         // Settings: the stopping deadlines and laser mode depend on them. A clone that refuses
         // `$$` keeps the defaults.
+        // A first `$$` answered badly is asked again: on grbl-sim it came back unreadable now
+        // and then right after the reset (2 of 3 fresh simulators in one run), and the driver
+        // went on with the defaults' deadlines and no laser mode.
         self.settings = None;
-        match self.read_settings() {
-            Ok(s) => self.settings = Some(s),
-            Err(HalError::Rejected { .. } | HalError::BadData { .. }) => {}
-            Err(e) => return Err(e),
+        for attempt in 1..=3 {
+            match self.read_settings() {
+                Ok(s) => {
+                    self.settings = Some(s);
+                    break;
+                }
+                Err(e @ (HalError::Rejected { .. } | HalError::BadData { .. })) => {
+                    tracing::warn!(
+                        "{}: `$$` not read (attempt {attempt} of 3): {e}",
+                        self.port_name()
+                    );
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+                Err(e) => return Err(e),
+            }
         }
         let deadline = Instant::now() + self.config.response_timeout;
         self.query_status(deadline)?;
         Ok(SliderInfo {
             port: self.port_name().to_string(),
             banner,
+            laser_mode: self.laser_mode(),
         })
     }
 
@@ -574,6 +594,7 @@ impl Slider for GrblSlider {
         // (a reset restores G90 G21, but startup lines may not).
         let line = format!("G90G21G1X{x_mm:.4}F{feed_mm_min:.3}");
         self.command_with(&line, WaitPolicy::motion(self.config.response_timeout))?;
+        self.moving_to = Some((x_mm, self.tracker.banners()));
         Ok(())
     }
 
@@ -582,8 +603,25 @@ impl Slider for GrblSlider {
         self.query_status(deadline)
     }
 
+    /// GRBL answers `ok` once a move is planned and starts the cycle a moment later: a status
+    /// asked in between says `Idle` at the old place (grbl-sim, slowed by a busy machine, did
+    /// so for long enough that a test's move "ended" where it began, 3 runs in 9). So an `Idle`
+    /// short of the last move's target, before any motion was reported, is waited past for up
+    /// to a response timeout.
     fn wait_idle(&mut self, timeout: Duration) -> HalResult<SliderStatus> {
         let deadline = Instant::now() + timeout;
+        let banners = self.tracker.banners();
+        let mut target = self
+            .moving_to
+            .take()
+            .filter(|&(_, b)| b == banners)
+            .map(|(x, _)| x);
+        let tolerance = self
+            .settings
+            .as_ref()
+            .and_then(|s| s.steps_per_mm(0))
+            .map_or(0.01, |k| 1.5 / k.max(1.0));
+        let mut settle: Option<Instant> = None;
         loop {
             let probe = deadline.min(Instant::now() + self.config.response_timeout);
             let s = match self.query_status(probe) {
@@ -593,11 +631,23 @@ impl Slider for GrblSlider {
                 r => r?,
             };
             match s.state {
-                SliderState::Idle => return Ok(s),
+                SliderState::Idle => match target {
+                    Some(t) if (s.x_mm - t).abs() > tolerance => {
+                        let until = *settle
+                            .get_or_insert_with(|| Instant::now() + self.config.response_timeout);
+                        if Instant::now() >= until.min(deadline)
+                            || self.tracker.banners() != banners
+                        {
+                            return Ok(s);
+                        }
+                    }
+                    _ => return Ok(s),
+                },
                 SliderState::Alarm => {
                     return Err(self.alarm_error(self.tracker.alarm().unwrap_or(0)))
                 }
-                _ => {}
+                // Under way: the next Idle is the move's end, wherever it stops.
+                _ => target = None,
             }
             if Instant::now() >= deadline {
                 return Err(self.timeout(

@@ -14,6 +14,9 @@ fn connected(cfg: EmulatorConfig, drv: GrblConfig) -> (GrblEmulator, GrblSlider)
     let info = s.connect().expect("connect");
     assert_eq!(info.banner, "Grbl 1.1h ['$' for help]");
     assert_eq!(info.port, emu.port_path().to_string_lossy());
+    // $32 as the emulator reports it, read at connect.
+    assert_eq!(info.laser_mode, s.laser_mode());
+    assert!(info.laser_mode.is_some());
     (emu, s)
 }
 

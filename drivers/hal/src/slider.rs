@@ -59,6 +59,9 @@ pub struct SliderInfo {
     pub port: String,
     /// Firmware banner, e.g. `Grbl 1.1h ['$' for help]`.
     pub banner: String,
+    /// GRBL's laser mode (`$32`) as read at connect: in it the spindle output is lit at rest
+    /// only in a feed motion mode, which the driver takes care of; None where not reported.
+    pub laser_mode: Option<bool>,
 }
 
 /// `$N=value` settings as reported by the controller.

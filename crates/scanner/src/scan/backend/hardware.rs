@@ -153,7 +153,17 @@ pub fn open_slider(
         hint: slider_hint(&source),
         source: Box::new(source),
     };
-    slider.connect().map_err(fail)?;
+    let info = slider.connect().map_err(fail)?;
+    tracing::info!(
+        "slider {}: {}; laser mode ($32) {}",
+        info.port,
+        info.banner,
+        match info.laser_mode {
+            Some(true) => "on",
+            Some(false) => "off",
+            None => "not reported",
+        }
+    );
     let settings = slider.read_settings().map_err(fail)?;
     let check = |m: String| HardwareError::SliderCheck(m, s.port.clone());
     if let Some(max) = settings.max_rate(0) {
