@@ -15,9 +15,8 @@
 
 use footscan::calib::CalibrationPlan;
 use footscan::scandata::ScanGrid;
+use footscan_fuzzkit::{peak_of, Counting};
 use proptest::prelude::*;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::path::Path;
 
 /// Bytes held per byte of input, at most.
@@ -26,65 +25,9 @@ const RATIO: usize = 4;
 /// parser's tables, error messages.
 const FIXED: usize = 512 * 1024;
 
-struct Counting;
-
-thread_local! {
-    static HELD: Cell<usize> = const { Cell::new(0) };
-    static PEAK: Cell<usize> = const { Cell::new(0) };
-}
-
-fn note(add: usize, sub: usize) {
-    let _ = HELD.try_with(|h| {
-        let now = h.get().wrapping_add(add).wrapping_sub(sub);
-        h.set(now);
-        let _ = PEAK.try_with(|p| {
-            if now > p.get() && now < usize::MAX / 2 {
-                p.set(now)
-            }
-        });
-    });
-}
-
-// SAFETY: every call forwards to the system allocator; the counting touches only
-// const-initialised thread locals, which do not allocate.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        let p = unsafe { System.alloc(l) };
-        if !p.is_null() {
-            note(l.size(), 0);
-        }
-        p
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) };
-        note(0, l.size());
-    }
-    unsafe fn alloc_zeroed(&self, l: Layout) -> *mut u8 {
-        let p = unsafe { System.alloc_zeroed(l) };
-        if !p.is_null() {
-            note(l.size(), 0);
-        }
-        p
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
-        let q = unsafe { System.realloc(p, l, new) };
-        if !q.is_null() {
-            note(new, 0);
-            note(0, l.size());
-        }
-        q
-    }
-}
-
+// The allocator that counts what each thread holds (crates/fuzzkit).
 #[global_allocator]
 static A: Counting = Counting;
-
-fn peak_of(f: impl FnOnce()) -> (usize, bool) {
-    let base = HELD.with(Cell::get);
-    PEAK.with(|p| p.set(base));
-    let panicked = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).is_err();
-    (PEAK.with(Cell::get).saturating_sub(base), panicked)
-}
 
 fn grid_bin(b: &[u8]) {
     drop(ScanGrid::parse(b, Path::new("fuzz/grid.bin")));

@@ -14,6 +14,7 @@ const CRATE_RULES: &[(&str, &[&str])] = &[
     ("footscan-pipeline", &[]),
     ("footscan-fleet", &[]),
     ("footscan-util", &[]),
+    ("footscan-fuzzkit", &[]),
     ("footscan-targets", &["footscan-geom"]),
     ("footscan-last", &["footscan-geom", "footscan-util"]),
     ("footscan-grbl", &["footscan-hal"]),

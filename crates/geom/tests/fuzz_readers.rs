@@ -13,10 +13,9 @@
 //! Inputs that failed are kept as regression cases (`regressions` below and proptest's
 //! `fuzz_readers.proptest-regressions`).
 
+use footscan_fuzzkit::{peak_of, Counting};
 use footscan_geom::mesh::TriMesh;
 use proptest::prelude::*;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::path::Path;
 
 /// Bytes held per byte of input, at most.
@@ -24,68 +23,9 @@ const RATIO: usize = 4;
 /// Bytes held whatever the input (error messages, the header's elements, small buffers).
 const FIXED: usize = 64 * 1024;
 
-/// Counts the bytes each thread holds, and the most it held since the last reset.
-struct Counting;
-
-thread_local! {
-    static HELD: Cell<usize> = const { Cell::new(0) };
-    static PEAK: Cell<usize> = const { Cell::new(0) };
-}
-
-fn note(add: usize, sub: usize) {
-    let _ = HELD.try_with(|h| {
-        let now = h.get().wrapping_add(add).wrapping_sub(sub);
-        h.set(now);
-        let _ = PEAK.try_with(|p| {
-            if now > p.get() && now < usize::MAX / 2 {
-                p.set(now)
-            }
-        });
-    });
-}
-
-// SAFETY: every call forwards to the system allocator; the counting touches only
-// const-initialised thread locals, which do not allocate.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        let p = unsafe { System.alloc(l) };
-        if !p.is_null() {
-            note(l.size(), 0);
-        }
-        p
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) };
-        note(0, l.size());
-    }
-    unsafe fn alloc_zeroed(&self, l: Layout) -> *mut u8 {
-        let p = unsafe { System.alloc_zeroed(l) };
-        if !p.is_null() {
-            note(l.size(), 0);
-        }
-        p
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
-        let q = unsafe { System.realloc(p, l, new) };
-        if !q.is_null() {
-            // Old and new blocks may both exist during the move.
-            note(new, 0);
-            note(0, l.size());
-        }
-        q
-    }
-}
-
+// The allocator that counts what each thread holds (crates/fuzzkit).
 #[global_allocator]
 static A: Counting = Counting;
-
-/// The most `f` held at once beyond what the thread held before, and whether it panicked.
-fn peak_of(f: impl FnOnce()) -> (usize, bool) {
-    let base = HELD.with(Cell::get);
-    PEAK.with(|p| p.set(base));
-    let panicked = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).is_err();
-    (PEAK.with(Cell::get).saturating_sub(base), panicked)
-}
 
 type Reader = fn(&[u8]);
 
