@@ -383,29 +383,5 @@ pub fn judge_files(
             ),
         }
     };
-    let threads = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1)
-        .clamp(1, 8);
-    let mut out: Vec<Option<(Candidate, Option<TriMesh>)>> =
-        (0..files.len()).map(|_| None).collect();
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    type Slot<'a> = std::sync::Mutex<&'a mut Option<(Candidate, Option<TriMesh>)>>;
-    let slots: Vec<Slot> = out.iter_mut().map(std::sync::Mutex::new).collect();
-    std::thread::scope(|sc| {
-        for _ in 0..threads.min(files.len()) {
-            sc.spawn(|| loop {
-                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                if k >= files.len() {
-                    break;
-                }
-                let r = one(&files[k]);
-                **slots[k].lock().expect("slot") = Some(r);
-            });
-        }
-    });
-    drop(slots);
-    out.into_iter()
-        .map(|r| r.expect("every file judged"))
-        .collect()
+    crate::par::map(files.len(), crate::par::cores(8), |k| one(&files[k]))
 }

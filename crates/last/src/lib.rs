@@ -25,6 +25,7 @@ pub mod grade;
 pub mod join;
 pub mod measure_last;
 pub mod outdir;
+mod par;
 pub mod size;
 
 /// The cubic ramp 3 s^2 - 2 s^3 from 0 at s <= 0 to 1 at s >= 1, level at both ends: the

@@ -197,25 +197,35 @@ impl Daemon {
         Ok(p)
     }
 
-    /// Rank the stock collection for a measured scan and the fitter's girths, as `footscan
-    /// last choose` does: by how little each last must change (its largest rule station and
-    /// its bottom outline), with what each cannot meet and why. Runs on the caller's thread
-    /// (the API's blocking pool): reading and measuring the lasts is the work, in parallel.
-    pub fn rank_lasts(&self, id: &ScanId, req: RankRequest) -> Result<Ranking, DaemonError> {
-        let (_, dir) = self.measured_scan(id, "a ranking of the stock lasts")?;
-        let g = req.girths;
+    /// A last request's girths and heel checked (400 naming the value and what is valid), and
+    /// the rule set in force.
+    fn checked_request(
+        &self,
+        g: &TapeGirths,
+        heel_mm: f64,
+    ) -> Result<(TapeGirths, RuleSet), DaemonError> {
         let girths = TapeGirths::checked(g.ball, g.instep, g.long_heel, g.ankle)
             .map_err(|e| DaemonError::BadRequest(format!("girths: {e}")))?;
-        if !(HEEL_RANGE_MM.0..=HEEL_RANGE_MM.1).contains(&req.heel_mm) {
+        if !(HEEL_RANGE_MM.0..=HEEL_RANGE_MM.1).contains(&heel_mm) {
             return Err(DaemonError::BadRequest(format!(
                 "heel_mm = {}: a heel is {:.0}-{:.0} mm high",
-                req.heel_mm, HEEL_RANGE_MM.0, HEEL_RANGE_MM.1
+                heel_mm, HEEL_RANGE_MM.0, HEEL_RANGE_MM.1
             )));
         }
         let rules = match &self.config.last_rules {
             Some(p) => RuleSet::load(p).map_err(DaemonError::Setup)?,
             None => RuleSet::default_rules(),
         };
+        Ok((girths, rules))
+    }
+
+    /// Rank the stock collection for a measured scan and the fitter's girths, as `footscan
+    /// last choose` does: by how little each last must change (its largest rule station and
+    /// its bottom outline), with what each cannot meet and why. Runs on the caller's thread
+    /// (the API's blocking pool): reading and measuring the lasts is the work, in parallel.
+    pub fn rank_lasts(&self, id: &ScanId, req: RankRequest) -> Result<Ranking, DaemonError> {
+        let (_, dir) = self.measured_scan(id, "a ranking of the stock lasts")?;
+        let (girths, rules) = self.checked_request(&req.girths, req.heel_mm)?;
         let plantar = footscan::lastcustom::plantar_of_scan(&dir)
             .map_err(|e| DaemonError::Conflict(e.to_string()))?;
         girths
@@ -274,20 +284,8 @@ impl Daemon {
                 "scan {id} is still running: a last is made from a finished scan"
             )));
         }
-        let g = req.girths;
-        let girths = TapeGirths::checked(g.ball, g.instep, g.long_heel, g.ankle)
-            .map_err(|e| DaemonError::BadRequest(format!("girths: {e}")))?;
-        if !(HEEL_RANGE_MM.0..=HEEL_RANGE_MM.1).contains(&req.heel_mm) {
-            return Err(DaemonError::BadRequest(format!(
-                "heel_mm = {}: a heel is {:.0}-{:.0} mm high",
-                req.heel_mm, HEEL_RANGE_MM.0, HEEL_RANGE_MM.1
-            )));
-        }
+        let (girths, rules) = self.checked_request(&req.girths, req.heel_mm)?;
         let stock = self.stock_path(&req.stock)?;
-        let rules = match &self.config.last_rules {
-            Some(p) => RuleSet::load(p).map_err(DaemonError::Setup)?,
-            None => RuleSet::default_rules(),
-        };
         {
             let mut running = self.last_jobs.running.lock().unwrap();
             if let Some(other) = running.as_ref() {

@@ -961,6 +961,31 @@ const FD_MM: f64 = 0.3;
 
 /// Solve the field so the last's measured values meet `target`. Returns the mesh, its
 /// measures, the field and the number of mesh evaluations.
+/// The last the field `p` builds, its measures, and how far each rule's value is from its
+/// target (0 for a NaN target: the rule has no counterpart on this last, the clinic path's
+/// ankle girth on a low-cut last, and is not solved for).
+fn evaluate(
+    sec: &Sections,
+    nd: &Nodes,
+    medial: f64,
+    target: &[f64; 8],
+    p: &Params,
+) -> Result<(TriMesh, Measures, [f64; 8]), CustomizeError> {
+    let m = build(sec, nd, p);
+    let me = measure(&m, Some(nd.length), medial).map_err(|why| CustomizeError::Infeasible {
+        why: format!("the deformed last cannot be measured: {why}"),
+    })?;
+    let v = values(&me);
+    let r = std::array::from_fn(|i| {
+        if target[i].is_nan() {
+            0.0
+        } else {
+            v[i] - target[i]
+        }
+    });
+    Ok((m, me, r))
+}
+
 /// The rule residuals of the field `p` moved by `steps[c]` in each value c, one column per
 /// value, spread over the available cores.
 fn fd_columns(
@@ -971,52 +996,13 @@ fn fd_columns(
     p: &Params,
     steps: &Params,
 ) -> Result<Vec<[f64; 8]>, CustomizeError> {
-    let one = |c: usize| -> Result<[f64; 8], CustomizeError> {
+    crate::par::map(NPARAM, crate::par::cores(NPARAM), |c| {
         let mut q = *p;
         q[c] += steps[c];
-        let m = build(sec, nd, &q);
-        let me =
-            measure(&m, Some(nd.length), medial).map_err(|why| CustomizeError::Infeasible {
-                why: format!("the deformed last cannot be measured: {why}"),
-            })?;
-        let v = values(&me);
-        Ok(std::array::from_fn(|i| {
-            if target[i].is_nan() {
-                0.0
-            } else {
-                v[i] - target[i]
-            }
-        }))
-    };
-    let threads = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1)
-        .clamp(1, NPARAM);
-    if threads == 1 {
-        return (0..NPARAM).map(one).collect();
-    }
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    type Slot = std::sync::Mutex<Option<Result<[f64; 8], CustomizeError>>>;
-    let out: Vec<Slot> = (0..NPARAM).map(|_| std::sync::Mutex::new(None)).collect();
-    std::thread::scope(|sc| {
-        for _ in 0..threads {
-            sc.spawn(|| loop {
-                let c = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                if c >= NPARAM {
-                    break;
-                }
-                let r = one(c);
-                *out[c].lock().expect("column slot") = Some(r);
-            });
-        }
-    });
-    out.into_iter()
-        .map(|m| {
-            m.into_inner()
-                .expect("column slot")
-                .expect("every column evaluated")
-        })
-        .collect()
+        evaluate(sec, nd, medial, target, &q).map(|(_, _, r)| r)
+    })
+    .into_iter()
+    .collect()
 }
 
 pub fn solve(
@@ -1029,22 +1015,7 @@ pub fn solve(
     let evals = std::cell::Cell::new(0usize);
     let eval = |p: &Params| -> Result<(TriMesh, Measures, [f64; 8]), CustomizeError> {
         evals.set(evals.get() + 1);
-        let m = build(sec, nd, p);
-        let me =
-            measure(&m, Some(nd.length), medial).map_err(|why| CustomizeError::Infeasible {
-                why: format!("the deformed last cannot be measured: {why}"),
-            })?;
-        let v = values(&me);
-        // A NaN target: the rule has no counterpart on this last (the clinic path's ankle
-        // girth on a low-cut last) and is not solved for.
-        let r: [f64; 8] = std::array::from_fn(|i| {
-            if target[i].is_nan() {
-                0.0
-            } else {
-                v[i] - target[i]
-            }
-        });
-        Ok((m, me, r))
+        evaluate(sec, nd, medial, target, p)
     };
     let f = values(foot);
     // The neutral field (the foot's own shape) with the toe extension and the width scales
