@@ -60,7 +60,7 @@ fn bench(c: &mut Criterion) {
     let g = TapeGirths::checked(260.0, 248.0, 367.0, 200.5).unwrap();
     let rows = foot_targets(&foot, &g, &RuleSet::default_rules(), &Inputs::default());
     let t = std::time::Instant::now();
-    let mut cands: Vec<_> = judge_files(&files, Units::Mm, None, &rows, foot.side, foot.length)
+    let mut cands: Vec<_> = judge_files(&files, Units::Mm, None, &rows, &foot, 5.0)
         .into_iter()
         .map(|(c, _)| c)
         .collect();
@@ -75,7 +75,7 @@ fn bench(c: &mut Criterion) {
     grp.sample_size(10);
     grp.bench_function("rank 40 lasts", |b| {
         b.iter(|| {
-            let mut c: Vec<_> = judge_files(&files, Units::Mm, None, &rows, foot.side, foot.length)
+            let mut c: Vec<_> = judge_files(&files, Units::Mm, None, &rows, &foot, 5.0)
                 .into_iter()
                 .map(|(c, _)| c)
                 .collect();

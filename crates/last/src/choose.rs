@@ -4,8 +4,8 @@
 //! is ranked by how little it must change to meet them: the largest change of any station
 //! (length, widths, girths) first, the bottom outline's largest move second.
 
-use crate::customize::clinic::{Plantar, TapeGirths};
-use crate::customize::measure::{Measures, Side};
+use crate::customize::clinic::{Plantar, StockCut, TapeGirths};
+use crate::customize::measure::Measures;
 use crate::customize::rules::RuleSet;
 use crate::customize::{targets, Inputs, RuleRow};
 use crate::measure_last::{LastMeasures, LastSide};
@@ -14,10 +14,9 @@ use footscan_geom::mesh::TriMesh;
 use footscan_geom::P3;
 use serde::Serialize;
 
-/// The foot's ankle girth is taken up to this fraction of its length above the glass, at
-/// this fraction of its length from the heel (docs/method.md 10.1).
-const ANKLE_AT: f64 = 0.30;
-const ANKLE_TOP: f64 = 0.35;
+/// The plan length exceeds the 1.5 mm outline's by more than this share only where the toe
+/// stands clear of the glass after the lay-flat (see [`judge_last`]).
+const TOE_CLEAR: f64 = 0.05;
 
 /// One rule's station on one last: what the last has, what the rule asks, the change.
 #[derive(Clone, Debug, Serialize)]
@@ -88,125 +87,69 @@ pub fn foot_targets(foot: &Plantar, g: &TapeGirths, rules: &RuleSet, inp: &Input
     targets(rules, inp, &fm).0
 }
 
-/// The last's ankle girth as the foot's is taken: the section by the plane x = 0.30 of the
-/// stick length from the heel point (measuring frame), below `top` above the ground, the
-/// perimeter of its convex hull; with the section's highest point (None: no section).
-pub fn ankle_girth(mesh: &TriMesh, lm: &LastMeasures, top: f64) -> Option<(f64, f64)> {
-    let f = lm.frame;
-    let map = |q: &P3| {
-        P3::new(
-            f[0][0] * q.x + f[0][1] * q.y + f[0][2] * q.z + f[0][3],
-            f[1][0] * q.x + f[1][1] * q.y + f[1][2] * q.z + f[1][3],
-            f[2][0] * q.x + f[2][1] * q.y + f[2][2] * q.z + f[2][3],
-        )
-    };
-    let v: Vec<P3> = mesh.vertices.iter().map(map).collect();
-    let x = ANKLE_AT * lm.stick_length;
-    let mut pts: Vec<[f64; 2]> = Vec::new();
-    let mut high = f64::NEG_INFINITY;
-    for t in &mesh.triangles {
-        let c = [v[t[0] as usize], v[t[1] as usize], v[t[2] as usize]];
-        let mut cut: Vec<P3> = Vec::new();
-        for k in 0..3 {
-            let (a, b) = (c[k], c[(k + 1) % 3]);
-            if (a.x - x) * (b.x - x) < 0.0 || (a.x == x && b.x != x) {
-                let s = (x - a.x) / (b.x - a.x);
-                cut.push(a + (b - a) * s);
-            }
-        }
-        if cut.len() < 2 {
-            continue;
-        }
-        let (mut p, mut q) = (cut[0], cut[1]);
-        high = high.max(p.z).max(q.z);
-        if p.z > q.z {
-            std::mem::swap(&mut p, &mut q);
-        }
-        if p.z > top {
-            continue;
-        }
-        if q.z > top {
-            let s = (top - p.z) / (q.z - p.z);
-            q = p + (q - p) * s;
-        }
-        pts.push([p.y, p.z]);
-        pts.push([q.y, q.z]);
-    }
-    if pts.len() < 3 {
-        return None;
-    }
-    Some((hull_perimeter(pts), high))
+/// The heel allowance the rules give the shoe (rule I-A: how far the last's bottom starts
+/// behind the foot's heel), which the footprint's placement leaves out of the fit.
+pub fn heel_allowance(rules: &RuleSet, inp: &Inputs) -> f64 {
+    rules.i_a.heel_allowance_mm.get(inp.shoe)
 }
 
-fn hull_perimeter(mut p: Vec<[f64; 2]>) -> f64 {
-    p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
-        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-    };
-    let mut h: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
-    for pass in 0..2 {
-        let start = h.len();
-        let it: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
-            Box::new(p.iter())
-        } else {
-            Box::new(p.iter().rev())
-        };
-        for &q in it {
-            while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], q) <= 0.0 {
-                h.pop();
-            }
-            h.push(q);
-        }
-        h.pop();
-    }
-    (0..h.len())
-        .map(|k| {
-            let (a, b) = (h[k], h[(k + 1) % h.len()]);
-            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
-        })
-        .sum()
-}
-
-/// Judges one last (its measures and, for the ankle rule, its mesh) against the foot's
-/// targets (`foot_targets`) for a foot of `side` and `foot_length`.
+/// Judges one last (its measures and its mesh, cut as the clinic path cuts it) against the
+/// foot's targets (`foot_targets`, with the rules' heel allowance) for the scanned foot.
 pub fn judge_last(
     name: &str,
     lm: &LastMeasures,
     mesh: &TriMesh,
     rows: &[RuleRow],
-    side: Side,
-    foot_length: f64,
-) -> Candidate {
-    let cm = clinic_measures(mesh, name, side, foot_length);
+    foot: &Plantar,
+) -> (Candidate, Option<StockCut>) {
+    let side = foot.side;
+    let ankle_tape = rows
+        .iter()
+        .find(|r| r.quantity == "ankle girth")
+        .map_or(f64::NAN, |r| r.foot_mm);
+    // The cut `customize_stock` starts from, so a change here is the change it must make.
+    let cut = crate::customize::clinic::cut_stock(
+        mesh.clone(),
+        name,
+        lm.side,
+        side,
+        crate::customize::clinic::StockOptions::default(),
+        ankle_tape,
+    );
     let mut cannot = Vec::new();
-    let mut notes = Vec::new();
-    let want = match side {
-        Side::Left => LastSide::Left,
-        Side::Right => LastSide::Right,
+    // The stations as the solve measures the last it moves (`shape::evaluate`: the last's
+    // 1.5 mm bottom and whole girths, stations placed by the foot's length), so a change
+    // here is the change the solve must make; the cut's own measures are the foot-style
+    // ones the field starts from.
+    let (cm, mirrored, mut notes, no_leg, cut) = match cut {
+        Ok(c) => (
+            crate::customize::measure::measure(&c.stock, Some(foot.length), c.medial).map(
+                |mut m| {
+                    // A toe the lay-flat leaves clear of the glass (its bottom curve carried
+                    // on straight under a toe spring that steepens) ends the 1.5 mm outline
+                    // short: LastScan_Warped's at 216.4 mm, 28 mm behind its plan end. The
+                    // solve's build carries it down, so there the plan length (the size
+                    // check's) is the last's bottom; elsewhere the plan length is longer by
+                    // the heel's and toe's overhang (5 mm, 2 %, on a last made for the foot).
+                    if c.measures.length > (1.0 + TOE_CLEAR) * m.length {
+                        m.length = c.measures.length;
+                    }
+                    m
+                },
+            ),
+            c.mirrored,
+            c.notes.clone(),
+            c.no_leg.clone(),
+            Some(c),
+        ),
+        Err(e) => (Err(e.to_string()), false, Vec::new(), None, None),
     };
-    let mirrored = match lm.side {
-        Some(s) if s != want => {
-            notes.push(format!(
-                "a {} last for a {} foot: mirrored",
-                format!("{s:?}").to_lowercase(),
-                format!("{want:?}").to_lowercase()
-            ));
-            true
-        }
-        Some(_) => false,
-        None => {
-            notes.push("side not told by the last's shape: taken as the foot's".into());
-            false
-        }
-    };
-    let top = ANKLE_TOP * foot_length;
-    let ankle = ankle_girth(mesh, lm, top);
     let mut stations = Vec::new();
     for r in rows {
         // The rules' quantities as the clinic path cuts them on the stock last (the same
         // cut `customize_stock` starts from), so a change here is the change it must make.
         let (measure, value) = match (r.quantity, &cm) {
-            ("bottom length", Ok(c)) => ("1.5 mm outline length", c.length),
+            ("bottom length", Ok(c)) => ("bottom length (1.5 mm outline)", c.length),
             ("ball width", Ok(c)) => ("ball width (B, C)", c.ball_width),
             ("waist width", Ok(c)) => ("waist width (D, E)", c.waist_width),
             ("heel width", Ok(c)) => ("heel width", c.heel_width),
@@ -219,23 +162,9 @@ pub fn judge_last(
         };
         let mut applicable = value.is_finite();
         if r.quantity == "ankle girth" {
-            match ankle {
-                Some((_, high)) if high >= top - 1.0 => {}
-                Some((_, high)) => {
-                    applicable = false;
-                    cannot.push(format!(
-                        "rule {} (ankle girth) not applicable on a low-cut last: its section at \
-                         0.30 L reaches {:.1} mm, the foot's ankle girth is taken up to {:.1} mm",
-                        r.rule, high, top
-                    ));
-                }
-                None => {
-                    applicable = false;
-                    cannot.push(format!(
-                        "rule {} (ankle girth): no section at 0.30 L",
-                        r.rule
-                    ));
-                }
+            if let Some(why) = &no_leg {
+                applicable = false;
+                notes.push(format!("rule {} (ankle girth) {why}", r.rule));
             }
         }
         stations.push(StationChange {
@@ -285,7 +214,7 @@ pub fn judge_last(
         .max(0.5 * ch("ball width").abs())
         .max(0.5 * ch("waist width").abs())
         .max(0.5 * ch("heel width").abs());
-    Candidate {
+    let c = Candidate {
         name: name.to_string(),
         side: lm.side,
         mirrored,
@@ -296,26 +225,38 @@ pub fn judge_last(
         cannot,
         notes,
         eligible,
-    }
+    };
+    (c, cut)
 }
 
-/// The stock last cut as the clinic path cuts a last: in a foot's frame, laid flat by its
-/// bottom curve when it has toe spring or a raised heel, for the foot's side, its stations
-/// placed by the foot's length (as the customized last is judged).
-fn clinic_measures(
-    mesh: &TriMesh,
-    name: &str,
-    side: Side,
-    foot_length: f64,
-) -> Result<Measures, String> {
-    use crate::customize::bottom::{shear, BottomCurve, FLAT_TOL_MM};
-    let (mut stock, mut frame) =
-        crate::customize::foot_in_frame(mesh.clone(), name).map_err(|e| e.to_string())?;
-    if let Some(b) = BottomCurve::of(&stock).filter(|b| b.rise() > FLAT_TOL_MM) {
-        shear(&mut stock, |x| -b.at(x));
+/// A build-up under this (mm) is within the placement's own noise and not a change.
+const BUILD_UP_NOTE_MM: f64 = 0.2;
+
+/// The footprint build-up the clinic path would lay on this last (`build_up_estimate`, mm)
+/// as a station of its own: a last that fits the foot only when built up has changed that
+/// much too (its sides, and the girths round them).
+fn add_build_up(c: &mut Candidate, build_up: f64) {
+    if build_up <= BUILD_UP_NOTE_MM {
+        return;
     }
-    frame.side = side;
-    crate::customize::measure::measure(&stock, Some(foot_length), frame.medial_sign())
+    c.stations.push(StationChange {
+        rule: "fit",
+        quantity: "footprint build-up",
+        last_measure: "side room of the plan outline (estimated)",
+        last_mm: -build_up,
+        target_mm: 0.0,
+        change_mm: build_up,
+        applicable: true,
+    });
+    if build_up > c.largest_change_mm {
+        c.largest_change_mm = build_up;
+        c.largest_at = "footprint build-up";
+    }
+    c.outline_change_mm = c.outline_change_mm.max(build_up);
+    c.notes.push(format!(
+        "the footprint stands up to {build_up:.1} mm out of this last's sides where the foot \
+         must fit: the clinic path builds it up there"
+    ));
 }
 
 /// Ranks candidates: eligible ones first, by the largest station change, then by the bottom
@@ -351,10 +292,11 @@ pub fn judge_files(
     units: footscan_geom::mesh::Units,
     length_mm: Option<f64>,
     rows: &[RuleRow],
-    side: Side,
-    foot_length: f64,
+    foot: &Plantar,
+    heel_allowance: f64,
 ) -> Vec<(Candidate, Option<TriMesh>)> {
-    let one = |p: &std::path::PathBuf| -> (Candidate, Option<TriMesh>) {
+    type Judged = (Candidate, Option<TriMesh>, Option<StockCut>);
+    let one = |p: &std::path::PathBuf| -> Judged {
         let name = p.display().to_string();
         let got = TriMesh::load_solid(p, units, length_mm)
             .map_err(|e| e.to_string())
@@ -365,7 +307,10 @@ pub fn judge_files(
                 Ok((m, lm))
             });
         match got {
-            Ok((m, lm)) => (judge_last(&name, &lm, &m, rows, side, foot_length), Some(m)),
+            Ok((m, lm)) => {
+                let (c, cut) = judge_last(&name, &lm, &m, rows, foot);
+                (c, Some(m), cut)
+            }
             Err(why) => (
                 Candidate {
                     name: name.clone(),
@@ -380,8 +325,50 @@ pub fn judge_files(
                     eligible: false,
                 },
                 None,
+                None,
             ),
         }
     };
-    crate::par::map(files.len(), crate::par::cores(8), |k| one(&files[k]))
+    let cores = crate::par::cores(8);
+    let mut judged: Vec<Judged> = crate::par::map(files.len(), cores, |k| one(&files[k]));
+    // The build-up costs a build of the last (a tenth of a second on a 64k-triangle last), so
+    // it is estimated in the order of the stations' changes, a core's worth at a time, until
+    // the next last's stations alone change it more than the best last changes in all: a
+    // build-up only adds to a change, so no last after it can come first.
+    let mut order: Vec<usize> = (0..judged.len())
+        .filter(|&k| judged[k].0.eligible && judged[k].2.is_some())
+        .collect();
+    order.sort_by(|&a, &b| {
+        judged[a]
+            .0
+            .largest_change_mm
+            .total_cmp(&judged[b].0.largest_change_mm)
+    });
+    let mut best = f64::INFINITY;
+    let mut next = 0;
+    while next < order.len() && judged[order[next]].0.largest_change_mm < best {
+        let batch: Vec<usize> = order[next..]
+            .iter()
+            .copied()
+            .take(cores)
+            .take_while(|&k| judged[k].0.largest_change_mm < best)
+            .collect();
+        let est = crate::par::map(batch.len(), cores, |j| {
+            let cut = judged[batch[j]].2.as_ref().expect("cut filtered");
+            crate::customize::clinic::build_up_estimate(cut, foot, rows, heel_allowance)
+        });
+        for (&k, b) in batch.iter().zip(est) {
+            add_build_up(&mut judged[k].0, b);
+            best = best.min(judged[k].0.largest_change_mm);
+        }
+        next += batch.len();
+    }
+    for &k in &order[next..] {
+        judged[k].0.notes.push(
+            "the footprint's build-up was not estimated: the stations alone change this last \
+             more than the best last changes in all"
+                .into(),
+        );
+    }
+    judged.into_iter().map(|(c, m, _)| (c, m)).collect()
 }

@@ -305,14 +305,23 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
     Ok(())
 }
 
-/// The shop lasts of DATA/lasts for the clinic table, with the length given to the ones in
-/// model units (mm).
+/// The shop lasts of DATA/lasts for the clinic table; the ones in model units are given a
+/// length (their longest side) of the foot's length plus this (mm), as a shop takes the size
+/// of a last model for a foot (260 mm for the default 250 mm foot). The LastScan lasts come
+/// in metres at one size, so a foot more than a size group from it is refused for its size.
 const STOCK: [(&str, Option<f64>); 4] = [
     ("lasts/LastScan_Default.stl", None),
     ("lasts/LastScan_Warped.stl", None),
-    ("lasts/Last_Flat_RoundTip.stl", Some(260.0)),
-    ("lasts/Last_Heeled_RoundTip.stl", Some(260.0)),
+    (
+        "lasts/Last_Flat_RoundTip.stl",
+        Some(MODEL_LAST_OVER_FOOT_MM),
+    ),
+    (
+        "lasts/Last_Heeled_RoundTip.stl",
+        Some(MODEL_LAST_OVER_FOOT_MM),
+    ),
 ];
+const MODEL_LAST_OVER_FOOT_MM: f64 = 10.0;
 
 /// The tape girths of a simulated foot: its own mesh cut by the rules' definitions on a
 /// foot (docs/method.md 10.1), what a fitter's tape reads on it.
@@ -412,7 +421,7 @@ fn clinic_rows(
                 .unwrap()
                 .to_string_lossy()
                 .to_string();
-            let m = load_stock_as(&p, Units::Auto, length_mm)?;
+            let m = load_stock_as(&p, Units::Auto, length_mm.map(|over| length + over))?;
             let mut best: Option<(f64, Result<Customized, String>)> = None;
             for _ in 0..repeats.max(1) {
                 let t = Instant::now();

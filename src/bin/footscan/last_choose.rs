@@ -75,8 +75,8 @@ pub fn run(a: ChooseArgs) -> Result<()> {
         a.units,
         a.length,
         &rows,
-        plantar.side,
-        plantar.length,
+        &plantar,
+        footscan_last::choose::heel_allowance(&rules, &inp),
     );
     let mut cands: Vec<_> = judged.iter().map(|(c, _)| c.clone()).collect();
     rank(&mut cands);

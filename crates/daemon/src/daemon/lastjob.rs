@@ -246,8 +246,8 @@ impl Daemon {
             footscan_geom::mesh::Units::Auto,
             None,
             &rows,
-            plantar.side,
-            plantar.length,
+            &plantar,
+            footscan_last::choose::heel_allowance(&rules, &inp),
         );
         let mut lasts: Vec<footscan_last::choose::Candidate> = judged
             .into_iter()

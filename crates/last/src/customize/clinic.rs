@@ -148,6 +148,121 @@ pub struct StockOptions {
 /// cut off by its top, and the ankle girth rule (IV) has no counterpart on it.
 pub const LEG_RISE: f64 = 0.5;
 
+/// A stock last as the clinic path cuts it, and as `last choose` judges it (one cut, so the
+/// ranking's changes are the ones the customization makes).
+pub struct StockCut {
+    /// For the foot's side, in a foot's frame, laid flat by its bottom curve.
+    pub stock: TriMesh,
+    pub frame: super::measure::FootFrame,
+    /// The bottom curve it was laid flat by (None: flat already).
+    pub(crate) bottom: Option<BottomCurve>,
+    pub medial: f64,
+    /// Its values by the rules' definitions, at its own length.
+    pub measures: super::measure::Measures,
+    /// Why the ankle girth rule has no counterpart on it (a low-cut last), if so.
+    pub no_leg: Option<String>,
+    /// The last was of the other side and is mirrored.
+    pub mirrored: bool,
+    /// What was done or assumed (mirrored, side unknown).
+    pub notes: Vec<String>,
+}
+
+/// Cuts `stock` (read as a `last_side` last, None when its shape does not tell) for a
+/// `foot_side` foot whose tape ankle girth is `ankle_tape` (for the reason a rule does not
+/// apply). A last of the other side is mirrored, or refused with `opts.strict_sides`.
+pub fn cut_stock(
+    mut stock: TriMesh,
+    name: &str,
+    last_side: Option<crate::measure_last::LastSide>,
+    foot_side: Side,
+    opts: StockOptions,
+    ankle_tape: f64,
+) -> Result<StockCut, CustomizeError> {
+    use crate::measure_last::LastSide;
+    let mut notes = Vec::new();
+    let want = match foot_side {
+        Side::Left => LastSide::Left,
+        Side::Right => LastSide::Right,
+    };
+    let word = |s: LastSide| match s {
+        LastSide::Left => "left",
+        LastSide::Right => "right",
+    };
+    let mirrored = matches!(last_side, Some(s) if s != want);
+    match last_side {
+        Some(s) if s != want => {
+            if opts.strict_sides {
+                return Err(CustomizeError::Rules(format!(
+                    "{name}: a {} last for a {} foot (strict sides): give a {} last, or \
+                     leave out the strict-sides option to have this one mirrored",
+                    word(s),
+                    word(want),
+                    word(want)
+                )));
+            }
+            for v in &mut stock.vertices {
+                v.y = -v.y;
+            }
+            for t in &mut stock.triangles {
+                t.swap(1, 2);
+            }
+            notes.push(format!(
+                "the stock last is a {} last and the scan a {} foot: the last was mirrored \
+                 to the foot's side",
+                word(s),
+                word(want)
+            ));
+        }
+        Some(_) => {}
+        None => notes.push(format!(
+            "the stock last's side could not be read: taken to be the foot's ({})",
+            word(want)
+        )),
+    }
+    let (mut stock, mut frame) = foot_in_frame(stock, name)?;
+    // A shop's last has toe spring and a raised heel: laid flat by its bottom curve, its
+    // 1.5 mm outline is its whole bottom again, as on the lasts the whole-foot path makes.
+    let bottom = BottomCurve::of(&stock).filter(|b| b.rise() > FLAT_TOL_MM);
+    if let Some(b) = &bottom {
+        shear(&mut stock, |x| -b.at(x));
+    }
+    // The side a foot's frame finds from where the toes reach furthest says little on a
+    // last (its toe is one smooth tip; two real lasts read "left" both as given and
+    // mirrored): the stock last is taken to be for the scanned foot's side.
+    frame.side = foot_side;
+    let medial = frame.medial_sign();
+    let sm = measure(&stock, None, medial).map_err(|why| CustomizeError::NotAFoot {
+        name: name.into(),
+        why,
+    })?;
+    // The ankle girth needs a leg: on a low-cut last the section at its station is the
+    // whole back part under the last's top.
+    let bb = stock.bbox();
+    let rise = bb.max.z - bb.min.z;
+    let no_leg = (rise < LEG_RISE * sm.length).then(|| {
+        format!(
+            "not applicable for this last: a low-cut last has no leg (its top rises {rise:.0} \
+             mm above its bottom, {:.0} % of its length; a boot last's leg rises above {:.0} \
+             %), so its section at the ankle girth's station is its whole back part ({:.1} mm \
+             round against the foot's {:.1} mm)",
+            100.0 * rise / sm.length,
+            100.0 * LEG_RISE,
+            sm.ankle_girth,
+            ankle_tape
+        )
+    });
+    Ok(StockCut {
+        stock,
+        frame,
+        bottom,
+        medial,
+        measures: sm,
+        no_leg,
+        mirrored,
+        notes,
+    })
+}
+
 /// The stock last (a closed world mesh, z up) deformed so its measured values meet the rules
 /// applied to the scanned and taped foot; a last of the other side is mirrored (see
 /// [`customize_stock_with`]).
@@ -186,62 +301,24 @@ pub fn customize_stock_with(
     girths
         .check_against(foot)
         .map_err(|why| CustomizeError::Rules(format!("the girths: {why}")))?;
-    let mut notes = Vec::new();
-    let mut stock = stock;
-    let foot_side = match foot.side {
-        Side::Left => crate::measure_last::LastSide::Left,
-        Side::Right => crate::measure_last::LastSide::Right,
-    };
-    let word = |s: crate::measure_last::LastSide| match s {
-        crate::measure_last::LastSide::Left => "left",
-        crate::measure_last::LastSide::Right => "right",
-    };
-    match crate::measure_last::measure_last(stock.clone(), name).map(|m| m.side) {
-        Ok(Some(s)) if s != foot_side => {
-            if opts.strict_sides {
-                return Err(CustomizeError::Rules(format!(
-                    "{name}: a {} last for a {} foot (strict sides): give a {} last, or \
-                     leave out the strict-sides option to have this one mirrored",
-                    word(s),
-                    word(foot_side),
-                    word(foot_side)
-                )));
-            }
-            for v in &mut stock.vertices {
-                v.y = -v.y;
-            }
-            for t in &mut stock.triangles {
-                t.swap(1, 2);
-            }
-            notes.push(format!(
-                "the stock last is a {} last and the scan a {} foot: the last was mirrored \
-                 to the foot's side",
-                word(s),
-                word(foot_side)
-            ));
-        }
-        Ok(Some(_)) => {}
-        Ok(None) | Err(_) => notes.push(format!(
-            "the stock last's side could not be read: taken to be the foot's ({})",
-            word(foot_side)
-        )),
-    }
-    let (mut stock, mut frame) = foot_in_frame(stock, name)?;
-    // A shop's last has toe spring and a raised heel: laid flat by its bottom curve, its
-    // 1.5 mm outline is its whole bottom again, as on the lasts the whole-foot path makes.
-    let bottom = BottomCurve::of(&stock).filter(|b| b.rise() > FLAT_TOL_MM);
-    if let Some(b) = &bottom {
-        shear(&mut stock, |x| -b.at(x));
-    }
-    // The side a foot's frame finds from where the toes reach furthest says little on a
-    // last (its toe is one smooth tip; two real lasts read "left" both as given and
-    // mirrored): the stock last is taken to be for the scanned foot's side.
-    frame.side = foot.side;
-    let medial = frame.medial_sign();
-    let sm = measure(&stock, None, medial).map_err(|why| CustomizeError::NotAFoot {
-        name: name.into(),
-        why,
-    })?;
+    let side = crate::measure_last::measure_last(stock.clone(), name).map(|m| m.side);
+    let StockCut {
+        stock,
+        frame,
+        bottom,
+        medial,
+        measures: sm,
+        no_leg,
+        mut notes,
+        ..
+    } = cut_stock(
+        stock,
+        name,
+        side.ok().flatten(),
+        foot.side,
+        opts,
+        girths.ankle,
+    )?;
     // The foot's values: the scan's plan figures and the tape's girths; the stock last's
     // own cuts stay as the curves Algorithm II moves.
     let mut fm = sm.clone();
@@ -266,23 +343,10 @@ pub fn customize_stock_with(
             if have < need { "longer" } else { "shorter" }
         )));
     }
-    // The ankle girth needs a leg: on a low-cut last the section at its station is the
-    // whole back part under the last's top.
-    let bb = stock.bbox();
-    let rise = bb.max.z - bb.min.z;
-    if rise < LEG_RISE * sm.length {
+    if let Some(why) = no_leg {
         let r = &mut rows[7];
         r.applies = false;
-        r.not_applicable = Some(format!(
-            "not applicable for this last: a low-cut last has no leg (its top rises {rise:.0} \
-             mm above its bottom, {:.0} % of its length; a boot last's leg rises above {:.0} \
-             %), so its section at the ankle girth's station is its whole back part ({:.1} mm \
-             round against the foot's {:.1} mm)",
-            100.0 * rise / sm.length,
-            100.0 * LEG_RISE,
-            sm.ankle_girth,
-            girths.ankle
-        ));
+        r.not_applicable = Some(why);
     }
     let target: [f64; 8] = std::array::from_fn(|i| {
         if rows[i].applies {
@@ -291,28 +355,13 @@ pub fn customize_stock_with(
             f64::NAN
         }
     });
-    let heel_point = sm.sole_from();
-    let sec = shape::Sections::of_foot(&stock, sm.length, heel_point, &|_| 0.0);
-    let mut nd = shape::Nodes::of(&sm);
-    // Stations of the rules at the foot's length. The stock last has its heel allowance
-    // already (its heel point is the last's); its chamfer is laid again through its own heel
-    // point, a no-op where the heel already rises clear of it. Without it, the sections'
-    // flat band turned a simulated stock's 45 degree chamfer into a terrace at the outline's
-    // 1.5 mm, the heel point jumped 4.5 mm between Newton steps and the solve failed (240 and
-    // 238 mm stocks for a 250 mm scan: bottom length and long-heel girth off by 2-2.5 mm).
-    nd.length = foot.length;
-    nd.holds_foot = false;
-    nd.heel_allowance = heel_point.max(0.0);
+    let (sec, nd) = stock_sections(&stock, &sm, foot.length);
     let (mut last, mut lm, field, evals) =
         shape::solve(&sec, &nd, &sm, &target, medial).map_err(|e| actionable(e, &rows, name))?;
     judge(&mut rows, &lm);
     // The foot we have is its footprint: it must lie inside the last's bottom where the rules
     // say the foot must fit (the frame's medial side is +y or -y by the side).
-    let mut fp: Vec<Vec<[f64; 2]>> = foot
-        .footprint
-        .iter()
-        .map(|l| l.iter().map(|p| [p[0], p[1] * medial]).collect())
-        .collect();
+    let mut fp = footprint_in_frame(foot, medial);
     let mut built = Vec::new();
     let mut placement = None;
     let cl = if fp.is_empty() {
@@ -436,6 +485,66 @@ pub fn customize_stock_with(
 /// A failed solve said the way a last maker can act on: each missed rule, by how much the
 /// last stays off its target, and what would make it possible (another last, or the rule's
 /// change in the rule file).
+/// The stock last's sections and the rules' stations at the foot's length. The stock last
+/// has its heel allowance already (its heel point is the last's); its chamfer is laid again
+/// through its own heel point, a no-op where the heel already rises clear of it. Without it,
+/// the sections' flat band turned a simulated stock's 45 degree chamfer into a terrace at the
+/// outline's 1.5 mm, the heel point jumped 4.5 mm between Newton steps and the solve failed
+/// (240 and 238 mm stocks for a 250 mm scan: bottom length and long-heel girth off by 2-2.5 mm).
+fn stock_sections(
+    stock: &TriMesh,
+    sm: &super::measure::Measures,
+    foot_length: f64,
+) -> (shape::Sections, shape::Nodes) {
+    let heel_point = sm.sole_from();
+    let sec = shape::Sections::of_foot(stock, sm.length, heel_point, &|_| 0.0);
+    let mut nd = shape::Nodes::of(sm);
+    nd.length = foot_length;
+    nd.holds_foot = false;
+    nd.heel_allowance = heel_point.max(0.0);
+    (sec, nd)
+}
+
+/// The footprint's loops in the foot frame with the medial side +y.
+fn footprint_in_frame(foot: &Plantar, medial: f64) -> Vec<Vec<[f64; 2]>> {
+    foot.footprint
+        .iter()
+        .map(|l| l.iter().map(|p| [p[0], p[1] * medial]).collect())
+        .collect()
+}
+
+/// How far the footprint stands out of the last the solve starts from (the stock with the
+/// rules' length and widths set, `shape::neutral`), placed as the clinic path places it,
+/// where the foot must fit (heel seat, midfoot, toe box): the build-up the clinic path would
+/// lay on, estimated in one evaluation instead of a solve (mm, the larger side's; 0 inside).
+/// `last choose` ranks by it, so a last that fits only when built up is not ranked first.
+pub fn build_up_estimate(
+    cut: &StockCut,
+    foot: &Plantar,
+    rows: &[super::RuleRow],
+    heel_allowance: f64,
+) -> f64 {
+    if foot.footprint.is_empty() || rows.len() < 4 {
+        return 0.0;
+    }
+    let (sec, nd) = stock_sections(&cut.stock, &cut.measures, foot.length);
+    let target: [f64; 4] = std::array::from_fn(|i| rows[i].target_mm);
+    let p0 = shape::neutral(&cut.measures, &target, &nd);
+    let last = shape::build(&sec, &nd, &p0);
+    let plan = PlanProfile::new(&last, PLAN_STEP, f64::INFINITY);
+    let mut at_foot = nd;
+    at_foot.heel_allowance = heel_allowance;
+    let fp = footprint_in_frame(foot, cut.medial);
+    let pivot = 0.5 * foot.length;
+    let pl = place_footprint(&fp, &plan, &at_foot, pivot);
+    fp.iter()
+        .flatten()
+        .filter(|p| matches!(super::region_of_plan(&at_foot, p[0]), 1 | 2 | 4))
+        .map(|&p| BUILD_UP_ROOM_MM - plan.side_room(pl.apply(p, pivot)))
+        .filter(|n| n.is_finite())
+        .fold(0.0, f64::max)
+}
+
 fn actionable(e: CustomizeError, rows: &[super::RuleRow], name: &str) -> CustomizeError {
     let CustomizeError::Unmet { misses, .. } = &e else {
         return e;

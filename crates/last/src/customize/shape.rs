@@ -1005,6 +1005,26 @@ fn fd_columns(
     .collect()
 }
 
+/// The neutral field (the foot's own shape) with the toe extension and the width scales set
+/// from their rules (`target`: bottom length, ball, waist and heel widths), which each have
+/// one mechanism of their own: where the solve starts. The toe extension: the bottom runs
+/// from the heel point (the foot's, or the chamfer's foot where that lies further forward) to
+/// the toe.
+pub fn neutral(foot: &Measures, target: &[f64; 4], nd: &Nodes) -> Params {
+    let f = values(foot);
+    [
+        target[0] - f[0] + foot.o.x.max(nd.heel_allowance) - foot.o.x,
+        1.0 + (target[3] - f[3]) / f[3],
+        1.0 + (target[2] - f[2]) / f[2],
+        1.0 + (target[1] - f[1]) / f[1],
+        1.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+    ]
+}
+
 pub fn solve(
     sec: &Sections,
     nd: &Nodes,
@@ -1017,22 +1037,7 @@ pub fn solve(
         evals.set(evals.get() + 1);
         evaluate(sec, nd, medial, target, p)
     };
-    let f = values(foot);
-    // The neutral field (the foot's own shape) with the toe extension and the width scales
-    // set from their rules, which each have one mechanism of their own.
-    // The toe extension: the bottom runs from the heel point (the foot's, or the chamfer's
-    // foot where that lies further forward) to the toe.
-    let p0: Params = [
-        target[0] - f[0] + foot.o.x.max(nd.heel_allowance) - foot.o.x,
-        1.0 + (target[3] - f[3]) / f[3],
-        1.0 + (target[2] - f[2]) / f[2],
-        1.0 + (target[1] - f[1]) / f[1],
-        1.0,
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-    ];
+    let p0 = neutral(foot, &[target[0], target[1], target[2], target[3]], nd);
     let mut p = p0;
     let scale = param_scale(nd);
     let steps: Params = std::array::from_fn(|j| FD_MM / scale[j]);
