@@ -8,6 +8,7 @@
 
 mod bvh;
 mod error;
+mod gltf;
 mod intake;
 mod io;
 mod section;
@@ -17,6 +18,7 @@ mod validate;
 
 pub use bvh::{Bvh, ClosestPoint, Feature, RayHit, SignedDistance};
 pub use error::{Defect, MeshError};
+pub use gltf::{glb, gltf_position, write_glb, GlbError, GlbPart};
 pub use intake::{
     axis_name, intake, orient_consistently, Axes, Intake, IntakeOptions, CUT_MIN_SPAN,
     CUT_PLANARITY, FOOT_ELONGATION, FOOT_LENGTH_MM,
