@@ -15,9 +15,17 @@ for path in sys.argv[1:]:
         transform, geom_name = scene.graph[node]
         geom = scene.geometry[geom_name].copy()
         geom.apply_transform(transform)
+        if not hasattr(geom, "faces"):  # a line strip (a Path3D)
+            parts[node] = {"points": int(len(geom.vertices)), "bounds": geom.bounds.tolist()}
+            continue
         parts[node] = {
             "triangles": int(len(geom.faces)),
             "vertices": int(len(geom.vertices)),
             "bounds": geom.bounds.tolist(),
         }
-    print(json.dumps({"file": path, "parts": parts}))
+    marks = {
+        node: scene.graph.get(node)[0][:3, 3].tolist()
+        for node in scene.graph.nodes
+        if node not in scene.graph.nodes_geometry and node != scene.graph.base_frame
+    }
+    print(json.dumps({"file": path, "parts": parts, "marks": marks}))

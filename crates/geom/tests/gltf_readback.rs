@@ -5,7 +5,10 @@
 //! installed under target/ by scripts/setup.sh; the real meshes come from the shared data
 //! directory (FOOTSCAN_DATA).
 
-use footscan_geom::mesh::{write_glb, GlbPart, TriMesh};
+use footscan_geom::mesh::{
+    write_glb, write_glb_scene, GlbLine, GlbMark, GlbPart, GlbScene, TriMesh,
+};
+use footscan_geom::P3;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -160,22 +163,34 @@ fn lasts_feet_and_a_scene_pass_the_validator_and_read_back_in_trimesh() {
         })
         .collect();
     let scene = dir.join("scene.glb");
-    write_glb(
+    let (heel, toe) = (P3::new(10.0, 20.0, 0.0), P3::new(250.0, -30.0, 5.0));
+    write_glb_scene(
         &scene,
-        &[
-            GlbPart {
-                name: "foot",
-                mesh: foot,
-                colour: [0.9, 0.75, 0.65, 1.0],
-                vertex_colours: None,
-            },
-            GlbPart {
-                name: "last",
-                mesh: last,
-                colour: [1.0, 1.0, 1.0, 0.4],
-                vertex_colours: Some(&colours),
-            },
-        ],
+        &GlbScene {
+            parts: &[
+                GlbPart {
+                    name: "foot",
+                    mesh: foot,
+                    colour: [0.9, 0.75, 0.65, 1.0],
+                    vertex_colours: None,
+                },
+                GlbPart {
+                    name: "last",
+                    mesh: last,
+                    colour: [1.0, 1.0, 1.0, 0.4],
+                    vertex_colours: Some(&colours),
+                },
+            ],
+            marks: &[GlbMark {
+                name: "heel",
+                at: heel,
+            }],
+            lines: &[GlbLine {
+                name: "length",
+                points: &[heel, toe],
+                colour: [1.0, 0.0, 0.0, 1.0],
+            }],
+        },
     )
     .unwrap();
     glbs.push(scene.clone());
@@ -232,6 +247,19 @@ fn lasts_feet_and_a_scene_pass_the_validator_and_read_back_in_trimesh() {
             stl_bounds_in_gltf(bounds(s)),
         );
     }
+    // The mark sits where it was put, in metres with +Y up; the line spans heel to toe.
+    let mark = &from_glb[4]["marks"]["heel"];
+    for (d, want) in [0.010, 0.0, -0.020].iter().enumerate() {
+        assert!(
+            (mark[d].as_f64().unwrap() - want).abs() < TOL_M,
+            "heel mark {mark}"
+        );
+    }
+    assert_bounds(
+        "scene length line",
+        bounds(&parts["length"]),
+        stl_bounds_in_gltf([[10.0, -30.0, 0.0], [250.0, 20.0, 5.0]]),
+    );
     // The normals are in the file: the viewer shades with them (the validator has checked
     // they are unit vectors).
     let bytes = std::fs::read(&glbs[0]).unwrap();

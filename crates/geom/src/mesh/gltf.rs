@@ -30,6 +30,33 @@ pub struct GlbPart<'a> {
     pub vertex_colours: Option<&'a [[f32; 4]]>,
 }
 
+/// A named point (a landmark), written as an empty node at that place so a viewer (or
+/// Blender) finds it by name.
+#[derive(Debug, Clone, Copy)]
+pub struct GlbMark<'a> {
+    pub name: &'a str,
+    /// Millimetres, in the parts' frame.
+    pub at: crate::P3,
+}
+
+/// A named polyline (a measured length), drawn as glTF lines.
+#[derive(Debug, Clone, Copy)]
+pub struct GlbLine<'a> {
+    pub name: &'a str,
+    /// Millimetres, in the parts' frame; two points at least.
+    pub points: &'a [crate::P3],
+    /// Linear RGBA, each in [0, 1].
+    pub colour: [f32; 4],
+}
+
+/// A whole scene: meshes, then marks, then lines, one node each in that order.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct GlbScene<'a> {
+    pub parts: &'a [GlbPart<'a>],
+    pub marks: &'a [GlbMark<'a>],
+    pub lines: &'a [GlbLine<'a>],
+}
+
 /// Why a scene could not be written; each names the part or file.
 #[derive(Debug, thiserror::Error)]
 pub enum GlbError {
@@ -108,6 +135,10 @@ fn check(part: &GlbPart) -> Result<(), GlbError> {
     Ok(())
 }
 
+fn f32s(v: &mut dyn Iterator<Item = f32>) -> Vec<u8> {
+    v.flat_map(|x| x.to_le_bytes()).collect()
+}
+
 /// Appends `bytes` as a buffer view (4-byte aligned) and returns its index.
 fn push_view(bin: &mut Vec<u8>, views: &mut Vec<Value>, bytes: &[u8], target: u32) -> usize {
     while !bin.len().is_multiple_of(4) {
@@ -130,6 +161,26 @@ const UNSIGNED_INT: u32 = 5125;
 
 /// The .glb bytes of a scene of `parts`, one node each, in the order given.
 pub fn glb(parts: &[GlbPart]) -> Result<Vec<u8>, GlbError> {
+    glb_scene(&GlbScene {
+        parts,
+        ..GlbScene::default()
+    })
+}
+
+fn bounds(pos: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+    for p in pos {
+        for d in 0..3 {
+            lo[d] = lo[d].min(p[d]);
+            hi[d] = hi[d].max(p[d]);
+        }
+    }
+    (lo, hi)
+}
+
+/// The .glb bytes of `scene`.
+pub fn glb_scene(scene: &GlbScene) -> Result<Vec<u8>, GlbError> {
+    let parts = scene.parts;
     if parts.is_empty() {
         return Err(GlbError::NoParts);
     }
@@ -151,16 +202,7 @@ pub fn glb(parts: &[GlbPart]) -> Result<Vec<u8>, GlbError> {
                 }
             })
             .collect();
-        let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
-        for p in &pos {
-            for d in 0..3 {
-                lo[d] = lo[d].min(p[d]);
-                hi[d] = hi[d].max(p[d]);
-            }
-        }
-        let f32s = |v: &mut dyn Iterator<Item = f32>| -> Vec<u8> {
-            v.flat_map(|x| x.to_le_bytes()).collect()
-        };
+        let (lo, hi) = bounds(&pos);
         let pv = push_view(
             &mut bin,
             &mut views,
@@ -235,6 +277,72 @@ pub fn glb(parts: &[GlbPart]) -> Result<Vec<u8>, GlbError> {
         }));
         nodes.push(json!({ "name": part.name, "mesh": meshes.len() - 1 }));
     }
+    for mark in scene.marks {
+        if !mark.at.iter().all(|c| c.is_finite()) {
+            return Err(GlbError::Part {
+                name: mark.name.to_string(),
+                what: format!("the mark is not at a finite point: {:?}", mark.at),
+            });
+        }
+        nodes.push(json!({ "name": mark.name, "translation": gltf_position(&mark.at) }));
+    }
+    for line in scene.lines {
+        let err = |what: String| GlbError::Part {
+            name: line.name.to_string(),
+            what,
+        };
+        if line.points.len() < 2 {
+            return Err(err(format!(
+                "a line needs two points at least, it has {}",
+                line.points.len()
+            )));
+        }
+        if !line
+            .points
+            .iter()
+            .flat_map(|p| p.iter())
+            .all(|c| c.is_finite())
+        {
+            return Err(err("a point of the line is not finite".into()));
+        }
+        if !line.colour.iter().all(|v| (0.0..=1.0).contains(v)) {
+            return Err(err(format!(
+                "colour {:?} is outside [0, 1] (linear RGBA)",
+                line.colour
+            )));
+        }
+        // Segments as glTF LINES (each segment's two ends), which more readers take than
+        // LINE_STRIP (trimesh 4 drops strips).
+        let pos: Vec<[f32; 3]> = line
+            .points
+            .windows(2)
+            .flat_map(|w| [gltf_position(&w[0]), gltf_position(&w[1])])
+            .collect();
+        let (lo, hi) = bounds(&pos);
+        let pv = push_view(
+            &mut bin,
+            &mut views,
+            &f32s(&mut pos.iter().flatten().copied()),
+            ARRAY_BUFFER,
+        );
+        accessors.push(json!({
+            "bufferView": pv, "componentType": FLOAT, "count": pos.len(), "type": "VEC3",
+            "min": lo, "max": hi,
+        }));
+        materials.push(json!({
+            "name": line.name,
+            "pbrMetallicRoughness": { "baseColorFactor": line.colour, "metallicFactor": 0.0 },
+        }));
+        meshes.push(json!({
+            "name": line.name,
+            "primitives": [{
+                "attributes": { "POSITION": accessors.len() - 1 },
+                "material": materials.len() - 1,
+                "mode": 1,
+            }],
+        }));
+        nodes.push(json!({ "name": line.name, "mesh": meshes.len() - 1 }));
+    }
     while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
@@ -270,8 +378,19 @@ pub fn glb(parts: &[GlbPart]) -> Result<Vec<u8>, GlbError> {
 /// Writes [`glb`] of `parts` to `path` (a temporary file renamed into place, so a failed
 /// write leaves no partial file).
 pub fn write_glb(path: impl AsRef<Path>, parts: &[GlbPart]) -> Result<(), GlbError> {
+    write_glb_scene(
+        path,
+        &GlbScene {
+            parts,
+            ..GlbScene::default()
+        },
+    )
+}
+
+/// Writes [`glb_scene`] of `scene` to `path`, atomically as [`write_glb`].
+pub fn write_glb_scene(path: impl AsRef<Path>, scene: &GlbScene) -> Result<(), GlbError> {
     let path = path.as_ref();
-    let bytes = glb(parts)?;
+    let bytes = glb_scene(scene)?;
     let mut name = path.file_name().unwrap_or_default().to_os_string();
     name.push(".tmp");
     let tmp = path.with_file_name(name);

@@ -18,7 +18,10 @@ mod validate;
 
 pub use bvh::{Bvh, ClosestPoint, Feature, RayHit, SignedDistance};
 pub use error::{Defect, MeshError};
-pub use gltf::{glb, gltf_position, write_glb, GlbError, GlbPart};
+pub use gltf::{
+    glb, glb_scene, gltf_position, write_glb, write_glb_scene, GlbError, GlbLine, GlbMark, GlbPart,
+    GlbScene,
+};
 pub use intake::{
     axis_name, intake, orient_consistently, Axes, Intake, IntakeOptions, CUT_MIN_SPAN,
     CUT_PLANARITY, FOOT_ELONGATION, FOOT_LENGTH_MM,
