@@ -12,6 +12,7 @@ mod live;
 mod report;
 mod scans;
 pub mod server;
+pub mod tls;
 mod visits;
 
 use crate::daemon::Daemon;
@@ -104,6 +105,7 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/style.css", get(dashboard_css))
         .route("/api/health", get(health))
         .route("/api/status", get(live::status))
+        .route("/api/tls", get(tls_status))
         .route("/api/scans", get(scans::list).post(scans::start))
         .route("/api/scans/{id}", get(scans::show))
         .route("/api/scans/{id}/cancel", post(scans::cancel))
@@ -158,6 +160,28 @@ pub async fn serve(
     listener: tokio::net::TcpListener,
     signal: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
+    serve_tls(daemon, listener, signal, None).await
+}
+
+/// Whether the API is served over HTTPS, and the certificate's fingerprint for the operator
+/// to compare with the browser's (a self-signed certificate is trusted by that check).
+async fn tls_status(State(st): State<AppState>) -> Json<serde_json::Value> {
+    Json(match st.daemon.tls.get() {
+        Some(t) => serde_json::json!({ "https": true, "certificate": t }),
+        None => serde_json::json!({ "https": false }),
+    })
+}
+
+/// [`serve`], over HTTPS when `tls` is given (its fingerprint goes to /api/tls).
+pub async fn serve_tls(
+    daemon: Arc<Daemon>,
+    listener: tokio::net::TcpListener,
+    signal: impl Future<Output = ()> + Send + 'static,
+    tls: Option<tls::Tls>,
+) -> std::io::Result<()> {
+    if let Some(t) = &tls {
+        let _ = daemon.tls.set(t.info.clone());
+    }
     let (tx, rx) = watch::channel(false);
     let app = router(daemon.clone(), rx.clone());
     let c = &daemon.config;
@@ -168,12 +192,13 @@ pub async fn serve(
             .map_err(std::io::Error::other)?,
         max_per_client: c.max_connections_per_client,
     };
-    let mut server = tokio::spawn(server::run(
+    let mut server = tokio::spawn(server::run_tls(
         listener,
         app,
         limits,
         rx.clone(),
         Duration::from_secs(10),
+        tls.map(|t| t.acceptor),
     ));
     tokio::select! {
         r = &mut server => return r.map_err(std::io::Error::other)?,
