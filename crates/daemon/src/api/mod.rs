@@ -103,6 +103,8 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/visits.js", get(dashboard_visits_js))
         .route("/last.js", get(dashboard_last_js))
         .route("/style.css", get(dashboard_css))
+        .route("/view.js", get(dashboard_view_js))
+        .route("/vendor/three/{*path}", get(vendor_three))
         .route("/api/health", get(health))
         .route("/api/status", get(live::status))
         .route("/api/tls", get(tls_status))
@@ -223,7 +225,7 @@ async fn auth(State(st): State<AppState>, req: Request, next: Next) -> Response 
     };
     let path = req.uri().path();
     if req.method() == Method::GET
-        && matches!(
+        && (matches!(
             path,
             "/api/health"
                 | "/"
@@ -232,7 +234,8 @@ async fn auth(State(st): State<AppState>, req: Request, next: Next) -> Response 
                 | "/visits.js"
                 | "/last.js"
                 | "/style.css"
-        )
+                | "/view.js"
+        ) || path.starts_with("/vendor/three/"))
     {
         return next.run(req).await;
     }
@@ -395,6 +398,43 @@ async fn dashboard_last_js() -> Response {
         "text/javascript; charset=utf-8",
         include_str!("dashboard/last.js"),
     )
+}
+
+async fn dashboard_view_js() -> Response {
+    static_file(
+        "text/javascript; charset=utf-8",
+        include_str!("dashboard/view.js"),
+    )
+}
+
+/// three.js 0.187.0 from npm, embedded (dashboard/vendor/three/README.md): the 3D view
+/// works without the internet.
+async fn vendor_three(axum::extract::Path(path): axum::extract::Path<String>) -> Response {
+    macro_rules! files {
+        ($($p:literal),*) => {
+            match path.as_str() {
+                $($p => include_str!(concat!("dashboard/vendor/three/", $p)),)*
+                _ => return (StatusCode::NOT_FOUND, Json(serde_json::json!({
+                    "error": format!("/vendor/three/{path}: no such file of the embedded three.js")
+                }))).into_response(),
+            }
+        };
+    }
+    let body = files!(
+        "build/three.module.js",
+        "build/three.core.js",
+        "examples/jsm/controls/OrbitControls.js",
+        "examples/jsm/loaders/GLTFLoader.js",
+        "examples/jsm/utils/BufferGeometryUtils.js",
+        "examples/jsm/utils/SkeletonUtils.js",
+        "LICENSE"
+    );
+    let ty = if path == "LICENSE" {
+        "text/plain; charset=utf-8"
+    } else {
+        "text/javascript; charset=utf-8"
+    };
+    static_file(ty, body)
 }
 
 async fn dashboard_css() -> Response {
