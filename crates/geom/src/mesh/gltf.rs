@@ -402,6 +402,66 @@ pub fn write_glb_scene(path: impl AsRef<Path>, scene: &GlbScene) -> Result<(), G
     std::fs::rename(&tmp, path).map_err(io)
 }
 
+/// Skin colour of the foot, and the red it turns where it stands out of the last.
+const SKIN: [f32; 4] = [0.85, 0.68, 0.58, 1.0];
+const PROUD: [f32; 4] = [0.85, 0.05, 0.05, 1.0];
+/// How far out of the last (mm) the foot is fully red; from 0 to this it shades over.
+pub const PROUD_FULL_MM: f64 = 2.0;
+
+/// The foot inside the last, for a last maker to look at before the milling: the foot
+/// (node "foot") coloured by where it stands out of the last (skin inside, shading to red at
+/// [`PROUD_FULL_MM`] out), the last (node "last") translucent around it. Both in the same
+/// frame, millimetres. Returns the bytes and the foot's largest protrusion (mm, 0 if none).
+pub fn foot_in_last_glb(foot: &TriMesh, last: &TriMesh) -> Result<(Vec<u8>, f64), GlbError> {
+    let bvh = super::Bvh::new(last);
+    let mut worst = 0.0f64;
+    let colours: Vec<[f32; 4]> = foot
+        .vertices
+        .iter()
+        .map(|p| {
+            let out = bvh.signed_distance(p).map_or(0.0, |s| s.distance.max(0.0));
+            worst = worst.max(out);
+            let t = (out / PROUD_FULL_MM).clamp(0.0, 1.0) as f32;
+            [0, 1, 2, 3].map(|c| SKIN[c] + t * (PROUD[c] - SKIN[c]))
+        })
+        .collect();
+    let bytes = glb(&[
+        GlbPart {
+            name: "foot",
+            mesh: foot,
+            colour: [1.0; 4],
+            vertex_colours: Some(&colours),
+        },
+        GlbPart {
+            name: "last",
+            mesh: last,
+            colour: [0.55, 0.62, 0.75, 0.35],
+            vertex_colours: None,
+        },
+    ])?;
+    Ok((bytes, worst))
+}
+
+/// [`foot_in_last_glb`] written atomically to `path`; the foot's largest protrusion (mm).
+pub fn write_foot_in_last_glb(
+    path: impl AsRef<Path>,
+    foot: &TriMesh,
+    last: &TriMesh,
+) -> Result<f64, GlbError> {
+    let path = path.as_ref();
+    let (bytes, worst) = foot_in_last_glb(foot, last)?;
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".tmp");
+    let tmp = path.with_file_name(name);
+    let io = |source| GlbError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    std::fs::write(&tmp, bytes).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(io)?;
+    Ok(worst)
+}
+
 impl TriMesh {
     /// This mesh alone as a .glb scene: one node `name`, in a neutral grey.
     pub fn to_glb(&self, name: &str) -> Result<Vec<u8>, GlbError> {
