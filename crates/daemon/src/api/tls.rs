@@ -196,13 +196,11 @@ pub fn subject_names(bind: std::net::SocketAddr, allowed_hosts: &[String]) -> Ve
         names.push(bind.ip().to_string());
     }
     if let Ok(h) = std::fs::read_to_string("/proc/sys/kernel/hostname") {
-        let h = h.trim();
-        if !h.is_empty() && h != "localhost" {
-            names.push(h.to_string());
-        }
+        names.push(h.trim().to_string());
     }
     names.extend(allowed_hosts.iter().cloned());
-    names.dedup();
+    let mut seen = std::collections::HashSet::new();
+    names.retain(|n| !n.is_empty() && seen.insert(n.clone()));
     names
 }
 
@@ -279,6 +277,16 @@ mod tests {
                 "{bad}: {e}"
             );
         }
+    }
+
+    #[test]
+    fn subject_names_are_listed_once() {
+        let n = subject_names("127.0.0.1:8470".parse().unwrap(), &["localhost".into()]);
+        let mut u = n.clone();
+        u.sort();
+        u.dedup();
+        assert_eq!(u.len(), n.len(), "{n:?}");
+        assert!(n.contains(&"::1".to_string()), "{n:?}");
     }
 
     #[test]
