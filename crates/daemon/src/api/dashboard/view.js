@@ -49,7 +49,15 @@ window.footscanViewer = state;
 
 const fig = document.getElementById('viewer-fig');
 const canvas = document.getElementById('viewer');
-const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+showTls();
+let renderer;
+try {
+  renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+} catch (e) {
+  // No WebGL (an old browser, or graphics turned off): the rest of the page works as before.
+  state.error = `no WebGL: ${e && e.message ? e.message : e}`;
+  throw e;
+}
 renderer.setPixelRatio(1);
 renderer.setClearColor(BACKGROUND, 1);
 const scene = new THREE.Scene();
@@ -174,5 +182,4 @@ if (result.dataset.scanId) load(result.dataset.scanId);
 for (const [id, view] of [['view-top', 'top'], ['view-side', 'side'], ['view-reset', 'three-quarter']]) {
   document.getElementById(id).addEventListener('click', () => setView(view));
 }
-showTls();
 render();
