@@ -56,3 +56,26 @@ if ! "$venv/bin/python" -c 'import OCP, numpy' >/dev/null 2>&1; then
   "$venv/bin/python" -m pip install -q --disable-pip-version-check \
     cadquery-ocp-novtk==8.0.1.1.0 numpy
 fi
+
+# crates/geom/tests/gltf_readback.rs (and the .glb tests of the CLI and footscand) check every
+# glTF file with the Khronos validator (npm gltf-validator, pinned, under target/npm-gltf) and
+# read it back with Python trimesh (a venv under target/venv-gltf). Each is made only when
+# absent; test-time only.
+npm_gltf="$repo/target/npm-gltf"
+if [ ! -f "$npm_gltf/node_modules/gltf-validator/package.json" ]; then
+  command -v npm >/dev/null 2>&1 || {
+    echo "npm not found: install Node.js 20 and npm for the glTF validator" >&2
+    exit 1
+  }
+  echo "installing the Khronos glTF validator into $npm_gltf"
+  mkdir -p "$npm_gltf"
+  npm install --prefix "$npm_gltf" --no-audit --no-fund --silent gltf-validator@2.0.0-dev.3.10
+fi
+venv_gltf="$repo/target/venv-gltf"
+if ! "$venv_gltf/bin/python" -c 'import trimesh, numpy' >/dev/null 2>&1; then
+  py=/usr/bin/python3
+  [ -x "$py" ] || py=python3
+  echo "creating $venv_gltf (trimesh, numpy; about 100 MB)"
+  "$py" -m venv "$venv_gltf"
+  "$venv_gltf/bin/python" -m pip install -q --disable-pip-version-check trimesh==4.12.2 numpy
+fi

@@ -216,6 +216,7 @@ fn scan_with_last_adjust_then_the_cli_on_every_real_last() {
         "bottom.igs",
         "bottom.step",
         "last_adjusted.stl",
+        "last_adjusted.glb",
         "deviation.png",
         "adjust.json",
         "measurements.json",

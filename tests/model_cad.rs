@@ -162,6 +162,50 @@ fn occt_python() -> PathBuf {
     p
 }
 
+/// One JSON line per file from a checker script: the Khronos glTF validator (node) or
+/// trimesh (the venv under target/venv-gltf); both installed by scripts/setup.sh.
+fn gltf_check(trimesh: bool, files: &[&Path]) -> Vec<serde_json::Value> {
+    let (prog, script) = if trimesh {
+        let py = repo().join("target/venv-gltf/bin/python");
+        assert!(
+            py.exists(),
+            "{} is missing: run scripts/setup.sh",
+            py.display()
+        );
+        (py, "scripts/gltf_trimesh.py")
+    } else {
+        let v = repo().join("target/npm-gltf/node_modules/gltf-validator");
+        assert!(
+            v.exists(),
+            "{} is missing: run scripts/setup.sh",
+            v.display()
+        );
+        (PathBuf::from("node"), "scripts/gltf_validate.mjs")
+    };
+    let out = Command::new(prog)
+        .arg(repo().join(script))
+        .args(files)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{script}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+/// A glb part's or mark's coordinates from trimesh (metres, +Y up) back in the foot frame
+/// (mm, +Z up): (X, Y, Z) -> (X, -Z, Y) * 1000.
+fn from_gltf(v: &serde_json::Value) -> [f64; 3] {
+    let c = |i: usize| v[i].as_f64().unwrap() * 1000.0;
+    [c(0), -c(2), c(1)]
+}
+
 fn footscan(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_footscan"))
         .args(args)
@@ -296,7 +340,45 @@ fn simulated_scan_model_is_one_closed_solid_on_the_outline_and_step_reads_back()
     let vi = r["volume"].as_f64().unwrap();
     assert!((vi / v - 1.0).abs() < 1e-9, "IGES {vi} vs STEP {v}");
 
-    // `footscan model` on the saved scan: the same solid on 1 mm cells, and refusals.
+    // The scan's model.glb for the dashboard (the solid on 1 mm cells, landmarks, lines):
+    // small, valid by the Khronos validator, and the foot of the STL in trimesh.
+    let scan_glb = dir.path().join("model.glb");
+    let size = std::fs::metadata(&scan_glb).unwrap().len();
+    let v = &gltf_check(false, &[&scan_glb])[0];
+    println!("model.glb: {size} bytes, validator {v}");
+    assert!(size < 3_000_000, "model.glb is {size} bytes");
+    assert_eq!(v["errors"], 0, "{v}");
+    assert_eq!(v["warnings"], 0, "{v}");
+    let t = &gltf_check(true, &[&scan_glb])[0];
+    let foot = &t["parts"]["foot"];
+    let (lo, hi) = (from_gltf(&foot["bounds"][0]), from_gltf(&foot["bounds"][1]));
+    assert!(
+        ((hi[0] - lo[0]) - true_length).abs() < 0.5,
+        "glb length {lo:?} {hi:?}"
+    );
+    assert!((lo[2] - stl.min[2]).abs() < 1e-3, "glb bottom {lo:?}");
+    let heel = from_gltf(&t["marks"]["heel_point"]);
+    assert!(heel.iter().all(|c| c.abs() < 1e-3), "heel point {heel:?}");
+    let toe = from_gltf(&t["marks"]["toe_tip"]);
+    let m_len = m["foot_length_mm"].as_f64().unwrap();
+    assert!(
+        (toe[0] - m_len).abs() < 0.5,
+        "toe tip {toe:?}, length {m_len}"
+    );
+    let len_line = &t["parts"]["length"];
+    let l_hi = from_gltf(&len_line["bounds"][1]);
+    assert!((l_hi[0] - m_len).abs() < 1e-3, "length line {len_line}");
+    let ball = &t["parts"]["ball_width"]["bounds"];
+    let (b0, b1) = (from_gltf(&ball[0]), from_gltf(&ball[1]));
+    let m_ball = m["ball_width_mm"].as_f64().unwrap();
+    let seg = ((b1[0] - b0[0]).powi(2) + (b1[1] - b0[1]).powi(2)).sqrt();
+    assert!(
+        seg >= m_ball - 0.5,
+        "ball line {seg} mm, ball width {m_ball} mm"
+    );
+
+    // `footscan model --formats stl,glb` on the saved scan: the same solid on 1 mm cells, and
+    // the glb holds every triangle of the STL within 1 um of its bounds.
     let o = footscan(&[
         "model",
         "--scan",
@@ -306,13 +388,33 @@ fn simulated_scan_model_is_one_closed_solid_on_the_outline_and_step_reads_back()
         "--cell-mm",
         "1",
         "--formats",
-        "stl",
+        "stl,glb",
     ]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     println!("{stdout}");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(stdout.contains("1 piece(s)"), "{stdout}");
-    let coarse = check_closed(&read_stl(&dir.path().join("model.stl")));
+    assert!(stdout.contains("glTF: the solid on 1 mm cells"), "{stdout}");
+    let tris = read_stl(&dir.path().join("model.stl"));
+    let t = &gltf_check(true, &[&scan_glb])[0];
+    let foot = &t["parts"]["foot"];
+    assert_eq!(foot["triangles"].as_u64().unwrap() as usize, tris.len());
+    let coarse = check_closed(&tris);
+    let (lo, hi) = (from_gltf(&foot["bounds"][0]), from_gltf(&foot["bounds"][1]));
+    for d in 0..3 {
+        // y is glTF's -Z: the glTF minimum is the maximum y.
+        let (glo, ghi) = if d == 1 {
+            (hi[1], lo[1])
+        } else {
+            (lo[d], hi[d])
+        };
+        assert!(
+            (glo - coarse.min[d]).abs() < 1e-3 && (ghi - coarse.max[d]).abs() < 1e-3,
+            "axis {d}: glb {glo} .. {ghi} mm, STL {} .. {} mm",
+            coarse.min[d],
+            coarse.max[d]
+        );
+    }
     assert!(((coarse.max[0] - coarse.min[0]) - true_length).abs() < 0.5);
     assert!((coarse.volume / stl.volume - 1.0).abs() < 0.01);
 

@@ -90,6 +90,27 @@ fn run(args: Args) -> Result<()> {
     tracing::info!("config {}", path.display());
     let config = DaemonConfig::load(&path, args.bind.as_deref())?;
     let bind = config.bind;
+    let tls = config
+        .tls
+        .as_ref()
+        .map(|t| {
+            footscan_daemon::api::tls::load(t, &config.archive, bind, &config.allowed_hosts)
+                .context("setting up HTTPS ([daemon] tls)")
+        })
+        .transpose()?;
+    if let Some(t) = &tls {
+        tracing::info!(
+            "HTTPS with {} certificate {}, SHA-256 fingerprint {}",
+            if t.info.self_signed {
+                "the self-signed"
+            } else {
+                "the"
+            },
+            t.info.certificate.display(),
+            t.info.fingerprint_sha256
+        );
+    }
+    let scheme = if tls.is_some() { "https" } else { "http" };
     let daemon = Daemon::open(config)?;
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
@@ -111,9 +132,9 @@ fn run(args: Args) -> Result<()> {
             }
         );
         // Tests and scripts read the address (with the port chosen for :0) from this line.
-        println!("footscand listening on http://{addr}");
+        println!("footscand listening on {scheme}://{addr}");
         std::io::stdout().flush()?;
-        footscan_daemon::api::serve(daemon, listener, shutdown_signal()).await?;
+        footscan_daemon::api::serve_tls(daemon, listener, shutdown_signal(), tls).await?;
         Ok(())
     })
 }

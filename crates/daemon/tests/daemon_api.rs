@@ -332,6 +332,7 @@ fn bearer_token_guards_a_network_bind() {
                 &dir,
                 &Opts {
                     bind: "0.0.0.0:0",
+                    daemon_extra: "allow_plain_http = true\n",
                     ..Opts::default()
                 },
             );
@@ -343,6 +344,7 @@ fn bearer_token_guards_a_network_bind() {
                 Opts {
                     bind: "0.0.0.0:0",
                     token: Some(TOKEN),
+                    daemon_extra: "allow_plain_http = true\n",
                     ..Opts::default()
                 },
             )

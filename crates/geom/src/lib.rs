@@ -1,14 +1,15 @@
 //! footscan-geom: the geometry every last stage stands on.
 //!
 //! One job: exact, fast geometry on f64 millimetres. It depends on nothing else in footscan
-//! (only nalgebra, thiserror and serde), so the scanner, the simulator and the last stages can all use
+//! (only nalgebra, thiserror, serde and serde_json), so the scanner, the simulator and the last stages can all use
 //! it, and it sits at the bottom of the layer map in ARCHITECTURE.md.
 //!
 //! - [`bernstein`]: Bernstein polynomials in the shapes the detector, the calibration's depth
 //!   network and the plantar model evaluate them (one implementation, held together by tests).
 //! - [`plane`], [`polyline`], [`polygon`], [`bbox`]: planes, open and closed polylines, planar
 //!   polygons (area, containment, offsets), axis-aligned boxes.
-//! - [`mesh`]: indexed triangle meshes: STL (binary and ASCII), PLY and OBJ in and out,
+//! - [`mesh`]: indexed triangle meshes: STL (binary and ASCII), PLY and OBJ in and out, glTF
+//!   binary (.glb) out,
 //!   validation (closed, 2-manifold, oriented, no degenerate faces), units, plane sections
 //!   into closed ordered polylines, signed point-to-mesh distance on a bounding-volume tree.
 //! - [`nurbs`]: B-spline and NURBS curves and tensor-product surfaces of any degree: evaluation

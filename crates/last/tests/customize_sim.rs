@@ -119,6 +119,30 @@ fn simulated_feet() {
             if l == 260.0 {
                 let dir = std::path::Path::new("/tmp/customize_sim").join(format!("{side:?}"));
                 write_outputs(&c, &inp, &dir).unwrap();
+                // The glTF outputs: the last, and the foot inside it in one frame (the foot's
+                // box within the last's but for 5 mm), the foot red where it stands out.
+                assert!(dir.join("last.glb").is_file());
+                let (_, proud) = footscan_geom::mesh::foot_in_last_glb(&c.foot, &c.last).unwrap();
+                let (fb, lb) = (c.foot.bbox(), c.last.bbox());
+                println!(
+                    "  foot_in_last.glb: the foot stands out of the last by {proud:.2} mm at most"
+                );
+                for d in 0..3 {
+                    assert!(
+                        fb.min[d] > lb.min[d] - 5.0 && fb.max[d] < lb.max[d] + 5.0,
+                        "axis {d}: foot {:?}..{:?}, last {:?}..{:?}",
+                        fb.min,
+                        fb.max,
+                        lb.min,
+                        lb.max
+                    );
+                }
+                let bytes = std::fs::read(dir.join("foot_in_last.glb")).unwrap();
+                let jl = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+                let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + jl]).unwrap();
+                assert_eq!(doc["nodes"][0]["name"], "foot");
+                assert_eq!(doc["nodes"][1]["name"], "last");
+                assert_eq!(doc["materials"][1]["alphaMode"], "BLEND");
             }
         }
     }

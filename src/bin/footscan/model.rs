@@ -1,6 +1,7 @@
 //! `footscan model --scan DIR`: the foot model for CAD of a saved scan (`footscan::cad`): the
 //! Bezier network, the foot measured for its frame and outline, the closed solid written as
-//! STL, PLY, OBJ and a faceted STEP solid, with a summary on stdout.
+//! STL, PLY, OBJ, a faceted STEP solid and glTF binary (.glb, with the landmarks and the
+//! length and ball-width lines), with a summary on stdout.
 
 use anyhow::{Context, Result};
 use clap::Parser;
@@ -23,6 +24,9 @@ pub struct Args {
     /// quarter of the foot's ball width.
     #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     cell_mm: f64,
+    /// Cell of the .glb solid (mm), same range; default: --cell-mm (every triangle of the STL).
+    #[arg(long, allow_negative_numbers = true)]
+    glb_cell_mm: Option<f64>,
     /// Cell of the STEP (and IGES) solid (mm), same range.
     #[arg(long, default_value_t = DEFAULT_STEP_CELL_MM, allow_negative_numbers = true)]
     step_cell_mm: f64,
@@ -38,6 +42,7 @@ enum Format {
     Obj,
     Step,
     Iges,
+    Glb,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -45,6 +50,10 @@ pub fn run(a: Args) -> Result<()> {
     check_cell("--cell-mm", a.cell_mm, None)?;
     if a.formats.contains(&Format::Step) || a.formats.contains(&Format::Iges) {
         check_cell("--step-cell-mm", a.step_cell_mm, None)?;
+    }
+    let glb_cell_mm = a.glb_cell_mm.unwrap_or(a.cell_mm);
+    if a.formats.contains(&Format::Glb) {
+        check_cell("--glb-cell-mm", glb_cell_mm, None)?;
     }
     let scan = ScanDir::new(&a.scan);
     let grid_path = scan.grid_path();
@@ -60,11 +69,17 @@ pub fn run(a: Args) -> Result<()> {
         obj: want(Format::Obj, "model.obj"),
         step: want(Format::Step, "model.step"),
         iges: want(Format::Iges, "model.igs"),
+        glb: want(Format::Glb, "model.glb"),
         cell_mm: a.cell_mm,
         step_cell_mm: a.step_cell_mm,
+        glb_cell_mm,
     };
-    let (_, summary) = model_scan(&grid, &files, ["--cell-mm", "--step-cell-mm"])
-        .with_context(|| format!("modelling the scan in {}", a.scan.display()))?;
+    let (_, summary) = model_scan(
+        &grid,
+        &files,
+        ["--cell-mm", "--step-cell-mm", "--glb-cell-mm"],
+    )
+    .with_context(|| format!("modelling the scan in {}", a.scan.display()))?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {

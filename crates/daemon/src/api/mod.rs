@@ -12,6 +12,7 @@ mod live;
 mod report;
 mod scans;
 pub mod server;
+pub mod tls;
 mod visits;
 
 use crate::daemon::Daemon;
@@ -102,8 +103,11 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/visits.js", get(dashboard_visits_js))
         .route("/last.js", get(dashboard_last_js))
         .route("/style.css", get(dashboard_css))
+        .route("/view.js", get(dashboard_view_js))
+        .route("/vendor/three/{*path}", get(vendor_three))
         .route("/api/health", get(health))
         .route("/api/status", get(live::status))
+        .route("/api/tls", get(tls_status))
         .route("/api/scans", get(scans::list).post(scans::start))
         .route("/api/scans/{id}", get(scans::show))
         .route("/api/scans/{id}/cancel", post(scans::cancel))
@@ -158,6 +162,28 @@ pub async fn serve(
     listener: tokio::net::TcpListener,
     signal: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
+    serve_tls(daemon, listener, signal, None).await
+}
+
+/// Whether the API is served over HTTPS, and the certificate's fingerprint for the operator
+/// to compare with the browser's (a self-signed certificate is trusted by that check).
+async fn tls_status(State(st): State<AppState>) -> Json<serde_json::Value> {
+    Json(match st.daemon.tls.get() {
+        Some(t) => serde_json::json!({ "https": true, "certificate": t }),
+        None => serde_json::json!({ "https": false }),
+    })
+}
+
+/// [`serve`], over HTTPS when `tls` is given (its fingerprint goes to /api/tls).
+pub async fn serve_tls(
+    daemon: Arc<Daemon>,
+    listener: tokio::net::TcpListener,
+    signal: impl Future<Output = ()> + Send + 'static,
+    tls: Option<tls::Tls>,
+) -> std::io::Result<()> {
+    if let Some(t) = &tls {
+        let _ = daemon.tls.set(t.info.clone());
+    }
     let (tx, rx) = watch::channel(false);
     let app = router(daemon.clone(), rx.clone());
     let c = &daemon.config;
@@ -168,12 +194,13 @@ pub async fn serve(
             .map_err(std::io::Error::other)?,
         max_per_client: c.max_connections_per_client,
     };
-    let mut server = tokio::spawn(server::run(
+    let mut server = tokio::spawn(server::run_tls(
         listener,
         app,
         limits,
         rx.clone(),
         Duration::from_secs(10),
+        tls.map(|t| t.acceptor),
     ));
     tokio::select! {
         r = &mut server => return r.map_err(std::io::Error::other)?,
@@ -198,7 +225,7 @@ async fn auth(State(st): State<AppState>, req: Request, next: Next) -> Response 
     };
     let path = req.uri().path();
     if req.method() == Method::GET
-        && matches!(
+        && (matches!(
             path,
             "/api/health"
                 | "/"
@@ -207,7 +234,8 @@ async fn auth(State(st): State<AppState>, req: Request, next: Next) -> Response 
                 | "/visits.js"
                 | "/last.js"
                 | "/style.css"
-        )
+                | "/view.js"
+        ) || path.starts_with("/vendor/three/"))
     {
         return next.run(req).await;
     }
@@ -370,6 +398,43 @@ async fn dashboard_last_js() -> Response {
         "text/javascript; charset=utf-8",
         include_str!("dashboard/last.js"),
     )
+}
+
+async fn dashboard_view_js() -> Response {
+    static_file(
+        "text/javascript; charset=utf-8",
+        include_str!("dashboard/view.js"),
+    )
+}
+
+/// three.js 0.187.0 from npm, embedded (dashboard/vendor/three/README.md): the 3D view
+/// works without the internet.
+async fn vendor_three(axum::extract::Path(path): axum::extract::Path<String>) -> Response {
+    macro_rules! files {
+        ($($p:literal),*) => {
+            match path.as_str() {
+                $($p => include_str!(concat!("dashboard/vendor/three/", $p)),)*
+                _ => return (StatusCode::NOT_FOUND, Json(serde_json::json!({
+                    "error": format!("/vendor/three/{path}: no such file of the embedded three.js")
+                }))).into_response(),
+            }
+        };
+    }
+    let body = files!(
+        "build/three.module.js",
+        "build/three.core.js",
+        "examples/jsm/controls/OrbitControls.js",
+        "examples/jsm/loaders/GLTFLoader.js",
+        "examples/jsm/utils/BufferGeometryUtils.js",
+        "examples/jsm/utils/SkeletonUtils.js",
+        "LICENSE"
+    );
+    let ty = if path == "LICENSE" {
+        "text/plain; charset=utf-8"
+    } else {
+        "text/javascript; charset=utf-8"
+    };
+    static_file(ty, body)
 }
 
 async fn dashboard_css() -> Response {

@@ -204,8 +204,78 @@ pub async fn run(
     listener: tokio::net::TcpListener,
     app: Router,
     limits: Limits,
+    stop: watch::Receiver<bool>,
+    drain: Duration,
+) -> std::io::Result<()> {
+    run_tls(listener, app, limits, stop, drain, None).await
+}
+
+/// A connection's byte stream, plain TCP or TLS over it.
+trait Io: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send {}
+impl<T: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send> Io for T {}
+
+/// The first byte of every TLS connection: a handshake record.
+const TLS_HANDSHAKE: u8 = 0x16;
+
+/// The TLS session on `stream`, within `timeout`; a client speaking plain HTTP to the TLS
+/// port gets a plain-text 400 saying to use https (instead of a TLS alert it cannot read),
+/// and None is returned for any failure (logged at debug: scanners of the network do this).
+async fn accept_tls(
+    stream: tokio::net::TcpStream,
+    tls: &tokio_rustls::TlsAcceptor,
+    timeout: Duration,
+    peer: SocketAddr,
+) -> Option<tokio_rustls::server::TlsStream<tokio::net::TcpStream>> {
+    let mut first = [0u8; 1];
+    match tokio::time::timeout(timeout, stream.peek(&mut first)).await {
+        Ok(Ok(1)) if first[0] == TLS_HANDSHAKE => {}
+        Ok(Ok(1)) => {
+            refuse_plain(stream).await;
+            tracing::debug!("connection from {peer}: plain HTTP on the HTTPS port");
+            return None;
+        }
+        _ => return None,
+    }
+    match tokio::time::timeout(timeout, tls.accept(stream)).await {
+        Ok(Ok(s)) => Some(s),
+        Ok(Err(e)) => {
+            tracing::debug!("TLS handshake with {peer}: {e}");
+            None
+        }
+        Err(_) => {
+            tracing::debug!("TLS handshake with {peer}: no handshake within {timeout:?}");
+            None
+        }
+    }
+}
+
+/// The answer to plain HTTP on the HTTPS port.
+async fn refuse_plain(mut stream: tokio::net::TcpStream) {
+    use tokio::io::AsyncWriteExt;
+    let body = serde_json::json!({
+        "error": "this port speaks HTTPS only: use https:// (the [daemon] tls setting)"
+    })
+    .to_string();
+    let resp = format!(
+        "HTTP/1.1 400 Bad Request\r\ncontent-type: application/json\r\n\
+         content-length: {}\r\nconnection: close\r\n\r\n{body}",
+        body.len()
+    );
+    let _ = tokio::time::timeout(Duration::from_secs(1), async {
+        let _ = stream.write_all(resp.as_bytes()).await;
+        let _ = stream.shutdown().await;
+    })
+    .await;
+}
+
+/// [`run`], over TLS when `tls` is given.
+pub async fn run_tls(
+    listener: tokio::net::TcpListener,
+    app: Router,
+    limits: Limits,
     mut stop: watch::Receiver<bool>,
     drain: Duration,
+    tls: Option<tokio_rustls::TlsAcceptor>,
 ) -> std::io::Result<()> {
     let cap = limits.max_connections;
     let per_client = limits.max_per_client.min(cap);
@@ -275,8 +345,22 @@ pub async fn run(
         );
         let (app, registry, limits) = (app.clone(), registry.clone(), limits.clone());
         let mut closing = closing_rx.clone();
+        let tls = tls.clone();
         tasks.spawn(async move {
             let _ = stream.set_nodelay(true);
+            let stream: Box<dyn Io> = match &tls {
+                None => Box::new(stream),
+                Some(acceptor) => {
+                    match accept_tls(stream, acceptor, limits.header_timeout, peer).await {
+                        Some(s) => Box::new(s),
+                        None => {
+                            registry.lock().unwrap().conns.remove(&id);
+                            drop(permit);
+                            return;
+                        }
+                    }
+                }
+            };
             let svc_busy = busy.clone();
             let svc = hyper::service::service_fn(move |req: Request<hyper::body::Incoming>| {
                 let guard = Busy::new(&svc_busy);

@@ -726,6 +726,7 @@ pub fn content_type(name: &str) -> &'static str {
         Some("csv") => "text/csv",
         Some("igs" | "iges") => "model/iges",
         Some("step" | "stp") => "model/step",
+        Some("glb") => "model/gltf-binary",
         _ => "application/octet-stream",
     }
 }

@@ -51,6 +51,11 @@ struct DaemonSection {
     body_timeout_s: Option<f64>,
     max_connections: Option<usize>,
     max_connections_per_client: Option<usize>,
+    /// HTTPS: "self-signed" or { cert, key } (api/tls.rs).
+    tls: Option<toml::Value>,
+    /// A non-loopback bind with a token and without TLS is refused unless this says the
+    /// network is trusted (or a reverse proxy terminates TLS in front).
+    allow_plain_http: Option<bool>,
 }
 
 /// Defaults of the HTTP limits.
@@ -92,6 +97,10 @@ pub struct DaemonConfig {
     pub stock_lasts: Option<PathBuf>,
     /// The comfort rule file (`[lasts] rules`); None: footscan's built-in rules.
     pub last_rules: Option<PathBuf>,
+    /// HTTPS (`[daemon] tls`); None: plain HTTP.
+    pub tls: Option<crate::api::tls::TlsSetting>,
+    /// `[daemon] allow_plain_http`: plain HTTP with a token on the network is intended.
+    pub allow_plain_http: bool,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -109,6 +118,14 @@ pub enum DaemonConfigError {
          {TOKEN_ENV}, or bind 127.0.0.1"
     )]
     NoToken { bind: SocketAddr, path: PathBuf },
+    #[error(
+        "refusing to listen on {bind} with a token over plain HTTP: the token would cross the \
+         network in clear text; set `tls = \"self-signed\"` (or `tls = {{ cert = \"...\", key = \
+         \"...\" }}`) in [daemon] of {path}, put a TLS reverse proxy in front and bind \
+         127.0.0.1, or set `allow_plain_http = true` if the network is trusted \
+         (docs/running-footscand.md)"
+    )]
+    PlainHttp { bind: SocketAddr, path: PathBuf },
 }
 
 impl DaemonConfig {
@@ -174,6 +191,20 @@ impl DaemonConfig {
                 path: path.to_owned(),
             });
         }
+        let base = path.parent().unwrap_or(Path::new("."));
+        let tls = d
+            .tls
+            .as_ref()
+            .map(|v| crate::api::tls::TlsSetting::parse(v, base))
+            .transpose()
+            .map_err(invalid)?;
+        let allow_plain_http = d.allow_plain_http.unwrap_or(false);
+        if token.is_some() && tls.is_none() && !allow_plain_http && !bind.ip().is_loopback() {
+            return Err(DaemonConfigError::PlainHttp {
+                bind,
+                path: path.to_owned(),
+            });
+        }
         let secs = |key: &str, v: Option<f64>, default: f64| {
             let v = v.unwrap_or(default);
             if v.is_finite() && (0.1..=3600.0).contains(&v) {
@@ -214,7 +245,6 @@ impl DaemonConfig {
                 )));
             }
         }
-        let base = path.parent().unwrap_or(Path::new("."));
         let fleet = match &fleet_section {
             Some(sec) => Some(
                 footscan_fleet::Settings::resolve(
@@ -256,6 +286,8 @@ impl DaemonConfig {
             clinic_zone,
             stock_lasts,
             last_rules,
+            tls,
+            allow_plain_http,
         })
     }
 }
@@ -296,7 +328,19 @@ mod tests {
             .to_string();
         assert!(e.contains("FOOTSCAND_TOKEN") && e.contains("token"), "{e}");
         let t = Some("0123456789abcdef".to_string());
-        assert!(DaemonConfig::parse(Path::new("d.toml"), OK, Some("0.0.0.0:1"), t).is_ok());
+        // With a token on the network: TLS, or plain HTTP said to be intended.
+        let e = DaemonConfig::parse(Path::new("d.toml"), OK, Some("0.0.0.0:1"), t.clone())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("clear text") && e.contains("allow_plain_http = true"),
+            "{e}"
+        );
+        for extra in ["allow_plain_http = true\n", "tls = \"self-signed\"\n"] {
+            let text = format!("{OK}{extra}");
+            let c = DaemonConfig::parse(Path::new("d.toml"), &text, Some("0.0.0.0:1"), t.clone());
+            assert!(c.is_ok(), "{extra}: {:?}", c.err());
+        }
         let e = DaemonConfig::parse(Path::new("d.toml"), OK, None, Some("short".into()))
             .unwrap_err()
             .to_string();

@@ -193,6 +193,8 @@ pub struct Daemon {
     /// The fleet pusher, when [fleet] is on.
     fleet: Option<fleet::Fleet>,
     last_jobs: lastjob::LastJobs,
+    /// The certificate in use when serving HTTPS (set once at start), for the status page.
+    pub tls: std::sync::OnceLock<crate::api::tls::TlsInfo>,
 }
 
 impl Daemon {
@@ -275,6 +277,7 @@ impl Daemon {
                 .map_err(|e| DaemonError::Setup(format!("cannot start the job launcher: {e}")))?,
             fleet,
             last_jobs: lastjob::LastJobs::default(),
+            tls: std::sync::OnceLock::new(),
         }))
     }
 

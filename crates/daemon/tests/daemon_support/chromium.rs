@@ -22,6 +22,9 @@ pub const HEADLESS: [&str; 7] = [
     "--no-first-run",
 ];
 
+/// WebGL without a GPU: ANGLE on SwiftShader, which Chromium only falls back to when told.
+pub const WEBGL: [&str; 2] = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"];
+
 pub fn require() {
     assert!(
         Path::new(CHROMIUM).is_file(),
@@ -129,6 +132,11 @@ fn pipe() -> (std::os::fd::OwnedFd, std::os::fd::OwnedFd) {
 impl Browser {
     /// Headless Chromium with a fresh `profile`, one blank page of `width` x `height` CSS px.
     pub fn launch(profile: &Path, width: u32, height: u32) -> Browser {
+        Browser::launch_with(profile, width, height, &[])
+    }
+
+    /// [`Browser::launch`] with `extra` flags, e.g. [`WEBGL`].
+    pub fn launch_with(profile: &Path, width: u32, height: u32, extra: &[&str]) -> Browser {
         use serde_json::json;
         use std::os::fd::IntoRawFd;
         use std::os::unix::process::CommandExt;
@@ -138,6 +146,7 @@ impl Browser {
         let (a, b) = (cmd_r.into_raw_fd(), ev_w.into_raw_fd());
         let mut cmd = Command::new(CHROMIUM);
         cmd.args(HEADLESS)
+            .args(extra)
             .args(["--remote-debugging-pipe", "about:blank"])
             .arg(format!("--user-data-dir={}", profile.display()))
             .arg(format!("--window-size={width},{height}"))

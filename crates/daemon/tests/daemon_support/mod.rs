@@ -51,6 +51,8 @@ pub struct Opts<'a> {
     pub bind: &'a str,
     /// Archive directory; default: `archive` in the test's directory.
     pub archive: Option<PathBuf>,
+    /// More [daemon] lines, e.g. `tls = "self-signed"`.
+    pub daemon_extra: &'a str,
 }
 
 impl Default for Opts<'_> {
@@ -60,6 +62,7 @@ impl Default for Opts<'_> {
             token: None,
             bind: "127.0.0.1:0",
             archive: None,
+            daemon_extra: "",
         }
     }
 }
@@ -84,6 +87,7 @@ pub fn command(dir: &Path, o: &Opts) -> (Command, PathBuf) {
     if let Some(t) = o.token {
         cfg.push_str(&format!("token = {t:?}\n"));
     }
+    cfg.push_str(o.daemon_extra);
     let path = dir.join("footscand.toml");
     std::fs::write(&path, cfg).unwrap();
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_footscand"));

@@ -8,6 +8,7 @@
 
 mod bvh;
 mod error;
+mod gltf;
 mod intake;
 mod io;
 mod section;
@@ -17,6 +18,10 @@ mod validate;
 
 pub use bvh::{Bvh, ClosestPoint, Feature, RayHit, SignedDistance};
 pub use error::{Defect, MeshError};
+pub use gltf::{
+    foot_in_last_glb, glb, glb_scene, gltf_position, write_foot_in_last_glb, write_glb,
+    write_glb_scene, GlbError, GlbLine, GlbMark, GlbPart, GlbScene, PROUD_FULL_MM,
+};
 pub use intake::{
     axis_name, intake, orient_consistently, Axes, Intake, IntakeOptions, CUT_MIN_SPAN,
     CUT_PLANARITY, FOOT_ELONGATION, FOOT_LENGTH_MM,

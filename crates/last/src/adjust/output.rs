@@ -15,6 +15,8 @@ use std::path::{Path, PathBuf};
 pub const BOTTOM_IGES: &str = "bottom.igs";
 pub const BOTTOM_STEP: &str = "bottom.step";
 pub const LAST_STL: &str = "last_adjusted.stl";
+/// The adjusted last as glTF binary, for the web and Blender (issue 35).
+pub const LAST_GLB: &str = "last_adjusted.glb";
 pub const HEATMAP_PNG: &str = "deviation.png";
 pub const REPORT_JSON: &str = "adjust.json";
 
@@ -254,6 +256,14 @@ fn write_files(
     if let Some((_, mesh)) = last {
         mesh.write(dir.join(LAST_STL), Format::StlBinary)
             .map_err(|e| io(LAST_STL, &e))?;
+        let part = footscan_geom::mesh::GlbPart {
+            name: "last",
+            mesh,
+            colour: [0.7, 0.7, 0.75, 1.0],
+            vertex_colours: None,
+        };
+        footscan_geom::mesh::write_glb(dir.join(LAST_GLB), &[part])
+            .map_err(|e| io(LAST_GLB, &e))?;
     }
     let title = format!("{}  on  {}", report.last, report.foot);
     heatmap(adj, &title)
@@ -283,7 +293,7 @@ fn fresh_dir(path: PathBuf) -> Result<PathBuf, AdjustError> {
 fn names(with_last: bool) -> Vec<&'static str> {
     let mut n = vec![BOTTOM_IGES, BOTTOM_STEP];
     if with_last {
-        n.push(LAST_STL);
+        n.extend([LAST_STL, LAST_GLB]);
     }
     n.extend([HEATMAP_PNG, REPORT_JSON]);
     n

@@ -1007,6 +1007,21 @@ fn write_files(
     c.last
         .write(&p, Format::StlBinary)
         .map_err(|e| out(&p, e.to_string()))?;
+    // glTF for the web and Blender: the last, and the foot inside it (issue 35).
+    let p = dir.join("last.glb");
+    footscan_geom::mesh::write_glb(
+        &p,
+        &[footscan_geom::mesh::GlbPart {
+            name: "last",
+            mesh: &c.last,
+            colour: [0.7, 0.7, 0.75, 1.0],
+            vertex_colours: None,
+        }],
+    )
+    .map_err(|e| out(&p, e.to_string()))?;
+    let p = dir.join("foot_in_last.glb");
+    footscan_geom::mesh::write_foot_in_last_glb(&p, &c.foot, &c.last)
+        .map_err(|e| out(&p, e.to_string()))?;
     let surf = surface::last_surface(c)?;
     let hdr = footscan_geom::export::Header::new("footscan customized last");
     let p = dir.join("last.igs");

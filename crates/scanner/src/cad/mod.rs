@@ -327,9 +327,19 @@ pub struct ModelFiles {
     pub step: Option<PathBuf>,
     /// The same solid as the STEP file, as an IGES 5.3 B-rep solid (entity 186).
     pub iges: Option<PathBuf>,
+    /// glTF binary for the web and Blender: the solid on `glb_cell_mm` cells (node "foot"),
+    /// the landmarks (empty nodes) and the length and ball-width lines, in metres.
+    pub glb: Option<PathBuf>,
     pub cell_mm: f64,
     pub step_cell_mm: f64,
+    /// Cell of the .glb solid (mm): the STL's cell keeps every triangle; a coarser one
+    /// (footscand's 1 mm) keeps the file small enough to show at once in a browser.
+    pub glb_cell_mm: f64,
 }
+
+/// Default cell of the .glb a scan writes for the dashboard's viewer (mm): about a quarter
+/// of the 0.5 mm model's triangles, under 3 MB for an adult foot.
+pub const DEFAULT_GLB_CELL_MM: f64 = 1.0;
 
 /// Default cell of the STEP solid (mm): a faceted solid with about 10,000 faces for an adult
 /// foot; a planar facet of 2 mm departs from a sole of 30 mm radius by 0.02 mm.
@@ -369,6 +379,9 @@ pub struct ModelSummary {
     pub step_cell_mm: Option<f64>,
     pub step_faces: Option<usize>,
     pub step_volume_mm3: Option<f64>,
+    /// The .glb solid: cell and triangles.
+    pub glb_cell_mm: Option<f64>,
+    pub glb_triangles: Option<usize>,
     /// Measuring plus meshing plus writing (ms), beside `build_ms`.
     pub mesh_ms: f64,
     pub warnings: Vec<String>,
@@ -399,11 +412,82 @@ pub fn foot_solid(
     Ok(solid)
 }
 
+/// The landmarks of `m` in the foot frame, on the glass (z = 0), by the names the viewer
+/// and the glTF nodes use.
+pub fn foot_landmarks(m: &Measurements, frame: &FootFrame) -> Vec<(&'static str, [f64; 3])> {
+    let at = |p: [f64; 2]| {
+        let q = frame.to_foot(p);
+        [q[0], q[1], 0.0]
+    };
+    vec![
+        ("heel_point", at(m.heel_point)),
+        ("toe_tip", at(m.toe_tip)),
+        ("mt1_head", at(m.mt1_head)),
+        ("mt5_head", at(m.mt5_head)),
+        ("mt2_head", at(m.mt2_head)),
+        ("heel_centre", at(m.heel_centre)),
+        ("arch_point", at(m.arch_point)),
+    ]
+}
+
+/// Writes the foot `mesh` (foot frame, mm) with its landmarks and the length (along the
+/// axis, from the heel point) and ball-width (first to fifth metatarsal head) lines as a
+/// .glb; returns its triangle count.
+pub fn write_foot_glb(
+    path: &std::path::Path,
+    mesh: &Mesh,
+    m: &Measurements,
+    frame: &FootFrame,
+) -> Result<usize, footscan_geom::mesh::GlbError> {
+    use footscan_geom::mesh::{write_glb_scene, GlbLine, GlbMark, GlbPart, GlbScene, TriMesh};
+    use footscan_geom::P3;
+    let tri = TriMesh::new(
+        mesh.vertices.iter().map(|v| P3::from(*v)).collect(),
+        mesh.triangles.clone(),
+    );
+    let lm = foot_landmarks(m, frame);
+    let marks: Vec<GlbMark> = lm
+        .iter()
+        .map(|(name, p)| GlbMark {
+            name,
+            at: P3::from(*p),
+        })
+        .collect();
+    let get = |n: &str| P3::from(lm.iter().find(|(k, _)| *k == n).expect("a landmark").1);
+    let length = [P3::origin(), P3::new(m.foot_length_mm, 0.0, 0.0)];
+    let ball = [get("mt1_head"), get("mt5_head")];
+    write_glb_scene(
+        path,
+        &GlbScene {
+            parts: &[GlbPart {
+                name: "foot",
+                mesh: &tri,
+                colour: [0.85, 0.68, 0.58, 1.0],
+                vertex_colours: None,
+            }],
+            marks: &marks,
+            lines: &[
+                GlbLine {
+                    name: "length",
+                    points: &length,
+                    colour: [0.85, 0.1, 0.1, 1.0],
+                },
+                GlbLine {
+                    name: "ball_width",
+                    points: &ball,
+                    colour: [0.1, 0.3, 0.9, 1.0],
+                },
+            ],
+        },
+    )?;
+    Ok(tri.triangles.len())
+}
+
 /// Build the network of `grid`, then [`write_foot_model`].
 pub fn model_scan(
     grid: &ScanGrid,
     files: &ModelFiles,
-    names: [&'static str; 2],
+    names: [&'static str; 3],
 ) -> Result<(BezierNetwork, ModelSummary), CadError> {
     check_cell(names[0], files.cell_mm, None)?;
     let (net, build_ms) = build_scan_model(grid)?;
@@ -412,23 +496,29 @@ pub fn model_scan(
 }
 
 /// Measure the foot of `grid` with its network `net` and write its solid as `files` asks;
-/// `names` are how the caller spells the two cells (STL, STEP) in errors.
+/// `names` are how the caller spells the three cells (STL, STEP, glb) in errors.
 pub fn write_foot_model(
     grid: &ScanGrid,
     net: &BezierNetwork,
     build_ms: f64,
     files: &ModelFiles,
-    names: [&'static str; 2],
+    names: [&'static str; 3],
 ) -> Result<ModelSummary, CadError> {
     check_cell(names[0], files.cell_mm, None)?;
     if files.step.is_some() || files.iges.is_some() {
         check_cell(names[1], files.step_cell_mm, None)?;
+    }
+    if files.glb.is_some() {
+        check_cell(names[2], files.glb_cell_mm, None)?;
     }
     let t = Instant::now();
     let (map, m) = measure_grid(grid, Some(net), DEFAULT_CELL_MM)?;
     check_cell(names[0], files.cell_mm, Some(m.ball_width_mm))?;
     if files.step.is_some() || files.iges.is_some() {
         check_cell(names[1], files.step_cell_mm, Some(m.ball_width_mm))?;
+    }
+    if files.glb.is_some() {
+        check_cell(names[2], files.glb_cell_mm, Some(m.ball_width_mm))?;
     }
     let frame = FootFrame::of(&m);
     let outline = sole_outline(&m, &frame);
@@ -489,6 +579,18 @@ pub fn write_foot_model(
         }
         step_volume = Some(s.mesh().signed_volume());
     }
+    let mut glb_triangles = None;
+    if let Some(p) = &files.glb {
+        let g = on(files.glb_cell_mm)?;
+        glb_triangles =
+            Some(
+                write_foot_glb(p, &g.mesh(), &m, &frame).map_err(|e| CadError::Write {
+                    path: p.clone(),
+                    source: std::io::Error::other(e.to_string()),
+                })?,
+            );
+        written.push(p.clone());
+    }
     let mut ext = [[f64::MAX, f64::MIN]; 3];
     for t in &mesh.triangles {
         for &k in t {
@@ -527,6 +629,8 @@ pub fn write_foot_model(
         step_cell_mm: step_volume.map(|_| files.step_cell_mm),
         step_faces,
         step_volume_mm3: step_volume,
+        glb_cell_mm: glb_triangles.map(|_| files.glb_cell_mm),
+        glb_triangles,
         mesh_ms: t.elapsed().as_secs_f64() * 1e3,
         warnings,
         files: written,
@@ -592,6 +696,11 @@ impl ModelSummary {
             s += &format!(
                 "STEP: faceted closed solid on {c} mm cells, {f} faces, volume {v:.0} mm^3 ({:+.3} % of the STL's)\n",
                 100.0 * (v / self.volume_mm3 - 1.0)
+            );
+        }
+        if let (Some(c), Some(t)) = (self.glb_cell_mm, self.glb_triangles) {
+            s += &format!(
+                "glTF: the solid on {c} mm cells, {t} triangles, with landmarks and the length and ball-width lines, in metres\n"
             );
         }
         for w in &self.warnings {

@@ -266,7 +266,13 @@ function onProgress(p) {
   const pct = typeof exp === 'number' && exp > 0 ? ` ${Math.round(100 * Math.min(1, (current.frames || 0) / exp))} %` : '';
   $('progress-label').textContent = `Scan ${current.id}: ${current.state}${running ? pct : ''}`;
   const parts = [];
-  if (typeof current.frames === 'number') parts.push(`${fmtInt(current.frames)} / ${fmtInt(exp)} frames`);
+  // The plan is nominal (travel / step + 1): the camera may deliver a frame more or fewer.
+  // Progress never reads past the plan; once the scan has ended the real count shows alone.
+  if (typeof current.frames === 'number') {
+    parts.push(running && typeof exp === 'number' && exp > 0
+      ? `${fmtInt(Math.min(current.frames, exp))} / ${fmtInt(exp)} frames`
+      : `${fmtInt(current.frames)} frames`);
+  }
   if (typeof current.points === 'number') parts.push(`${fmtInt(current.points)} points`);
   if (typeof current.dropped === 'number') parts.push(`${fmtInt(current.dropped)} dropped`);
   if (typeof current.elapsed_s === 'number') parts.push(`${current.elapsed_s.toFixed(1)} s`);

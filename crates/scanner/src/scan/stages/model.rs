@@ -3,7 +3,9 @@
 //! frame, STL and STEP) into the scan directory and emits the network after the grid.
 
 use super::out_file;
-use crate::cad::{write_foot_model, CadError, ModelFiles, DEFAULT_STEP_CELL_MM};
+use crate::cad::{
+    write_foot_model, CadError, ModelFiles, DEFAULT_GLB_CELL_MM, DEFAULT_STEP_CELL_MM,
+};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::Item;
 use crate::surface::build_scan_model;
@@ -27,6 +29,12 @@ pub struct ModelParams {
     /// The same solid as an IGES B-rep solid; "" (the default) to skip it.
     #[serde(default)]
     pub iges: String,
+    /// glTF binary for the dashboard's 3D view, Blender and the web; "" to skip it.
+    #[serde(default = "default_glb")]
+    pub glb: String,
+    /// Cell of the .glb solid (mm): coarser than the STL's so the viewer loads it at once.
+    #[serde(default = "default_glb_cell")]
+    pub glb_cell_mm: f64,
     /// Cell of the grid the mesh is sampled on (mm), in the foot frame.
     #[serde(default = "default_cell")]
     pub cell_mm: f64,
@@ -37,6 +45,14 @@ pub struct ModelParams {
 
 fn default_step() -> String {
     "model.step".into()
+}
+
+fn default_glb() -> String {
+    "model.glb".into()
+}
+
+fn default_glb_cell() -> f64 {
+    DEFAULT_GLB_CELL_MM
 }
 
 fn default_step_cell() -> f64 {
@@ -68,6 +84,7 @@ impl ModelStage {
     pub fn new(p: ModelParams, out_dir: &Path) -> Result<Self, BoxError> {
         crate::cad::check_cell("cell_mm", p.cell_mm, None)?;
         crate::cad::check_cell("step_cell_mm", p.step_cell_mm, None)?;
+        crate::cad::check_cell("glb_cell_mm", p.glb_cell_mm, None)?;
         Ok(ModelStage {
             files: ModelFiles {
                 stl: optional(out_dir, "stl", &p.stl)?,
@@ -75,8 +92,10 @@ impl ModelStage {
                 obj: optional(out_dir, "obj", &p.obj)?,
                 step: optional(out_dir, "step", &p.step)?,
                 iges: optional(out_dir, "iges", &p.iges)?,
+                glb: optional(out_dir, "glb", &p.glb)?,
                 cell_mm: p.cell_mm,
                 step_cell_mm: p.step_cell_mm,
+                glb_cell_mm: p.glb_cell_mm,
             },
         })
     }
@@ -100,7 +119,7 @@ impl Stage<Item> for ModelStage {
             &net,
             build_ms,
             &self.files,
-            ["cell_mm", "step_cell_mm"],
+            ["cell_mm", "step_cell_mm", "glb_cell_mm"],
         ) {
             Ok(s) => {
                 tracing::info!(
