@@ -22,6 +22,9 @@ packages+=(python3-venv)
 packages+=(postgresql libssl-dev openssl)
 # drivers/grbl/tests/firmware.rs builds GRBL 1.1h's simulator (gcc, make) and runs it on a pty.
 packages+=(make socat)
+# tests/plugin_wasm.rs builds the example wasm stage (examples/plugins/cog-wasm/cog.c) with
+# clang (above) for wasm32 and links it with lld's wasm-ld.
+packages+=(lld)
 [ "$mode" = "--build" ] && packages=("${build_packages[@]}")
 missing=()
 for p in "${packages[@]}"; do
@@ -78,4 +81,15 @@ if ! "$venv_gltf/bin/python" -c 'import trimesh, numpy' >/dev/null 2>&1; then
   echo "creating $venv_gltf (trimesh, numpy; about 100 MB)"
   "$py" -m venv "$venv_gltf"
   "$venv_gltf/bin/python" -m pip install -q --disable-pip-version-check trimesh==4.12.2 numpy
+fi
+# The process-stage examples and tests (examples/plugins/python, crates/plugins/tests,
+# tests/plugin_exec.rs) run Python with numpy from a venv of their own under target/, made only
+# when it is absent or cannot import numpy.
+venv="$repo/target/venv-plugins"
+if ! "$venv/bin/python" -c 'import numpy' >/dev/null 2>&1; then
+  py=/usr/bin/python3
+  [ -x "$py" ] || py=python3
+  echo "creating $venv (numpy, about 100 MB)"
+  "$py" -m venv "$venv"
+  "$venv/bin/python" -m pip install -q --disable-pip-version-check numpy
 fi

@@ -15,6 +15,7 @@ const CRATE_RULES: &[(&str, &[&str])] = &[
     ("footscan-fleet", &[]),
     ("footscan-util", &[]),
     ("footscan-fuzzkit", &[]),
+    ("footscan-plugins", &[]),
     ("footscan-targets", &["footscan-geom"]),
     ("footscan-last", &["footscan-geom", "footscan-util"]),
     ("footscan-grbl", &["footscan-hal"]),
@@ -27,6 +28,7 @@ const CRATE_RULES: &[(&str, &[&str])] = &[
         "footscan-scanner",
         &[
             "footscan-pipeline",
+            "footscan-plugins",
             "footscan-sim",
             "footscan-grbl",
             "footscan-v4l2",
@@ -52,6 +54,7 @@ const CRATE_RULES: &[(&str, &[&str])] = &[
         "footscan",
         &[
             "footscan-scanner",
+            "footscan-plugins",
             "footscan-hal",
             "footscan-sim",
             "footscan-geom",

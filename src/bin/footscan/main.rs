@@ -79,8 +79,12 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// List the pipeline stages a config may name.
-    Stages,
+    /// List the pipeline stages a config may name; with --config, also load and check the
+    /// plugin stages (wasm, exec) that config names and say where each sits.
+    Stages {
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
     /// Build the Bezier-network plantar model of a saved scan and write it as closed meshes.
     Model(model::Args),
     /// Foot measurements of a saved scan: measurements.json and plantar.png, in the scan
@@ -151,11 +155,14 @@ fn run() -> Result<()> {
             println!("wrote {}", out.display());
             Ok(())
         }
-        Command::Stages => {
+        Command::Stages { config } => {
             for (name, desc) in fscan::registry().entries() {
                 println!("{name:16} {desc}");
             }
-            Ok(())
+            match config {
+                Some(path) => plugin_stages(&path),
+                None => Ok(()),
+            }
         }
         Command::Model(args) => model::run(args),
         Command::Measure(args) => measure::run(args),
@@ -168,4 +175,60 @@ fn run() -> Result<()> {
         Command::Sim(args) => sim::run(args),
         Command::Fleet(args) => fleet::run(args),
     }
+}
+
+/// The plugin stages of the pipeline in `path`, each loaded and checked as a scan would: a
+/// module that does not load or a command that does not start fails the listing.
+fn plugin_stages(path: &Path) -> Result<()> {
+    use anyhow::Context;
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let spec = footscan::pipeline::PipelineSpec::from_toml_str(&text)
+        .with_context(|| format!("{}: [pipeline]", path.display()))?;
+    println!("\nplugin stages of {}:", path.display());
+    let mut n = 0;
+    for (i, s) in spec.stages.iter().enumerate() {
+        let at = format!("pipeline.stages[{i}]");
+        match s.stage.as_str() {
+            "wasm" => {
+                let module = s
+                    .params
+                    .get("module")
+                    .and_then(toml::Value::as_str)
+                    .with_context(|| format!("{at}: `module` (a .wasm file) is required"))?;
+                let p = footscan_plugins::wasm::WasmPlugin::load(Path::new(module))
+                    .with_context(|| at.clone())?;
+                println!("{at:20} wasm {module}: {}", p.kind().place());
+            }
+            "exec" => {
+                let cmd: Vec<String> = s
+                    .params
+                    .get("command")
+                    .and_then(toml::Value::as_array)
+                    .map(|a| {
+                        a.iter()
+                            .filter_map(|v| v.as_str().map(str::to_owned))
+                            .collect()
+                    })
+                    .with_context(|| format!("{at}: `command` (a list of strings) is required"))?;
+                // Started and stopped: the hello/ready exchange is the check.
+                footscan_plugins::exec::ExecDetector::start(
+                    &cmd,
+                    &[],
+                    footscan_plugins::exec::ExecLimits::default(),
+                )
+                .with_context(|| at.clone())?;
+                println!(
+                    "{at:20} exec {}: per frame (detector: frame rows in, line per row out)",
+                    cmd.join(" ")
+                );
+            }
+            _ => continue,
+        }
+        n += 1;
+    }
+    if n == 0 {
+        println!("(none)");
+    }
+    Ok(())
 }

@@ -1,6 +1,8 @@
 //! The one list of scan stages by name, with their parameters: what `[[pipeline.stages]]`
 //! may name and what `footscan stages` prints.
 
+#[cfg(feature = "plugins")]
+use super::stages::PluginDetector;
 use super::stages::{
     out_file, Accumulate, Acquire, AdjustParams, AdjustStage, Detect, GridSink, HeightMapSink,
     MeasureParams, MeasureStage, ModelParams, ModelStage, PlySink, SummarySink, Triangulate,
@@ -59,6 +61,72 @@ struct HeightMapParams {
     cell_mm: Option<f64>,
 }
 
+/// A `wasm` stage: a WebAssembly module (docs/plugins.md).
+#[cfg(feature = "plugins")]
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WasmParams {
+    /// The .wasm file (relative to the working directory).
+    module: PathBuf,
+    /// Numbers (or booleans, as 0/1) handed to the module's `footscan_param`.
+    #[serde(default)]
+    args: toml::Table,
+    /// Fuel (about one unit per wasm instruction) for one frame.
+    fuel_per_frame: Option<u64>,
+    /// Largest memory the module may grow to, MiB.
+    memory_mb: Option<u64>,
+}
+
+/// An `exec` stage: an external process (docs/plugins.md).
+#[cfg(feature = "plugins")]
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ExecParams {
+    /// The program and its arguments.
+    command: Vec<String>,
+    /// Numbers (or booleans, as 0/1) sent in `hello`.
+    #[serde(default)]
+    args: toml::Table,
+    /// Longest wait for one frame's answer, ms.
+    frame_timeout_ms: Option<u64>,
+    /// Restarts per scan after a crash or a hang.
+    max_restarts: Option<u32>,
+}
+
+/// A plugin's `args`: what `footscan_param` or `hello` takes.
+#[cfg(feature = "plugins")]
+fn plugin_args(args: &toml::Table) -> Result<Vec<(String, f64)>, BoxError> {
+    args.iter()
+        .map(|(k, v)| match v {
+            toml::Value::Integer(i) => Ok((k.clone(), *i as f64)),
+            toml::Value::Float(f) => Ok((k.clone(), *f)),
+            toml::Value::Boolean(b) => Ok((k.clone(), f64::from(u8::from(*b)))),
+            other => Err(format!(
+                "args.{k}: a plugin stage takes numbers or booleans, found a {}",
+                other.type_str()
+            )
+            .into()),
+        })
+        .collect()
+}
+
+#[cfg(feature = "plugins")]
+fn wasm_limits(p: &WasmParams) -> Result<footscan_plugins::wasm::WasmLimits, BoxError> {
+    let d = footscan_plugins::wasm::WasmLimits::default();
+    let fuel = p.fuel_per_frame.unwrap_or(d.fuel_per_call);
+    if fuel == 0 {
+        return Err("fuel_per_frame = 0: it must be at least 1 (default 2000000000)".into());
+    }
+    let mb = p.memory_mb.unwrap_or((d.memory_bytes >> 20) as u64);
+    if !(1..=4096).contains(&mb) {
+        return Err(format!("memory_mb = {mb}: valid range is 1..=4096 (a wasm32 memory)").into());
+    }
+    Ok(footscan_plugins::wasm::WasmLimits {
+        fuel_per_call: fuel,
+        memory_bytes: (mb as usize) << 20,
+    })
+}
+
 /// `file` of a sink's table, or its default, inside the scan directory.
 fn file_in(ctx: &ScanContext, file: Option<String>, default: &str) -> Result<PathBuf, BoxError> {
     out_file(
@@ -100,6 +168,8 @@ pub fn registry() -> Registry<Item, ScanContext> {
             ))
         });
     }
+    #[cfg(feature = "plugins")]
+    plugin_stages(&mut r);
     r.register(
         "triangulate",
         "3D point per row from the calibration (calibration = file, optional)",
@@ -200,4 +270,53 @@ pub fn registry() -> Registry<Item, ScanContext> {
         },
     );
     r
+}
+
+/// The `wasm` and `exec` stages (docs/plugins.md).
+#[cfg(feature = "plugins")]
+fn plugin_stages(r: &mut Registry<Item, ScanContext>) {
+    r.register(
+        "wasm",
+        "a WebAssembly module's stage, sandboxed (module = file.wasm, args = { .. }, fuel_per_frame, memory_mb); one exporting footscan_detect sits per frame in place of detect.*: docs/plugins.md",
+        |p, ctx: &ScanContext| {
+            let p: WasmParams = params(p)?;
+            let limits = wasm_limits(&p)?;
+            let args = plugin_args(&p.args)?;
+            let plugin = footscan_plugins::wasm::WasmPlugin::load(&p.module)?;
+            match plugin.kind() {
+                footscan_plugins::wasm::WasmKind::Detector => Ok(Node::stage(
+                    Detect::plugin("wasm", PluginDetector::new(plugin.detector(limits, &args)?))
+                        .with_tap(ctx.tap.clone())
+                        .with_counters(ctx.counters.clone()),
+                )),
+            }
+        },
+    );
+    r.register(
+        "exec",
+        "an external process's stage (command = [program, args..], args = { .. }, frame_timeout_ms, max_restarts): per frame in place of detect.*, frames through shared memory, restarted on a crash: docs/plugins.md",
+        |p, ctx: &ScanContext| {
+            let p: ExecParams = params(p)?;
+            let d = footscan_plugins::exec::ExecLimits::default();
+            let timeout = p.frame_timeout_ms.unwrap_or(d.frame_timeout.as_millis() as u64);
+            if !(1..=600_000).contains(&timeout) {
+                return Err(format!("frame_timeout_ms = {timeout}: valid range is 1..=600000").into());
+            }
+            let limits = footscan_plugins::exec::ExecLimits {
+                frame_timeout: std::time::Duration::from_millis(timeout),
+                max_restarts: p.max_restarts.unwrap_or(d.max_restarts),
+                ..d
+            };
+            let exec = footscan_plugins::exec::ExecDetector::start(
+                &p.command,
+                &plugin_args(&p.args)?,
+                limits,
+            )?;
+            Ok(Node::stage(
+                Detect::plugin("exec", PluginDetector::exec(exec))
+                    .with_tap(ctx.tap.clone())
+                    .with_counters(ctx.counters.clone()),
+            ))
+        },
+    );
 }

@@ -5,6 +5,8 @@ mod acquire;
 mod adjust;
 mod measure;
 mod model;
+#[cfg(feature = "plugins")]
+mod plugin;
 mod process;
 mod sinks;
 mod tap;
@@ -13,6 +15,8 @@ pub use acquire::Acquire;
 pub use adjust::{AdjustParams, AdjustStage};
 pub use measure::{MeasureParams, MeasureStage};
 pub use model::{ModelParams, ModelStage};
+#[cfg(feature = "plugins")]
+pub use plugin::PluginDetector;
 pub use process::{Accumulate, Detect, Triangulate};
 pub use sinks::{GridSink, HeightMapSink, PlySink, SummarySink};
 pub use tap::FrameTap;

@@ -1,16 +1,26 @@
 //! Per-frame processing: detection, triangulation, accumulation into the scan grid.
 
+#[cfg(feature = "plugins")]
+use super::plugin::PluginDetector;
 use super::FrameTap;
 use crate::calib::Triangulator;
 use crate::detect::{Detector, Image, LinePeak, Prep};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::{unexpected, AcquiredFrame, FrameLines, FramePoints, Item};
 use crate::scan::{ScanCounters, ScanGrid};
+use footscan_hal::Frame;
 use std::sync::Arc;
+
+/// What finds the line: a built-in detector, or a wasm module's, which may fail.
+enum Finder {
+    Builtin(Box<dyn Detector>),
+    #[cfg(feature = "plugins")]
+    Plugin(Box<PluginDetector>),
+}
 
 pub struct Detect {
     name: &'static str,
-    detector: Box<dyn Detector>,
+    detector: Finder,
     tap: Option<Arc<dyn FrameTap>>,
     /// The laser-off background, subtracted from every frame once a laser-off frame came.
     prep: Prep,
@@ -20,6 +30,16 @@ pub struct Detect {
 
 impl Detect {
     pub fn new(name: &'static str, detector: Box<dyn Detector>) -> Self {
+        Self::with_finder(name, Finder::Builtin(detector))
+    }
+
+    /// The `wasm` and `exec` stages: the plugin's detector in place of a built-in one.
+    #[cfg(feature = "plugins")]
+    pub fn plugin(name: &'static str, detector: PluginDetector) -> Self {
+        Self::with_finder(name, Finder::Plugin(Box::new(detector)))
+    }
+
+    fn with_finder(name: &'static str, detector: Finder) -> Self {
         Detect {
             name,
             detector,
@@ -46,7 +66,7 @@ impl Detect {
     /// (counted); the first one becomes the background. Nothing goes downstream.
     fn laser_off(&mut self, af: AcquiredFrame) -> Result<(), BoxError> {
         let mut lines = vec![LinePeak::NONE; af.frame.height as usize];
-        self.detector.detect(&af.frame, &mut lines);
+        self.find(&af.frame, &mut lines)?;
         let found = lines.iter().filter(|l| l.is_valid()).count() as u64;
         if found > 0 {
             tracing::warn!(
@@ -67,6 +87,23 @@ impl Detect {
     }
 }
 
+fn find(d: &mut Finder, frame: &Frame, lines: &mut [LinePeak]) -> Result<(), BoxError> {
+    match d {
+        Finder::Builtin(d) => {
+            d.detect(frame, lines);
+            Ok(())
+        }
+        #[cfg(feature = "plugins")]
+        Finder::Plugin(d) => d.detect(frame, lines),
+    }
+}
+
+impl Detect {
+    fn find(&mut self, frame: &Frame, lines: &mut [LinePeak]) -> Result<(), BoxError> {
+        find(&mut self.detector, frame, lines)
+    }
+}
+
 impl Stage<Item> for Detect {
     fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
         let Item::Frame(af) = item else {
@@ -78,7 +115,7 @@ impl Stage<Item> for Detect {
         let mut lines = vec![LinePeak::NONE; af.frame.height as usize];
         let (meta, img) = (af.meta, Image::Gray(af.frame));
         let seen = self.prep.prepare(&img, "scan frame")?;
-        self.detector.detect(seen, &mut lines);
+        find(&mut self.detector, seen, &mut lines)?;
         let Image::Gray(frame) = img else {
             unreachable!("made grey above")
         };

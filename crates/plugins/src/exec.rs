@@ -1,0 +1,403 @@
+//! Process stages: an external program (`command = ["python3", "stage.py"]`) speaking a
+//! line protocol on stdin/stdout, with each frame's pixels and output rows in a shared memory
+//! file (a memfd) it maps as fd 3.
+//!
+//! Protocol 1 (docs/plugins.md has the whole contract):
+//! * host: `hello 1 detector key=value ...` ; process: `ready 1` (or `error <text>`).
+//! * host: `frame <seq> <width> <height> <bytes_per_px> <size>` after writing the pixels at
+//!   offset 0 of the shared file (`size` bytes long; re-map when it changes); process: writes
+//!   one 24-byte record per row at offset `round_up(width*height*bytes_per_px, 8)`, then
+//!   answers `rows <n>` (or `error <text>`).
+//! * Closing stdin ends the process; it must exit within a second.
+//!
+//! Why a process and not a library: a crash, a leak or a hang of a researcher's numpy code
+//! cannot take the daemon with it; the host kills and restarts the process (a limited number
+//! of times per scan) and the scan fails only when the process keeps failing.
+
+use std::io::{BufRead, BufReader, Write};
+use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
+use std::os::unix::fs::FileExt;
+use std::os::unix::process::CommandExt;
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::time::Duration;
+
+use crate::rows::{self, Pixels, RowOut, ROW_BYTES};
+use crate::PluginError;
+
+/// The protocol version this host speaks.
+pub const PROTOCOL_VERSION: u32 = 1;
+/// The descriptor the shared frame file is given as in the process.
+pub const FRAME_FD: i32 = 3;
+
+/// Limits of a process stage.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExecLimits {
+    /// Longest wait for the answer to one frame before the process is killed.
+    pub frame_timeout: Duration,
+    /// Longest wait for `ready` after the start (an interpreter importing numpy).
+    pub start_timeout: Duration,
+    /// Restarts allowed per scan after the process died or hung; one more failure fails the
+    /// scan.
+    pub max_restarts: u32,
+}
+
+impl Default for ExecLimits {
+    fn default() -> Self {
+        Self {
+            frame_timeout: Duration::from_secs(2),
+            start_timeout: Duration::from_secs(20),
+            max_restarts: 2,
+        }
+    }
+}
+
+/// What went wrong in one exchange, and whether a restart may help.
+enum Failure {
+    /// Exited, was killed or hung (then killed here): restart if allowed.
+    Died(String),
+    /// Answered, but against the protocol: a bug a restart will not fix.
+    Broken(String),
+}
+
+struct Proc {
+    child: Child,
+    stdin: ChildStdin,
+    lines: Receiver<Result<String, String>>,
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A per-frame detector run by an external process.
+pub struct ExecDetector {
+    name: String,
+    command: Vec<String>,
+    args: Vec<(String, f64)>,
+    limits: ExecLimits,
+    shm: std::fs::File,
+    shm_size: u64,
+    proc: Option<Proc>,
+    restarts: u32,
+    scratch: Vec<u8>,
+    seq: u64,
+}
+
+impl std::fmt::Debug for ExecDetector {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ExecDetector")
+            .field("command", &self.command)
+            .field("restarts", &self.restarts)
+            .finish()
+    }
+}
+
+fn memfd() -> std::io::Result<std::fs::File> {
+    // SAFETY: memfd_create takes a NUL-terminated name and flags; a valid fd is owned here.
+    let fd = unsafe { libc::memfd_create(c"footscan-frame".as_ptr(), libc::MFD_CLOEXEC) };
+    if fd < 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    // SAFETY: `fd` was just created and nothing else owns it.
+    Ok(std::fs::File::from(unsafe { OwnedFd::from_raw_fd(fd) }))
+}
+
+impl ExecDetector {
+    /// Start `command` and exchange `hello`/`ready`; any failure is a refusal at start.
+    pub fn start(
+        command: &[String],
+        args: &[(String, f64)],
+        limits: ExecLimits,
+    ) -> Result<Self, PluginError> {
+        let name = format!("`{}`", command.join(" "));
+        let refuse = |reason: String| PluginError::Load {
+            plugin: name.clone(),
+            reason,
+        };
+        if command.is_empty() {
+            return Err(refuse(
+                "command is empty; give the program and its arguments, e.g. [\"python3\", \"stage.py\"]".into(),
+            ));
+        }
+        if let Some((k, _)) = args
+            .iter()
+            .find(|(k, _)| k.is_empty() || k.contains(['=', ' ', '\n']))
+        {
+            return Err(refuse(format!(
+                "args key {k:?}: keys must be non-empty and hold no '=', space or newline"
+            )));
+        }
+        let shm = memfd().map_err(|e| refuse(format!("cannot create its shared memory: {e}")))?;
+        let mut d = Self {
+            name: name.clone(),
+            command: command.to_vec(),
+            args: args.to_vec(),
+            limits,
+            shm,
+            shm_size: 0,
+            proc: None,
+            restarts: 0,
+            scratch: Vec::new(),
+            seq: 0,
+        };
+        d.spawn().map_err(|e| match e {
+            Failure::Died(w) | Failure::Broken(w) => refuse(w),
+        })?;
+        Ok(d)
+    }
+
+    /// How many times the process was restarted in this scan.
+    pub fn restarts(&self) -> u32 {
+        self.restarts
+    }
+
+    fn fault(&self, what: String) -> PluginError {
+        PluginError::Fault {
+            plugin: self.name.clone(),
+            what,
+        }
+    }
+
+    fn spawn(&mut self) -> Result<(), Failure> {
+        self.proc = None;
+        let shm_fd = self.shm.as_raw_fd();
+        let mut cmd = Command::new(&self.command[0]);
+        cmd.args(&self.command[1..])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
+        // SAFETY: only async-signal-safe calls between fork and exec: dup2 gives the child the
+        // shared file as fd 3 and clears close-on-exec on the copy; when the file already is
+        // fd 3 dup2 does nothing, so close-on-exec is cleared by hand.
+        unsafe {
+            cmd.pre_exec(move || {
+                let ok = if shm_fd == FRAME_FD {
+                    libc::fcntl(FRAME_FD, libc::F_SETFD, 0) >= 0
+                } else {
+                    libc::dup2(shm_fd, FRAME_FD) >= 0
+                };
+                if !ok {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+        let mut child = cmd
+            .spawn()
+            .map_err(|e| Failure::Broken(format!("cannot start {}: {e}", self.command[0])))?;
+        let stdin = child.stdin.take().expect("piped");
+        let stdout = child.stdout.take().expect("piped");
+        let stderr = child.stderr.take().expect("piped");
+        let (tx, lines) = mpsc::channel();
+        std::thread::Builder::new()
+            .name("plugin-stdout".into())
+            .spawn(move || {
+                let mut r = BufReader::new(stdout);
+                loop {
+                    let mut buf = Vec::new();
+                    let msg = match r.read_until(b'\n', &mut buf) {
+                        Ok(0) => Err("closed its stdout (exited)".to_string()),
+                        Ok(_) => String::from_utf8(buf).map_err(|e| {
+                            format!("wrote a line that is not text: {:?}", preview(e.as_bytes()))
+                        }),
+                        Err(e) => Err(format!("stdout could not be read: {e}")),
+                    };
+                    let stop = msg.is_err();
+                    if tx.send(msg).is_err() || stop {
+                        return;
+                    }
+                }
+            })
+            .expect("thread spawns");
+        let who = self.name.clone();
+        std::thread::Builder::new()
+            .name("plugin-stderr".into())
+            .spawn(move || {
+                for line in BufReader::new(stderr).lines() {
+                    let Ok(line) = line else { return };
+                    tracing::warn!(plugin = %who, "{line}");
+                }
+            })
+            .expect("thread spawns");
+        self.proc = Some(Proc {
+            child,
+            stdin,
+            lines,
+        });
+        let mut hello = format!("hello {PROTOCOL_VERSION} detector");
+        for (k, v) in &self.args {
+            hello += &format!(" {k}={v}");
+        }
+        let answer = self.exchange(&hello, self.limits.start_timeout)?;
+        let words: Vec<&str> = answer.split_whitespace().collect();
+        match words.as_slice() {
+            ["ready", v] if *v == PROTOCOL_VERSION.to_string() => Ok(()),
+            ["error", ..] => Err(Failure::Broken(format!(
+                "refused to start: {}",
+                answer.trim_start_matches("error").trim()
+            ))),
+            _ => Err(Failure::Broken(format!(
+                "answered hello with {:?}, not \"ready {PROTOCOL_VERSION}\"",
+                preview(answer.as_bytes())
+            ))),
+        }
+    }
+
+    /// Send one line, wait for one line.
+    fn exchange(&mut self, line: &str, timeout: Duration) -> Result<String, Failure> {
+        let Some(p) = self.proc.as_mut() else {
+            return Err(Failure::Died("is not running".into()));
+        };
+        if let Err(e) = writeln!(p.stdin, "{line}").and_then(|()| p.stdin.flush()) {
+            return Err(Failure::Died(format!("{} ({e})", exit_text(&mut p.child))));
+        }
+        match p.lines.recv_timeout(timeout) {
+            Ok(Ok(answer)) => Ok(answer.trim_end().to_string()),
+            Ok(Err(why)) => {
+                // Wait briefly so the exit status tells how it ended.
+                let status = wait_briefly(&mut p.child);
+                Err(Failure::Died(format!("{why}: {status}")))
+            }
+            Err(RecvTimeoutError::Timeout) => {
+                let _ = p.child.kill();
+                let _ = p.child.wait();
+                Err(Failure::Died(format!(
+                    "did not answer within {} ms (frame_timeout_ms); killed",
+                    timeout.as_millis()
+                )))
+            }
+            Err(RecvTimeoutError::Disconnected) => Err(Failure::Died("closed its stdout".into())),
+        }
+    }
+
+    /// Detect the line in every row of a `width` x `height` frame into `out` (one per row).
+    pub fn detect(
+        &mut self,
+        width: u32,
+        height: u32,
+        px: Pixels<'_>,
+        out: &mut [RowOut],
+    ) -> Result<(), PluginError> {
+        let (w, h, bpp) = (width as usize, height as usize, px.bytes_per_px());
+        assert_eq!(px.len(), w * h, "pixels of a {width}x{height} frame");
+        assert_eq!(out.len(), h, "one result per row");
+        let out_off = (w * h * bpp).div_ceil(8) * 8;
+        let size = (out_off + h * ROW_BYTES) as u64;
+        if size != self.shm_size {
+            self.shm
+                .set_len(size)
+                .map_err(|e| self.fault(format!("could not size its shared memory: {e}")))?;
+            self.shm_size = size;
+        }
+        self.scratch.resize(w * h * bpp, 0);
+        px.write_le(&mut self.scratch);
+        self.shm
+            .write_all_at(&self.scratch, 0)
+            .map_err(|e| self.fault(format!("could not write the frame: {e}")))?;
+        self.seq += 1;
+        let msg = format!("frame {} {width} {height} {bpp} {size}", self.seq);
+        loop {
+            let failure = match self.exchange(&msg, self.limits.frame_timeout) {
+                Ok(answer) => match parse_rows_answer(&answer) {
+                    Ok(n) if n == h => break,
+                    Ok(n) => Failure::Broken(format!(
+                        "answered {n} rows for a frame of {h} rows (it must write one per row)"
+                    )),
+                    Err(e) => Failure::Broken(e),
+                },
+                Err(f) => f,
+            };
+            match failure {
+                Failure::Died(why) if self.restarts < self.limits.max_restarts => {
+                    self.restarts += 1;
+                    tracing::warn!(
+                        plugin = %self.name,
+                        restart = self.restarts,
+                        "{why} on frame {}; restarting it",
+                        self.seq
+                    );
+                    if let Err(Failure::Died(w) | Failure::Broken(w)) = self.spawn() {
+                        return Err(self.fault(format!("could not be restarted: {w}")));
+                    }
+                }
+                Failure::Died(why) => {
+                    return Err(self.fault(format!(
+                        "{why} on frame {} after {} restarts (max_restarts)",
+                        self.seq, self.restarts
+                    )))
+                }
+                Failure::Broken(why) => {
+                    return Err(self.fault(format!("{why} on frame {}", self.seq)))
+                }
+            }
+        }
+        self.scratch.resize(h * ROW_BYTES, 0);
+        self.shm
+            .read_exact_at(&mut self.scratch, out_off as u64)
+            .map_err(|e| self.fault(format!("could not read its rows: {e}")))?;
+        rows::parse(&self.scratch, width, out)
+            .map_err(|what| self.fault(format!("{what} on frame {}", self.seq)))
+    }
+}
+
+fn parse_rows_answer(answer: &str) -> Result<usize, String> {
+    let words: Vec<&str> = answer.split_whitespace().collect();
+    match words.as_slice() {
+        ["rows", n] => n.parse().map_err(|_| {
+            format!(
+                "answered {:?}: the row count is not a number",
+                preview(answer.as_bytes())
+            )
+        }),
+        ["error", ..] => Err(format!(
+            "reported an error: {}",
+            answer.trim_start_matches("error").trim()
+        )),
+        _ => Err(format!(
+            "answered {:?}, not \"rows <n>\" (protocol {PROTOCOL_VERSION}, docs/plugins.md)",
+            preview(answer.as_bytes())
+        )),
+    }
+}
+
+/// The first 80 bytes of what a process wrote, for a message.
+fn preview(b: &[u8]) -> String {
+    let s = String::from_utf8_lossy(&b[..b.len().min(80)]).into_owned();
+    if b.len() > 80 {
+        s + "..."
+    } else {
+        s
+    }
+}
+
+fn exit_text(child: &mut Child) -> String {
+    match child.try_wait() {
+        Ok(Some(s)) => describe_status(s),
+        _ => "its stdin is closed".into(),
+    }
+}
+
+fn wait_briefly(child: &mut Child) -> String {
+    for _ in 0..100 {
+        if let Ok(Some(s)) = child.try_wait() {
+            return describe_status(s);
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    "still running; killed".into()
+}
+
+fn describe_status(s: std::process::ExitStatus) -> String {
+    use std::os::unix::process::ExitStatusExt;
+    match (s.code(), s.signal()) {
+        (Some(c), _) => format!("exited with status {c}"),
+        (None, Some(sig)) => format!("killed by signal {sig}"),
+        _ => format!("ended ({s})"),
+    }
+}

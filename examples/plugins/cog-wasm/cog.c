@@ -1,0 +1,174 @@
+/*
+ * A centre-of-gravity laser-line detector as a footscan wasm stage (ABI 1, docs/plugins.md).
+ *
+ * Freestanding C: no libc, no WASI, no imports, so the host grants it nothing. Build with
+ * Debian's clang and lld (`make` here, or examples/plugins/cog-wasm/build.sh):
+ *
+ *   clang --target=wasm32 -O2 -nostdlib -Wl,--no-entry -o cog.wasm cog.c
+ *
+ * Per row it does what the built-in `detect.cog` does with a fixed threshold, the ambiguity
+ * test off (ambiguity > 1) and specular spikes not skipped: the first maximum, its flat top,
+ * the run above the threshold, the border test, the background beside the run, the width at
+ * half height, the saturation test, the centre of gravity of (value - threshold) over the
+ * run, then rows with no other line within 2 rows rejected as isolated. The arithmetic is the
+ * built-in's, in the same order and precision, so the columns are equal bit for bit
+ * (crates/scanner/tests/plugin_wasm.rs checks it on simulated frames).
+ *
+ * Parameters (the stage's `args` table): threshold (8-bit DN, required), max_saturated_px
+ * (default 12).
+ */
+
+typedef unsigned char u8;
+typedef unsigned short u16;
+typedef unsigned int u32;
+
+#define EXPORT(name) __attribute__((export_name(name)))
+
+enum { ACCEPTED = 0, BELOW_THRESHOLD = 1, SATURATED = 2, AMBIGUOUS = 3, BORDER = 4, ISOLATED = 5 };
+#define NEAR_ROWS 2
+
+/* One output record per row, 24 bytes, little-endian (the host reads exactly this layout). */
+struct row_out {
+    double col;
+    float intensity;
+    float width;
+    float quality;
+    u32 reject;
+};
+
+static float threshold_dn = -1.0f;
+static u32 max_saturated_px = 12;
+
+/* A bump allocator over the memory after the data: the host calls it only when the frame's
+ * shape changes, so nothing is freed. */
+extern u8 __heap_base;
+static unsigned long heap_top;
+
+EXPORT("footscan_abi") int footscan_abi(void) { return 1; }
+
+EXPORT("footscan_alloc") int footscan_alloc(int size) {
+    if (size < 0) return 0;
+    if (!heap_top) heap_top = (unsigned long)&__heap_base;
+    unsigned long start = (heap_top + 15) & ~15ul;
+    unsigned long end = start + (unsigned long)size;
+    unsigned long have = __builtin_wasm_memory_size(0) * 65536ul;
+    if (end > have) {
+        unsigned long pages = (end - have + 65535) / 65536;
+        if (__builtin_wasm_memory_grow(0, pages) == (unsigned long)-1) return 0;
+    }
+    heap_top = end;
+    return (int)start;
+}
+
+static int key_is(const u8 *k, int n, const char *s) {
+    int i = 0;
+    for (; i < n && s[i]; i++)
+        if (k[i] != (u8)s[i]) return 0;
+    return i == n && s[i] == 0;
+}
+
+/* 0: accepted; 1: unknown key; 2: value out of range. */
+EXPORT("footscan_param") int footscan_param(const u8 *key, int len, double value) {
+    if (key_is(key, len, "threshold")) {
+        if (!(value > 0.0 && value < 255.0)) return 2;
+        threshold_dn = (float)value;
+        return 0;
+    }
+    if (key_is(key, len, "max_saturated_px")) {
+        if (!(value >= 1.0 && value <= 1e9)) return 2;
+        max_saturated_px = (u32)value;
+        return 0;
+    }
+    return 1;
+}
+
+static float minf(float a, float b) { return b < a ? b : a; }
+static float maxf(float a, float b) { return b > a ? b : a; }
+static float clampf(float v, float lo, float hi) { return v < lo ? lo : (v > hi ? hi : v); }
+
+static struct row_out rejected(u32 why, float intensity) {
+    struct row_out o = {__builtin_nan(""), intensity, 0.0f, 0.0f, why};
+    return o;
+}
+
+/* One row of `w` pixels of type T, full scale FULL, cut at `thr` (frame units). */
+#define ROW_FN(NAME, T, FULL)                                                                  \
+    static struct row_out NAME(const T *row, u32 w, float thr) {                              \
+        if (w < 3) return rejected(BORDER, 0.0f);                                             \
+        T v = 0;                                                                              \
+        u32 pos = 0;                                                                          \
+        for (u32 i = 0; i < w; i++)                                                           \
+            if (row[i] > v) { v = row[i]; pos = i; }                                          \
+        float top = (float)v;                                                                 \
+        if (top <= thr) return rejected(BELOW_THRESHOLD, top);                                \
+        u32 a = pos, b = pos;                                                                 \
+        while (a > 0 && row[a - 1] == v) a--;                                                 \
+        while (b + 1 < w && row[b + 1] == v) b++;                                             \
+        u32 saturated = top >= (float)(FULL) ? b - a + 1 : 0;                                 \
+        if (saturated > max_saturated_px) return rejected(SATURATED, top);                    \
+        u32 lo = a, hi = b;                                                                   \
+        while (lo > 0 && (float)row[lo - 1] > thr) lo--;                                      \
+        while (hi + 1 < w && (float)row[hi + 1] > thr) hi++;                                  \
+        if (lo == 0 || hi + 1 == w) return rejected(BORDER, top);                             \
+        float bg = minf((float)row[lo - 1], (float)row[hi + 1]);                              \
+        if (lo >= 2) bg = minf(bg, (float)row[lo - 2]);                                       \
+        if (hi + 2 < w) bg = minf(bg, (float)row[hi + 2]);                                    \
+        float half = bg + 0.5f * (top - bg);                                                  \
+        u32 l = a;                                                                            \
+        while (l > lo && (float)row[l - 1] >= half) l--;                                      \
+        float v0 = (float)row[l - 1], v1 = (float)row[l];                                     \
+        float xl = (float)(l - 1) + clampf((half - v0) / maxf(v1 - v0, 1e-6f), 0.0f, 1.0f);   \
+        u32 r = b;                                                                            \
+        while (r < hi && (float)row[r + 1] >= half) r++;                                      \
+        v0 = (float)row[r];                                                                   \
+        v1 = (float)row[r + 1];                                                               \
+        float xr = (float)r + clampf((v0 - half) / maxf(v0 - v1, 1e-6f), 0.0f, 1.0f);         \
+        float width = maxf(xr - xl, 0.5f);                                                    \
+        double s = 0.0, sx = 0.0;                                                             \
+        for (u32 i = lo; i <= hi; i++) {                                                      \
+            double wgt = (double)((float)row[i] - thr);                                       \
+            s += wgt;                                                                         \
+            sx += wgt * (double)i;                                                            \
+        }                                                                                     \
+        if (s <= 0.0) return rejected(BELOW_THRESHOLD, top);                                  \
+        float full = (float)(FULL);                                                           \
+        float sig = clampf((top - thr) / maxf(0.5f * full - thr, 1.0f), 0.0f, 1.0f);          \
+        float uniq = 1.0f; /* no second peak is looked for: the ambiguity test is off */      \
+        float sat = saturated > 0 ? 0.5f : 1.0f;                                              \
+        struct row_out o = {sx / s, top, width, sig * uniq * sat, ACCEPTED};                  \
+        return o;                                                                             \
+    }
+
+ROW_FN(row8, u8, 255)
+ROW_FN(row16, u16, 65535)
+
+/* Rows with no other accepted row within NEAR_ROWS above or below are specks, not a line. */
+static void reject_isolated(struct row_out *out, u32 n) {
+    long last_valid = -1;
+    for (u32 r = 0; r < n; r++) {
+        if (out[r].reject != ACCEPTED) continue;
+        int above = last_valid >= 0 && r - (u32)last_valid <= NEAR_ROWS;
+        int below = 0;
+        for (u32 k = r + 1; k < r + 1 + NEAR_ROWS && k < n; k++)
+            if (out[k].reject == ACCEPTED) below = 1;
+        last_valid = (long)r;
+        if (!above && !below) out[r] = rejected(ISOLATED, out[r].intensity);
+    }
+}
+
+/* Rows written (== height), or a negative error: -1 no threshold set, -2 bad pixel size. */
+EXPORT("footscan_detect")
+int footscan_detect(const u8 *px, int width, int height, int bytes_per_px, struct row_out *out) {
+    if (threshold_dn <= 0.0f) return -1;
+    u32 w = (u32)width, h = (u32)height;
+    for (u32 r = 0; r < h; r++) {
+        if (bytes_per_px == 1)
+            out[r] = row8(px + (unsigned long)r * w, w, threshold_dn);
+        else if (bytes_per_px == 2)
+            out[r] = row16((const u16 *)px + (unsigned long)r * w, w, threshold_dn * 257.0f);
+        else
+            return -2;
+    }
+    reject_isolated(out, h);
+    return height;
+}
