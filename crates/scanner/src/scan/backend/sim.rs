@@ -75,8 +75,8 @@ fn schedule_faults(
 /// Why the simulated scanner could not be opened.
 #[derive(Debug, thiserror::Error)]
 pub enum SimOpenError {
-    #[error("starting the GRBL emulator: {0}")]
-    Emulator(std::io::Error),
+    #[error("starting the GRBL emulator")]
+    Emulator(#[source] std::io::Error),
     #[error(transparent)]
     Device(#[from] HalError),
     /// The scene or the renderer rejected the configuration.
