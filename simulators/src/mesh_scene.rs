@@ -128,9 +128,9 @@ impl Default for MeshSceneConfig {
 /// Errors of building a mesh scene; each names its input.
 #[derive(Debug, thiserror::Error)]
 pub enum MeshSceneError {
-    #[error("mesh scene: {0}")]
+    #[error("mesh scene")]
     Mesh(#[from] MeshError),
-    #[error("mesh scene: {0}")]
+    #[error("mesh scene")]
     Invalid(#[from] SimError),
     #[error("mesh scene: no mesh file given (set path = \"file.stl\" under [sim.mesh])")]
     NoPath,

@@ -39,7 +39,7 @@ impl<T> std::fmt::Debug for Pipeline<T> {
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {
     /// The first node to fail, its error, and every node's counters at the end of the run.
-    #[error("stage `{stage}` failed: {source}")]
+    #[error("stage `{stage}` failed")]
     Stage {
         stage: String,
         source: BoxError,
