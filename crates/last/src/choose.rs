@@ -309,8 +309,8 @@ fn clinic_measures(
     foot_length: f64,
 ) -> Result<Measures, String> {
     use crate::customize::bottom::{shear, BottomCurve, FLAT_TOL_MM};
-    let (mut stock, mut frame) =
-        crate::customize::foot_in_frame(mesh.clone(), name).map_err(|e| e.to_string())?;
+    let (mut stock, mut frame) = crate::customize::foot_in_frame(mesh.clone(), name)
+        .map_err(|e| footscan_util::chain(&e))?;
     if let Some(b) = BottomCurve::of(&stock).filter(|b| b.rise() > FLAT_TOL_MM) {
         shear(&mut stock, |x| -b.at(x));
     }
@@ -357,11 +357,11 @@ pub fn judge_files(
     let one = |p: &std::path::PathBuf| -> (Candidate, Option<TriMesh>) {
         let name = p.display().to_string();
         let got = TriMesh::load_solid(p, units, length_mm)
-            .map_err(|e| e.to_string())
+            .map_err(|e| footscan_util::chain(&e))
             .and_then(|(m, _)| {
-                crate::size::check_last_size(p, &m).map_err(|e| e.to_string())?;
+                crate::size::check_last_size(p, &m).map_err(|e| footscan_util::chain(&e))?;
                 let lm = crate::measure_last::measure_last(m.clone(), &name)
-                    .map_err(|e| e.to_string())?;
+                    .map_err(|e| footscan_util::chain(&e))?;
                 Ok((m, lm))
             });
         match got {
