@@ -68,8 +68,9 @@ pub enum ScanError {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("scanner setup failed")]
-    Setup(#[source] SetupError),
+    /// The message is the setup error's own (it has no cause of its own to chain).
+    #[error("scanner setup failed: {0}")]
+    Setup(SetupError),
     #[error(transparent)]
     Pipeline(#[from] PipelineError),
     #[error("writing {path}")]

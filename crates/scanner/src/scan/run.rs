@@ -218,7 +218,7 @@ pub fn describe_build_error(cfg: &LoadedConfig, e: &BuildError) -> String {
             let msg = source.to_string();
             let key = backticked(&msg).unwrap_or("stage");
             let at = cfg.locate_stage_key(*index, key).unwrap_or_default();
-            format!("config {file}: {e}{at}")
+            format!("config {file}: {e}: {msg}{at}")
         }
         BuildError::UnknownStage { index, .. } => {
             let at = cfg.locate_stage_key(*index, "stage").unwrap_or_default();
