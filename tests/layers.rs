@@ -18,7 +18,7 @@ const CRATE_RULES: &[(&str, &[&str])] = &[
     ("footscan-plugins", &[]),
     ("footscan-targets", &["footscan-geom"]),
     ("footscan-last", &["footscan-geom", "footscan-util"]),
-    ("footscan-grbl", &["footscan-hal"]),
+    ("footscan-grbl", &["footscan-hal", "footscan-util"]),
     ("footscan-v4l2", &["footscan-hal"]),
     (
         "footscan-sim",

@@ -128,9 +128,10 @@ impl Default for MeshSceneConfig {
 /// Errors of building a mesh scene; each names its input.
 #[derive(Debug, thiserror::Error)]
 pub enum MeshSceneError {
-    #[error("mesh scene: {0}")]
+    // The mesh error and the simulator's name their input (the file, the key) themselves.
+    #[error(transparent)]
     Mesh(#[from] MeshError),
-    #[error("mesh scene: {0}")]
+    #[error(transparent)]
     Invalid(#[from] SimError),
     #[error("mesh scene: no mesh file given (set path = \"file.stl\" under [sim.mesh])")]
     NoPath,

@@ -9,7 +9,7 @@ pub enum FleetError {
     Settings(String),
     #[error("fleet database {target}: cannot connect: {message}")]
     Connect { target: String, message: String },
-    #[error("fleet database: {0}")]
+    #[error("fleet database")]
     Db(#[from] postgres::Error),
     /// The database's schema is newer than this program and not usable by it.
     #[error(
@@ -42,7 +42,7 @@ pub enum FleetError {
         name: String,
         detail: String,
     },
-    #[error("{path}: {source}")]
+    #[error("{path}")]
     Io {
         path: PathBuf,
         source: std::io::Error,

@@ -177,7 +177,12 @@ fn migrate_push_list_show_fetch_against_a_real_server() {
         );
     }
     let e = fetch(&mut c, None, "20261122T100000Z-0002", &out).unwrap_err();
-    assert!(e.to_string().contains("already exists"), "{e}");
+    // The cause (the file system's words) is the error's source.
+    let shown = format!(
+        "{e}: {}",
+        std::error::Error::source(&e).map_or(String::new(), |s| s.to_string())
+    );
+    assert!(shown.contains("already exists"), "{shown}");
     let e = fetch(&mut c, None, "20261123T100000Z-0009", &tmp.join("none")).unwrap_err();
     assert!(e.to_string().contains("not in the fleet database"), "{e}");
     assert!(!tmp.join("none").exists());

@@ -142,7 +142,7 @@ pub fn judge_last(
             c.no_leg.clone(),
             Some(c),
         ),
-        Err(e) => (Err(e.to_string()), false, Vec::new(), None, None),
+        Err(e) => (Err(footscan_util::chain(&e)), false, Vec::new(), None, None),
     };
     let mut stations = Vec::new();
     for r in rows {
@@ -299,11 +299,11 @@ pub fn judge_files(
     let one = |p: &std::path::PathBuf| -> Judged {
         let name = p.display().to_string();
         let got = TriMesh::load_solid(p, units, length_mm)
-            .map_err(|e| e.to_string())
+            .map_err(|e| footscan_util::chain(&e))
             .and_then(|(m, _)| {
-                crate::size::check_last_size(p, &m).map_err(|e| e.to_string())?;
+                crate::size::check_last_size(p, &m).map_err(|e| footscan_util::chain(&e))?;
                 let lm = crate::measure_last::measure_last(m.clone(), &name)
-                    .map_err(|e| e.to_string())?;
+                    .map_err(|e| footscan_util::chain(&e))?;
                 Ok((m, lm))
             });
         match got {

@@ -99,7 +99,7 @@ mod tests {
         assert!(check_last_size(Path::new("a.stl"), &m(250.0)).is_ok());
         for bad in [60.0, 299_000.0] {
             let e = check_last_size(Path::new("a.stl"), &m(bad)).unwrap_err();
-            let s = e.to_string();
+            let s = footscan_util::chain(&e);
             assert!(s.contains("a.stl") && s.contains("100-380"), "{s}");
         }
         assert!(check_pair((Path::new("a"), 250.0), (Path::new("b"), 270.0)).is_ok());

@@ -243,9 +243,10 @@ fn bad_lasts_are_refused_by_name_and_nothing_is_written() {
     )
     .unwrap_err();
     assert!(matches!(e, AdjustError::Mesh { .. }), "{e}");
+    let shown = footscan_util::chain(&e);
     assert!(
-        e.to_string().contains("LastScan_Default.stl") && e.to_string().contains("--units m"),
-        "{e}"
+        shown.contains("LastScan_Default.stl") && shown.contains("--units m"),
+        "{shown}"
     );
     // Open and non-manifold meshes.
     let tmp = tempfile::tempdir().unwrap();
@@ -257,7 +258,8 @@ fn bad_lasts_are_refused_by_name_and_nothing_is_written() {
     std::fs::write(&p, open.to_stl_binary()).unwrap();
     let e = prepare_last(&p, &LastOptions::default()).unwrap_err();
     assert!(
-        e.to_string().contains("open_last.stl") && e.to_string().contains("not closed"),
+        footscan_util::chain(&e).contains("open_last.stl")
+            && footscan_util::chain(&e).contains("not closed"),
         "{e}"
     );
     let mut nm = m.clone();
@@ -267,7 +269,10 @@ fn bad_lasts_are_refused_by_name_and_nothing_is_written() {
     let p = tmp.path().join("nonmanifold_last.stl");
     std::fs::write(&p, nm.to_stl_binary()).unwrap();
     let e = prepare_last(&p, &LastOptions::default()).unwrap_err();
-    assert!(e.to_string().contains("nonmanifold_last.stl"), "{e}");
+    assert!(
+        footscan_util::chain(&e).contains("nonmanifold_last.stl"),
+        "{e}"
+    );
     // A last far shorter than the foot.
     let prep = prepare_last(
         &lasts.join("Last_Flat_RoundTip.stl"),
@@ -280,7 +285,7 @@ fn bad_lasts_are_refused_by_name_and_nothing_is_written() {
     let e = adjust(&foot, &prep.bottom, &AdjustOptions::default()).unwrap_err();
     assert!(
         matches!(e, AdjustError::TooShort { .. })
-            && e.to_string().contains("Last_Flat_RoundTip.stl"),
+            && footscan_util::chain(&e).contains("Last_Flat_RoundTip.stl"),
         "{e}"
     );
     // An output that cannot be written leaves nothing behind.

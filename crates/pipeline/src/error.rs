@@ -18,7 +18,7 @@ pub enum BuildError {
         name: String,
         valid: Vec<String>,
     },
-    #[error("pipeline.stages[{index}] `{stage}`: {source}")]
+    #[error("pipeline.stages[{index}] `{stage}`")]
     Factory {
         index: usize,
         stage: String,

@@ -209,6 +209,17 @@ mod tests {
         assert_eq!(built.load(Ordering::SeqCst), 0);
     }
 
+    /// The error and its causes, `outer: cause`, as the edges print them.
+    fn chain(e: &dyn std::error::Error) -> String {
+        let mut s = e.to_string();
+        let mut c = e.source();
+        while let Some(x) = c {
+            s = format!("{s}: {x}");
+            c = x.source();
+        }
+        s
+    }
+
     #[test]
     fn factory_errors_name_the_stage() {
         let r = registry(Arc::default());
@@ -217,7 +228,7 @@ mod tests {
             .unwrap_err();
         assert!(matches!(err, BuildError::Factory { index: 0, ref stage, .. } if stage == "count"));
         assert_eq!(
-            err.to_string(),
+            chain(&err),
             "pipeline.stages[0] `count`: `n` (integer) is required"
         );
     }

@@ -39,7 +39,7 @@ impl<T> std::fmt::Debug for Pipeline<T> {
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {
     /// The first node to fail, its error, and every node's counters at the end of the run.
-    #[error("stage `{stage}` failed: {source}")]
+    #[error("stage `{stage}` failed")]
     Stage {
         stage: String,
         source: BoxError,
@@ -426,13 +426,24 @@ mod tests {
         stats.iter().map(|s| s.state).collect()
     }
 
+    /// The error and its causes, `outer: cause`, as the edges print them.
+    fn chain(e: &dyn std::error::Error) -> String {
+        let mut s = e.to_string();
+        let mut c = e.source();
+        while let Some(x) = c {
+            s = format!("{s}: {x}");
+            c = x.source();
+        }
+        s
+    }
+
     fn stage_error(
         r: Result<RunReport<u64>, PipelineError>,
     ) -> (String, BoxError, Vec<StageStats>, String) {
         match r {
             Ok(rep) => panic!("expected a failure, got {rep:?}"),
             Err(e) => {
-                let shown = e.to_string();
+                let shown = chain(&e);
                 let PipelineError::Stage {
                     stage,
                     source,

@@ -41,7 +41,7 @@ pub fn prefixed(path: &Path, why: &str) -> String {
 }
 
 fn named(stock: &Path, e: &CustomizeError) -> String {
-    prefixed(stock, &e.to_string())
+    prefixed(stock, &footscan_util::chain(e))
 }
 
 /// The plantar figures the rules need from a scan's measurements (docs/method.md section 8).
@@ -82,7 +82,7 @@ pub fn plantar_of_scan(dir: &Path) -> Result<Plantar, ClinicLastError> {
         Err(ScanDirError::Read { path, source }) => {
             return Err(ClinicLastError::Input {
                 path,
-                why: source.to_string(),
+                why: footscan_util::chain(&source),
             })
         }
         Err(ScanDirError::Parse { path, source, .. }) => {
@@ -124,7 +124,7 @@ pub fn load_stock_as(
         })?;
     footscan_last::size::check_last_size(path, &m).map_err(|e| ClinicLastError::Input {
         path: path.into(),
-        why: e.to_string(),
+        why: footscan_util::chain(&e),
     })?;
     Ok(m)
 }

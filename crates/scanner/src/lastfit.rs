@@ -102,7 +102,10 @@ pub fn foot_from_scan_dir(dir: &Path, cell_mm: f64) -> Result<FootPlantar, LastF
             })
         }
         Err(ScanDirError::Read { source, .. }) => {
-            return Err(scan_err(ScanDir::MEASUREMENTS, source.to_string()))
+            return Err(scan_err(
+                ScanDir::MEASUREMENTS,
+                footscan_util::chain(&source),
+            ))
         }
         Err(ScanDirError::Parse { source, .. }) => {
             return Err(scan_err(
@@ -113,7 +116,7 @@ pub fn foot_from_scan_dir(dir: &Path, cell_mm: f64) -> Result<FootPlantar, LastF
     };
     let grid = scan
         .load_grid()
-        .map_err(|e| scan_err(ScanDir::GRID, e.to_string()))?;
+        .map_err(|e| scan_err(ScanDir::GRID, footscan_util::chain(&e)))?;
     Ok(foot_plantar(
         &dir.display().to_string(),
         &grid,
@@ -212,7 +215,7 @@ impl LastSource {
                         "{} (a last scan directory needs its scan grid)",
                         ScanDir::GRID
                     ),
-                    why: e.to_string(),
+                    why: footscan_util::chain(&e),
                 })?;
             let map = rasterize_grid(&grid, cell_mm)?;
             let below = height_grid(map);

@@ -47,9 +47,50 @@ pub fn write_atomic_with(
     result
 }
 
+/// An error and its causes on one line, `outer: cause: root`, for the edges that turn an
+/// error into text (an API answer, a record's reason, a log line). Library errors name what
+/// failed and leave the cause to their `source()`, so each cause is printed here exactly once.
+pub struct Chain<'a>(pub &'a (dyn std::error::Error + 'static));
+
+impl std::fmt::Display for Chain<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.0)?;
+        let mut cause = self.0.source();
+        while let Some(c) = cause {
+            write!(f, ": {c}")?;
+            cause = c.source();
+        }
+        Ok(())
+    }
+}
+
+/// [`Chain`] as a String.
+pub fn chain(e: &(dyn std::error::Error + 'static)) -> String {
+    Chain(e).to_string()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn chain_prints_each_cause_once() {
+        #[derive(Debug)]
+        struct Outer(std::io::Error);
+        impl std::fmt::Display for Outer {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("reading scan.json")
+            }
+        }
+        impl std::error::Error for Outer {
+            fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+                Some(&self.0)
+            }
+        }
+        let e = Outer(std::io::Error::other("disk full"));
+        assert_eq!(chain(&e), "reading scan.json: disk full");
+        assert_eq!(chain(&std::io::Error::other("alone")), "alone");
+    }
 
     #[test]
     fn atomic_write_replaces_and_leaves_no_temp() {

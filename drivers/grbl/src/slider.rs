@@ -353,8 +353,9 @@ impl GrblSlider {
         };
         if let Err(e) = result {
             tracing::warn!(
-                "{}: could not stop the motion before the reset: {e}",
-                self.port_name()
+                "{}: could not stop the motion before the reset: {}",
+                self.port_name(),
+                footscan_util::Chain(&e)
             );
         }
     }
@@ -578,7 +579,7 @@ impl Slider for GrblSlider {
                 Err(self.timeout(
                     match aborted {
                         Ok(()) => "the homing cycle ($H) to finish; aborted it with a soft reset: the machine is not homed".to_string(),
-                        Err(e) => format!("the homing cycle ($H) to finish; the soft reset to abort it failed too: {e}"),
+                        Err(e) => format!("the homing cycle ($H) to finish; the soft reset to abort it failed too: {}", footscan_util::Chain(&e)),
                     },
                     timeout,
                 ))

@@ -32,7 +32,7 @@ pub enum HalError {
     InvalidArgument { device: String, detail: String },
     #[error("{device}: not streaming (call start first)")]
     NotStreaming { device: String },
-    #[error("{device}: {source}")]
+    #[error("{device}")]
     Io {
         device: String,
         #[source]

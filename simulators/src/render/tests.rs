@@ -1,5 +1,5 @@
 use super::*;
-use crate::foot::FootParams;
+use crate::foot::{Foot, FootParams};
 
 fn renderer(optics: Optics, noise: NoiseConfig, scene: Scene) -> Renderer {
     Renderer::new(optics, noise, scene, 42).unwrap()

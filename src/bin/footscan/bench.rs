@@ -308,8 +308,12 @@ pub fn run(args: Args) -> Result<()> {
         } => {
             use footscan_last::join::{compare, study};
             let dir = data_dir(data);
-            let pairs = study::real_pairs(&dir)
-                .map_err(|e| anyhow::anyhow!("{e} (give --data DIR holding lasts/)"))?;
+            let pairs = study::real_pairs(&dir).map_err(|e| {
+                anyhow::anyhow!(
+                    "{e} (give --data DIR holding lasts/)",
+                    e = footscan_util::Chain(&e)
+                )
+            })?;
             let (rows, pics) = compare::run(&pairs, &compare::methods(), repeats, out.is_some())?;
             let study_rows = study::run(&pairs, &study::paper_cases(), repeats)?;
             if json {

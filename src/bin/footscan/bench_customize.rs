@@ -50,7 +50,7 @@ fn sim_foot(length: f64, side: Side) -> Result<TriMesh> {
         side,
         ..FootParams::default()
     })
-    .map_err(|e| anyhow!("sim foot: {e}"))?;
+    .map_err(|e| anyhow!("sim foot: {e}", e = footscan_util::Chain(&e)))?;
     Ok(f.mesh(MeshResolution::default()).tri_mesh())
 }
 
@@ -67,10 +67,12 @@ fn one(name: String, world: TriMesh, rules: &RuleSet, inp: &Inputs, repeats: usi
     let mut best: Option<Row> = None;
     for _ in 0..repeats.max(1) {
         let t0 = Instant::now();
-        let (foot, frame) = foot_in_frame(world.clone(), &name).map_err(|e| anyhow!("{e}"))?;
+        let (foot, frame) = foot_in_frame(world.clone(), &name)
+            .map_err(|e| anyhow!("{e}", e = footscan_util::Chain(&e)))?;
         let frame_ms = t0.elapsed().as_secs_f64() * 1e3;
         let t1 = Instant::now();
-        let c = customize(foot, frame, rules, inp).map_err(|e| anyhow!("{name}: {e}"))?;
+        let c = customize(foot, frame, rules, inp)
+            .map_err(|e| anyhow!("{name}: {e}", e = footscan_util::Chain(&e)))?;
         let customize_ms = t1.elapsed().as_secs_f64() * 1e3;
         let curve_ms = c
             .curves
@@ -112,7 +114,7 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
             continue;
         }
         let (m, _) = TriMesh::load_solid(&p, Units::Auto, None)
-            .map_err(|e| anyhow!("{}: {e}", p.display()))?;
+            .map_err(|e| anyhow!("{}: {e}", p.display(), e = footscan_util::Chain(&e)))?;
         let name = format!(
             "{} ({side})",
             Path::new(f).file_name().unwrap().to_string_lossy()
@@ -327,7 +329,8 @@ const MODEL_LAST_OVER_FOOT_MM: f64 = 10.0;
 /// foot (docs/method.md 10.1), what a fitter's tape reads on it.
 fn sim_girths(length: f64) -> Result<TapeGirths> {
     let world = sim_foot(length, Side::Right)?;
-    let (foot, frame) = foot_in_frame(world, "sim foot").map_err(|e| anyhow!("{e}"))?;
+    let (foot, frame) = foot_in_frame(world, "sim foot")
+        .map_err(|e| anyhow!("{e}", e = footscan_util::Chain(&e)))?;
     let m = measure(&foot, None, frame.medial_sign()).map_err(|e| anyhow!("sim foot: {e}"))?;
     TapeGirths::checked(
         m.ball_girth,
@@ -341,8 +344,12 @@ fn sim_girths(length: f64) -> Result<TapeGirths> {
 /// A simulated scan of the `length` mm right foot (config/sim.toml with that foot length),
 /// made by this binary into `out`.
 fn sim_scan(length: f64, out: &Path) -> Result<()> {
-    let cfg = std::fs::read_to_string("config/sim.toml")
-        .map_err(|e| anyhow!("config/sim.toml (run from the repository): {e}"))?;
+    let cfg = std::fs::read_to_string("config/sim.toml").map_err(|e| {
+        anyhow!(
+            "config/sim.toml (run from the repository): {e}",
+            e = footscan_util::Chain(&e)
+        )
+    })?;
     let mut cfg = cfg.replacen("length_mm = 250.0", &format!("length_mm = {length:.1}"), 1);
     if length > 270.0 {
         // The 290 mm foot runs past the default 320 mm of travel.

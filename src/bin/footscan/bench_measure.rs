@@ -30,11 +30,16 @@ pub fn run(data: &Path, feet: usize, seed: u64, cell: f64, json: bool) -> Result
     let mut real = Vec::new();
     for rel in REAL_FEET {
         let path = data.join(rel);
-        let intake = TriMesh::read_foot(&path, &IntakeOptions::default())
-            .map_err(|e| anyhow!("{e} (give --data DIR holding feet/)"))?;
+        let intake = TriMesh::read_foot(&path, &IntakeOptions::default()).map_err(|e| {
+            anyhow!(
+                "{e} (give --data DIR holding feet/)",
+                e = footscan_util::Chain(&e)
+            )
+        })?;
         let map = mesh_map(&intake.mesh, cell).map_err(|e| anyhow!("{}: {e}", path.display()))?;
         let t = Instant::now();
-        let m = measure_foot(&map).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        let m = measure_foot(&map)
+            .map_err(|e| anyhow!("{}: {e}", path.display(), e = footscan_util::Chain(&e)))?;
         real.push(RealRow::of(rel, &m, t.elapsed().as_secs_f64() * 1e3));
     }
     let (a, b) = (&real[PAIR.0], &real[PAIR.1]);

@@ -53,7 +53,13 @@ pub fn run(a: ChooseArgs) -> Result<()> {
     let g = TapeGirths::load(&a.girths).map_err(|e| anyhow!(e))?;
     let plantar = plantar_of_scan(&a.scan)?;
     let mut files: Vec<PathBuf> = std::fs::read_dir(&a.stock_dir)
-        .map_err(|e| anyhow!("{}: {e}", a.stock_dir.display()))?
+        .map_err(|e| {
+            anyhow!(
+                "{}: {e}",
+                a.stock_dir.display(),
+                e = footscan_util::Chain(&e)
+            )
+        })?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
             p.extension()
@@ -143,7 +149,7 @@ pub fn run(a: ChooseArgs) -> Result<()> {
                 }
                 return Ok(());
             }
-            Err(e) => eprintln!("customizing {} failed: {e}; trying the next", c.name),
+            Err(e) => eprintln!("customizing {} failed: {e:#}; trying the next", c.name),
         }
     }
     bail!(

@@ -298,5 +298,8 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
 
 /// A customization error with the foot file in front unless the message names it already.
 fn named(foot: &std::path::Path, e: footscan_last::customize::CustomizeError) -> anyhow::Error {
-    anyhow!(footscan::lastcustom::prefixed(foot, &e.to_string()))
+    anyhow!(footscan::lastcustom::prefixed(
+        foot,
+        &footscan_util::chain(&e)
+    ))
 }

@@ -60,7 +60,7 @@ pub fn run(a: GradeArgs) -> Result<()> {
         None => Vec::new(),
     };
     let (m, _) = TriMesh::load_solid(&a.last, a.units, a.length)
-        .map_err(|e| anyhow!("{}: {e}", a.last.display()))?;
+        .map_err(|e| anyhow!("{}: {e}", a.last.display(), e = footscan_util::Chain(&e)))?;
     check_last_size(&a.last, &m)?;
     let spec = GradeSpec {
         system: a.system,

@@ -116,18 +116,9 @@ fn main() -> std::process::ExitCode {
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            // Library errors often repeat their cause in their own message; print each once.
-            let mut msg = String::new();
-            for cause in e.chain().map(|c| c.to_string()) {
-                if !msg.contains(&cause) {
-                    msg = if msg.is_empty() {
-                        cause
-                    } else {
-                        format!("{msg}: {cause}")
-                    };
-                }
-            }
-            eprintln!("error: {msg}");
+            // The chain, each cause once: library errors name what failed and leave the cause
+            // to their source.
+            eprintln!("error: {e:#}");
             std::process::ExitCode::FAILURE
         }
     }

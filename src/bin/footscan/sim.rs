@@ -83,7 +83,7 @@ fn foot(a: FootArgs) -> Result<()> {
         yaw_deg: a.yaw_deg,
         ..FootParams::default()
     })
-    .map_err(|e| anyhow::anyhow!("sim foot: {e}"))?;
+    .map_err(|e| anyhow::anyhow!("sim foot: {e}", e = footscan_util::Chain(&e)))?;
     let m = f.mesh(MeshResolution {
         stations: a.stations,
         around: a.around,

@@ -43,13 +43,13 @@ fn request(st: &AppState, req: StartJob, verify: bool) -> Result<JobRequest, Api
     let method = match req.method.as_deref() {
         None => Method::Insystem,
         Some(m) if verify => {
-            return Err(ApiError::bad_request(format!(
+            return Err(ApiError::invalid(format!(
             "method {:?}: the daily check measures with the current calibration; send no method",
             m.chars().take(80).collect::<String>()
         )))
         }
         Some(m) => m.parse().map_err(|_| {
-            ApiError::bad_request(format!(
+            ApiError::invalid(format!(
                 "method {:?}: must be \"insystem\", \"bezier\" or \"opencv\"",
                 m.chars().take(80).collect::<String>()
             ))
@@ -61,7 +61,7 @@ fn request(st: &AppState, req: StartJob, verify: bool) -> Result<JobRequest, Api
         Some(c)
             if c.trim().is_empty() || c.chars().count() > 80 || c.chars().any(char::is_control) =>
         {
-            return Err(ApiError::bad_request(
+            return Err(ApiError::invalid(
                 "confirmed_by: a name of 1 to 80 printable characters",
             ))
         }
@@ -71,14 +71,14 @@ fn request(st: &AppState, req: StartJob, verify: bool) -> Result<JobRequest, Api
         None => "nobody (unattended)".into(),
     };
     if req.sim_mistakes.len() > 16 {
-        return Err(ApiError::bad_request("sim_mistakes: at most 16"));
+        return Err(ApiError::invalid("sim_mistakes: at most 16"));
     }
     let sim_mistakes = req
         .sim_mistakes
         .iter()
         .map(|m| Ok((parse_target(&m.asked)?, parse_mistake(&m.placed)?)))
         .collect::<Result<Vec<_>, String>>()
-        .map_err(|e| ApiError::bad_request(format!("sim_mistakes: {e}")))?;
+        .map_err(|e| ApiError::invalid(format!("sim_mistakes: {e}")))?;
     Ok(JobRequest {
         method,
         guided,
@@ -94,9 +94,7 @@ async fn start(
 ) -> Result<Response, ApiError> {
     let req = request(&st, body(b)?, kind == "verify")?;
     let d = st.daemon.clone();
-    let id = tokio::task::spawn_blocking(move || d.start_calibration_job(kind, req))
-        .await
-        .map_err(ApiError::internal)??;
+    let id = tokio::task::spawn_blocking(move || d.start_calibration_job(kind, req)).await??;
     Ok((StatusCode::ACCEPTED, Json(json!({ "id": id }))).into_response())
 }
 
@@ -119,8 +117,8 @@ pub async fn start_verify(
 /// GET /api/calibrations/job: the running or last calibration / check job.
 pub async fn job(State(st): State<AppState>) -> Result<Json<Value>, ApiError> {
     match st.daemon.calibrating() {
-        Some(j) => Ok(Json(serde_json::to_value(j).map_err(ApiError::internal)?)),
-        None => Err(ApiError::not_found(
+        Some(j) => Ok(Json(serde_json::to_value(j)?)),
+        None => Err(ApiError::missing(
             "no calibration or daily check has run since the daemon started",
         )),
     }
@@ -139,7 +137,7 @@ async fn answer(
         None
     } else {
         Some(serde_json::from_slice::<AnswerFor>(&b).map_err(|e| {
-            ApiError::bad_request(format!(
+            ApiError::invalid(format!(
                 "invalid answer body ({e}): {{}} or any of \"phase\" (\"place\" or \"review\"), \
                  \"step\" (the step's index) and \"attempt\", as GET /api/calibrations/job shows them"
             ))
@@ -190,7 +188,7 @@ pub async fn show(
     Path(id): Path<String>,
 ) -> Result<Json<Value>, ApiError> {
     if !valid_id(&id) {
-        return Err(ApiError::bad_request(format!(
+        return Err(ApiError::invalid(format!(
             "calibration id {:?}: letters, digits, '-' and '_' only",
             id.chars().take(80).collect::<String>()
         )));
@@ -198,7 +196,7 @@ pub async fn show(
     Calibrations::new(&st.daemon.config.archive)
         .get(&id)
         .map(|e| Json(serde_json::to_value(e).unwrap_or_default()))
-        .ok_or_else(|| ApiError::not_found(format!("calibration {id} is not in the history")))
+        .ok_or_else(|| ApiError::missing(format!("calibration {id} is not in the history")))
 }
 
 /// GET /api/verify: the daily-check trend (oldest first) and what the status says of it.

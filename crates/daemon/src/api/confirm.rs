@@ -7,7 +7,6 @@ use super::{ApiError, AppState};
 use crate::archive::{Record, ScanId, Status};
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Path, State};
-use axum::http::StatusCode;
 use axum::Json;
 use footscan::scan::quality::{Issue, Level};
 use footscan::scandata::ScanDir;
@@ -44,10 +43,10 @@ pub async fn confirm_side(
     Path(id): Path<String>,
     b: Result<Json<ConfirmSide>, JsonRejection>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let id = ScanId::parse(&id).map_err(|e| ApiError::bad_request(e.to_string()))?;
+    let id = ScanId::parse(&id)?;
     let side = body(b)?.side;
     if !matches!(side.as_str(), "left" | "right") {
-        return Err(ApiError::bad_request(format!(
+        return Err(ApiError::invalid(format!(
             "side {:?}: must be \"left\" or \"right\"",
             side.chars().take(80).collect::<String>()
         )));
@@ -55,15 +54,12 @@ pub async fn confirm_side(
     let d = st.daemon.clone();
     tokio::task::spawn_blocking(move || {
         let a = &d.archive;
-        let rec = a.get(&id).map_err(crate::daemon::DaemonError::from)?;
+        let rec = a.get(&id)?;
         if rec.status == Status::Running {
-            return Err(ApiError(
-                StatusCode::CONFLICT,
-                format!(
-                    "scan {} is still running: confirm its side once it has ended",
-                    rec.id
-                ),
-            ));
+            return Err(ApiError::Conflict(format!(
+                "scan {} is still running: confirm its side once it has ended",
+                rec.id
+            )));
         }
         let summary: serde_json::Value = a
             .artifact_path(&rec, ScanDir::SUMMARY)
@@ -84,30 +80,24 @@ pub async fn confirm_side(
         let (status, reason) = settled(&issues);
         let edit = |r: &mut Record| {
             if r.status != Status::SideMismatch {
-                return Err(ApiError(
-                    StatusCode::CONFLICT,
-                    format!(
-                        "scan {} is {:?}, not \"side mismatch\": only a scan whose side is in \
+                return Err(ApiError::Conflict(format!(
+                    "scan {} is {:?}, not \"side mismatch\": only a scan whose side is in \
                          question is confirmed this way",
-                        r.id,
-                        r.status.as_str()
-                    ),
-                ));
+                    r.id,
+                    r.status.as_str()
+                )));
             }
             r.side = side.clone();
             r.status = status;
             r.reason = reason.clone();
             Ok(())
         };
-        let (rec, changes, _visits) = a
-            .amend_with_visits(&id, &why, edit)
-            .map_err(crate::daemon::DaemonError::from)??;
-        let mut v = serde_json::to_value(&rec).map_err(ApiError::internal)?;
-        v["changes"] = serde_json::to_value(&changes).map_err(ApiError::internal)?;
+        let (rec, changes, _visits) = a.amend_with_visits(&id, &why, edit)??;
+        let mut v = serde_json::to_value(&rec)?;
+        v["changes"] = serde_json::to_value(&changes)?;
         Ok(Json(v))
     })
-    .await
-    .map_err(ApiError::internal)?
+    .await?
 }
 
 #[cfg(test)]

@@ -3,7 +3,6 @@
 
 use super::{ApiError, AppState};
 use axum::extract::{Query, State};
-use axum::http::StatusCode;
 use axum::Json;
 use serde::Deserialize;
 
@@ -25,9 +24,7 @@ pub async fn list(
 ) -> Result<Json<serde_json::Value>, ApiError> {
     let limit = q.limit.unwrap_or(200);
     if !(1..=10_000).contains(&limit) {
-        return Err(ApiError::bad_request(format!(
-            "limit = {limit}: 1 to 10000"
-        )));
+        return Err(ApiError::invalid(format!("limit = {limit}: 1 to 10000")));
     }
     let filter = footscan_fleet::Filter {
         clinic: q.clinic,
@@ -39,15 +36,13 @@ pub async fn list(
         limit: Some(limit),
     };
     let d = st.daemon.clone();
-    let res = tokio::task::spawn_blocking(move || d.fleet_list(&filter))
-        .await
-        .map_err(ApiError::internal)?;
+    let res = tokio::task::spawn_blocking(move || d.fleet_list(&filter)).await?;
     match res {
-        None => Err(ApiError::not_found(
+        None => Err(ApiError::missing(
             "the fleet is off on this scanner: add a [fleet] section to the daemon's config",
         )),
         Some(Ok(rows)) => Ok(Json(serde_json::json!({ "scans": rows }))),
         // The database is another machine: unreachable or refusing is a gateway error.
-        Some(Err(e)) => Err(ApiError(StatusCode::BAD_GATEWAY, e.to_string())),
+        Some(Err(e)) => Err(e.into()),
     }
 }

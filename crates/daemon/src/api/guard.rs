@@ -13,10 +13,10 @@
 //! - Every response says X-Content-Type-Options: nosniff and refuses framing
 //!   (X-Frame-Options: DENY, CSP frame-ancestors 'none').
 
-use super::{ApiError, AppState};
+use super::{ApiError, AppState, Refused};
 use axum::body::Body;
 use axum::extract::{Request, State};
-use axum::http::{header, HeaderValue, Method, StatusCode};
+use axum::http::{header, HeaderValue, Method};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use std::net::{IpAddr, SocketAddr};
@@ -50,8 +50,12 @@ pub fn host_allowed(host: &str, bind: SocketAddr, allowed: &[String]) -> bool {
         || allowed.iter().any(|a| a.eq_ignore_ascii_case(&name))
 }
 
+fn refuse(r: Refused) -> Response {
+    ApiError::from(r).into_response()
+}
+
 fn forbidden(msg: String) -> Response {
-    ApiError(StatusCode::FORBIDDEN, msg).into_response()
+    ApiError::from(Refused::Foreign(msg)).into_response()
 }
 
 /// Longest request target (path and query) accepted.
@@ -63,11 +67,10 @@ pub async fn guard(State(st): State<AppState>, req: Request, next: Next) -> Resp
     let cfg = &st.daemon.config;
     let uri_len = req.uri().path_and_query().map_or(0, |p| p.as_str().len());
     if uri_len > MAX_URI {
-        return ApiError(
-            StatusCode::URI_TOO_LONG,
-            format!("request target of {uri_len} bytes: at most {MAX_URI}"),
-        )
-        .into_response();
+        return refuse(Refused::UriTooLong {
+            len: uri_len,
+            max: MAX_URI,
+        });
     }
     let head: usize = req
         .headers()
@@ -75,11 +78,10 @@ pub async fn guard(State(st): State<AppState>, req: Request, next: Next) -> Resp
         .map(|(k, v)| k.as_str().len() + v.len() + 4)
         .sum();
     if head > MAX_HEADERS {
-        return ApiError(
-            StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
-            format!("request headers of {head} bytes: at most {MAX_HEADERS}"),
-        )
-        .into_response();
+        return refuse(Refused::HeadersTooLarge {
+            len: head,
+            max: MAX_HEADERS,
+        });
     }
     // A declared length over the limit is refused before waiting for the body: otherwise a
     // client announcing 10^15 bytes and sending none holds the connection until the body
@@ -90,18 +92,10 @@ pub async fn guard(State(st): State<AppState>, req: Request, next: Next) -> Resp
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.trim().parse::<u64>().ok());
     if let Some(n) = declared.filter(|&n| n > super::BODY_LIMIT as u64) {
-        let mut r = ApiError(
-            StatusCode::PAYLOAD_TOO_LARGE,
-            format!(
-                "Content-Length {n}: request bodies are at most {} bytes",
-                super::BODY_LIMIT
-            ),
-        )
-        .into_response();
-        // The unread body would otherwise be taken for the next request.
-        r.headers_mut()
-            .insert(header::CONNECTION, HeaderValue::from_static("close"));
-        return r;
+        return refuse(Refused::DeclaredTooLarge {
+            len: n,
+            max: super::BODY_LIMIT,
+        });
     }
     let Some(host) = req
         .headers()
@@ -109,7 +103,7 @@ pub async fn guard(State(st): State<AppState>, req: Request, next: Next) -> Resp
         .and_then(|v| v.to_str().ok())
         .map(str::to_string)
     else {
-        return ApiError::bad_request("the Host header is required").into_response();
+        return refuse(Refused::NoHost);
     };
     if !host_allowed(&host, cfg.bind, &cfg.allowed_hosts) {
         return forbidden(format!(
@@ -145,16 +139,10 @@ pub async fn guard(State(st): State<AppState>, req: Request, next: Next) -> Resp
                         .is_some_and(|m| m.trim().eq_ignore_ascii_case("application/json"))
                 });
         if !json {
-            return ApiError(
-                StatusCode::UNSUPPORTED_MEDIA_TYPE,
-                format!(
-                    "{} {} needs `Content-Type: application/json` (also without a body): \
-                     it changes state",
-                    req.method(),
-                    req.uri().path()
-                ),
-            )
-            .into_response();
+            return refuse(Refused::NotJson {
+                method: req.method().to_string(),
+                path: req.uri().path().to_string(),
+            });
         }
     }
     let req = if changes_state {
@@ -162,25 +150,9 @@ pub async fn guard(State(st): State<AppState>, req: Request, next: Next) -> Resp
         let limit = super::BODY_LIMIT;
         match tokio::time::timeout(cfg.body_timeout, axum::body::to_bytes(body, limit)).await {
             Ok(Ok(bytes)) => Request::from_parts(parts, Body::from(bytes)),
-            Ok(Err(_)) => {
-                return ApiError(
-                    StatusCode::PAYLOAD_TOO_LARGE,
-                    format!("request body over the {limit} byte limit (or broken off)"),
-                )
-                .into_response()
-            }
+            Ok(Err(_)) => return refuse(Refused::BodyTooLarge { limit }),
             Err(_) => {
-                let mut r = ApiError(
-                    StatusCode::REQUEST_TIMEOUT,
-                    format!(
-                        "the request body did not arrive within {:?}",
-                        cfg.body_timeout
-                    ),
-                )
-                .into_response();
-                r.headers_mut()
-                    .insert(header::CONNECTION, HeaderValue::from_static("close"));
-                return r;
+                return refuse(Refused::BodyTimeout(cfg.body_timeout));
             }
         }
     } else {

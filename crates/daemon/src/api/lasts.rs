@@ -42,7 +42,7 @@ pub async fn show(
     let job = blocking(move || Ok(d.last_job(&rid)?)).await?;
     match job {
         Some(j) => Ok(Json(j).into_response()),
-        None => Err(ApiError::not_found(format!(
+        None => Err(ApiError::missing(format!(
             "scan {id} has no last yet: POST /api/scans/{id}/last with the girths and a stock \
              last"
         ))),
@@ -62,7 +62,7 @@ pub async fn download(
         let p = d.last_file(&rid, &rname)?;
         d.archive
             .open_inside(&p)
-            .map_err(|e| ApiError::not_found(format!("scan {rid} last file {rname:?}: {e}")))
+            .map_err(|e| ApiError::missing(format!("scan {rid} last file {rname:?}: {e}")))
     })
     .await?;
     send_file(file, &format!("{id}-{name}"), &headers).await

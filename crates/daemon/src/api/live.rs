@@ -171,22 +171,20 @@ pub async fn preview_png(
             .ok()
             .filter(|w| (16..=1280).contains(w))
             .ok_or_else(|| {
-                ApiError::bad_request(format!(
+                ApiError::invalid(format!(
                     "width {w:?}: must be an integer in 16..=1280 (default 320)"
                 ))
             })?,
     };
     let preview = st.daemon.preview.clone();
     let cache = st.preview_png.clone();
-    let out = tokio::task::spawn_blocking(move || cached_png(&preview, &cache, width))
-        .await
-        .map_err(ApiError::internal)?;
+    let out = tokio::task::spawn_blocking(move || cached_png(&preview, &cache, width)).await?;
     let Some(out) = out else {
-        return Err(ApiError::not_found(
+        return Err(ApiError::missing(
             "no frame yet: the preview shows the running or last scan's frames",
         ));
     };
-    let c = out.map_err(ApiError::internal)?;
+    let c = out?;
     let (png, seq, age_ms) = (c.png, c.seq, crate::daemon::preview::age_ms(c.timestamp));
     Ok((
         [
@@ -209,10 +207,9 @@ pub async fn preview_png(
 pub async fn preview_line(State(st): State<AppState>) -> Result<Response, ApiError> {
     let p = st.daemon.preview.clone();
     let line = tokio::task::spawn_blocking(move || p.line())
-        .await
-        .map_err(ApiError::internal)?
+        .await?
         .ok_or_else(|| {
-            ApiError::not_found("no frame yet: the preview shows the running or last scan's frames")
+            ApiError::missing("no frame yet: the preview shows the running or last scan's frames")
         })?;
     Ok(([(header::CACHE_CONTROL, "no-store")], Json(line)).into_response())
 }

@@ -5,6 +5,7 @@
 
 mod calibration;
 mod confirm;
+mod error;
 mod fleet;
 mod guard;
 mod lasts;
@@ -17,7 +18,7 @@ mod visits;
 
 use crate::daemon::Daemon;
 use axum::extract::{Request, State};
-use axum::http::{header, HeaderValue, Method, StatusCode};
+use axum::http::{header, Method};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
@@ -26,6 +27,8 @@ use std::future::Future;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::watch;
+
+pub use error::{ApiError, BodyError, Refused};
 
 /// Largest request body accepted (the JSON bodies of the API are far smaller).
 pub const BODY_LIMIT: usize = 16 * 1024;
@@ -39,54 +42,11 @@ pub struct AppState {
     pub preview_png: Arc<std::sync::Mutex<Option<live::CachedPng>>>,
 }
 
-/// An error response: a status and a message naming the input and what is valid.
-#[derive(Debug)]
-pub struct ApiError(pub StatusCode, pub String);
-
-impl ApiError {
-    pub fn bad_request(msg: impl Into<String>) -> Self {
-        ApiError(StatusCode::BAD_REQUEST, msg.into())
-    }
-    pub fn not_found(msg: impl Into<String>) -> Self {
-        ApiError(StatusCode::NOT_FOUND, msg.into())
-    }
-    pub fn internal(msg: impl std::fmt::Display) -> Self {
-        tracing::error!("internal error: {msg}");
-        ApiError(StatusCode::INTERNAL_SERVER_ERROR, msg.to_string())
-    }
-}
-
 /// Run archive or daemon work (file I/O, locks, CPU) on the runtime's blocking threads.
 pub(crate) async fn blocking<T: Send + 'static>(
     f: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
 ) -> Result<T, ApiError> {
-    tokio::task::spawn_blocking(f)
-        .await
-        .map_err(ApiError::internal)?
-}
-
-impl IntoResponse for ApiError {
-    fn into_response(self) -> Response {
-        (self.0, Json(serde_json::json!({ "error": self.1 }))).into_response()
-    }
-}
-
-impl From<crate::daemon::DaemonError> for ApiError {
-    fn from(e: crate::daemon::DaemonError) -> Self {
-        use crate::daemon::DaemonError as E;
-        match e {
-            E::Busy(m) | E::NotRunning(m) | E::Conflict(m) => ApiError(StatusCode::CONFLICT, m),
-            E::NotFound(m) => ApiError::not_found(m),
-            E::Archive(crate::archive::ArchiveError::NotFound(id)) => {
-                ApiError::not_found(format!("scan {id} is not in the archive"))
-            }
-            E::Archive(e) => ApiError(StatusCode::INSUFFICIENT_STORAGE, e.to_string()),
-            E::Setup(m) => ApiError::internal(m),
-            E::Unsupported(m) => ApiError(StatusCode::NOT_IMPLEMENTED, m),
-            E::BadRequest(m) => ApiError::bad_request(m),
-            E::Unavailable(m) => ApiError(StatusCode::SERVICE_UNAVAILABLE, m),
-        }
-    }
+    tokio::task::spawn_blocking(f).await?
 }
 
 /// The whole API and the dashboard.
@@ -261,17 +221,7 @@ async fn auth(State(st): State<AppState>, req: Request, next: Next) -> Response 
     if ok {
         return next.run(req).await;
     }
-    let mut resp = ApiError(
-        StatusCode::UNAUTHORIZED,
-        "missing or wrong token: send `Authorization: Bearer <token>` or `?access_token=<token>`"
-            .into(),
-    )
-    .into_response();
-    resp.headers_mut().insert(
-        header::WWW_AUTHENTICATE,
-        HeaderValue::from_static("Bearer realm=\"footscand\""),
-    );
-    resp
+    ApiError::from(Refused::Token).into_response()
 }
 
 /// axum's own rejections (a path that is not UTF-8, a malformed query) are plain text: wrap
@@ -293,7 +243,7 @@ async fn json_errors(resp: Response) -> Response {
             .unwrap_or("request failed")
             .to_string(),
     };
-    let mut out = ApiError(status, text).into_response();
+    let mut out = error::json_error(status, text);
     for (k, v) in parts.headers.iter() {
         if k != header::CONTENT_TYPE && k != header::CONTENT_LENGTH {
             out.headers_mut().insert(k.clone(), v.clone());
@@ -336,22 +286,19 @@ async fn health() -> Json<serde_json::Value> {
 }
 
 async fn not_found(req: Request) -> ApiError {
-    ApiError::not_found(format!(
-        "no such endpoint: {} {} (see docs/API.md)",
-        req.method(),
-        req.uri().path()
-    ))
+    Refused::NoRoute {
+        method: req.method().to_string(),
+        path: req.uri().path().to_string(),
+    }
+    .into()
 }
 
 async fn method_not_allowed(req: Request) -> ApiError {
-    ApiError(
-        StatusCode::METHOD_NOT_ALLOWED,
-        format!(
-            "method {} not allowed on {} (see docs/API.md)",
-            req.method(),
-            req.uri().path()
-        ),
-    )
+    Refused::Method {
+        method: req.method().to_string(),
+        path: req.uri().path().to_string(),
+    }
+    .into()
 }
 
 fn static_file(content_type: &'static str, body: &'static str) -> Response {
@@ -414,9 +361,9 @@ async fn vendor_three(axum::extract::Path(path): axum::extract::Path<String>) ->
         ($($p:literal),*) => {
             match path.as_str() {
                 $($p => include_str!(concat!("dashboard/vendor/three/", $p)),)*
-                _ => return (StatusCode::NOT_FOUND, Json(serde_json::json!({
-                    "error": format!("/vendor/three/{path}: no such file of the embedded three.js")
-                }))).into_response(),
+                _ => return error::ApiError::Missing(format!(
+                    "/vendor/three/{path}: no such file of the embedded three.js"
+                )).into_response(),
             }
         };
     }

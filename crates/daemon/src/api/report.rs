@@ -5,23 +5,21 @@
 use super::{ApiError, AppState};
 use crate::archive::ScanId;
 use axum::extract::{Path, State};
-use axum::http::{header, StatusCode};
+use axum::http::header;
 use axum::response::{IntoResponse, Response};
 
 pub async fn report_pdf(
     State(st): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    let id = ScanId::parse(&id).map_err(|e| ApiError::bad_request(e.to_string()))?;
+    let id = ScanId::parse(&id)?;
     let d = st.daemon.clone();
     let (bytes, id) = tokio::task::spawn_blocking(move || {
         let input = scan_input(&d, &id)?;
-        let (bytes, _) = footscan::report::render(&input)
-            .map_err(|e| ApiError(StatusCode::UNPROCESSABLE_ENTITY, format!("{e:#}")))?;
+        let (bytes, _) = footscan::report::render(&input).map_err(ApiError::Report)?;
         Ok::<_, ApiError>((bytes, input.title))
     })
-    .await
-    .map_err(ApiError::internal)??;
+    .await??;
     Ok(pdf(bytes, &format!("{id}-report.pdf")))
 }
 
@@ -32,10 +30,10 @@ pub(super) fn scan_input(
     id: &ScanId,
 ) -> Result<footscan::report::ReportInput, ApiError> {
     let (rec, dir) = d.measured_scan(id, "a report")?;
-    let mut input = footscan::report::ReportInput::from_scan_dir(&dir)
-        .map_err(|e| ApiError::internal(format!("{e:#}")))?;
+    let mut input =
+        footscan::report::ReportInput::from_scan_dir(&dir).map_err(ApiError::ReportInput)?;
     input.title = rec.id.clone();
-    input.record = serde_json::to_value(&rec).map_err(ApiError::internal)?;
+    input.record = serde_json::to_value(&rec)?;
     Ok(input)
 }
 

@@ -24,25 +24,12 @@ pub struct StartScan {
 /// A JSON body, with axum's rejections turned into this API's errors: 415 without
 /// `Content-Type: application/json`, 413 over the size limit, 400 for anything else.
 pub fn body<T>(b: Result<Json<T>, JsonRejection>) -> Result<T, ApiError> {
-    match b {
-        Ok(Json(t)) => Ok(t),
-        Err(JsonRejection::MissingJsonContentType(_)) => Err(ApiError(
-            StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            "the body must be JSON with `Content-Type: application/json`".into(),
-        )),
-        Err(e) if e.status() == StatusCode::PAYLOAD_TOO_LARGE => Err(ApiError(
-            StatusCode::PAYLOAD_TOO_LARGE,
-            format!("request body over the {} byte limit", super::BODY_LIMIT),
-        )),
-        Err(e) => Err(ApiError::bad_request(format!(
-            "invalid JSON body: {}",
-            e.body_text()
-        ))),
-    }
+    b.map(|Json(t)| t)
+        .map_err(|e| super::BodyError::from(e).into())
 }
 
 pub(super) fn parse_id(id: &str) -> Result<ScanId, ApiError> {
-    ScanId::parse(id).map_err(|e| ApiError::bad_request(e.to_string()))
+    ScanId::parse(id).map_err(ApiError::from)
 }
 
 fn validate(s: StartScan) -> Result<NewScan, ApiError> {
@@ -51,20 +38,20 @@ fn validate(s: StartScan) -> Result<NewScan, ApiError> {
             .bytes()
             .all(|c| c.is_ascii_alphanumeric() || matches!(c, b'.' | b'_' | b'-'));
     if !subject_ok {
-        return Err(ApiError::bad_request(format!(
+        return Err(ApiError::invalid(format!(
             "subject {:?}: must be 1-64 characters of A-Z a-z 0-9 . _ -",
             s.subject.chars().take(80).collect::<String>()
         )));
     }
     if !matches!(s.side.as_str(), "left" | "right") {
-        return Err(ApiError::bad_request(format!(
+        return Err(ApiError::invalid(format!(
             "side {:?}: must be \"left\" or \"right\"",
             s.side.chars().take(80).collect::<String>()
         )));
     }
     let notes = s.notes.unwrap_or_default();
     if notes.chars().count() > 2000 {
-        return Err(ApiError::bad_request(format!(
+        return Err(ApiError::invalid(format!(
             "notes: {} characters, at most 2000",
             notes.chars().count()
         )));
@@ -82,9 +69,7 @@ pub async fn start(
 ) -> Result<Response, ApiError> {
     let meta = validate(body(b)?)?;
     let d = st.daemon.clone();
-    let id = tokio::task::spawn_blocking(move || d.start_scan(meta))
-        .await
-        .map_err(ApiError::internal)??;
+    let id = tokio::task::spawn_blocking(move || d.start_scan(meta)).await??;
     Ok((StatusCode::ACCEPTED, Json(serde_json::json!({ "id": id }))).into_response())
 }
 
@@ -99,8 +84,7 @@ pub async fn cancel(
         d.archive.get(&rid)?;
         d.cancel_scan(rid.as_str())
     })
-    .await
-    .map_err(ApiError::internal)??;
+    .await??;
     Ok((
         StatusCode::ACCEPTED,
         Json(serde_json::json!({ "id": id.as_str(), "state": "cancelling" })),
@@ -110,10 +94,7 @@ pub async fn cancel(
 
 pub async fn list(State(st): State<AppState>) -> Result<Json<Vec<Record>>, ApiError> {
     let d = st.daemon.clone();
-    let v = tokio::task::spawn_blocking(move || d.archive.list())
-        .await
-        .map_err(ApiError::internal)?
-        .map_err(ApiError::internal)?;
+    let v = tokio::task::spawn_blocking(move || d.archive.list()).await??;
     Ok(Json(v))
 }
 
@@ -131,18 +112,16 @@ pub async fn show(
     let d = st.daemon.clone();
     tokio::task::spawn_blocking(move || {
         let a = &d.archive;
-        let r = a.get(&id).map_err(crate::daemon::DaemonError::from)?;
+        let r = a.get(&id)?;
         let artifacts = a.artifacts(&r).unwrap_or_default();
-        let mut v = serde_json::to_value(&r).map_err(ApiError::internal)?;
-        v["artifacts"] = serde_json::to_value(&artifacts).map_err(ApiError::internal)?;
+        let mut v = serde_json::to_value(&r)?;
+        v["artifacts"] = serde_json::to_value(&artifacts)?;
         v["summary"] = read_json(a.artifact_path(&r, ScanDir::SUMMARY));
         v["measurements"] = read_json(a.artifact_path(&r, ScanDir::MEASUREMENTS));
-        v["history"] =
-            serde_json::to_value(a.history(&r).unwrap_or_default()).map_err(ApiError::internal)?;
+        v["history"] = serde_json::to_value(a.history(&r).unwrap_or_default())?;
         Ok(Json(v))
     })
-    .await
-    .map_err(ApiError::internal)?
+    .await?
 }
 
 /// The artifact streamed in 64 KiB chunks (a client that goes away only stops the stream).
@@ -153,7 +132,7 @@ pub async fn download(
 ) -> Result<Response, ApiError> {
     let id = parse_id(&id)?;
     if !valid_file_name(&name) {
-        return Err(ApiError::bad_request(format!(
+        return Err(ApiError::invalid(format!(
             "file name {:?}: must be {}",
             name.chars().take(80).collect::<String>(),
             footscan::io::ARTIFACT_NAME_RULE
@@ -161,10 +140,7 @@ pub async fn download(
     }
     let d = st.daemon.clone();
     let path = tokio::task::spawn_blocking(move || {
-        let r = d
-            .archive
-            .get(&id)
-            .map_err(crate::daemon::DaemonError::from)?;
+        let r = d.archive.get(&id)?;
         let p = d.archive.artifact_path(&r, &name).ok_or_else(|| {
             let names: Vec<String> = d
                 .archive
@@ -173,7 +149,7 @@ pub async fn download(
                 .into_iter()
                 .map(|a| a.name)
                 .collect();
-            ApiError::not_found(format!(
+            ApiError::missing(format!(
                 "scan {} has no file {name:?}; it has: {}",
                 r.id,
                 names.join(", ")
@@ -182,11 +158,10 @@ pub async fn download(
         let f = d
             .archive
             .open_inside(&p)
-            .map_err(|e| ApiError::not_found(format!("scan {} file {name:?}: {e}", r.id)))?;
+            .map_err(|e| ApiError::missing(format!("scan {} file {name:?}: {e}", r.id)))?;
         Ok::<_, ApiError>((p, f, r))
     })
-    .await
-    .map_err(ApiError::internal)??;
+    .await??;
     let (path, file, rec) = path;
     let name = path
         .file_name()
@@ -205,22 +180,16 @@ pub(super) async fn send_file(
     headers: &axum::http::HeaderMap,
 ) -> Result<Response, ApiError> {
     let mut file = tokio::fs::File::from_std(file);
-    let len = file.metadata().await.map_err(ApiError::internal)?.len();
+    let len = file.metadata().await?.len();
     let range = match headers.get(header::RANGE).and_then(|v| v.to_str().ok()) {
         None => None,
         Some(r) => match byte_range(r, len) {
             Ok(x) => x,
             Err(()) => {
-                let mut resp = ApiError(
-                    StatusCode::RANGE_NOT_SATISFIABLE,
-                    format!("Range {r:?} is outside the file's {len} bytes"),
-                )
-                .into_response();
-                resp.headers_mut().insert(
-                    header::CONTENT_RANGE,
-                    format!("bytes */{len}").parse().expect("header value"),
-                );
-                return Ok(resp);
+                return Err(ApiError::Range {
+                    range: r.to_string(),
+                    len,
+                });
             }
         },
     };
@@ -230,9 +199,7 @@ pub(super) async fn send_file(
     };
     if start > 0 {
         use tokio::io::AsyncSeekExt;
-        file.seek(std::io::SeekFrom::Start(start))
-            .await
-            .map_err(ApiError::internal)?;
+        file.seek(std::io::SeekFrom::Start(start)).await?;
     }
     let file = file.take(count);
     let stream = futures_util::stream::unfold(Some(file), |file| async move {

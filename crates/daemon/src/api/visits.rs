@@ -8,7 +8,7 @@
 
 use super::scans::{body, parse_id};
 use super::{blocking, ApiError, AppState};
-use crate::archive::{Record, ScanId, VisitError};
+use crate::archive::{Record, ScanId};
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Path, Query, State};
 use axum::http::StatusCode;
@@ -17,24 +17,6 @@ use axum::Json;
 use serde::Deserialize;
 use std::collections::HashMap;
 
-impl From<VisitError> for ApiError {
-    fn from(e: VisitError) -> Self {
-        match e {
-            VisitError::NotFound(_) => ApiError::not_found(e.to_string()),
-            VisitError::Conflict(m) => ApiError(StatusCode::CONFLICT, m),
-            VisitError::Archive(crate::archive::ArchiveError::NotFound(id)) => {
-                ApiError::not_found(format!("scan {id} is not in the archive"))
-            }
-            // The archive could not be read or written (a full or read-only disk): 507, as
-            // for scans.
-            VisitError::Archive(a @ crate::archive::ArchiveError::Io { .. }) => {
-                ApiError(StatusCode::INSUFFICIENT_STORAGE, a.to_string())
-            }
-            VisitError::Archive(a) => ApiError::internal(a),
-        }
-    }
-}
-
 fn subject_ok(what: &str, s: &str) -> Result<(), ApiError> {
     let ok = (1..=64).contains(&s.len())
         && s.bytes()
@@ -42,7 +24,7 @@ fn subject_ok(what: &str, s: &str) -> Result<(), ApiError> {
     if ok {
         Ok(())
     } else {
-        Err(ApiError::bad_request(format!(
+        Err(ApiError::invalid(format!(
             "{what} {:?}: must be 1-64 characters of A-Z a-z 0-9 . _ -",
             s.chars().take(80).collect::<String>()
         )))
@@ -52,7 +34,7 @@ fn subject_ok(what: &str, s: &str) -> Result<(), ApiError> {
 fn notes_ok(n: &str) -> Result<(), ApiError> {
     let c = n.chars().count();
     if c > 2000 {
-        return Err(ApiError::bad_request(format!(
+        return Err(ApiError::invalid(format!(
             "notes: {c} characters, at most 2000"
         )));
     }
@@ -76,12 +58,9 @@ pub async fn create(
     notes_ok(&v.notes)?;
     let d = st.daemon.clone();
     let visit = blocking(move || {
-        d.archive.new_visit(&v.patient, &v.notes).map_err(|e| {
-            ApiError(
-                StatusCode::INSUFFICIENT_STORAGE,
-                format!("the visit could not be written: {e}"),
-            )
-        })
+        d.archive
+            .new_visit(&v.patient, &v.notes)
+            .map_err(ApiError::VisitNotWritten)
     })
     .await?;
     let zone = &st.daemon.config.clinic_zone;
@@ -95,7 +74,7 @@ pub async fn list(
     Query(q): Query<HashMap<String, String>>,
 ) -> Result<Json<Vec<serde_json::Value>>, ApiError> {
     if let Some(k) = q.keys().find(|k| !matches!(k.as_str(), "subject" | "date")) {
-        return Err(ApiError::bad_request(format!(
+        return Err(ApiError::invalid(format!(
             "unknown query parameter {k:?}: use subject and date"
         )));
     }
@@ -106,8 +85,7 @@ pub async fn list(
         let zone = &d.config.clinic_zone;
         let v = d
             .archive
-            .visits(subject.as_deref(), date.map(|date| (date, zone)))
-            .map_err(ApiError::internal)?;
+            .visits(subject.as_deref(), date.map(|date| (date, zone)))?;
         Ok(v.iter().map(|v| zone.visit_json(v)).collect())
     })
     .await?;
@@ -125,7 +103,7 @@ fn parse_date(d: &str) -> Result<jiff::civil::Date, ApiError> {
             .all(|(i, c)| i == 4 || i == 7 || c.is_ascii_digit());
     let date = shape.then(|| d.parse::<jiff::civil::Date>().ok()).flatten();
     date.ok_or_else(|| {
-        ApiError::bad_request(format!(
+        ApiError::invalid(format!(
             "date {:?}: must be a calendar date YYYY-MM-DD (the clinic's local date)",
             d.chars().take(80).collect::<String>()
         ))
@@ -147,7 +125,7 @@ pub async fn show(
                 .as_str()
                 .and_then(|s| ScanId::parse(s).ok())
                 .and_then(|s| d.archive.get(&s).ok());
-            out[format!("{side}_scan")] = serde_json::to_value(rec).map_err(ApiError::internal)?;
+            out[format!("{side}_scan")] = serde_json::to_value(rec)?;
         }
         Ok(Json(out))
     })
@@ -232,7 +210,7 @@ pub async fn correct(
     }
     if let Some(s) = &c.side {
         if !matches!(s.as_str(), "left" | "right") {
-            return Err(ApiError::bad_request(format!(
+            return Err(ApiError::invalid(format!(
                 "side {:?}: must be \"left\" or \"right\"",
                 s.chars().take(80).collect::<String>()
             )));
@@ -240,12 +218,12 @@ pub async fn correct(
     }
     let why = c.why.trim().to_string();
     if why.is_empty() || why.chars().count() > 500 {
-        return Err(ApiError::bad_request(
+        return Err(ApiError::invalid(
             "why: say why the record is corrected (1-500 characters)",
         ));
     }
     if c.subject.is_none() && c.side.is_none() {
-        return Err(ApiError::bad_request(
+        return Err(ApiError::invalid(
             "nothing to correct: give subject or side",
         ));
     }
@@ -260,18 +238,12 @@ pub async fn correct(
             }
             Ok::<(), ApiError>(())
         };
-        let (rec, changes, visits) = d
-            .archive
-            .amend_with_visits(&sid, &format!("corrected: {why}"), edit)
-            .map_err(|e| match e {
-                crate::archive::ArchiveError::NotFound(id) => {
-                    ApiError::not_found(format!("scan {id} is not in the archive"))
-                }
-                e => ApiError(StatusCode::CONFLICT, e.to_string()),
-            })??;
-        let mut v = serde_json::to_value(&rec).map_err(ApiError::internal)?;
-        v["changes"] = serde_json::to_value(&changes).map_err(ApiError::internal)?;
-        v["visits_changed"] = serde_json::to_value(&visits).map_err(ApiError::internal)?;
+        let (rec, changes, visits) =
+            d.archive
+                .amend_with_visits(&sid, &format!("corrected: {why}"), edit)??;
+        let mut v = serde_json::to_value(&rec)?;
+        v["changes"] = serde_json::to_value(&changes)?;
+        v["visits_changed"] = serde_json::to_value(&visits)?;
         Ok(Json(v))
     })
     .await
@@ -290,10 +262,9 @@ pub async fn report_pdf(
         let v = d.archive.visit(&vid)?;
         let foot = |s: &Option<String>, side: &str| {
             let s = s.as_deref().ok_or_else(|| {
-                ApiError(
-                    StatusCode::CONFLICT,
-                    format!("visit {vid} has no {side} foot yet: add its scan first"),
-                )
+                ApiError::Conflict(format!(
+                    "visit {vid} has no {side} foot yet: add its scan first"
+                ))
             })?;
             super::report::scan_input(&d, &parse_id(s)?)
         };
@@ -305,7 +276,7 @@ pub async fn report_pdf(
             .local_date(&v.started)
             .map_or_else(|| v.started.clone(), |d| d.to_string());
         footscan::report::render_visit(&format!("{}, {date}", v.patient), &l, &r)
-            .map_err(|e| ApiError(StatusCode::UNPROCESSABLE_ENTITY, format!("{e:#}")))
+            .map_err(ApiError::Report)
     })
     .await?;
     Ok(super::report::pdf(bytes, &name))

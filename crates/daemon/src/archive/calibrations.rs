@@ -110,7 +110,7 @@ impl Calibrations {
                 toml_path.display()
             ));
         }
-        c.save(&toml_path).map_err(|e| e.to_string())?;
+        c.save(&toml_path).map_err(|e| footscan_util::chain(&e))?;
         let json = serde_json::to_vec_pretty(entry).expect("entry serialises");
         if let Err(e) = footscan_util::write_atomic(&json_path, &json) {
             // Half an entry is none: the id stays free and the current one unchanged.

@@ -296,8 +296,9 @@ impl Archive {
             Err(e) => {
                 record.status = Status::Failed;
                 record.reason = Some(format!(
-                    "{}; archiving failed: {e}",
-                    record.reason.as_deref().unwrap_or("scan ended")
+                    "{}; archiving failed: {}",
+                    record.reason.as_deref().unwrap_or("scan ended"),
+                    footscan_util::Chain(&e)
                 ));
                 if scan.dir.is_dir() {
                     let rec_path = scan.dir.join(RECORD);

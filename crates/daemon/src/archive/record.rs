@@ -67,12 +67,12 @@ pub struct ScanEnd {
 
 #[derive(Debug, thiserror::Error)]
 pub enum ArchiveError {
-    #[error("archive {path}: {source}")]
+    #[error("archive {path}")]
     Io {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("archive index {path}: {source}")]
+    #[error("archive index {path}")]
     Index {
         path: PathBuf,
         source: rusqlite::Error,

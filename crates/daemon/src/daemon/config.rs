@@ -105,7 +105,7 @@ pub struct DaemonConfig {
 
 #[derive(Debug, thiserror::Error)]
 pub enum DaemonConfigError {
-    #[error("cannot read daemon config {path}: {source}")]
+    #[error("cannot read daemon config {path}")]
     Read {
         path: PathBuf,
         source: std::io::Error,

@@ -355,7 +355,10 @@ impl Daemon {
             .spawn(format!("{kind}-{id}"), move || {
                 me.run_job(req, rx, check_cal)
             })
-            .map_err(|e| DaemonError::Setup(format!("cannot start the {kind} thread: {e}")))?;
+            .map_err(|source| DaemonError::Thread {
+                what: format!("the {kind} thread"),
+                source,
+            })?;
         st.job = Some(Job::Calibration { _thread: thread });
         drop(st);
         tracing::info!("{kind} {id} started");
@@ -495,13 +498,8 @@ impl Daemon {
     fn calibration_to_check(&self) -> Result<(Option<String>, calib::Calibration), DaemonError> {
         let info = self.calibration();
         let (id, cal) = match info {
-            Some(i) => (
-                i.id.clone(),
-                calib::Calibration::load(&i.path).map_err(|e| DaemonError::Setup(e.to_string()))?,
-            ),
-            None => match procedure::prior_calibration(&self.scanner)
-                .map_err(|e| DaemonError::Setup(e.to_string()))?
-            {
+            Some(i) => (i.id.clone(), calib::Calibration::load(&i.path)?),
+            None => match procedure::prior_calibration(&self.scanner)? {
                 Some(c) => (None, c),
                 None => {
                     return Err(DaemonError::NotRunning(
@@ -728,7 +726,7 @@ impl JobError {
     fn from_calib(what: &str, guided: bool, e: CalibError) -> JobError {
         match e {
             CalibError::Aborted { .. } if guided => JobError::Aborted(e.to_string()),
-            e => JobError::Failed(format!("{what} failed: {e}")),
+            e => JobError::Failed(format!("{what} failed: {}", footscan_util::Chain(&e))),
         }
     }
 }

@@ -127,7 +127,10 @@ impl Daemon {
             .spawn(format!("scan-{id}"), move || {
                 me.run_scan_job(active, token, calibration)
             })
-            .map_err(|e| DaemonError::Setup(format!("cannot start the scan thread: {e}")))?;
+            .map_err(|source| DaemonError::Thread {
+                what: "the scan thread".into(),
+                source,
+            })?;
         st.job = Some(Job::Scan {
             id: id.clone(),
             cancel,
@@ -190,7 +193,7 @@ impl Daemon {
             },
             Ok(Err(e)) => ScanEnd {
                 status: Status::Failed,
-                reason: Some(e.to_string()),
+                reason: Some(footscan_util::chain(&e)),
                 frames: 0,
                 points: 0,
             },
@@ -224,12 +227,13 @@ impl Daemon {
             }
             Err(e) => {
                 // The files stay in .tmp-<id>; the next start recovers them as interrupted.
-                tracing::error!("scan {id}: archiving failed: {e}");
+                tracing::error!("scan {id}: archiving failed: {}", footscan_util::Chain(&e));
                 (
                     Status::Failed,
                     Some(format!(
-                        "{}; archiving failed: {e}",
-                        outcome.reason.as_deref().unwrap_or("scan ended")
+                        "{}; archiving failed: {}",
+                        outcome.reason.as_deref().unwrap_or("scan ended"),
+                        footscan_util::Chain(&e)
                     )),
                 )
             }

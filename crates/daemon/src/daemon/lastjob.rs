@@ -155,8 +155,10 @@ impl Daemon {
     /// The stock collection: every mesh file in `[lasts] stock_dir`, by name.
     pub fn stock_lasts(&self) -> Result<Vec<StockLast>, DaemonError> {
         let dir = self.stock_dir()?;
-        let rd = std::fs::read_dir(dir)
-            .map_err(|e| DaemonError::Unavailable(format!("stock lasts {}: {e}", dir.display())))?;
+        let rd = std::fs::read_dir(dir).map_err(|source| DaemonError::StockLasts {
+            dir: dir.to_path_buf(),
+            source,
+        })?;
         let mut out: Vec<StockLast> = rd
             .flatten()
             .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
@@ -213,7 +215,7 @@ impl Daemon {
             )));
         }
         let rules = match &self.config.last_rules {
-            Some(p) => RuleSet::load(p).map_err(DaemonError::Setup)?,
+            Some(p) => RuleSet::load(p).map_err(DaemonError::Rules)?,
             None => RuleSet::default_rules(),
         };
         Ok((girths, rules))
@@ -226,8 +228,7 @@ impl Daemon {
     pub fn rank_lasts(&self, id: &ScanId, req: RankRequest) -> Result<Ranking, DaemonError> {
         let (_, dir) = self.measured_scan(id, "a ranking of the stock lasts")?;
         let (girths, rules) = self.checked_request(&req.girths, req.heel_mm)?;
-        let plantar = footscan::lastcustom::plantar_of_scan(&dir)
-            .map_err(|e| DaemonError::Conflict(e.to_string()))?;
+        let plantar = footscan::lastcustom::plantar_of_scan(&dir).map_err(DaemonError::Plantar)?;
         girths
             .check_against(&plantar)
             .map_err(|e| DaemonError::BadRequest(format!("girths: {e}")))?;
@@ -365,10 +366,13 @@ impl Daemon {
         let bytes = match std::fs::read(&p) {
             Ok(b) => b,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-            Err(e) => return Err(DaemonError::Setup(format!("{}: {e}", p.display()))),
+            Err(source) => return Err(DaemonError::JobRead { path: p, source }),
         };
-        let mut job: LastJob = serde_json::from_slice(&bytes)
-            .map_err(|e| DaemonError::Setup(format!("{}: {e}", p.display())))?;
+        let mut job: LastJob =
+            serde_json::from_slice(&bytes).map_err(|source| DaemonError::JobJson {
+                path: p.clone(),
+                source,
+            })?;
         let ours = self.last_jobs.running.lock().unwrap().as_deref() == Some(id.as_str());
         if job.state == LastState::Running && !ours {
             job.state = LastState::Failed;
@@ -433,7 +437,7 @@ fn make_last(
     inp: &Inputs,
     job: &mut LastJob,
 ) -> Result<(), String> {
-    let c = customize_scan(dir, girths, stock, rules, inp).map_err(|e| e.to_string())?;
+    let c = customize_scan(dir, girths, stock, rules, inp).map_err(|e| footscan_util::chain(&e))?;
     job.rules = c
         .rules
         .iter()
@@ -465,7 +469,7 @@ fn make_last(
     } else {
         write_misfit_atomic
     };
-    let files = write(&c, inp, &dir.join(LAST_DIR)).map_err(|e| e.to_string())?;
+    let files = write(&c, inp, &dir.join(LAST_DIR)).map_err(|e| footscan_util::chain(&e))?;
     job.files = files
         .iter()
         .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
@@ -484,6 +488,8 @@ fn make_last(
 fn write_job(dir: &Path, job: &LastJob) -> Result<(), DaemonError> {
     let p = dir.join(JOB_FILE);
     let j = serde_json::to_vec_pretty(job).expect("a job record serialises");
-    footscan_util::write_atomic(&p, &j)
-        .map_err(|e| DaemonError::Setup(format!("cannot write {}: {e}", p.display())))
+    footscan_util::write_atomic(&p, &j).map_err(|source| DaemonError::JobWrite {
+        path: p.to_path_buf(),
+        source,
+    })
 }

@@ -129,6 +129,10 @@ impl Event {
     }
 }
 
+/// Why the daemon refused or failed a request. The first kinds hold a message composed from
+/// the daemon's state (what is busy, what is missing and how to go on); the others hold the
+/// error that caused them, printed after their own words by the edge (the API, the log).
+/// The API maps each to a status in one place (api/error.rs).
 #[derive(Debug, thiserror::Error)]
 pub enum DaemonError {
     #[error("{0}")]
@@ -143,14 +147,58 @@ pub enum DaemonError {
     #[error(transparent)]
     Archive(#[from] ArchiveError),
     #[error("{0}")]
-    Setup(String),
-    #[error("{0}")]
     Unsupported(String),
     #[error("{0}")]
     BadRequest(String),
     /// A device the scan needs is missing (it may be plugged in later).
     #[error("{0}")]
     Unavailable(String),
+    #[error(transparent)]
+    ScannerConfig(#[from] footscan::scan::config::ConfigError),
+    /// The scanner config or its calibration fails a check made before any scan (the
+    /// message names the file, the key and what is valid).
+    #[error("{0}")]
+    Preflight(String),
+    /// The comfort rule file of `[lasts] rules` (the message names it and what is valid).
+    #[error("{0}")]
+    Rules(String),
+    #[error("cannot start {what}")]
+    Thread {
+        what: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Calibration(#[from] footscan::calib::CalibrationError),
+    #[error(transparent)]
+    Calib(#[from] footscan::calib::CalibError),
+    /// The scan's plantar surface could not be read for a last.
+    #[error(transparent)]
+    Plantar(footscan::lastcustom::ClinicLastError),
+    #[error("stock lasts {}", dir.display())]
+    StockLasts {
+        dir: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{}", path.display())]
+    JobRead {
+        path: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("cannot write {}", path.display())]
+    JobWrite {
+        path: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{}", path.display())]
+    JobJson {
+        path: std::path::PathBuf,
+        #[source]
+        source: serde_json::Error,
+    },
 }
 
 /// The running job.
@@ -201,8 +249,7 @@ impl Daemon {
     /// Load the scanner config and the calibration, open (and recover) the archive. Jobs
     /// will run at the priority of the calling thread.
     pub fn open(config: DaemonConfig) -> Result<Arc<Daemon>, DaemonError> {
-        let scanner = LoadedConfig::load(&config.scanner_config)
-            .map_err(|e| DaemonError::Setup(e.to_string()))?;
+        let scanner = LoadedConfig::load(&config.scanner_config)?;
         // A calibration made by the daemon wins over the configured one (it is newer).
         let history = Calibrations::new(&config.archive);
         let (cal_id, daemon_cal) = match history.current() {
@@ -222,8 +269,8 @@ impl Daemon {
             &scanner,
             daemon_cal.as_ref().map(|(p, f)| (p.as_path(), f.as_str())),
         )
-        .map_err(DaemonError::Setup)?;
-        preflight::check_config(&scanner, &cal).map_err(DaemonError::Setup)?;
+        .map_err(DaemonError::Preflight)?;
+        preflight::check_config(&scanner, &cal).map_err(DaemonError::Preflight)?;
         for (_, why) in preflight::missing_devices(&scanner) {
             tracing::warn!("{why}; scans are refused until it is present");
         }
@@ -259,7 +306,10 @@ impl Daemon {
             .clone()
             .map(|s| fleet::Fleet::start(s, archive.clone()))
             .transpose()
-            .map_err(|e| DaemonError::Setup(format!("cannot start the fleet pusher: {e}")))?;
+            .map_err(|source| DaemonError::Thread {
+                what: "the fleet pusher".into(),
+                source,
+            })?;
         let (events, _) = broadcast::channel(256);
         Ok(Arc::new(Daemon {
             config,
@@ -273,8 +323,10 @@ impl Daemon {
                 ..State::default()
             }),
             started: Instant::now(),
-            launcher: jobs::Launcher::new()
-                .map_err(|e| DaemonError::Setup(format!("cannot start the job launcher: {e}")))?,
+            launcher: jobs::Launcher::new().map_err(|source| DaemonError::Thread {
+                what: "the job launcher".into(),
+                source,
+            })?,
             fleet,
             last_jobs: lastjob::LastJobs::default(),
             tls: std::sync::OnceLock::new(),

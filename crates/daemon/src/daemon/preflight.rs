@@ -36,7 +36,8 @@ pub fn scan_calibration(
             )),
         };
     };
-    let cal = Calibration::load(&path).map_err(|e| format!("{e} (from {from})"))?;
+    let cal = Calibration::load(&path)
+        .map_err(|e| format!("{} (from {from})", footscan_util::Chain(&e)))?;
     if let (Backend::Hardware, Some(hw)) = (cfg.config.scanner.backend, &cfg.config.hardware) {
         let m = &cal.model;
         if (m.width, m.height) != (hw.camera.width, hw.camera.height) {

@@ -38,7 +38,7 @@ pub enum ExportError {
     #[error("nothing to export: no curves and no surfaces")]
     Empty,
     /// Writing the file failed; `path` is the file asked for.
-    #[error("{}: {source}", path.display())]
+    #[error("{}", path.display())]
     Io {
         path: PathBuf,
         #[source]

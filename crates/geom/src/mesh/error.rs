@@ -79,7 +79,7 @@ impl std::fmt::Display for Defect {
 /// An error reading, writing, validating or scaling a mesh; every variant names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum MeshError {
-    #[error("{}: {source}", path.display())]
+    #[error("{}", path.display())]
     Io {
         path: PathBuf,
         source: std::io::Error,

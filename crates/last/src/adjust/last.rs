@@ -61,7 +61,7 @@ pub fn prepare_last(path: &Path, opts: &LastOptions) -> Result<PreparedLast, Adj
     })?;
     crate::size::check_last_size(path, &mesh).map_err(|e| AdjustError::Last {
         input: path.display().to_string(),
-        why: e.to_string(),
+        why: footscan_util::chain(&e),
     })?;
     let mut p = prepare_mesh(mesh, path, opts)?;
     p.load = Some(load);

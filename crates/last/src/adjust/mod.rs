@@ -130,7 +130,7 @@ pub enum AdjustError {
     Foot { input: String, why: String },
     #[error("last {input}: {why}")]
     Last { input: String, why: String },
-    #[error("last {}: {source}", path.display())]
+    #[error("last {}", path.display())]
     Mesh {
         path: PathBuf,
         #[source]

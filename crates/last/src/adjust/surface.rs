@@ -96,7 +96,7 @@ pub fn fit_bottom(adj: &Adjustment, spacing_mm: f64) -> Result<BottomSurface, Ad
     let surface =
         NurbsSurface::new(p, p, ku, kv, mu, mv, points, None).map_err(|e| AdjustError::Output {
             path: "bottom surface".into(),
-            why: e.to_string(),
+            why: footscan_util::chain(&e),
         })?;
     let fitted = &nu * c2.transpose() * nv.transpose(); // nx x ny
     let (mut s2, mut n, mut mx) = (0.0, 0usize, 0.0f64);
@@ -124,7 +124,10 @@ pub fn fit_bottom(adj: &Adjustment, spacing_mm: f64) -> Result<BottomSurface, Ad
     ) {
         Ok(r) => Some(r.curve),
         Err(e) => {
-            notes.push(format!("outline curve not fitted: {e}"));
+            notes.push(format!(
+                "outline curve not fitted: {e}",
+                e = footscan_util::Chain(&e)
+            ));
             None
         }
     };

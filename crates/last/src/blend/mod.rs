@@ -52,7 +52,7 @@ pub enum BlendError {
     },
     #[error(transparent)]
     Table(#[from] weight::TableError),
-    #[error("surface construction failed: {0}")]
+    #[error("surface construction failed")]
     Nurbs(#[from] NurbsError),
 }
 

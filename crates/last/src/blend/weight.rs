@@ -30,7 +30,7 @@ pub enum Weight {
 /// Why a blend table was refused; names the file and the line.
 #[derive(Debug, thiserror::Error)]
 pub enum TableError {
-    #[error("blend table {path}: {source}")]
+    #[error("blend table {path}")]
     Io {
         path: String,
         source: std::io::Error,

@@ -49,7 +49,7 @@ pub fn fit_loop(
     };
     let (r, s) = fit_closed_split(&data, &opts).map_err(|e| CustomizeError::Curve {
         curve: name.into(),
-        why: format!("fit: {e}"),
+        why: format!("fit: {e}", e = footscan_util::Chain(&e)),
     })?;
     let rec = FitRecord {
         curve: name,

@@ -3,7 +3,7 @@
 
 #[derive(Debug, thiserror::Error)]
 pub enum CustomizeError {
-    #[error("{0}")]
+    #[error(transparent)]
     Mesh(#[from] footscan_geom::mesh::MeshError),
     #[error("{name}: not a foot: {why}")]
     NotAFoot { name: String, why: String },

@@ -40,7 +40,7 @@ pub fn read_keypoints(
         .find(|r| r.first() == Some(&model))
         .ok_or_else(|| format!("{}: no row for model {model:?}", csv.display()))?;
     let vertices: Vec<P3> = std::fs::read_to_string(obj)
-        .map_err(|e| format!("{}: {e}", obj.display()))?
+        .map_err(|e| format!("{}: {e}", obj.display(), e = footscan_util::Chain(&e)))?
         .lines()
         .filter_map(|l| l.strip_prefix("v "))
         .map(|l| {

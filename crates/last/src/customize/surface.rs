@@ -13,7 +13,7 @@ pub fn last_surface(c: &Customized) -> Result<NurbsSurface, CustomizeError> {
     let k = (v.len() - 2) / n;
     let err = |e: footscan_geom::nurbs::NurbsError| CustomizeError::Curve {
         curve: "last surface".into(),
-        why: e.to_string(),
+        why: footscan_util::chain(&e),
     };
     let params: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
     let mut pick: Vec<usize> = (0..k).step_by(3).collect();

@@ -61,6 +61,6 @@ pub enum JoinError {
         value: String,
         valid: &'static str,
     },
-    #[error("surface construction failed: {0}")]
+    #[error("surface construction failed")]
     Nurbs(#[from] NurbsError),
 }

@@ -69,7 +69,7 @@ fn in_frame(m: &TriMesh, lm: &LastMeasures) -> TriMesh {
 fn measure(m: &TriMesh, name: &str, which: &str) -> Result<LastMeasures, JoinError> {
     measure_last(m.clone(), name).map_err(|e| JoinError::Landmarks {
         last: format!("{which} last {name}"),
-        why: e.to_string(),
+        why: footscan_util::chain(&e),
     })
 }
 

@@ -232,7 +232,8 @@ struct Report<'a> {
 /// views.png into `dir` (created if missing).
 pub fn write(j: &Joined, dir: &Path, name: &str) -> std::io::Result<Written> {
     std::fs::create_dir_all(dir)?;
-    let io = |e: footscan_geom::export::ExportError| std::io::Error::other(e.to_string());
+    let io =
+        |e: footscan_geom::export::ExportError| std::io::Error::other(footscan_util::chain(&e));
     let surfs = [j.back.clone(), j.patch.clone(), j.toe.clone()];
     let header = Header::new(name);
     let mut files = Vec::new();
@@ -250,9 +251,9 @@ pub fn write(j: &Joined, dir: &Path, name: &str) -> std::io::Result<Written> {
     };
     let p = dir.join("joined.stl");
     mesh.write(&p, Format::StlBinary)
-        .map_err(|e| std::io::Error::other(e.to_string()))?;
+        .map_err(|e| std::io::Error::other(footscan_util::chain(&e)))?;
     files.push(p);
-    let quality = quality(j, 400).map_err(|e| std::io::Error::other(e.to_string()))?;
+    let quality = quality(j, 400).map_err(|e| std::io::Error::other(footscan_util::chain(&e)))?;
     let plane6 = |p: &footscan_geom::plane::Plane| {
         [
             p.origin.x, p.origin.y, p.origin.z, p.normal.x, p.normal.y, p.normal.z,

@@ -51,9 +51,9 @@ pub enum CadError {
     },
     #[error(transparent)]
     Surface(#[from] SurfaceError),
-    #[error("measuring the foot for the model's frame and outline: {0}")]
+    #[error("measuring the foot for the model's frame and outline")]
     Measure(#[from] MeasureError),
-    #[error("writing {}: {source}", path.display())]
+    #[error("writing {}", path.display())]
     Write {
         path: PathBuf,
         source: std::io::Error,

@@ -20,7 +20,7 @@ pub enum CalibError {
     Implausible(String),
     #[error("calibration plan: {0}")]
     Plan(String),
-    #[error("camera or slider: {0}")]
+    #[error("camera or slider")]
     Device(#[from] footscan_hal::HalError),
     /// The scanner's devices could not be opened (the message names the device and what to
     /// try).

@@ -27,14 +27,14 @@ pub struct Calibration {
 
 #[derive(Debug, thiserror::Error)]
 pub enum CalibrationError {
-    #[error("cannot read calibration {path}: {source}")]
+    #[error("cannot read calibration {path}")]
     Read {
         path: PathBuf,
         source: std::io::Error,
     },
     #[error("calibration {path} is not valid: {message}")]
     Parse { path: PathBuf, message: String },
-    #[error("cannot write calibration {path}: {source}")]
+    #[error("cannot write calibration {path}")]
     Write {
         path: PathBuf,
         source: std::io::Error,

@@ -799,7 +799,7 @@ pub fn run_steps(
                 }
                 Err(CalibError::Device(e)) => (
                     StepResult::Fault {
-                        reason: e.to_string(),
+                        reason: footscan_util::chain(&e),
                     },
                     None,
                 ),

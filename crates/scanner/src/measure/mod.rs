@@ -107,7 +107,7 @@ pub enum MeasureError {
     Grid(String),
     #[error("plantar model of {0}")]
     Model(String),
-    #[error("{}: {source}", path.display())]
+    #[error("{}", path.display())]
     Io {
         path: std::path::PathBuf,
         source: std::io::Error,

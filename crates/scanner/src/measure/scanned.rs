@@ -104,8 +104,13 @@ pub fn measure_scan_dir(
         source,
     })?;
     let model = if use_model {
-        let (net, _) = crate::surface::build_scan_model(&grid)
-            .map_err(|e| MeasureError::Model(format!("{}: {e}", grid_path.display())))?;
+        let (net, _) = crate::surface::build_scan_model(&grid).map_err(|e| {
+            MeasureError::Model(format!(
+                "{}: {}",
+                grid_path.display(),
+                footscan_util::Chain(&e)
+            ))
+        })?;
         Some(net)
     } else {
         None

@@ -109,9 +109,12 @@ pub fn render_rig(cfg: &ScanConfig, plan: &CalibrationPlan) -> Result<RenderRig,
 /// check with; None when none is configured (the checks then use the plan's nominal design).
 pub fn prior_calibration(cfg: &LoadedConfig) -> Result<Option<Calibration>, CalibError> {
     match cfg.calibration_path() {
-        Some(p) => Calibration::load(&p)
-            .map(Some)
-            .map_err(|e| CalibError::Plan(format!("the current calibration: {e}"))),
+        Some(p) => Calibration::load(&p).map(Some).map_err(|e| {
+            CalibError::Plan(format!(
+                "the current calibration: {}",
+                footscan_util::Chain(&e)
+            ))
+        }),
         None => Ok(None),
     }
 }

@@ -13,6 +13,15 @@ pub enum DeviceRole {
     Slider,
 }
 
+impl std::fmt::Display for DeviceRole {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            DeviceRole::Camera => "camera",
+            DeviceRole::Slider => "slider",
+        })
+    }
+}
+
 /// A device fault of a scan: which device (role and driver name) and what kind.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ScanFault {
@@ -21,9 +30,9 @@ pub struct ScanFault {
 }
 
 /// An error of one of the scan's devices, labelled with its role and fault where the error is
-/// one. Displays as the error itself, so messages read as before.
+/// one. Displays as the role; the device's own message is its source.
 #[derive(Debug, thiserror::Error)]
-#[error("{source}")]
+#[error("{role}")]
 pub struct DeviceError {
     pub role: DeviceRole,
     pub fault: Option<DeviceFault>,
@@ -54,16 +63,17 @@ impl DeviceError {
 pub enum ScanError {
     #[error("{0}")]
     Config(String),
-    #[error("cannot use scan directory {path}: {source}")]
+    #[error("cannot use scan directory {path}")]
     OutDir {
         path: PathBuf,
         source: std::io::Error,
     },
+    /// The message is the setup error's own (it has no cause of its own to chain).
     #[error("scanner setup failed: {0}")]
     Setup(SetupError),
     #[error(transparent)]
     Pipeline(#[from] PipelineError),
-    #[error("writing {path}: {source}")]
+    #[error("writing {path}")]
     Write {
         path: PathBuf,
         source: std::io::Error,

@@ -90,7 +90,7 @@ pub fn run_scan(
         let cal_path = opts.out_dir.join("calibration.toml");
         calibration
             .save(&cal_path)
-            .map_err(|e| ScanError::Setup(e.to_string().into()))?;
+            .map_err(|e| ScanError::Setup(footscan_util::chain(&e).into()))?;
         let ctx = ScanContext {
             out_dir: opts.out_dir.clone(),
             plan: plan.clone(),
@@ -141,7 +141,7 @@ pub fn run_scan(
     let mut summary = match result {
         Ok(s) => s,
         Err(e) => {
-            let mut s = ScanSummary::failed(&e.to_string());
+            let mut s = ScanSummary::failed(&footscan_util::chain(&e));
             if let ScanError::Pipeline(PipelineError::Stage { stats, .. }) = &e {
                 s.stages = stats.iter().map(stage_report).collect();
             }
@@ -218,7 +218,7 @@ pub fn describe_build_error(cfg: &LoadedConfig, e: &BuildError) -> String {
             let msg = source.to_string();
             let key = backticked(&msg).unwrap_or("stage");
             let at = cfg.locate_stage_key(*index, key).unwrap_or_default();
-            format!("config {file}: {e}{at}")
+            format!("config {file}: {e}: {msg}{at}")
         }
         BuildError::UnknownStage { index, .. } => {
             let at = cfg.locate_stage_key(*index, "stage").unwrap_or_default();

@@ -51,7 +51,7 @@ pub enum SurfaceError {
     },
     #[error("the model's boundary is inconsistent: {0}")]
     Topology(String),
-    #[error("writing {path}: {source}")]
+    #[error("writing {path}")]
     Write {
         path: std::path::PathBuf,
         source: std::io::Error,

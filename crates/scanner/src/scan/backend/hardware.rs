@@ -71,7 +71,7 @@ pub fn v4l2_config(c: &HardwareCamera, cam: &CameraSection) -> V4l2Config {
 
 /// The error's text without the `device: ` prefix the HAL puts first (the caller names it).
 fn detail(e: &HalError, device: &str) -> String {
-    let s = e.to_string();
+    let s = footscan_util::chain(e);
     s.strip_prefix(device)
         .and_then(|r| r.strip_prefix(": "))
         .map(str::to_string)

@@ -49,7 +49,7 @@ fn setup_hardware(e: hardware::HardwareError) -> ScanError {
         hardware::HardwareError::SliderCheck(..) => None,
     };
     ScanError::Setup(SetupError {
-        message: e.to_string(),
+        message: footscan_util::chain(&e),
         fault,
     })
 }
@@ -70,12 +70,16 @@ pub fn open_backend(
         format!("scanner.calibration in {}", cfg.path.display())
     };
     let loaded = match &path {
-        Some(p) => Some(Calibration::load(p).map_err(|e| setup(format!("{e} (from {from})")))?),
+        Some(p) => Some(
+            Calibration::load(p)
+                .map_err(|e| setup(format!("{} (from {from})", footscan_util::Chain(&e))))?,
+        ),
         None => None,
     };
     match cfg.config.scanner.backend {
         Backend::Sim => {
-            let (devices, backend) = sim::open(&cfg.config).map_err(|e| setup(e.to_string()))?;
+            let (devices, backend) =
+                sim::open(&cfg.config).map_err(|e| setup(footscan_util::chain(&e)))?;
             let calibration = loaded.unwrap_or_else(|| sim::true_calibration(&cfg.config));
             let foot = backend.foot.clone();
             Ok((

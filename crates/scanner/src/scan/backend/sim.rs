@@ -75,8 +75,8 @@ fn schedule_faults(
 /// Why the simulated scanner could not be opened.
 #[derive(Debug, thiserror::Error)]
 pub enum SimOpenError {
-    #[error("starting the GRBL emulator: {0}")]
-    Emulator(std::io::Error),
+    #[error("starting the GRBL emulator")]
+    Emulator(#[source] std::io::Error),
     #[error(transparent)]
     Device(#[from] HalError),
     /// The scene or the renderer rejected the configuration.
@@ -117,7 +117,7 @@ pub fn open_sim_devices(cfg: &ScanConfig, scene: Scene) -> Result<SimDevices, Si
         slider.home(Duration::from_secs(30))?;
     }
     let renderer = Renderer::new(sim.optics.clone(), sim.noise.clone(), scene, sim.seed)
-        .map_err(|e| SimOpenError::Scene(e.to_string()))?;
+        .map_err(|e| SimOpenError::Scene(footscan_util::chain(&e)))?;
     let mut camera = SimCamera::new(
         renderer,
         cfg.camera.fps,
@@ -139,22 +139,24 @@ pub fn open(cfg: &ScanConfig) -> Result<(Devices, SimBackend), SimOpenError> {
     let sim = &cfg.sim;
     let (scene, foot) = match sim.scene {
         SceneKind::Foot => {
-            let foot =
-                Foot::new(sim.foot.clone()).map_err(|e| SimOpenError::Scene(e.to_string()))?;
+            let foot = Foot::new(sim.foot.clone())
+                .map_err(|e| SimOpenError::Scene(footscan_util::chain(&e)))?;
             (Scene::Foot(foot.clone()), Some(foot))
         }
         SceneKind::Empty => (Scene::Empty, None),
         SceneKind::Last => {
             let surface = footscan_sim::last::Last::new(sim.last.clone())
                 .and_then(|l| l.surface())
-                .map_err(|e| SimOpenError::Scene(format!("[sim.last]: {e}")))?;
+                .map_err(|e| {
+                    SimOpenError::Scene(format!("[sim.last]: {}", footscan_util::Chain(&e)))
+                })?;
             (Scene::Surface(Arc::new(surface)), None)
         }
         SceneKind::Mesh => {
             let surface = sim
                 .mesh
                 .load()
-                .map_err(|e| SimOpenError::Scene(e.to_string()))?;
+                .map_err(|e| SimOpenError::Scene(footscan_util::chain(&e)))?;
             (Scene::Surface(Arc::new(surface)), None)
         }
         SceneKind::Plate => (

@@ -116,10 +116,10 @@ impl Stage<Item> for MeasureStage {
                 Ok(())
             }
             Err(e) if !self.required => {
-                tracing::warn!("foot not measured: {e}");
+                tracing::warn!("foot not measured: {}", footscan_util::Chain(&e));
                 Ok(())
             }
-            Err(e) => Err(format!("measure.foot: {e}").into()),
+            Err(e) => Err(format!("measure.foot: {}", footscan_util::Chain(&e)).into()),
         }
     }
 }

@@ -135,7 +135,9 @@ impl Stage<Item> for ModelStage {
                 }
             }
             // No foot to put a frame on (an empty glass, a plate): the network still goes on.
-            Err(CadError::Measure(e)) => tracing::warn!("foot model not written: {e}"),
+            Err(CadError::Measure(e)) => {
+                tracing::warn!("foot model not written: {}", footscan_util::Chain(&e))
+            }
             Err(e) => return Err(e.into()),
         }
         let _ = out.emit(item);
