@@ -7,6 +7,7 @@
 //! maximum, its position, and the second peak outside the line are then found from the block
 //! maxima (20 per 1280-pixel row) and the pixels of one or two blocks.
 
+use super::simd::{self, Isa};
 use super::Reject;
 
 /// A pixel type of a frame (Gray8 or Gray16).
@@ -16,6 +17,18 @@ pub trait Px: Copy + Ord + Default + Send + Sync + 'static {
     /// 8-bit DN to this format's units.
     const SCALE: f32;
     fn f(self) -> f32;
+    /// [`block_max`] on the instruction set `isa` (the explicit kernels of [`super::simd`]).
+    #[inline]
+    fn block_max_on(isa: Isa, row: &[Self], blocks: &mut [Self]) {
+        let _ = isa;
+        block_max_scalar(row, blocks)
+    }
+    /// [`row_background`] on the instruction set `isa`.
+    #[inline]
+    fn background_on(isa: Isa, row: &[Self]) -> (f32, f32) {
+        let _ = isa;
+        row_background_scalar(row)
+    }
     /// First index of `v` in `s`, `s.len()` if absent.
     #[inline]
     fn position(s: &[Self], v: Self) -> usize {
@@ -29,6 +42,14 @@ impl Px for u8 {
     #[inline(always)]
     fn f(self) -> f32 {
         self as f32
+    }
+    #[inline]
+    fn block_max_on(isa: Isa, row: &[u8], blocks: &mut [u8]) {
+        super::simd::block_max_u8(isa, row, blocks)
+    }
+    #[inline]
+    fn background_on(isa: Isa, row: &[u8]) -> (f32, f32) {
+        row_background_u8(isa, row)
     }
     /// Eight bytes per step: the classic "has a zero byte" test on `word ^ v..v`; its lowest
     /// set bit always marks the first match.
@@ -61,6 +82,10 @@ impl Px for u16 {
     #[inline(always)]
     fn f(self) -> f32 {
         self as f32
+    }
+    #[inline]
+    fn block_max_on(isa: Isa, row: &[u16], blocks: &mut [u16]) {
+        super::simd::block_max_u16(isa, row, blocks)
     }
 }
 
@@ -202,8 +227,13 @@ pub struct CoarseScratch<T> {
 /// room light) the median and MAD of the row measure the texture: the threshold landed above
 /// a laser that stood clear of the white squares. The upper quartile is the bright background
 /// the line must beat, and neighbour differences see the noise, not the texture (its edges are
-/// few). On the stack: no allocation.
+/// few). On the stack: no allocation. On this thread's instruction set ([`simd::current`]).
 pub fn row_background<T: Px>(row: &[T]) -> (f32, f32) {
+    T::background_on(simd::current(), row)
+}
+
+/// [`row_background`] by the portable code (`select_nth_unstable`): the scalar path.
+pub fn row_background_scalar<T: Px>(row: &[T]) -> (f32, f32) {
     let n = row.len().min(AUTO_SAMPLES);
     if n == 0 {
         return (0.0, 0.0);
@@ -222,6 +252,28 @@ pub fn row_background<T: Px>(row: &[T]) -> (f32, f32) {
     (q3 as f32, 1.4826 * mad as f32 / std::f32::consts::SQRT_2)
 }
 
+/// [`row_background`] of a Gray8 row: the same samples, the two order statistics by the
+/// packed kernel of [`simd::kth_u8`] (rows of at least 64 pixels; shorter ones as before).
+#[inline]
+fn row_background_u8(isa: Isa, row: &[u8]) -> (f32, f32) {
+    if isa == Isa::Scalar || row.len() < AUTO_SAMPLES {
+        return row_background_scalar(row);
+    }
+    let n = AUTO_SAMPLES;
+    let step = row.len() / n;
+    let mut s = [0u8; AUTO_SAMPLES];
+    let mut d = [0u8; AUTO_SAMPLES];
+    for k in 0..n {
+        let i = k * step + step / 2;
+        let v = row[i];
+        s[k] = v;
+        d[k] = v.abs_diff(row[(i + 1).min(row.len() - 1)]);
+    }
+    let q3 = simd::kth_u8(isa, &s, 3 * n / 4);
+    let mad = simd::kth_u8(isa, &d, n / 2);
+    (q3 as f32, 1.4826 * mad as f32 / std::f32::consts::SQRT_2)
+}
+
 /// The automatic threshold of a row with background `(level, spread)` (frame units).
 #[inline]
 pub fn auto_threshold<T: Px>(level: f32, spread: f32) -> f32 {
@@ -233,11 +285,17 @@ impl<T: Px> CoarseScratch<T> {
     /// refreshed every [`AUTO_BAND_ROWS`] rows (the first row of each band stands for it).
     #[inline]
     pub fn threshold(&mut self, cfg: &CoarseConfig, r: usize, row: &[T]) -> f32 {
+        self.threshold_on(simd::current(), cfg, r, row)
+    }
+
+    /// [`Self::threshold`] on the instruction set `isa`.
+    #[inline]
+    pub fn threshold_on(&mut self, isa: Isa, cfg: &CoarseConfig, r: usize, row: &[T]) -> f32 {
         match cfg.threshold {
             Threshold::Dn(t) => t * T::SCALE,
             Threshold::Auto => {
                 if r.is_multiple_of(AUTO_BAND_ROWS) || self.auto_thr <= 0.0 {
-                    let (level, spread) = row_background(row);
+                    let (level, spread) = T::background_on(isa, row);
                     self.auto_thr = auto_threshold::<T>(level, spread);
                 }
                 self.auto_thr
@@ -307,9 +365,16 @@ pub fn prefetch_ahead<T>(px: &[T], r: usize, w: usize) {
     }
 }
 
-/// Maximum of each 64-pixel block of `row` into `blocks` (`row.len().div_ceil(64)` of them).
+/// Maximum of each 64-pixel block of `row` into `blocks` (`row.len().div_ceil(64)` of them),
+/// on this thread's instruction set ([`simd::current`]).
 #[inline]
 pub fn block_max<T: Px>(row: &[T], blocks: &mut [T]) {
+    T::block_max_on(simd::current(), row, blocks)
+}
+
+/// [`block_max`] by the portable code: the scalar path the SIMD kernels are compared with.
+#[inline]
+pub fn block_max_scalar<T: Copy + Ord + Default>(row: &[T], blocks: &mut [T]) {
     let full = row.len() / BLOCK;
     let (body, tail) = row.split_at(full * BLOCK);
     for (b, ch) in blocks.iter_mut().zip(body.chunks_exact(BLOCK)) {
