@@ -237,11 +237,13 @@ pub fn run(args: Args) -> Result<()> {
                     "{}",
                     serde_json::to_string_pretty(&serde_json::json!({
                         "regions": rows,
-                        "static": spreads
+                        "static": spreads,
+                        "shares": real::shares(&rows)
                     }))?
                 );
             } else {
                 print!("{}", real::table(&rows, &spreads));
+                print!("{}", real::share_table(&real::shares(&rows)));
             }
             Ok(())
         }

@@ -212,7 +212,7 @@ mod x86 {
 
     fn tail<T: Copy + Ord + Default>(row: &[T], blocks: &mut [T]) {
         let full = row.len() / BLOCK;
-        if row.len() % BLOCK != 0 {
+        if !row.len().is_multiple_of(BLOCK) {
             blocks[full] = row[full * BLOCK..]
                 .iter()
                 .copied()
@@ -370,11 +370,9 @@ mod tests {
         for isa in Isa::available() {
             for len in [1usize, 63, 64, 65, 127, 128, 200, 1280, 1283] {
                 for seed in 0..40usize {
-                    let row: Vec<u8> = (0..len)
+                    let mut row: Vec<u8> = (0..len)
                         .map(|i| ((i * 37 + seed * 11) % 199) as u8)
-                        .chain(std::iter::empty())
                         .collect();
-                    let mut row = row;
                     if len > seed {
                         row[seed * 29 % len] = 200 + (seed % 56) as u8;
                     }
