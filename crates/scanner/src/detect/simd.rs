@@ -8,7 +8,7 @@
 //! portable code of [`super::coarse`] returns (integers: no rounding can differ), and that code
 //! stays the `Scalar` path the tests compare against.
 //!
-//! Dispatch: [`Isa::detected`] is the best set this CPU runs, found once. A thread may force
+//! Dispatch: [`Isa::detected`] is the fastest set this CPU runs, found once. A thread may force
 //! a lower one ([`with_isa`]): the benchmark times each set in turn and the tests compare each
 //! with the scalar path. Detectors read [`current`] once per frame and pass it down, so the
 //! per-row cost of the choice is one predictable branch. The kernels are compiled with
@@ -72,13 +72,15 @@ impl Isa {
         Isa::ALL.into_iter().filter(|i| i.supported()).collect()
     }
 
-    /// The best set this CPU runs (detected once).
+    /// The set detectors use unless a thread forces one (detected once): AVX2 before
+    /// AVX-512, which was 2-6 % slower per frame on this machine's CPU (docs/method.md
+    /// section 4.7: a block's reduction starts with two extracts, and the rest of the row
+    /// work gains nothing from the wider registers); AVX-512 stays available by force.
     pub fn detected() -> Isa {
         static BEST: OnceLock<Isa> = OnceLock::new();
         *BEST.get_or_init(|| {
-            Isa::ALL
+            [Isa::Avx2, Isa::Avx512, Isa::Sse41]
                 .into_iter()
-                .rev()
                 .find(|i| i.supported())
                 .unwrap_or(Isa::Scalar)
         })
