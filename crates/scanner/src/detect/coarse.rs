@@ -117,8 +117,8 @@ pub const AUTO_MIN_NOISES: f32 = 40.0;
 /// a dark row's noise ([`row_background`]): the line itself spans at most a few of the 64.
 const AUTO_TAIL: usize = 15;
 /// `Threshold::Auto`: the least contrast on a row whose sampled noise is 0 (a blank board, a
-/// JPEG's flattened dark blocks), 8-bit DN: a few times rounding's own noise (0.29 DN) and
-/// what a lone speck of a laser-off frame rarely spans over consecutive rows.
+/// JPEG's flattened dark blocks), 8-bit DN: many times rounding's own noise (0.29 DN), and
+/// below the 11 DN peak of the dimmest line it is meant to let through.
 pub const AUTO_FLOOR_DN: f32 = 6.0;
 /// `Threshold::Auto`: the background statistics are refreshed every this many rows.
 pub const AUTO_BAND_ROWS: usize = 8;
