@@ -27,7 +27,8 @@
 //! the floor is [`sum_bytes`] over the same frames in the same run, one core. Time is the
 //! thread's CPU time, so other processes sharing the core do not count against either.
 
-use footscan::detect::{build, sum_bytes, DetectParams, Detector, LinePeak, NAMES};
+use footscan::detect::simd::with_isa;
+use footscan::detect::{build, sum_bytes, DetectParams, Detector, Isa, LinePeak, NAMES};
 use footscan_hal::{Frame, PixelFormat, Pixels, Timestamp};
 use footscan_sim::foot::{Foot, FootParams};
 use footscan_sim::optics::Optics;
@@ -263,36 +264,90 @@ impl Default for Options {
     }
 }
 
-/// Speed of every detector and the floor, one core.
-pub fn speed(opts: &Options) -> (Vec<(String, f64)>, f64) {
+/// One detector's speed on one instruction set, beside the floor measured in the same run.
+#[derive(Clone, Debug, Serialize)]
+pub struct SpeedRow {
+    pub detector: String,
+    /// `scalar`, `sse4.1`, `avx2`, `avx512` ([`Isa`]).
+    pub isa: String,
+    pub fps_per_core: f64,
+    pub floor_fps_per_core: f64,
+    /// The detector's time per frame over the floor's.
+    pub ratio: f64,
+}
+
+/// Speed of every detector on every instruction set this CPU runs, and the floor, one core.
+/// The floor is timed before and after the detectors and the faster kept (the machine is
+/// shared: the faster reading is the nearer to the floor's own cost).
+pub fn speed_by_isa(opts: &Options) -> Vec<SpeedRow> {
+    let frames = speed_frames(opts);
+    super::on_one_core(|| {
+        let floor_before = floor_fps(&frames, opts.seconds);
+        let mut fps = Vec::new();
+        for isa in Isa::available() {
+            for name in &opts.detectors {
+                let mut det = build(name, &DetectParams::default()).expect("detector");
+                let f = with_isa(isa, || detector_fps(det.as_mut(), &frames, opts.seconds))
+                    .expect("an available set");
+                fps.push((name.clone(), isa, f));
+            }
+        }
+        let floor = floor_before.max(floor_fps(&frames, opts.seconds));
+        fps.into_iter()
+            .map(|(detector, isa, f)| SpeedRow {
+                detector,
+                isa: isa.as_str().into(),
+                fps_per_core: f,
+                floor_fps_per_core: floor,
+                ratio: floor / f,
+            })
+            .collect()
+    })
+}
+
+/// The speed rows as a table: per detector, frames/s per core and the ratio to the floor for
+/// each instruction set.
+pub fn speed_table(rows: &[SpeedRow]) -> String {
+    let Some(first) = rows.first() else {
+        return String::new();
+    };
+    let mut s = format!(
+        "\nspeed, one core, 1280x1024 Gray8 (floor: sum of every byte, {:.0} frames/s)\n{:<12} {:>7} {:>10} {:>9}\n",
+        first.floor_fps_per_core, "detector", "isa", "fps/core", "x floor"
+    );
+    for r in rows {
+        s += &format!(
+            "{:<12} {:>7} {:>10.0} {:>9.2}\n",
+            r.detector, r.isa, r.fps_per_core, r.ratio
+        );
+    }
+    s
+}
+
+fn speed_frames(opts: &Options) -> Vec<Frame> {
     let noise = NoiseConfig {
         format: PixelFormat::Gray8,
         ..NoiseConfig::default()
     };
     let n = opts.speed_frames.max(1);
     let xs: Vec<f64> = (0..n).map(|k| 40.0 + 250.0 * k as f64 / n as f64).collect();
-    let frames: Vec<Frame> = sweep_frames(&noise, &[], &xs, 7)
+    sweep_frames(&noise, &[], &xs, 7)
         .into_iter()
         .map(|(f, _)| f)
-        .collect();
-    super::on_one_core(|| {
-        let floor_before = floor_fps(&frames, opts.seconds);
-        let mut fps = Vec::new();
-        for name in &opts.detectors {
-            let mut det = build(name, &DetectParams::default()).expect("detector");
-            fps.push((
-                name.clone(),
-                detector_fps(det.as_mut(), &frames, opts.seconds),
-            ));
-        }
-        let floor_after = floor_fps(&frames, opts.seconds);
-        (fps, floor_before.max(floor_after))
-    })
+        .collect()
 }
 
-/// The whole benchmark.
-pub fn run(opts: &Options) -> Vec<DetectRow> {
-    let (fps, floor) = speed(opts);
+/// The whole benchmark: accuracy rows (their speed on the detected instruction set) and the
+/// speed of every detector on every set.
+pub fn run(opts: &Options) -> (Vec<DetectRow>, Vec<SpeedRow>) {
+    let speed = speed_by_isa(opts);
+    let best = Isa::detected().as_str();
+    let fps: Vec<(String, f64)> = speed
+        .iter()
+        .filter(|r| r.isa == best)
+        .map(|r| (r.detector.clone(), r.fps_per_core))
+        .collect();
+    let floor = speed.first().map_or(f64::NAN, |r| r.floor_fps_per_core);
     let mut rows = Vec::new();
     for &sigma in &opts.sigmas {
         for level in &opts.noise {
@@ -326,7 +381,7 @@ pub fn run(opts: &Options) -> Vec<DetectRow> {
         }
     }
     rows.extend(slope_sweep(opts, &fps, floor));
-    rows
+    (rows, speed)
 }
 
 /// RMS error over rows 8..h-8 of the sloped frames (a row without a line counts as 1 px, an

@@ -454,6 +454,111 @@ pub fn run(dir: &Path, detectors: &[String]) -> Result<(Vec<RealRow>, Vec<Spread
     Ok((rows, spreads))
 }
 
+/// The baselines a detector's straightness is compared with (issue 34's targets).
+pub const BASELINES: [&str; 5] = ["cog", "steger", "gaussian", "blais-rioux", "parabolic"];
+/// A region counts as found when at least this share of its visible rows has a line (%).
+pub const FOUND_PCT: f64 = 98.0;
+/// A detector is as straight as the best baseline when its residual is within this factor.
+pub const STRAIGHT_FACTOR: f64 = 1.05;
+
+/// Per folder of the frames directory and detector: the two shares of issue 34's targets.
+#[derive(Clone, Debug, Serialize)]
+pub struct ShareRow {
+    /// First component of the frame's path (one scanner project), or `all`.
+    pub folder: String,
+    pub detector: String,
+    /// Flat-board regions with visible rows (each frame x region x with/without background).
+    pub regions: usize,
+    /// Share of them with at least [`FOUND_PCT`] % of the visible rows found.
+    pub found_share: f64,
+    /// Regions where some baseline has a residual.
+    pub compared: usize,
+    /// Share of those where the detector's residual is within [`STRAIGHT_FACTOR`] of the
+    /// straightest of [`BASELINES`] (a detector without a residual there is not).
+    pub straight_share: f64,
+}
+
+/// The two shares per folder and detector (and over all folders), from the region rows.
+pub fn shares(rows: &[RealRow]) -> Vec<ShareRow> {
+    type Key<'a> = (&'a str, &'a str, bool);
+    let folder = |r: &RealRow| r.frame.split('/').next().unwrap_or("").to_string();
+    // Region -> straightest baseline residual.
+    let mut best: BTreeMap<Key, f64> = BTreeMap::new();
+    for r in rows.iter().filter(|r| r.region != "off" && r.visible > 0) {
+        if BASELINES.contains(&r.detector.as_str()) && r.resid_px.is_finite() {
+            let b = best
+                .entry((&r.frame, &r.region, r.background))
+                .or_insert(f64::INFINITY);
+            *b = b.min(r.resid_px);
+        }
+    }
+    let mut folders: Vec<String> = rows.iter().map(folder).collect();
+    folders.sort();
+    folders.dedup();
+    folders.push("all".into());
+    let mut dets: Vec<&str> = Vec::new();
+    for r in rows {
+        if !dets.contains(&r.detector.as_str()) {
+            dets.push(&r.detector);
+        }
+    }
+    let mut out = Vec::new();
+    for f in &folders {
+        for &d in &dets {
+            let (mut n, mut found, mut cmp, mut straight) = (0usize, 0usize, 0usize, 0usize);
+            for r in rows.iter().filter(|r| {
+                r.detector == d
+                    && r.region != "off"
+                    && r.visible > 0
+                    && (f == "all" || folder(r) == *f)
+            }) {
+                n += 1;
+                found += (r.found_pct >= FOUND_PCT) as usize;
+                if let Some(&b) = best.get(&(r.frame.as_str(), r.region.as_str(), r.background)) {
+                    cmp += 1;
+                    straight +=
+                        (r.resid_px.is_finite() && r.resid_px <= STRAIGHT_FACTOR * b) as usize;
+                }
+            }
+            if n > 0 {
+                out.push(ShareRow {
+                    folder: f.clone(),
+                    detector: d.to_string(),
+                    regions: n,
+                    found_share: found as f64 / n as f64,
+                    compared: cmp,
+                    straight_share: if cmp > 0 {
+                        straight as f64 / cmp as f64
+                    } else {
+                        f64::NAN
+                    },
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The shares as text.
+pub fn share_table(shares: &[ShareRow]) -> String {
+    let mut s = format!(
+        "\n{:<28} {:<12} {:>7} {:>9} {:>8} {:>10}\n",
+        "folder", "detector", "regions", "found98%", "compared", "straight5%"
+    );
+    for r in shares {
+        s += &format!(
+            "{:<28} {:<12} {:>7} {:>9.1} {:>8} {:>10.1}\n",
+            r.folder,
+            r.detector,
+            r.regions,
+            100.0 * r.found_share,
+            r.compared,
+            100.0 * r.straight_share
+        );
+    }
+    s
+}
+
 /// Every detector's name.
 pub fn all_detectors() -> Vec<String> {
     NAMES.iter().map(|s| s.to_string()).collect()
@@ -504,4 +609,60 @@ pub fn table(rows: &[RealRow], spreads: &[SpreadRow]) -> String {
         );
     }
     s
+}
+
+#[cfg(test)]
+mod share_tests {
+    use super::*;
+
+    fn row(frame: &str, det: &str, found_pct: f64, resid: f64) -> RealRow {
+        RealRow {
+            frame: frame.into(),
+            region: "0:0:10:10".into(),
+            channel: "R".into(),
+            background: false,
+            detector: det.into(),
+            rows: 10,
+            visible: 10,
+            found: 0,
+            found_pct,
+            missed: String::new(),
+            resid_px: resid,
+            outliers: 0,
+        }
+    }
+
+    #[test]
+    fn shares_count_regions_per_folder_against_the_straightest_baseline() {
+        let rows = vec![
+            // a/1: bp finds all, 1.04x the best baseline (steger 0.30): straight.
+            row("a/1.png", "bezier-plus", 100.0, 0.312),
+            row("a/1.png", "cog", 100.0, 0.40),
+            row("a/1.png", "steger", 90.0, 0.30),
+            // a/2: bp finds 97.9 %, 1.1x the best: neither.
+            row("a/2.png", "bezier-plus", 97.9, 0.33),
+            row("a/2.png", "cog", 100.0, 0.30),
+            // b/1: bp has no residual: not straight; no line found by anyone else.
+            row("b/1.png", "bezier-plus", 98.0, f64::NAN),
+            row("b/1.png", "cog", 0.0, 0.2),
+        ];
+        let sh = shares(&rows);
+        let get = |f: &str, d: &str| {
+            sh.iter()
+                .find(|r| r.folder == f && r.detector == d)
+                .unwrap()
+                .clone()
+        };
+        let a = get("a", "bezier-plus");
+        assert_eq!((a.regions, a.compared), (2, 2));
+        assert_eq!((a.found_share, a.straight_share), (0.5, 0.5));
+        let b = get("b", "bezier-plus");
+        assert_eq!((b.found_share, b.straight_share), (1.0, 0.0));
+        let all = get("all", "bezier-plus");
+        assert_eq!(all.regions, 3);
+        assert!((all.found_share - 2.0 / 3.0).abs() < 1e-12);
+        assert!((all.straight_share - 1.0 / 3.0).abs() < 1e-12);
+        // A baseline is within 5 % of itself where it is the best.
+        assert_eq!(get("a", "steger").straight_share, 1.0);
+    }
 }

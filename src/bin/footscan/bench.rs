@@ -237,11 +237,13 @@ pub fn run(args: Args) -> Result<()> {
                     "{}",
                     serde_json::to_string_pretty(&serde_json::json!({
                         "regions": rows,
-                        "static": spreads
+                        "static": spreads,
+                        "shares": real::shares(&rows)
                     }))?
                 );
             } else {
                 print!("{}", real::table(&rows, &spreads));
+                print!("{}", real::share_table(&real::shares(&rows)));
             }
             Ok(())
         }
@@ -267,11 +269,13 @@ pub fn run(args: Args) -> Result<()> {
             if !sigmas.is_empty() {
                 opts.sigmas = sigmas;
             }
-            let rows = bd::run(&opts);
+            let (rows, speed) = bd::run(&opts);
             if json {
-                println!("{}", serde_json::to_string_pretty(&rows)?);
+                let all = serde_json::json!({ "accuracy": rows, "speed": speed });
+                println!("{}", serde_json::to_string_pretty(&all)?);
             } else {
                 print!("{}", bd::table(&rows));
+                print!("{}", bd::speed_table(&speed));
             }
             Ok(())
         }

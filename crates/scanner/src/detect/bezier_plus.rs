@@ -27,8 +27,7 @@
 
 use super::bernstein::{root_near, Binomials, MAX_N};
 use super::coarse::{
-    block_max, prefetch_ahead, reject_isolated, CoarseConfig, CoarseScratch, Near, Peak, Px,
-    NEAR_ROWS,
+    prefetch_ahead, reject_isolated, CoarseConfig, CoarseScratch, Near, Peak, Px, NEAR_ROWS,
 };
 use super::estimators::{accepted, binomials};
 use super::{Detector, LinePeak, Reject};
@@ -237,11 +236,12 @@ impl BezierPlus {
         // mean over the preceding valid rows (weight 1/8 per row), started by the first one.
         let mut width = f64::NAN;
         scratch.for_width(w);
+        let isa = super::simd::current();
         for (r, row) in px.chunks_exact(w).enumerate() {
             prefetch_ahead(px, r, w);
-            let thr = scratch.threshold(&cfg, r, row);
+            let thr = scratch.threshold_on(isa, &cfg, r, row);
             let blocks = scratch.for_width(w);
-            block_max(row, blocks);
+            T::block_max_on(isa, row, blocks);
             let near = (1..=NEAR_ROWS.min(r))
                 .map(|k| self.raw[r - k])
                 .find(|c| c.is_finite())

@@ -7,6 +7,7 @@
 //! maximum, its position, and the second peak outside the line are then found from the block
 //! maxima (20 per 1280-pixel row) and the pixels of one or two blocks.
 
+use super::simd::{self, Isa};
 use super::Reject;
 
 /// A pixel type of a frame (Gray8 or Gray16).
@@ -16,6 +17,18 @@ pub trait Px: Copy + Ord + Default + Send + Sync + 'static {
     /// 8-bit DN to this format's units.
     const SCALE: f32;
     fn f(self) -> f32;
+    /// [`block_max`] on the instruction set `isa` (the explicit kernels of [`super::simd`]).
+    #[inline]
+    fn block_max_on(isa: Isa, row: &[Self], blocks: &mut [Self]) {
+        let _ = isa;
+        block_max_scalar(row, blocks)
+    }
+    /// [`row_background`] on the instruction set `isa`.
+    #[inline]
+    fn background_on(isa: Isa, row: &[Self]) -> (f32, f32, f32) {
+        let _ = isa;
+        row_background_scalar(row)
+    }
     /// First index of `v` in `s`, `s.len()` if absent.
     #[inline]
     fn position(s: &[Self], v: Self) -> usize {
@@ -29,6 +42,14 @@ impl Px for u8 {
     #[inline(always)]
     fn f(self) -> f32 {
         self as f32
+    }
+    #[inline]
+    fn block_max_on(isa: Isa, row: &[u8], blocks: &mut [u8]) {
+        super::simd::block_max_u8(isa, row, blocks)
+    }
+    #[inline]
+    fn background_on(isa: Isa, row: &[u8]) -> (f32, f32, f32) {
+        row_background_u8(isa, row)
     }
     /// Eight bytes per step: the classic "has a zero byte" test on `word ^ v..v`; its lowest
     /// set bit always marks the first match.
@@ -62,6 +83,10 @@ impl Px for u16 {
     fn f(self) -> f32 {
         self as f32
     }
+    #[inline]
+    fn block_max_on(isa: Isa, row: &[u16], blocks: &mut [u16]) {
+        super::simd::block_max_u16(isa, row, blocks)
+    }
 }
 
 /// The level a row's peak must exceed to hold a line.
@@ -69,7 +94,8 @@ impl Px for u16 {
 pub enum Threshold {
     /// Relative to the row's own background: its bright level (upper quartile of a sample of
     /// the row) plus [`AUTO_SIGMAS`] times its noise (from neighbour differences), at least
-    /// [`AUTO_MIN_DN`] above the level ([`row_background`]). Ambient light, texture and the
+    /// [`AUTO_MIN_NOISES`] noises above the level, within [`AUTO_FLOOR_DN`]..[`AUTO_MIN_DN`]
+    /// ([`row_background`]). Ambient light, texture and the
     /// camera's noise set it, not the operator.
     Auto,
     /// A fixed level, 8-bit DN (x257 for Gray16).
@@ -78,8 +104,22 @@ pub enum Threshold {
 
 /// `Threshold::Auto`: robust standard deviations of the row's background above its level.
 pub const AUTO_SIGMAS: f32 = 6.0;
-/// `Threshold::Auto`: least contrast over the row's level, 8-bit DN (noise-free frames).
+/// `Threshold::Auto`: the most the least contrast over the row's level asks for, 8-bit DN
+/// (reached at a noise of [`AUTO_MIN_DN`] / [`AUTO_MIN_NOISES`], 0.5 DN).
 pub const AUTO_MIN_DN: f32 = 20.0;
+/// `Threshold::Auto`: the least contrast over the row's level, in the row's noise. A fixed 20 DN
+/// never let a dim line (11-15 DN over a JPEG's dark board, whose background quantises to
+/// exactly 0) through. 40, not the 6 of [`AUTO_SIGMAS`]: the noise read from 64 samples of a
+/// quantised row reads low, and a row whose median difference is 1 DN or more (noise of 1 DN)
+/// keeps the 20 DN it always had; only nearly flat rows go lower.
+pub const AUTO_MIN_NOISES: f32 = 40.0;
+/// `Threshold::Auto`: the quantile, in sixteenths, of the neighbour differences that measures
+/// a dark row's noise ([`row_background`]): the line itself spans at most a few of the 64.
+const AUTO_TAIL: usize = 15;
+/// `Threshold::Auto`: the least contrast on a row whose sampled noise is 0 (a blank board, a
+/// JPEG's flattened dark blocks), 8-bit DN: many times rounding's own noise (0.29 DN), and
+/// below the 11 DN peak of the dimmest line it is meant to let through.
+pub const AUTO_FLOOR_DN: f32 = 6.0;
 /// `Threshold::Auto`: the background statistics are refreshed every this many rows.
 pub const AUTO_BAND_ROWS: usize = 8;
 /// `Threshold::Auto`: pixels sampled (evenly spaced) for a row's statistics.
@@ -202,11 +242,20 @@ pub struct CoarseScratch<T> {
 /// room light) the median and MAD of the row measure the texture: the threshold landed above
 /// a laser that stood clear of the white squares. The upper quartile is the bright background
 /// the line must beat, and neighbour differences see the noise, not the texture (its edges are
-/// few). On the stack: no allocation.
-pub fn row_background<T: Px>(row: &[T]) -> (f32, f32) {
+/// few). The third value is the 15/16 quantile of the same differences: on a dark row the
+/// camera's rounding or a JPEG's block quantisation make most differences exactly 0, so the
+/// median reads no noise at all while the tail still shows what noise or scene the row holds
+/// ([`auto_threshold`]). On the stack: no allocation. On this thread's instruction set
+/// ([`simd::current`]).
+pub fn row_background<T: Px>(row: &[T]) -> (f32, f32, f32) {
+    T::background_on(simd::current(), row)
+}
+
+/// [`row_background`] by the portable code (`select_nth_unstable`): the scalar path.
+pub fn row_background_scalar<T: Px>(row: &[T]) -> (f32, f32, f32) {
     let n = row.len().min(AUTO_SAMPLES);
     if n == 0 {
-        return (0.0, 0.0);
+        return (0.0, 0.0, 0.0);
     }
     let step = row.len() / n;
     let mut s = [0u32; AUTO_SAMPLES];
@@ -219,13 +268,52 @@ pub fn row_background<T: Px>(row: &[T]) -> (f32, f32) {
     }
     let q3 = *s[..n].select_nth_unstable(3 * n / 4).1;
     let mad = *d[..n].select_nth_unstable(n / 2).1;
-    (q3 as f32, 1.4826 * mad as f32 / std::f32::consts::SQRT_2)
+    let tail = *d[..n].select_nth_unstable(AUTO_TAIL * n / 16).1;
+    (
+        q3 as f32,
+        1.4826 * mad as f32 / std::f32::consts::SQRT_2,
+        tail as f32,
+    )
 }
 
-/// The automatic threshold of a row with background `(level, spread)` (frame units).
+/// [`row_background`] of a Gray8 row: the same samples, the two order statistics by the
+/// packed kernel of [`simd::kth_u8`] (rows of at least 64 pixels; shorter ones as before).
 #[inline]
-pub fn auto_threshold<T: Px>(level: f32, spread: f32) -> f32 {
-    level + (AUTO_SIGMAS * spread).max(AUTO_MIN_DN * T::SCALE)
+fn row_background_u8(isa: Isa, row: &[u8]) -> (f32, f32, f32) {
+    if isa == Isa::Scalar || row.len() < AUTO_SAMPLES {
+        return row_background_scalar(row);
+    }
+    let n = AUTO_SAMPLES;
+    let step = row.len() / n;
+    let mut s = [0u8; AUTO_SAMPLES];
+    let mut d = [0u8; AUTO_SAMPLES];
+    for k in 0..n {
+        let i = k * step + step / 2;
+        let v = row[i];
+        s[k] = v;
+        d[k] = v.abs_diff(row[(i + 1).min(row.len() - 1)]);
+    }
+    let q3 = simd::kth_u8(isa, &s, 3 * n / 4);
+    let mad = simd::kth_u8(isa, &d, n / 2);
+    let tail = simd::kth_u8(isa, &d, AUTO_TAIL * n / 16);
+    (
+        q3 as f32,
+        1.4826 * mad as f32 / std::f32::consts::SQRT_2,
+        tail as f32,
+    )
+}
+
+/// The automatic threshold of a row with background `(level, spread, tail)` (frame units,
+/// [`row_background`]): [`AUTO_SIGMAS`] noises above the level, and at least
+/// [`AUTO_MIN_NOISES`] noises, within [`AUTO_FLOOR_DN`]..[`AUTO_MIN_DN`]. The noise for the
+/// least contrast is the larger of the median's and the tail's estimate (the 15/16 quantile of
+/// |difference| is 2.63 standard deviations of Gaussian noise), so a row reads as quiet only
+/// when nearly all of its differences are 0.
+#[inline]
+pub fn auto_threshold<T: Px>(level: f32, spread: f32, tail: f32) -> f32 {
+    let noise = spread.max(tail / 2.63);
+    let least = (AUTO_MIN_NOISES * noise).clamp(AUTO_FLOOR_DN * T::SCALE, AUTO_MIN_DN * T::SCALE);
+    level + (AUTO_SIGMAS * spread).max(least)
 }
 
 impl<T: Px> CoarseScratch<T> {
@@ -233,12 +321,18 @@ impl<T: Px> CoarseScratch<T> {
     /// refreshed every [`AUTO_BAND_ROWS`] rows (the first row of each band stands for it).
     #[inline]
     pub fn threshold(&mut self, cfg: &CoarseConfig, r: usize, row: &[T]) -> f32 {
+        self.threshold_on(simd::current(), cfg, r, row)
+    }
+
+    /// [`Self::threshold`] on the instruction set `isa`.
+    #[inline]
+    pub fn threshold_on(&mut self, isa: Isa, cfg: &CoarseConfig, r: usize, row: &[T]) -> f32 {
         match cfg.threshold {
             Threshold::Dn(t) => t * T::SCALE,
             Threshold::Auto => {
                 if r.is_multiple_of(AUTO_BAND_ROWS) || self.auto_thr <= 0.0 {
-                    let (level, spread) = row_background(row);
-                    self.auto_thr = auto_threshold::<T>(level, spread);
+                    let (level, spread, tail) = T::background_on(isa, row);
+                    self.auto_thr = auto_threshold::<T>(level, spread, tail);
                 }
                 self.auto_thr
             }
@@ -307,9 +401,16 @@ pub fn prefetch_ahead<T>(px: &[T], r: usize, w: usize) {
     }
 }
 
-/// Maximum of each 64-pixel block of `row` into `blocks` (`row.len().div_ceil(64)` of them).
+/// Maximum of each 64-pixel block of `row` into `blocks` (`row.len().div_ceil(64)` of them),
+/// on this thread's instruction set ([`simd::current`]).
 #[inline]
 pub fn block_max<T: Px>(row: &[T], blocks: &mut [T]) {
+    T::block_max_on(simd::current(), row, blocks)
+}
+
+/// [`block_max`] by the portable code: the scalar path the SIMD kernels are compared with.
+#[inline]
+pub fn block_max_scalar<T: Copy + Ord + Default>(row: &[T], blocks: &mut [T]) {
     let full = row.len() / BLOCK;
     let (body, tail) = row.split_at(full * BLOCK);
     for (b, ch) in blocks.iter_mut().zip(body.chunks_exact(BLOCK)) {

@@ -3,8 +3,7 @@
 
 use super::bernstein::{bisect_literal, Binomials, MAX_N};
 use super::coarse::{
-    block_max, prefetch_ahead, reject_isolated, CoarseConfig, CoarseScratch, Near, Peak, Px,
-    NEAR_ROWS,
+    prefetch_ahead, reject_isolated, CoarseConfig, CoarseScratch, Near, Peak, Px, NEAR_ROWS,
 };
 use super::{Detector, LinePeak, Reject};
 use footscan_hal::{Frame, Pixels};
@@ -45,11 +44,12 @@ fn run_rows<T: Px, E: Estimate>(
     out: &mut [LinePeak],
 ) {
     scratch.for_width(w);
+    let isa = super::simd::current();
     for (r, row) in px.chunks_exact(w).enumerate() {
         prefetch_ahead(px, r, w);
-        let thr = scratch.threshold(cfg, r, row);
+        let thr = scratch.threshold_on(isa, cfg, r, row);
         let blocks = scratch.for_width(w);
-        block_max(row, blocks);
+        T::block_max_on(isa, row, blocks);
         let near = (1..=NEAR_ROWS.min(r))
             .map(|k| &out[r - k])
             .find(|p| p.is_valid())

@@ -25,6 +25,7 @@ mod estimators;
 pub mod files;
 mod line;
 mod list;
+pub mod simd;
 
 pub use bernstein::{bisect_literal, root_near, Binomials, MAX_N};
 pub use bezier_plus::{BezierPlus, BezierPlusConfig};
@@ -38,3 +39,4 @@ pub use line::{Detector, LinePeak, Reject};
 pub use list::{
     build, build_with_prep, DetectParams, DetectorInfo, ThresholdParam, DETECTORS, NAMES,
 };
+pub use simd::Isa;
