@@ -167,15 +167,39 @@ pub fn glb(parts: &[GlbPart]) -> Result<Vec<u8>, GlbError> {
     })
 }
 
-fn bounds(pos: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
-    let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
-    for p in pos {
-        for d in 0..3 {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
+/// Appends `data` as a float vertex attribute (a buffer view and its accessor, "VEC3" or
+/// "VEC4" by N; positions carry their bounds, as glTF requires) and returns the accessor's
+/// index.
+fn push_floats<const N: usize>(
+    bin: &mut Vec<u8>,
+    views: &mut Vec<Value>,
+    accessors: &mut Vec<Value>,
+    data: &[[f32; N]],
+    position: bool,
+) -> usize {
+    let view = push_view(
+        bin,
+        views,
+        &f32s(&mut data.iter().flatten().copied()),
+        ARRAY_BUFFER,
+    );
+    let mut a = json!({
+        "bufferView": view, "componentType": FLOAT, "count": data.len(),
+        "type": format!("VEC{N}"),
+    });
+    if position {
+        let (mut lo, mut hi) = ([f32::MAX; N], [f32::MIN; N]);
+        for p in data {
+            for d in 0..N {
+                lo[d] = lo[d].min(p[d]);
+                hi[d] = hi[d].max(p[d]);
+            }
         }
+        a["min"] = json!(lo.as_slice());
+        a["max"] = json!(hi.as_slice());
     }
-    (lo, hi)
+    accessors.push(a);
+    accessors.len() - 1
 }
 
 /// The .glb bytes of `scene`.
@@ -202,39 +226,12 @@ pub fn glb_scene(scene: &GlbScene) -> Result<Vec<u8>, GlbError> {
                 }
             })
             .collect();
-        let (lo, hi) = bounds(&pos);
-        let pv = push_view(
-            &mut bin,
-            &mut views,
-            &f32s(&mut pos.iter().flatten().copied()),
-            ARRAY_BUFFER,
-        );
-        accessors.push(json!({
-            "bufferView": pv, "componentType": FLOAT, "count": pos.len(), "type": "VEC3",
-            "min": lo, "max": hi,
-        }));
-        let mut attributes = json!({ "POSITION": accessors.len() - 1 });
-        let nv = push_view(
-            &mut bin,
-            &mut views,
-            &f32s(&mut normals.iter().flatten().copied()),
-            ARRAY_BUFFER,
-        );
-        accessors.push(json!({
-            "bufferView": nv, "componentType": FLOAT, "count": normals.len(), "type": "VEC3",
-        }));
-        attributes["NORMAL"] = json!(accessors.len() - 1);
+        let pa = push_floats(&mut bin, &mut views, &mut accessors, &pos, true);
+        let na = push_floats(&mut bin, &mut views, &mut accessors, &normals, false);
+        let mut attributes = json!({ "POSITION": pa, "NORMAL": na });
         if let Some(vc) = part.vertex_colours {
-            let cv = push_view(
-                &mut bin,
-                &mut views,
-                &f32s(&mut vc.iter().flatten().copied()),
-                ARRAY_BUFFER,
-            );
-            accessors.push(json!({
-                "bufferView": cv, "componentType": FLOAT, "count": vc.len(), "type": "VEC4",
-            }));
-            attributes["COLOR_0"] = json!(accessors.len() - 1);
+            let ca = push_floats(&mut bin, &mut views, &mut accessors, vc, false);
+            attributes["COLOR_0"] = json!(ca);
         }
         let idx: Vec<u8> = m
             .triangles
@@ -318,17 +315,7 @@ pub fn glb_scene(scene: &GlbScene) -> Result<Vec<u8>, GlbError> {
             .windows(2)
             .flat_map(|w| [gltf_position(&w[0]), gltf_position(&w[1])])
             .collect();
-        let (lo, hi) = bounds(&pos);
-        let pv = push_view(
-            &mut bin,
-            &mut views,
-            &f32s(&mut pos.iter().flatten().copied()),
-            ARRAY_BUFFER,
-        );
-        accessors.push(json!({
-            "bufferView": pv, "componentType": FLOAT, "count": pos.len(), "type": "VEC3",
-            "min": lo, "max": hi,
-        }));
+        let pa = push_floats(&mut bin, &mut views, &mut accessors, &pos, true);
         materials.push(json!({
             "name": line.name,
             "pbrMetallicRoughness": { "baseColorFactor": line.colour, "metallicFactor": 0.0 },
@@ -336,7 +323,7 @@ pub fn glb_scene(scene: &GlbScene) -> Result<Vec<u8>, GlbError> {
         meshes.push(json!({
             "name": line.name,
             "primitives": [{
-                "attributes": { "POSITION": accessors.len() - 1 },
+                "attributes": { "POSITION": pa },
                 "material": materials.len() - 1,
                 "mode": 1,
             }],
