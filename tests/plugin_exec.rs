@@ -162,13 +162,14 @@ fn a_process_that_keeps_dying_fails_its_scan_by_name_and_the_next_scan_works() {
     .unwrap();
     let cmd = vec![python(), die.display().to_string()];
     let out = dir.path().join("failed");
-    let err = run_scan(
-        &sim_config(&exec_stage(&cmd, "max_restarts = 1")),
-        &ScanOptions::new(&out),
-        |_| {},
-    )
-    .expect_err("the scan fails")
-    .to_string();
+    let err = footscan_util::chain(
+        &run_scan(
+            &sim_config(&exec_stage(&cmd, "max_restarts = 1")),
+            &ScanOptions::new(&out),
+            |_| {},
+        )
+        .expect_err("the scan fails"),
+    );
     assert!(err.contains("stage `exec` failed"), "{err}");
     assert!(err.contains("die.py"), "names the command: {err}");
     assert!(
@@ -208,13 +209,14 @@ fn a_process_that_keeps_dying_fails_its_scan_by_name_and_the_next_scan_works() {
 fn a_command_that_cannot_start_is_refused_at_start() {
     let _scan = one_scan_at_a_time();
     let dir = tempfile::tempdir().unwrap();
-    let err = run_scan(
-        &sim_config(&exec_stage(&["/nonexistent/stage.bin".into()], "")),
-        &ScanOptions::new(dir.path().join("scan")),
-        |_| {},
-    )
-    .expect_err("refused")
-    .to_string();
+    let err = footscan_util::chain(
+        &run_scan(
+            &sim_config(&exec_stage(&["/nonexistent/stage.bin".into()], "")),
+            &ScanOptions::new(dir.path().join("scan")),
+            |_| {},
+        )
+        .expect_err("refused"),
+    );
     assert!(err.contains("/nonexistent/stage.bin"), "{err}");
     assert!(err.contains("cannot start"), "{err}");
 }

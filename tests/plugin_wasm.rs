@@ -212,13 +212,14 @@ fn a_trapping_module_fails_its_scan_by_name_and_the_next_scan_works() {
     let bad = build_c(bad_src.to_str().unwrap(), dir.path());
 
     let out = dir.path().join("failed");
-    let err = run_scan(
-        &sim_config(&wasm_stage(&bad)),
-        &ScanOptions::new(&out),
-        |_| {},
-    )
-    .expect_err("the scan fails")
-    .to_string();
+    let err = footscan_util::chain(
+        &run_scan(
+            &sim_config(&wasm_stage(&bad)),
+            &ScanOptions::new(&out),
+            |_| {},
+        )
+        .expect_err("the scan fails"),
+    );
     assert!(err.contains("stage `wasm` failed"), "{err}");
     assert!(
         err.contains(&bad.display().to_string()),
@@ -250,25 +251,27 @@ fn a_config_naming_a_module_that_does_not_load_is_refused_at_start() {
     let _scan = one_scan_at_a_time();
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("nope.wasm");
-    let err = run_scan(
-        &sim_config(&wasm_stage(&missing)),
-        &ScanOptions::new(dir.path().join("scan")),
-        |_| {},
-    )
-    .expect_err("refused")
-    .to_string();
+    let err = footscan_util::chain(
+        &run_scan(
+            &sim_config(&wasm_stage(&missing)),
+            &ScanOptions::new(dir.path().join("scan")),
+            |_| {},
+        )
+        .expect_err("refused"),
+    );
     assert!(
         err.contains("nope.wasm") && err.contains("cannot read it"),
         "{err}"
     );
     let module = build_c("examples/plugins/cog-wasm/cog.c", dir.path());
-    let err = run_scan(
-        &sim_config(&wasm_stage(&module).replace("threshold =", "thresh =")),
-        &ScanOptions::new(dir.path().join("scan2")),
-        |_| {},
-    )
-    .expect_err("refused")
-    .to_string();
+    let err = footscan_util::chain(
+        &run_scan(
+            &sim_config(&wasm_stage(&module).replace("threshold =", "thresh =")),
+            &ScanOptions::new(dir.path().join("scan2")),
+            |_| {},
+        )
+        .expect_err("refused"),
+    );
     assert!(
         err.contains("does not know the parameter args.thresh"),
         "{err}"

@@ -38,9 +38,8 @@ fn assert_failed(dir: &Path, err: &str, stage: &str, cause: &str) {
 fn slider_alarm_mid_scan_fails_the_scan_with_the_alarm() {
     let cfg = config_with("slider_alarm_after_s = 3.0\nslider_alarm_code = 1");
     let dir = tempfile::tempdir().unwrap();
-    let err = run_scan(&cfg, &ScanOptions::new(dir.path()), |_| {})
-        .unwrap_err()
-        .to_string();
+    let err =
+        footscan_util::chain(&run_scan(&cfg, &ScanOptions::new(dir.path()), |_| {}).unwrap_err());
     assert_failed(dir.path(), &err, "acquire", "alarm");
 }
 
@@ -48,9 +47,8 @@ fn slider_alarm_mid_scan_fails_the_scan_with_the_alarm() {
 fn camera_unplug_mid_scan_fails_the_scan_as_a_disconnect() {
     let cfg = config_with("camera_unplug_after_s = 3.0");
     let dir = tempfile::tempdir().unwrap();
-    let err = run_scan(&cfg, &ScanOptions::new(dir.path()), |_| {})
-        .unwrap_err()
-        .to_string();
+    let err =
+        footscan_util::chain(&run_scan(&cfg, &ScanOptions::new(dir.path()), |_| {}).unwrap_err());
     assert_failed(dir.path(), &err, "acquire", "disconnected");
 }
 
@@ -59,9 +57,8 @@ fn silent_slider_times_out_instead_of_hanging() {
     let cfg = config_with("slider_silent_after_s = 3.0");
     let dir = tempfile::tempdir().unwrap();
     let t0 = Instant::now();
-    let err = run_scan(&cfg, &ScanOptions::new(dir.path()), |_| {})
-        .unwrap_err()
-        .to_string();
+    let err =
+        footscan_util::chain(&run_scan(&cfg, &ScanOptions::new(dir.path()), |_| {}).unwrap_err());
     assert_failed(dir.path(), &err, "acquire", "timed out");
     // Generous: the driver's response timeout is 2 s; the point is that it returns.
     assert!(

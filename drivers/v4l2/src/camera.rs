@@ -540,7 +540,11 @@ mod tests {
             "VIDIOC_S_FMT",
             io::Error::from_raw_os_error(libc::EBUSY),
         );
-        assert!(e.to_string().contains("VIDIOC_S_FMT"), "{e}");
+        // The operation is the I/O error's own text, printed once as the cause.
+        let cause = std::error::Error::source(&e)
+            .expect("the I/O error")
+            .to_string();
+        assert!(cause.contains("VIDIOC_S_FMT"), "{e}: {cause}");
     }
 
     #[test]
