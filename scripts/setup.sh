@@ -50,15 +50,20 @@ fi
 # OpenCASCADE 8 (scripts/occt_readback.py); it runs in a venv of its own under target/, made
 # only when it is absent or cannot import OCP. Test-time only: nothing in the product needs it.
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-venv="$repo/target/venv-occt"
-if ! "$venv/bin/python" -c 'import OCP, numpy' >/dev/null 2>&1; then
-  py=/usr/bin/python3
+
+# venv NAME IMPORTS SIZE PACKAGE...: a Python venv at target/NAME with PACKAGEs, made only when
+# it is absent or cannot import IMPORTS (a comma-separated list); SIZE is said while it is made.
+venv() {
+  local dir="$repo/target/$1" imports="$2" size="$3"
+  shift 3
+  "$dir/bin/python" -c "import $imports" >/dev/null 2>&1 && return 0
+  local py=/usr/bin/python3
   [ -x "$py" ] || py=python3
-  echo "creating $venv (cadquery-ocp-novtk, about 400 MB)"
-  "$py" -m venv "$venv"
-  "$venv/bin/python" -m pip install -q --disable-pip-version-check \
-    cadquery-ocp-novtk==8.0.1.1.0 numpy
-fi
+  echo "creating $dir ($*; about $size)"
+  "$py" -m venv "$dir"
+  "$dir/bin/python" -m pip install -q --disable-pip-version-check "$@"
+}
+venv venv-occt "OCP, numpy" "400 MB" cadquery-ocp-novtk==8.0.1.1.0 numpy
 
 # crates/geom/tests/gltf_readback.rs (and the .glb tests of the CLI and footscand) check every
 # glTF file with the Khronos validator (npm gltf-validator, pinned, under target/npm-gltf) and
@@ -74,22 +79,8 @@ if [ ! -f "$npm_gltf/node_modules/gltf-validator/package.json" ]; then
   mkdir -p "$npm_gltf"
   npm install --prefix "$npm_gltf" --no-audit --no-fund --silent gltf-validator@2.0.0-dev.3.10
 fi
-venv_gltf="$repo/target/venv-gltf"
-if ! "$venv_gltf/bin/python" -c 'import trimesh, numpy' >/dev/null 2>&1; then
-  py=/usr/bin/python3
-  [ -x "$py" ] || py=python3
-  echo "creating $venv_gltf (trimesh, numpy; about 100 MB)"
-  "$py" -m venv "$venv_gltf"
-  "$venv_gltf/bin/python" -m pip install -q --disable-pip-version-check trimesh==4.12.2 numpy
-fi
+venv venv-gltf "trimesh, numpy" "100 MB" trimesh==4.12.2 numpy
 # The process-stage examples and tests (examples/plugins/python, crates/plugins/tests,
 # tests/plugin_exec.rs) run Python with numpy from a venv of their own under target/, made only
 # when it is absent or cannot import numpy.
-venv="$repo/target/venv-plugins"
-if ! "$venv/bin/python" -c 'import numpy' >/dev/null 2>&1; then
-  py=/usr/bin/python3
-  [ -x "$py" ] || py=python3
-  echo "creating $venv (numpy, about 100 MB)"
-  "$py" -m venv "$venv"
-  "$venv/bin/python" -m pip install -q --disable-pip-version-check numpy
-fi
+venv venv-plugins numpy "100 MB" numpy
