@@ -863,6 +863,22 @@ fn clinic_shared_lasts_meet_every_applicable_rule() {
         ] {
             assert!(out_dir.join(f).exists(), "{name}: no {f}");
         }
+        // The heel the rules used is the stock last's own, as a last maker measures it,
+        // said in a note: the last keeps its bottom curve, so its heel is the shoe's.
+        let mut margs = vec!["last", "measure", s(&stock), "--json"];
+        if let Some(l) = length {
+            margs.extend(["--length", l]);
+        }
+        let (mok, mout, merr) = footscan(&margs);
+        assert!(mok, "{mout}{merr}");
+        let own: serde_json::Value = serde_json::from_str(&mout).unwrap();
+        let own = own["heel_height"].as_f64().unwrap();
+        let used = rep["inputs"]["heel_mm"].as_f64().unwrap();
+        assert!(
+            (used - own).abs() < 0.05,
+            "{name}: heel {used} against {own}"
+        );
+        assert!(out.contains("the stock last's own"), "{name}: {out}");
         if length.is_none() {
             // In millimetres as they come: choose reads the collection with one unit.
             made.push((name, rep));
@@ -923,6 +939,13 @@ fn clinic_shared_lasts_meet_every_applicable_rule() {
             .map_or(0.0, |s| s["change_mm"].as_f64().unwrap());
         println!("{name}: build-up laid on {laid:.2} mm, estimated by choose {est:.2} mm");
         assert!((est - laid).abs() <= 0.5, "{name}: {est} against {laid}");
+        let heel = rep["inputs"]["heel_mm"].as_f64().unwrap();
+        assert!(
+            notes
+                .iter()
+                .any(|n| n.starts_with(&format!("heel height {heel:.1} mm: the stock last's own"))),
+            "{name}: {notes:?}"
+        );
     }
 }
 

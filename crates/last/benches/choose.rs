@@ -9,7 +9,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use footscan_geom::mesh::{Format, TriMesh, Units};
 use footscan_geom::P3;
-use footscan_last::choose::{foot_targets, judge_files, rank};
+use footscan_last::choose::{judge_files, rank, Wanted};
 use footscan_last::customize::clinic::{Plantar, TapeGirths};
 use footscan_last::customize::measure::Side;
 use footscan_last::customize::rules::RuleSet;
@@ -58,9 +58,14 @@ fn bench(c: &mut Criterion) {
         footprint: Vec::new(),
     };
     let g = TapeGirths::checked(260.0, 248.0, 367.0, 200.5).unwrap();
-    let rows = foot_targets(&foot, &g, &RuleSet::default_rules(), &Inputs::default());
+    let (rules, inp) = (RuleSet::default_rules(), Inputs::default());
+    let want = Wanted {
+        girths: &g,
+        rules: &rules,
+        inp: &inp,
+    };
     let t = std::time::Instant::now();
-    let mut cands: Vec<_> = judge_files(&files, Units::Mm, None, &rows, &foot, 5.0)
+    let mut cands: Vec<_> = judge_files(&files, Units::Mm, None, &foot, &want)
         .into_iter()
         .map(|(c, _)| c)
         .collect();
@@ -75,7 +80,7 @@ fn bench(c: &mut Criterion) {
     grp.sample_size(10);
     grp.bench_function("rank 40 lasts", |b| {
         b.iter(|| {
-            let mut c: Vec<_> = judge_files(&files, Units::Mm, None, &rows, &foot, 5.0)
+            let mut c: Vec<_> = judge_files(&files, Units::Mm, None, &foot, &want)
                 .into_iter()
                 .map(|(c, _)| c)
                 .collect();

@@ -87,6 +87,14 @@ pub fn foot_targets(foot: &Plantar, g: &TapeGirths, rules: &RuleSet, inp: &Input
     targets(rules, inp, &fm).0
 }
 
+/// What every last is judged against: the fitter's tape girths, the comfort rules and what
+/// the last is for (the heel height, when given, for every last; else each last's own).
+pub struct Wanted<'a> {
+    pub girths: &'a TapeGirths,
+    pub rules: &'a RuleSet,
+    pub inp: &'a Inputs,
+}
+
 /// The heel allowance the rules give the shoe (rule I-A: how far the last's bottom starts
 /// behind the foot's heel), which the footprint's placement leaves out of the fit.
 pub fn heel_allowance(rules: &RuleSet, inp: &Inputs) -> f64 {
@@ -287,15 +295,17 @@ pub fn mirrored(mut m: TriMesh) -> TriMesh {
 /// Reads, size-checks, measures and judges every last file (in parallel over the cores), in
 /// the order given; a file that cannot be read or measured is a candidate that cannot meet
 /// any rule, saying why. Returns the candidates and the meshes (None where unreadable).
+/// The rule targets differ from last to last only by the heel height (rule II-F's ball girth
+/// follows it), which is the last's own unless `inp` gives one.
 pub fn judge_files(
     files: &[std::path::PathBuf],
     units: footscan_geom::mesh::Units,
     length_mm: Option<f64>,
-    rows: &[RuleRow],
     foot: &Plantar,
-    heel_allowance: f64,
+    want: &Wanted,
 ) -> Vec<(Candidate, Option<TriMesh>)> {
-    type Judged = (Candidate, Option<TriMesh>, Option<StockCut>);
+    type Judged = (Candidate, Option<TriMesh>, Option<(StockCut, Vec<RuleRow>)>);
+    let heel_allowance = heel_allowance(want.rules, want.inp);
     let one = |p: &std::path::PathBuf| -> Judged {
         let name = p.display().to_string();
         let got = TriMesh::load_solid(p, units, length_mm)
@@ -308,8 +318,12 @@ pub fn judge_files(
             });
         match got {
             Ok((m, lm)) => {
-                let (c, cut) = judge_last(&name, &lm, &m, rows, foot);
-                (c, Some(m), cut)
+                let (inp, heel_note) =
+                    crate::customize::clinic::stock_inputs(want.inp, Some(lm.heel_height));
+                let rows = foot_targets(foot, want.girths, want.rules, &inp);
+                let (mut c, cut) = judge_last(&name, &lm, &m, &rows, foot);
+                c.notes.extend(heel_note);
+                (c, Some(m), cut.map(|cut| (cut, rows)))
             }
             Err(why) => (
                 Candidate {
@@ -354,7 +368,7 @@ pub fn judge_files(
             .take_while(|&k| judged[k].0.largest_change_mm < best)
             .collect();
         let est = crate::par::map(batch.len(), cores, |j| {
-            let cut = judged[batch[j]].2.as_ref().expect("cut filtered");
+            let (cut, rows) = judged[batch[j]].2.as_ref().expect("cut filtered");
             crate::customize::clinic::build_up_estimate(cut, foot, rows, heel_allowance)
         });
         for (&k, b) in batch.iter().zip(est) {

@@ -65,6 +65,17 @@ fn folds(input: &TriMesh, out: &TriMesh) -> usize {
                 (r * input.face_normal(t)).map(|x| (x * 100.0).round() / 100.0).as_slice(),
                 out.face_normal(t).map(|x| (x * 100.0).round() / 100.0).as_slice()
             );
+            let f = |p: &footscan_geom::P3| format!("({:.2}, {:.2}, {:.2})", p.x, p.y, p.z);
+            let [oa, ob, oc] = out.corners(t);
+            println!(
+                "      in {} {} {} out {} {} {}",
+                f(&a),
+                f(&b),
+                f(&d),
+                f(&oa),
+                f(&ob),
+                f(&oc)
+            );
         }
     }
     bad.len()

@@ -185,7 +185,9 @@ pub fn run(data: &Path, repeats: usize, json_out: bool) -> Result<()> {
     }
     println!(
         "rules ({:?}, {:?}, heel {:.0} mm; config/last-rules.toml as shipped):",
-        inp.shoe, inp.wearer, inp.heel_mm
+        inp.shoe,
+        inp.wearer,
+        inp.heel()
     );
     println!(
         "{:5} {:16} {:>8} {:>6}  source",

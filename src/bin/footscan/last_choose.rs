@@ -5,7 +5,7 @@ use anyhow::{anyhow, bail, Result};
 use clap::Parser;
 use footscan::lastcustom::{plantar_of_scan, STOCK_EXTENSIONS};
 use footscan_geom::mesh::Units;
-use footscan_last::choose::{foot_targets, judge_files, mirrored, rank};
+use footscan_last::choose::{foot_targets, judge_files, mirrored, rank, Wanted};
 use footscan_last::customize::clinic::{customize_stock, TapeGirths};
 use footscan_last::customize::rules::{Shoe, Wearer};
 use footscan_last::customize::write_outputs_atomic;
@@ -36,9 +36,10 @@ pub struct ChooseArgs {
     shoe: Shoe,
     #[arg(long, default_value = "man")]
     wearer: Wearer,
-    /// Heel height of the shoe (mm).
-    #[arg(long, default_value_t = 25.0)]
-    heel_mm: f64,
+    /// Heel height of the shoe (mm), 0-120, for every last. Default: each last's own (a
+    /// stock last keeps its heel; rule II-F's ball girth allowance follows it)
+    #[arg(long, value_parser = crate::last_customize::heel_mm)]
+    heel_mm: Option<f64>,
     /// Print the ranking as JSON.
     #[arg(long)]
     json: bool,
@@ -76,14 +77,12 @@ pub fn run(a: ChooseArgs) -> Result<()> {
     }
     let rows = foot_targets(&plantar, &g, &rules, &inp);
     let t0 = Instant::now();
-    let judged = judge_files(
-        &files,
-        a.units,
-        a.length,
-        &rows,
-        &plantar,
-        footscan_last::choose::heel_allowance(&rules, &inp),
-    );
+    let want = Wanted {
+        girths: &g,
+        rules: &rules,
+        inp: &inp,
+    };
+    let judged = judge_files(&files, a.units, a.length, &plantar, &want);
     let mut cands: Vec<_> = judged.iter().map(|(c, _)| c.clone()).collect();
     rank(&mut cands);
     let rank_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -91,14 +90,23 @@ pub fn run(a: ChooseArgs) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&cands)?);
     } else {
         println!(
-            "{:?} foot {:.1} mm ({}); targets: {}",
+            "{:?} foot {:.1} mm ({}); targets: {}{}",
             plantar.side,
             plantar.length,
             a.scan.display(),
             rows.iter()
                 .map(|r| format!("{} {} {:.1}", r.rule, r.quantity, r.target_mm))
                 .collect::<Vec<_>>()
-                .join(", ")
+                .join(", "),
+            if inp.heel_mm.is_none() {
+                format!(
+                    " (ball girth at a {:.0} mm heel: each last's own heel moves it, as its \
+                     note says)",
+                    inp.heel()
+                )
+            } else {
+                String::new()
+            }
         );
         println!("rank  largest change (mm)      outline (mm)  last");
         for (k, c) in cands.iter().enumerate() {

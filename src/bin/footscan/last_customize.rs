@@ -70,9 +70,10 @@ pub struct CustomizeArgs {
     /// Wearer: man, woman, child.
     #[arg(long, default_value = "man")]
     wearer: Wearer,
-    /// Heel height of the shoe (mm), 0-120.
-    #[arg(long, default_value_t = 25.0, value_parser = heel_mm)]
-    heel_mm: f64,
+    /// Heel height of the shoe (mm), 0-120, which rule II-F's ball girth allowance follows.
+    /// Default: with --stock the stock last's own (the last keeps its heel), else 25
+    #[arg(long, value_parser = heel_mm)]
+    heel_mm: Option<f64>,
     /// Output directory (replaced as a whole once everything is written).
     #[arg(long)]
     out: PathBuf,
@@ -88,7 +89,7 @@ fn last_length(s: &str) -> Result<f64, String> {
     }
 }
 
-fn heel_mm(s: &str) -> Result<f64, String> {
+pub fn heel_mm(s: &str) -> Result<f64, String> {
     let h: f64 = s.parse().map_err(|e| format!("{s:?}: {e}"))?;
     if (HEEL_RANGE_MM.0..=HEEL_RANGE_MM.1).contains(&h) {
         Ok(h)
@@ -106,7 +107,7 @@ pub fn rules_and_inputs(
     rules: Option<&std::path::Path>,
     shoe: Shoe,
     wearer: Wearer,
-    heel_mm: f64,
+    heel_mm: Option<f64>,
 ) -> Result<(RuleSet, Inputs)> {
     let path = rules
         .map(PathBuf::from)
@@ -174,7 +175,7 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
         c.foot.triangles.len(),
         inp.shoe,
         inp.wearer,
-        inp.heel_mm
+        c.heel_mm
     );
     println!(
         "{:5} {:16} {:>8} {:>7} {:>8} {:>8} {:>7} {:>6}  met",

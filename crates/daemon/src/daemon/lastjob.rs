@@ -32,7 +32,7 @@ fn default_shoe() -> Shoe {
 fn default_wearer() -> Wearer {
     Inputs::default().wearer
 }
-fn default_heel_mm() -> f64 {
+fn default_heel_mm() -> Option<f64> {
     Inputs::default().heel_mm
 }
 
@@ -48,8 +48,9 @@ pub struct LastRequest {
     pub shoe: Shoe,
     #[serde(default = "default_wearer")]
     pub wearer: Wearer,
+    /// Heel height of the shoe (mm); absent or null: the stock last's own.
     #[serde(default = "default_heel_mm")]
-    pub heel_mm: f64,
+    pub heel_mm: Option<f64>,
 }
 
 /// `POST /api/scans/{id}/last/rank`: the girths and what the last is for, no stock.
@@ -61,8 +62,9 @@ pub struct RankRequest {
     pub shoe: Shoe,
     #[serde(default = "default_wearer")]
     pub wearer: Wearer,
+    /// Heel height of the shoe (mm); absent or null: the stock last's own.
     #[serde(default = "default_heel_mm")]
-    pub heel_mm: f64,
+    pub heel_mm: Option<f64>,
 }
 
 /// The stock collection ranked for a scan, best first.
@@ -204,11 +206,12 @@ impl Daemon {
     fn checked_request(
         &self,
         g: &TapeGirths,
-        heel_mm: f64,
+        heel_mm: Option<f64>,
     ) -> Result<(TapeGirths, RuleSet), DaemonError> {
         let girths = TapeGirths::checked(g.ball, g.instep, g.long_heel, g.ankle)
             .map_err(|e| DaemonError::BadRequest(format!("girths: {e}")))?;
-        if !(HEEL_RANGE_MM.0..=HEEL_RANGE_MM.1).contains(&heel_mm) {
+        if let Some(heel_mm) = heel_mm.filter(|h| !(HEEL_RANGE_MM.0..=HEEL_RANGE_MM.1).contains(h))
+        {
             return Err(DaemonError::BadRequest(format!(
                 "heel_mm = {}: a heel is {:.0}-{:.0} mm high",
                 heel_mm, HEEL_RANGE_MM.0, HEEL_RANGE_MM.1
@@ -238,17 +241,20 @@ impl Daemon {
             heel_mm: req.heel_mm,
         };
         let t0 = Instant::now();
-        let rows = footscan_last::choose::foot_targets(&plantar, &girths, &rules, &inp);
         let stock = self.stock_dir()?.to_path_buf();
         let names: Vec<String> = self.stock_lasts()?.into_iter().map(|s| s.name).collect();
         let files: Vec<PathBuf> = names.iter().map(|n| stock.join(n)).collect();
+        let want = footscan_last::choose::Wanted {
+            girths: &girths,
+            rules: &rules,
+            inp: &inp,
+        };
         let judged = footscan_last::choose::judge_files(
             &files,
             footscan_geom::mesh::Units::Auto,
             None,
-            &rows,
             &plantar,
-            footscan_last::choose::heel_allowance(&rules, &inp),
+            &want,
         );
         let mut lasts: Vec<footscan_last::choose::Candidate> = judged
             .into_iter()

@@ -167,6 +167,52 @@ pub struct StockCut {
     pub notes: Vec<String>,
 }
 
+/// A stock last's heel height differing from the one asked by more than this (mm) is said in
+/// the notes: the last keeps its own.
+const HEEL_NOTE_MM: f64 = 5.0;
+
+/// The inputs the rules use for a stock last whose own heel height is `own` (measured as a
+/// last maker does, None when it could not be): the heel asked, else the last's own, for
+/// the clinic path keeps the stock last's bottom curve and so its heel. With a note when the
+/// heel is taken from the last, assumed, or asked different from the last's.
+pub fn stock_inputs(inp: &Inputs, own: Option<f64>) -> (Inputs, Option<String>) {
+    let own = own.filter(|h| h.is_finite());
+    let (heel, note) = match (inp.heel_mm, own) {
+        (Some(h), Some(o)) if (h - o).abs() > HEEL_NOTE_MM => (
+            h,
+            Some(format!(
+                "heel height {h:.0} mm as asked for the rules (ball girth, rule II-F); the \
+                 stock last keeps its own heel of {o:.1} mm (its bottom curve is not changed)"
+            )),
+        ),
+        (Some(h), _) => (h, None),
+        (None, Some(o)) => {
+            let h = o.clamp(super::HEEL_RANGE_MM.0, super::HEEL_RANGE_MM.1);
+            (
+                h,
+                Some(format!(
+                    "heel height {h:.1} mm: the stock last's own, which it keeps (rule II-F's \
+                     ball girth allowance follows it; give a heel height to use another)"
+                )),
+            )
+        }
+        (None, None) => (
+            super::DEFAULT_HEEL_MM,
+            Some(format!(
+                "heel height {:.0} mm assumed: the stock last's heel could not be measured",
+                super::DEFAULT_HEEL_MM
+            )),
+        ),
+    };
+    (
+        Inputs {
+            heel_mm: Some(heel),
+            ..*inp
+        },
+        note,
+    )
+}
+
 /// Cuts `stock` (read as a `last_side` last, None when its shape does not tell) for a
 /// `foot_side` foot whose tape ankle girth is `ankle_tape` (for the reason a rule does not
 /// apply). A last of the other side is mirrored, or refused with `opts.strict_sides`.
@@ -301,7 +347,10 @@ pub fn customize_stock_with(
     girths
         .check_against(foot)
         .map_err(|why| CustomizeError::Rules(format!("the girths: {why}")))?;
-    let side = crate::measure_last::measure_last(stock.clone(), name).map(|m| m.side);
+    let lm = crate::measure_last::measure_last(stock.clone(), name);
+    let side = lm.as_ref().map(|m| m.side);
+    let (applied, heel_note) = stock_inputs(inp, lm.as_ref().ok().map(|m| m.heel_height));
+    let inp = &applied;
     let StockCut {
         stock,
         frame,
@@ -330,6 +379,7 @@ pub fn customize_stock_with(
     fm.instep_girth = girths.instep;
     fm.long_heel_girth = girths.long_heel;
     fm.ankle_girth = girths.ankle;
+    notes.extend(heel_note);
     let (mut rows, heel_allow) = targets(rules, inp, &fm);
     // A stock last far from the foot's size is the wrong last, not a deformation.
     let (have, need) = (sm.length, rows[0].target_mm);
@@ -463,6 +513,7 @@ pub fn customize_stock_with(
         }
     }
     Ok(Customized {
+        heel_mm: inp.heel(),
         frame_in_world: frame,
         foot: stock,
         foot_measures: fm,
@@ -845,4 +896,33 @@ fn build_up(
         });
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn heel_is_asked_or_the_stock_lasts_own() {
+        let asked = |h| Inputs {
+            heel_mm: h,
+            ..Inputs::default()
+        };
+        // Not asked: the last's own, clamped to a heel's range, said in a note.
+        let (i, n) = stock_inputs(&asked(None), Some(115.66));
+        assert_eq!(i.heel_mm, Some(115.66));
+        assert!(n.unwrap().contains("115.7 mm: the stock last's own"));
+        let (i, _) = stock_inputs(&asked(None), Some(130.0));
+        assert_eq!(i.heel_mm, Some(super::super::HEEL_RANGE_MM.1));
+        // Not measurable: the default, said.
+        let (i, n) = stock_inputs(&asked(None), None);
+        assert_eq!(i.heel(), super::super::DEFAULT_HEEL_MM);
+        assert!(n.unwrap().contains("could not be measured"));
+        // Asked: used; a note only where the last's own differs.
+        let (i, n) = stock_inputs(&asked(Some(25.0)), Some(27.0));
+        assert_eq!((i.heel_mm, n), (Some(25.0), None));
+        let (i, n) = stock_inputs(&asked(Some(25.0)), Some(115.0));
+        assert_eq!(i.heel_mm, Some(25.0));
+        assert!(n.unwrap().contains("keeps its own heel of 115.0 mm"));
+    }
 }

@@ -31,17 +31,30 @@ use std::path::Path;
 pub struct Inputs {
     pub shoe: Shoe,
     pub wearer: Wearer,
-    pub heel_mm: f64,
+    /// Heel height of the shoe (mm), which rule II-F's ball girth allowance follows. None:
+    /// on the clinic path the stock last's own (the last keeps its bottom curve, so its
+    /// heel is the shoe's), elsewhere [`DEFAULT_HEEL_MM`].
+    pub heel_mm: Option<f64>,
+}
+
+/// The heel height assumed where neither the request nor a stock last gives one (mm).
+pub const DEFAULT_HEEL_MM: f64 = 25.0;
+
+impl Inputs {
+    /// The heel height the rules use.
+    pub fn heel(&self) -> f64 {
+        self.heel_mm.unwrap_or(DEFAULT_HEEL_MM)
+    }
 }
 
 impl Default for Inputs {
-    /// A men's dress last with a 25 mm heel: what the CLI and footscand assume when a
-    /// request does not say.
+    /// A men's dress last, the heel as [`Inputs::heel_mm`] says: what the CLI and footscand
+    /// assume when a request does not say.
     fn default() -> Self {
         Inputs {
             shoe: Shoe::Dress,
             wearer: Wearer::Man,
-            heel_mm: 25.0,
+            heel_mm: None,
         }
     }
 }
@@ -137,6 +150,9 @@ pub struct Customized {
     /// up so the footprint fits (empty: nothing).
     pub placement: Option<clinic::Placement>,
     pub build_up: Vec<clinic::BuildUp>,
+    /// The heel height the rules used (mm): the one asked, else the stock last's own on the
+    /// clinic path (see [`Inputs::heel_mm`]).
+    pub heel_mm: f64,
 }
 
 /// How far the foot stands inside the last, region by region (negative: the foot presses
@@ -229,7 +245,7 @@ pub fn targets(
     let heel = r.i_a.heel_allowance_mm.get(inp.shoe);
     let ball = r.ii_f.change_mm.get(inp.wearer)
         + r.ii_f.shoe_change_mm.get(inp.shoe)
-        + r.ii_f.per_10mm_heel_mm * (inp.heel_mm - r.ii_f.heel_reference_mm).max(0.0) / 10.0;
+        + r.ii_f.per_10mm_heel_mm * (inp.heel() - r.ii_f.heel_reference_mm).max(0.0) / 10.0;
     let row = |rule, t, q, foot: f64, ch: f64, b, s: &str| RuleRow {
         rule,
         curve_type: t,
@@ -454,6 +470,7 @@ pub fn customize(
         notes: Vec::new(),
         placement: None,
         build_up: Vec::new(),
+        heel_mm: inp.heel(),
     })
 }
 
@@ -1034,8 +1051,13 @@ fn write_files(
     let p = dir.join("frame.igs");
     footscan_geom::export::iges::write_frame(&p, &frame, &hdr)
         .map_err(|e| out(&p, e.to_string()))?;
+    // The heel the rules used, which the clinic path took from the stock last when not asked.
+    let applied = Inputs {
+        heel_mm: Some(c.heel_mm),
+        ..*inp
+    };
     let rep = Report {
-        inputs: inp,
+        inputs: &applied,
         frame: &c.frame_in_world,
         rules: &c.rules,
         fits: &c.fits,

@@ -61,7 +61,7 @@ async function lastShowJob(id) {
   const when = job.finished ? `, ${job.seconds.toFixed(2)} s` : '';
   const r = job.request;
   out.append(el('p', { id: 'last-state', class: 'small', 'data-state': job.state,
-    text: `Last ${job.state}${when}: stock ${r.stock}, ${r.shoe} for a ${r.wearer}, heel ${r.heel_mm} mm` }));
+    text: `Last ${job.state}${when}: stock ${r.stock}, ${r.shoe} for a ${r.wearer}, heel ${r.heel_mm == null ? "the last's own" : r.heel_mm + ' mm'}` }));
   if (job.state === 'running') {
     lastPoll = setTimeout(() => lastShowJob(id), LAST_POLL_MS);
     return;
@@ -116,7 +116,8 @@ function lastBody() {
     girths: { ball: num('ball'), instep: num('instep'), long_heel: num('long-heel'), ankle: num('ankle') },
     shoe: $('last-shoe').value,
     wearer: $('last-wearer').value,
-    heel_mm: num('heel'),
+    // Empty: the stock last's own heel (null in the request).
+    heel_mm: $('last-heel').value === '' ? null : num('heel'),
   };
 }
 
