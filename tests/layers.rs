@@ -44,6 +44,7 @@ const CRATE_RULES: &[(&str, &[&str])] = &[
         &[
             "footscan-scanner",
             "footscan-hal",
+            "footscan-sim",
             "footscan-fleet",
             "footscan-last",
             "footscan-geom",

@@ -2,7 +2,7 @@
 //! interpolation, accuracy against the analytic surface, height map, continuity, mesh.
 
 use footscan::surface::compare::{eval_params, representation_errors, rms, Fitted, Method};
-use footscan::surface::{BezierNetwork, Mesh, PointGrid};
+use footscan::surface::{closed_from_heightmap, BezierNetwork, PointGrid};
 use footscan_sim::foot::{Foot, FootParams};
 
 fn foot() -> Foot {
@@ -155,11 +155,11 @@ fn closed_mesh_of_the_model_is_watertight() {
     let g = scan_like(&f, 1.0, 0.5);
     let net = BezierNetwork::build(&g).unwrap();
     let m = net.eval_heightmap(1.0);
-    let mesh = Mesh::closed_from_heightmap(&m, -2.0);
-    mesh.check_watertight().unwrap();
+    let mesh = closed_from_heightmap(&m, -2.0);
+    mesh.check_closed().unwrap();
     // Volume between the sole and z = -2 over the region, against the height map's sum.
     let cells: f64 = m.z.iter().filter(|z| z.is_finite()).map(|z| z + 2.0).sum();
-    let v = mesh.signed_volume();
+    let v = mesh.volume();
     assert!(
         v > 0.0 && (v - cells).abs() < 0.05 * cells,
         "{v} vs {cells}"

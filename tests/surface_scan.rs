@@ -3,18 +3,20 @@
 
 use footscan::scan::{run_scan, LoadedConfig, ScanGrid, ScanOptions};
 use footscan::surface::compare::{eval_params, representation_errors, rms, Fitted};
-use footscan::surface::{BezierNetwork, Mesh, PointGrid};
+use footscan::surface::{BezierNetwork, PointGrid};
+use footscan_geom::mesh::TriMesh;
+use footscan_geom::P3;
 use footscan_sim::foot::Foot;
 use std::collections::HashMap;
 use std::path::Path;
 
 /// Read a binary STL back, merging vertices with identical coordinates.
-fn read_stl(p: &Path) -> Mesh {
+fn read_stl(p: &Path) -> TriMesh {
     let b = std::fs::read(p).unwrap();
     let n = u32::from_le_bytes(b[80..84].try_into().unwrap()) as usize;
     assert_eq!(b.len(), 84 + 50 * n, "STL size");
     let mut index: HashMap<[u32; 3], u32> = HashMap::new();
-    let mut mesh = Mesh::default();
+    let mut mesh = TriMesh::default();
     for k in 0..n {
         let at = 84 + 50 * k + 12;
         let mut tri = [0u32; 3];
@@ -25,7 +27,8 @@ fn read_stl(p: &Path) -> Mesh {
             };
             let key = [f(0).to_bits(), f(1).to_bits(), f(2).to_bits()];
             *t = *index.entry(key).or_insert_with(|| {
-                mesh.vertices.push([f(0) as f64, f(1) as f64, f(2) as f64]);
+                mesh.vertices
+                    .push(P3::new(f(0) as f64, f(1) as f64, f(2) as f64));
                 (mesh.vertices.len() - 1) as u32
             });
         }
@@ -45,8 +48,8 @@ fn simulated_scan_model_meets_the_representation_target() {
     // The stage's mesh: closed and consistently oriented once read back from the STL.
     let mesh = read_stl(&dir.path().join("model.stl"));
     assert!(mesh.triangles.len() > 100_000);
-    mesh.check_watertight().unwrap();
-    assert!(mesh.signed_volume() > 10_000.0);
+    mesh.check_closed().unwrap();
+    assert!(mesh.volume() > 10_000.0);
 
     let grid = ScanGrid::load(&dir.path().join("grid.bin")).unwrap();
     let foot = Foot::new(cfg.config.sim.foot.clone()).unwrap();

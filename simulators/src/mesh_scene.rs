@@ -141,7 +141,7 @@ pub enum MeshSceneError {
     Axes {
         path: PathBuf,
         axes: String,
-        why: String,
+        why: footscan_geom::mesh::AxesError,
     },
 }
 

@@ -38,16 +38,19 @@ impl Tls {
     }
 }
 
+/// A `tls` value that is not one.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("tls = {0:?}: expected \"disable\", \"require\" or \"verify-full\"")]
+pub struct UnknownTls(pub String);
+
 impl FromStr for Tls {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Tls, String> {
+    type Err = UnknownTls;
+    fn from_str(s: &str) -> Result<Tls, UnknownTls> {
         match s {
             "disable" => Ok(Tls::Disable),
             "require" => Ok(Tls::Require),
             "verify-full" => Ok(Tls::VerifyFull),
-            _ => Err(format!(
-                "tls = {s:?}: expected \"disable\", \"require\" or \"verify-full\""
-            )),
+            _ => Err(UnknownTls(s.to_string())),
         }
     }
 }
@@ -137,7 +140,7 @@ impl Settings {
             }
         };
         let tls = match &s.tls {
-            Some(t) => t.parse::<Tls>().map_err(bad)?,
+            Some(t) => t.parse::<Tls>().map_err(|e| bad(e.to_string()))?,
             None => Tls::Disable,
         };
         for (key, v) in [("scanner", &s.scanner), ("clinic", &s.clinic)] {

@@ -24,7 +24,7 @@ fn bench(c: &mut Criterion) {
         "foot grid {} x {} cells of 0.1 mm ({} valid)",
         foot.heights.nx,
         foot.heights.ny,
-        foot.heights.valid_cells()
+        foot.heights.valid_count()
     );
     let mut g = c.benchmark_group("adjust");
     g.sample_size(20);

@@ -36,17 +36,24 @@ pub enum System {
     Mondopoint,
 }
 
+/// A sizing system or grading mode name that is not one.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NameError {
+    #[error("{0:?}: a sizing system is paris, uk, us or mondopoint")]
+    System(String),
+    #[error("{0:?}: a grading mode is arithmetic or geometric")]
+    Mode(String),
+}
+
 impl std::str::FromStr for System {
-    type Err = String;
-    fn from_str(s: &str) -> Result<System, String> {
+    type Err = NameError;
+    fn from_str(s: &str) -> Result<System, NameError> {
         match s.to_ascii_lowercase().as_str() {
             "paris" | "eu" | "french" => Ok(System::Paris),
             "uk" | "english" => Ok(System::Uk),
             "us" => Ok(System::Us),
             "mondopoint" | "mondo" => Ok(System::Mondopoint),
-            _ => Err(format!(
-                "{s:?}: a sizing system is paris, uk, us or mondopoint"
-            )),
+            _ => Err(NameError::System(s.to_string())),
         }
     }
 }
@@ -125,12 +132,12 @@ pub enum Mode {
 }
 
 impl std::str::FromStr for Mode {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Mode, String> {
+    type Err = NameError;
+    fn from_str(s: &str) -> Result<Mode, NameError> {
         match s {
             "arithmetic" => Ok(Mode::Arithmetic),
             "geometric" => Ok(Mode::Geometric),
-            _ => Err(format!("{s:?}: a grading mode is arithmetic or geometric")),
+            _ => Err(NameError::Mode(s.to_string())),
         }
     }
 }

@@ -9,7 +9,6 @@
 //! network's normal jumps across segment edges (docs/method.md section 7.4) never reach the
 //! bottom surface, and cells the network leaves out at the outline are kept.
 
-use crate::geom::HeightMap;
 use crate::measure::{rasterize_grid, MeasureError, Measurements};
 use crate::scandata::{ScanDir, ScanDirError, ScanGrid};
 use footscan_last::adjust::last::{
@@ -18,8 +17,7 @@ use footscan_last::adjust::last::{
 use footscan_last::adjust::output::{Report, Written};
 use footscan_last::adjust::surface::{fit_bottom, BottomSurface};
 use footscan_last::adjust::{
-    self, AdjustError, AdjustOptions, Adjustment, FootLandmarks, FootPlantar, HeightGrid,
-    LastBottom,
+    self, AdjustError, AdjustOptions, Adjustment, FootLandmarks, FootPlantar, LastBottom,
 };
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -70,20 +68,8 @@ pub fn foot_plantar(
             arch_point: m.arch_point,
             arch_height_mm: m.arch_height_mm,
         },
-        heights: height_grid(map),
+        heights: map,
     })
-}
-
-/// The measurement's height map as the adjustment's grid (the same layout, z[j * nx + i]).
-fn height_grid(map: HeightMap) -> HeightGrid {
-    HeightGrid {
-        x0: map.x0,
-        y0: map.y0,
-        cell_mm: map.cell_mm,
-        nx: map.nx,
-        ny: map.ny,
-        z: map.z,
-    }
 }
 
 /// Reads a saved scan's grid.bin and measurements.json as the adjustment's foot.
@@ -217,8 +203,7 @@ impl LastSource {
                     ),
                     why: footscan_util::chain(&e),
                 })?;
-            let map = rasterize_grid(&grid, cell_mm)?;
-            let below = height_grid(map);
+            let below = rasterize_grid(&grid, cell_mm)?;
             let source = format!("last scan {}", path.display());
             let bottom = scanned_bottom(&source, &below, opts.down_cos)?;
             Ok(LastSource::Scan {

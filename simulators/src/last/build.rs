@@ -39,14 +39,19 @@ impl Toe {
     }
 }
 
+/// A toe shape name that is not one.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("unknown toe {0:?}; valid: round, pointed, square")]
+pub struct UnknownToe(pub String);
+
 impl std::str::FromStr for Toe {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Toe, String> {
+    type Err = UnknownToe;
+    fn from_str(s: &str) -> Result<Toe, UnknownToe> {
         match s {
             "round" => Ok(Toe::Round),
             "pointed" => Ok(Toe::Pointed),
             "square" => Ok(Toe::Square),
-            _ => Err(format!("unknown toe {s:?}; valid: round, pointed, square")),
+            _ => Err(UnknownToe(s.to_string())),
         }
     }
 }

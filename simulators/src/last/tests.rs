@@ -110,5 +110,6 @@ fn toe_parses() {
     assert!("flat"
         .parse::<Toe>()
         .unwrap_err()
+        .to_string()
         .contains("round, pointed, square"));
 }

@@ -18,14 +18,10 @@ pub struct Args {
     #[arg(long, global = true)]
     url: Option<String>,
     /// With --url: disable, require (encrypted, certificate not checked) or verify-full.
-    #[arg(long, global = true, default_value = "disable", value_parser = parse_tls)]
+    #[arg(long, global = true, default_value = "disable")]
     tls: Tls,
     #[command(subcommand)]
     what: What,
-}
-
-fn parse_tls(s: &str) -> Result<Tls, String> {
-    s.parse()
 }
 
 #[derive(Subcommand)]

@@ -113,7 +113,7 @@ pub fn rules_and_inputs(
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("FOOTSCAN_LAST_RULES").map(PathBuf::from));
     let rules = match &path {
-        Some(p) => RuleSet::load(p).map_err(|e| anyhow!(e))?,
+        Some(p) => RuleSet::load(p)?,
         None => RuleSet::default_rules(),
     };
     Ok((

@@ -168,8 +168,33 @@ fn run() -> Result<()> {
     }
 }
 
+/// Without the `plugins` feature no `wasm` or `exec` stage can run: a config naming one fails
+/// the listing.
+#[cfg(not(feature = "plugins"))]
+fn plugin_stages(path: &Path) -> Result<()> {
+    let cfg = load_config(path)?;
+    if let Some((i, s)) = cfg
+        .config
+        .pipeline
+        .stages
+        .iter()
+        .enumerate()
+        .find(|(_, s)| matches!(s.stage.as_str(), "wasm" | "exec"))
+    {
+        anyhow::bail!(
+            "{}: pipeline.stages[{i}] is a `{}` stage, and this footscan was built without the \
+             `plugins` feature: build it with default features (`cargo build --release`)",
+            path.display(),
+            s.stage
+        );
+    }
+    println!("\nplugin stages of {}:\n(none)", path.display());
+    Ok(())
+}
+
 /// The plugin stages of the pipeline in `path`, each loaded and checked as a scan would: a
 /// module that does not load or a command that does not start fails the listing.
+#[cfg(feature = "plugins")]
 fn plugin_stages(path: &Path) -> Result<()> {
     use anyhow::Context;
     let text =

@@ -77,7 +77,7 @@ fn request(st: &AppState, req: StartJob, verify: bool) -> Result<JobRequest, Api
         .sim_mistakes
         .iter()
         .map(|m| Ok((parse_target(&m.asked)?, parse_mistake(&m.placed)?)))
-        .collect::<Result<Vec<_>, String>>()
+        .collect::<Result<Vec<_>, crate::daemon::guided::TargetError>>()
         .map_err(|e| ApiError::invalid(format!("sim_mistakes: {e}")))?;
     Ok(JobRequest {
         method,

@@ -71,9 +71,24 @@ pub fn listen(addr: SocketAddr) -> std::io::Result<tokio::net::TcpListener> {
     socket.listen(LISTEN_BACKLOG)
 }
 
+/// The descriptor limit leaves too few connections for the daemon to serve.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "the file-descriptor limit ({soft}, {open} open) leaves room for {cap} connections after \
+     keeping {reserved} for the scan pipeline; at least {min} are needed: raise it (ulimit -n, \
+     or LimitNOFILE= in the systemd unit)",
+    reserved = RESERVED_FDS,
+    min = MIN_CONNECTIONS
+)]
+pub struct TooFewDescriptors {
+    soft: u64,
+    open: u64,
+    cap: usize,
+}
+
 /// The connection cap the descriptor limit allows: the soft RLIMIT_NOFILE less the
 /// descriptors open now, the reserve and the overflow.
-pub fn connection_cap(configured: usize) -> Result<usize, String> {
+pub fn connection_cap(configured: usize) -> Result<usize, TooFewDescriptors> {
     let mut rl = libc::rlimit {
         rlim_cur: 0,
         rlim_max: 0,
@@ -88,11 +103,7 @@ pub fn connection_cap(configured: usize) -> Result<usize, String> {
     let room = soft.saturating_sub(open + RESERVED_FDS + OVERFLOW as u64) as usize;
     let cap = configured.min(room);
     if cap < MIN_CONNECTIONS {
-        return Err(format!(
-            "the file-descriptor limit ({soft}, {open} open) leaves room for {cap} connections \
-             after keeping {RESERVED_FDS} for the scan pipeline; at least {MIN_CONNECTIONS} are \
-             needed: raise it (ulimit -n, or LimitNOFILE= in the systemd unit)"
-        ));
+        return Err(TooFewDescriptors { soft, open, cap });
     }
     Ok(cap)
 }

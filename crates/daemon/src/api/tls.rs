@@ -26,26 +26,40 @@ pub enum TlsSetting {
 const HOW: &str =
     "valid: tls = \"self-signed\" or tls = { cert = \"cert.pem\", key = \"key.pem\" }";
 
+/// Why `tls` in [daemon] is refused; each names the key and what is valid.
+#[derive(Debug, thiserror::Error)]
+pub enum TlsSettingError {
+    #[error("tls = {0}: {HOW}")]
+    Value(String),
+    #[error("tls: unknown key {0:?}; {HOW}")]
+    UnknownKey(String),
+    #[error("tls.{key} = {value}: must be the path of a PEM file; {HOW}")]
+    NotAPath { key: &'static str, value: String },
+    #[error("tls: {0} is missing; {HOW}")]
+    Missing(&'static str),
+}
+
 impl TlsSetting {
     /// The setting from the value of `tls` in [daemon]; relative paths are taken from `base`.
-    pub fn parse(v: &toml::Value, base: &Path) -> Result<TlsSetting, String> {
+    pub fn parse(v: &toml::Value, base: &Path) -> Result<TlsSetting, TlsSettingError> {
         match v {
             toml::Value::String(s) if s == "self-signed" => Ok(TlsSetting::SelfSigned),
-            toml::Value::String(s) => Err(format!("tls = {s:?}: {HOW}")),
+            toml::Value::String(s) => Err(TlsSettingError::Value(format!("{s:?}"))),
             toml::Value::Table(t) => {
                 if let Some(k) = t.keys().find(|k| *k != "cert" && *k != "key") {
-                    return Err(format!("tls: unknown key {k:?}; {HOW}"));
+                    return Err(TlsSettingError::UnknownKey(k.clone()));
                 }
-                let path = |k: &str| -> Result<PathBuf, String> {
+                let path = |k: &'static str| -> Result<PathBuf, TlsSettingError> {
                     match t.get(k) {
                         Some(toml::Value::String(p)) if !p.is_empty() => {
                             let p = PathBuf::from(p);
                             Ok(if p.is_absolute() { p } else { base.join(p) })
                         }
-                        Some(other) => Err(format!(
-                            "tls.{k} = {other}: must be the path of a PEM file; {HOW}"
-                        )),
-                        None => Err(format!("tls: {k} is missing; {HOW}")),
+                        Some(other) => Err(TlsSettingError::NotAPath {
+                            key: k,
+                            value: other.to_string(),
+                        }),
+                        None => Err(TlsSettingError::Missing(k)),
                     }
                 };
                 Ok(TlsSetting::Files {
@@ -53,7 +67,7 @@ impl TlsSetting {
                     key: path("key")?,
                 })
             }
-            other => Err(format!("tls = {other}: {HOW}")),
+            other => Err(TlsSettingError::Value(other.to_string())),
         }
     }
 }
@@ -271,7 +285,7 @@ mod tests {
             "tls = { cert = \"c.pem\", key = \"k.pem\", ca = \"x\" }",
         ] {
             let v: toml::Value = toml::from_str(bad).unwrap();
-            let e = TlsSetting::parse(&v["tls"], base).unwrap_err();
+            let e = TlsSetting::parse(&v["tls"], base).unwrap_err().to_string();
             assert!(
                 e.contains("self-signed") && e.contains("cert ="),
                 "{bad}: {e}"

@@ -72,8 +72,31 @@ pub struct Calibrations {
     dir: PathBuf,
 }
 
-fn err(path: &Path, e: impl std::fmt::Display) -> String {
-    format!("{}: {e}", path.display())
+/// Why a calibration or a daily check could not be kept.
+#[derive(Debug, thiserror::Error)]
+pub enum HistoryError {
+    #[error("{}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(
+        "calibration {id} is already in the history ({}): a calibration is never overwritten",
+        path.display()
+    )]
+    Taken { id: String, path: PathBuf },
+    #[error("check {0} is already in the trend")]
+    CheckTaken(String),
+    #[error(transparent)]
+    Save(#[from] footscan::calib::CalibrationError),
+}
+
+fn err(path: &Path, source: std::io::Error) -> HistoryError {
+    HistoryError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
 }
 
 impl Calibrations {
@@ -98,19 +121,17 @@ impl Calibrations {
 
     /// Keep `entry` and its calibration `c` under `entry.id` and make it current. Refuses an
     /// id already in the history (nothing is overwritten).
-    pub fn add(&self, entry: &CalibrationEntry, c: &Calibration) -> Result<PathBuf, String> {
+    pub fn add(&self, entry: &CalibrationEntry, c: &Calibration) -> Result<PathBuf, HistoryError> {
         std::fs::create_dir_all(&self.dir).map_err(|e| err(&self.dir, e))?;
         let toml_path = self.path(&entry.id);
         let json_path = self.dir.join(format!("{}.json", entry.id));
         if toml_path.exists() || json_path.exists() {
-            return Err(format!(
-                "calibration {} is already in the history ({}): a calibration is never \
-                 overwritten",
-                entry.id,
-                toml_path.display()
-            ));
+            return Err(HistoryError::Taken {
+                id: entry.id.clone(),
+                path: toml_path,
+            });
         }
-        c.save(&toml_path).map_err(|e| footscan_util::chain(&e))?;
+        c.save(&toml_path)?;
         let json = serde_json::to_vec_pretty(entry).expect("entry serialises");
         if let Err(e) = footscan_util::write_atomic(&json_path, &json) {
             // Half an entry is none: the id stays free and the current one unchanged.
@@ -159,12 +180,12 @@ impl Calibrations {
     }
 
     /// Add a daily check to the trend.
-    pub fn add_check(&self, entry: &CheckEntry) -> Result<PathBuf, String> {
+    pub fn add_check(&self, entry: &CheckEntry) -> Result<PathBuf, HistoryError> {
         let dir = self.checks_dir();
         std::fs::create_dir_all(&dir).map_err(|e| err(&dir, e))?;
         let p = dir.join(format!("{}.json", entry.id));
         if p.exists() {
-            return Err(format!("check {} is already in the trend", entry.id));
+            return Err(HistoryError::CheckTaken(entry.id.clone()));
         }
         let json = serde_json::to_vec_pretty(entry).expect("check serialises");
         footscan_util::write_atomic(&p, &json).map_err(|e| err(&p, e))?;
@@ -305,7 +326,7 @@ mod tests {
         let pb = h.add(&entry("cal-b", &b), &b).unwrap();
         assert_eq!(h.current().unwrap().1, pb);
         // The same id again is refused and changes nothing.
-        let e = h.add(&entry("cal-a", &b), &b).unwrap_err();
+        let e = footscan_util::chain(&h.add(&entry("cal-a", &b), &b).unwrap_err());
         assert!(e.contains("never overwritten"), "{e}");
         assert_eq!(Calibration::load(&pa).unwrap().model.d_mm, 250.0);
         assert_eq!(h.current().unwrap().0.as_deref(), Some("cal-b"));

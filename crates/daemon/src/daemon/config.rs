@@ -112,6 +112,16 @@ pub enum DaemonConfigError {
     },
     #[error("daemon config {path}: {message}")]
     Invalid { path: PathBuf, message: String },
+    #[error("daemon config {path}")]
+    Tls {
+        path: PathBuf,
+        source: crate::api::tls::TlsSettingError,
+    },
+    #[error("daemon config {path}: [lasts] rules")]
+    Rules {
+        path: PathBuf,
+        source: footscan_last::customize::rules::RulesError,
+    },
     #[error(
         "refusing to listen on {bind} without a token: a non-loopback address exposes the \
          scanner to the network; set `token` in [daemon] of {path} or the environment variable \
@@ -197,7 +207,10 @@ impl DaemonConfig {
             .as_ref()
             .map(|v| crate::api::tls::TlsSetting::parse(v, base))
             .transpose()
-            .map_err(invalid)?;
+            .map_err(|source| DaemonConfigError::Tls {
+                path: path.to_owned(),
+                source,
+            })?;
         let allow_plain_http = d.allow_plain_http.unwrap_or(false);
         if token.is_some() && tls.is_none() && !allow_plain_http && !bind.ip().is_loopback() {
             return Err(DaemonConfigError::PlainHttp {
@@ -264,8 +277,12 @@ impl DaemonConfig {
         };
         // A rule file with a typo is named at start, not at the first last job.
         if let Some(r) = &last_rules {
-            footscan_last::customize::rules::RuleSet::load(r)
-                .map_err(|e| invalid(format!("[lasts] rules: {e}")))?;
+            footscan_last::customize::rules::RuleSet::load(r).map_err(|source| {
+                DaemonConfigError::Rules {
+                    path: path.to_owned(),
+                    source,
+                }
+            })?;
         }
         Ok(DaemonConfig {
             path: path.to_owned(),

@@ -66,32 +66,37 @@ pub struct JobRequest {
     pub sim_mistakes: Vec<(Target, Mistake)>,
 }
 
+/// A target or a simulated mistake the API does not know.
+#[derive(Debug, thiserror::Error)]
+pub enum TargetError {
+    #[error("target {0:?}: must be \"plate:<mm>\" (e.g. plate:15), \"staircase\" or \"empty\"")]
+    Target(String),
+    #[error(
+        "placed {0:?}: must be \"plate:<mm>\" (the plate on other spacers), \"staircase\" or \
+         \"nothing\""
+    )]
+    Mistake(String),
+}
+
 /// Parse a target as the API names it: `plate:<mm>`, `staircase`, `empty`.
-pub fn parse_target(s: &str) -> Result<Target, String> {
+pub fn parse_target(s: &str) -> Result<Target, TargetError> {
     match s {
         "staircase" => Ok(Target::Staircase),
         "empty" => Ok(Target::Empty),
         _ => plate_mm(s)
             .map(|height_mm| Target::Plate { height_mm })
-            .ok_or_else(|| {
-                format!("target {s:?}: must be \"plate:<mm>\" (e.g. plate:15), \"staircase\" or \"empty\"")
-            }),
+            .ok_or_else(|| TargetError::Target(s.to_string())),
     }
 }
 
 /// Parse a simulated mistake: `plate:<mm>`, `staircase`, `nothing`.
-pub fn parse_mistake(s: &str) -> Result<Mistake, String> {
+pub fn parse_mistake(s: &str) -> Result<Mistake, TargetError> {
     match s {
         "staircase" => Ok(Mistake::Staircase),
         "nothing" => Ok(Mistake::Nothing),
         _ => plate_mm(s)
             .map(|height_mm| Mistake::Plate { height_mm })
-            .ok_or_else(|| {
-                format!(
-                    "placed {s:?}: must be \"plate:<mm>\" (the plate on other spacers), \
-                     \"staircase\" or \"nothing\""
-                )
-            }),
+            .ok_or_else(|| TargetError::Mistake(s.to_string())),
     }
 }
 
@@ -664,7 +669,12 @@ impl Daemon {
         };
         let path = Calibrations::new(&self.config.archive)
             .add(&entry, c)
-            .map_err(|e| JobError::Failed(format!("keeping the calibration: {e}")))?;
+            .map_err(|e| {
+                JobError::Failed(format!(
+                    "keeping the calibration: {}",
+                    footscan_util::Chain(&e)
+                ))
+            })?;
         Ok((
             CalibrationInfo {
                 id: Some(id.clone()),
@@ -700,7 +710,12 @@ impl Daemon {
         let entry = CheckEntry::new(format!("{}", ScanId::generate(13)), calibration_id, &report);
         Calibrations::new(&self.config.archive)
             .add_check(&entry)
-            .map_err(|e| JobError::Failed(format!("keeping the daily check: {e}")))?;
+            .map_err(|e| {
+                JobError::Failed(format!(
+                    "keeping the daily check: {}",
+                    footscan_util::Chain(&e)
+                ))
+            })?;
         Ok(entry)
     }
 

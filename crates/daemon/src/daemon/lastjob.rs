@@ -218,7 +218,7 @@ impl Daemon {
             )));
         }
         let rules = match &self.config.last_rules {
-            Some(p) => RuleSet::load(p).map_err(DaemonError::Rules)?,
+            Some(p) => RuleSet::load(p)?,
             None => RuleSet::default_rules(),
         };
         Ok((girths, rules))

@@ -157,11 +157,12 @@ pub enum DaemonError {
     ScannerConfig(#[from] footscan::scan::config::ConfigError),
     /// The scanner config or its calibration fails a check made before any scan (the
     /// message names the file, the key and what is valid).
-    #[error("{0}")]
-    Preflight(String),
+    /// Boxed: the largest error here, and rare.
+    #[error(transparent)]
+    Preflight(Box<preflight::PreflightError>),
     /// The comfort rule file of `[lasts] rules` (the message names it and what is valid).
-    #[error("{0}")]
-    Rules(String),
+    #[error(transparent)]
+    Rules(#[from] footscan_last::customize::rules::RulesError),
     #[error("cannot start {what}")]
     Thread {
         what: String,
@@ -199,6 +200,12 @@ pub enum DaemonError {
         #[source]
         source: serde_json::Error,
     },
+}
+
+impl From<Box<preflight::PreflightError>> for DaemonError {
+    fn from(e: Box<preflight::PreflightError>) -> Self {
+        DaemonError::Preflight(e)
+    }
 }
 
 /// The running job.
@@ -268,9 +275,8 @@ impl Daemon {
         let cal = preflight::scan_calibration(
             &scanner,
             daemon_cal.as_ref().map(|(p, f)| (p.as_path(), f.as_str())),
-        )
-        .map_err(DaemonError::Preflight)?;
-        preflight::check_config(&scanner, &cal).map_err(DaemonError::Preflight)?;
+        )?;
+        preflight::check_config(&scanner, &cal)?;
         for (_, why) in preflight::missing_devices(&scanner) {
             tracing::warn!("{why}; scans are refused until it is present");
         }

@@ -53,7 +53,20 @@ pub enum Axes {
     Given { forward: V3, up: V3 },
 }
 
-fn signed_axis(s: &str) -> Result<V3, String> {
+/// Why an `--axes` value is refused; each names the input and what is valid.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AxesError {
+    #[error("{0:?} is not an axis; valid: x, y, z, -x, -y, -z")]
+    Axis(String),
+    #[error(
+        "axes {0:?}: give \"auto\" or two axes, heel-to-toe then up, like \"y,z\" or \"-y,z\""
+    )]
+    Count(String),
+    #[error("axes {0:?}: heel-to-toe and up must be different axes")]
+    Parallel(String),
+}
+
+fn signed_axis(s: &str) -> Result<V3, AxesError> {
     let t = s.trim();
     let (sign, name) = match t.strip_prefix('-') {
         Some(r) => (-1.0, r),
@@ -63,30 +76,26 @@ fn signed_axis(s: &str) -> Result<V3, String> {
         "x" => V3::x(),
         "y" => V3::y(),
         "z" => V3::z(),
-        _ => return Err(format!("{s:?} is not an axis; valid: x, y, z, -x, -y, -z")),
+        _ => return Err(AxesError::Axis(s.to_string())),
     };
     Ok(v * sign)
 }
 
 impl std::str::FromStr for Axes {
-    type Err = String;
+    type Err = AxesError;
     /// "auto", or "F,U": the file axis running heel to toe and the one pointing up, each
     /// x, y or z with an optional sign ("y,z", "-y,z", "x,-y").
-    fn from_str(s: &str) -> Result<Axes, String> {
+    fn from_str(s: &str) -> Result<Axes, AxesError> {
         if s.trim() == "auto" {
             return Ok(Axes::Auto);
         }
         let parts: Vec<&str> = s.split(',').collect();
         if parts.len() != 2 {
-            return Err(format!(
-                "axes {s:?}: give \"auto\" or two axes, heel-to-toe then up, like \"y,z\" or \"-y,z\""
-            ));
+            return Err(AxesError::Count(s.to_string()));
         }
         let (forward, up) = (signed_axis(parts[0])?, signed_axis(parts[1])?);
         if forward.dot(&up).abs() > 0.5 {
-            return Err(format!(
-                "axes {s:?}: heel-to-toe and up must be different axes"
-            ));
+            return Err(AxesError::Parallel(s.to_string()));
         }
         Ok(Axes::Given { forward, up })
     }

@@ -23,11 +23,11 @@ pub use gltf::{
     write_glb_scene, GlbError, GlbLine, GlbMark, GlbPart, GlbScene, PROUD_FULL_MM,
 };
 pub use intake::{
-    axis_name, intake, orient_consistently, Axes, Intake, IntakeOptions, CUT_MIN_SPAN,
+    axis_name, intake, orient_consistently, Axes, AxesError, Intake, IntakeOptions, CUT_MIN_SPAN,
     CUT_PLANARITY, FOOT_ELONGATION, FOOT_LENGTH_MM,
 };
 pub use io::{Format, StlKind};
-pub use units::{LoadReport, Units, UnitsDecision, MIN_PLAUSIBLE_MM};
+pub use units::{LoadReport, Units, UnitsDecision, UnknownUnits, MIN_PLAUSIBLE_MM};
 pub use validate::MeshReport;
 
 use crate::bbox::Aabb;

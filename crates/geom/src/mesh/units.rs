@@ -23,15 +23,20 @@ pub enum Units {
     Auto,
 }
 
+/// A units name that is not one.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("unknown units {0:?}; valid: mm, cm, m, auto")]
+pub struct UnknownUnits(pub String);
+
 impl std::str::FromStr for Units {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Units, String> {
+    type Err = UnknownUnits;
+    fn from_str(s: &str) -> Result<Units, UnknownUnits> {
         match s {
             "mm" => Ok(Units::Mm),
             "cm" => Ok(Units::Cm),
             "m" => Ok(Units::M),
             "auto" => Ok(Units::Auto),
-            _ => Err(format!("unknown units {s:?}; valid: mm, cm, m, auto")),
+            _ => Err(UnknownUnits(s.to_string())),
         }
     }
 }

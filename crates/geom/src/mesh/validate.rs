@@ -32,15 +32,7 @@ impl TriMesh {
             return Err(Defect::Empty);
         }
         let nv = self.vertices.len();
-        for (t, tri) in self.triangles.iter().enumerate() {
-            if let Some(&i) = tri.iter().find(|&&i| i as usize >= nv) {
-                return Err(Defect::IndexOutOfRange {
-                    triangle: t,
-                    index: i,
-                    vertices: nv,
-                });
-            }
-        }
+        self.check_indices()?;
         for (t, tri) in self.triangles.iter().enumerate() {
             let c = self.corners(t);
             let longest = (0..3)
@@ -59,6 +51,45 @@ impl TriMesh {
                 });
             }
         }
+        self.check_edges()?;
+        let volume = self.volume();
+        if volume.is_nan() || volume <= 0.0 {
+            return Err(Defect::InsideOut { volume });
+        }
+        Ok(MeshReport {
+            vertices: nv,
+            triangles: self.triangles.len(),
+            components: self.components().1,
+            volume,
+            area: self.area(),
+            bbox: self.bbox(),
+        })
+    }
+
+    /// The topology half of [`TriMesh::check`]: indices in range and every edge in exactly
+    /// two triangles running along it in opposite directions (closed, 2-manifold along
+    /// edges, consistently oriented). Thin or flat triangles pass: a solid closed over a
+    /// height map has walls of zero height where the surface meets its base.
+    pub fn check_closed(&self) -> Result<(), Defect> {
+        self.check_indices()?;
+        self.check_edges()
+    }
+
+    fn check_indices(&self) -> Result<(), Defect> {
+        let nv = self.vertices.len();
+        for (t, tri) in self.triangles.iter().enumerate() {
+            if let Some(&i) = tri.iter().find(|&&i| i as usize >= nv) {
+                return Err(Defect::IndexOutOfRange {
+                    triangle: t,
+                    index: i,
+                    vertices: nv,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    fn check_edges(&self) -> Result<(), Defect> {
         // Per undirected edge: uses in the direction low -> high and high -> low.
         let mut edges: HashMap<(u32, u32), (u32, u32)> =
             HashMap::with_capacity(self.triangles.len() * 2);
@@ -97,18 +128,7 @@ impl TriMesh {
                 }
             }
         }
-        let volume = self.volume();
-        if volume.is_nan() || volume <= 0.0 {
-            return Err(Defect::InsideOut { volume });
-        }
-        Ok(MeshReport {
-            vertices: nv,
-            triangles: self.triangles.len(),
-            components: self.components().1,
-            volume,
-            area: self.area(),
-            bbox: self.bbox(),
-        })
+        Ok(())
     }
 
     /// [`TriMesh::check`], the error naming `path`.
@@ -127,6 +147,29 @@ mod tests {
         TriMesh::cuboid(a, b)
     }
     use crate::P3;
+
+    /// A solid closed over a height map has zero-height walls where the surface meets its
+    /// base: closed and oriented (what `check_closed` asks), though `check` calls it
+    /// degenerate.
+    #[test]
+    fn closed_check_is_topology_only() {
+        let mut flat = cuboid(P3::origin(), P3::new(1.0, 2.0, 3.0));
+        for p in &mut flat.vertices {
+            if p.x > 0.5 {
+                p.z = 0.0;
+            }
+        }
+        assert!(matches!(flat.check(), Err(Defect::Degenerate { .. })));
+        flat.check_closed().unwrap();
+        let mut flipped = flat.clone();
+        flipped.triangles[0].swap(1, 2);
+        assert!(matches!(
+            flipped.check_closed(),
+            Err(Defect::Misoriented { .. })
+        ));
+        flipped.triangles.pop();
+        assert!(flipped.check_closed().is_err());
+    }
 
     #[test]
     fn defects_are_found_and_named() {

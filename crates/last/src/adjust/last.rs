@@ -2,7 +2,7 @@
 //! measured) and the whole last deformed to the adjusted bottom ([`deform_last`]).
 
 use super::outline;
-use super::{AdjustError, Adjustment, HeightGrid, LastBottom};
+use super::{AdjustError, Adjustment, HeightMap, LastBottom};
 use crate::smoothstep;
 use footscan_geom::mesh::{LoadReport, TriMesh, Units};
 use footscan_geom::{P3, V3};
@@ -43,7 +43,7 @@ pub struct PreparedLast {
     pub bottom: LastBottom,
     /// z of the bottom surface, continued beyond its outline over the whole last, for
     /// heights above the bottom.
-    pub lowest: HeightGrid,
+    pub lowest: HeightMap,
     pub load: Option<LoadReport>,
     pub bottom_triangles: usize,
     /// Tilt of the file's frame to the bottom frame (deg).
@@ -229,7 +229,7 @@ pub fn prepare_mesh(
     let (x0, y0) = (bb.min.x - margin, bb.min.y - margin);
     let nx = ((bb.max.x - bb.min.x + 2.0 * margin) / cell).ceil() as usize + 1;
     let ny = ((bb.max.y - bb.min.y + 2.0 * margin) / cell).ceil() as usize + 1;
-    let mut lowest = HeightGrid::new(x0, y0, cell, nx, ny);
+    let mut lowest = HeightMap::new(x0, y0, cell, nx, ny);
     let z0 = bb.min.z - 5.0;
     let span = bb.max.z - z0 + 5.0;
     let in_region: std::collections::HashSet<usize> = region.iter().copied().collect();
@@ -264,9 +264,9 @@ pub fn prepare_mesh(
 /// bottom).
 pub fn bottom_from_below(
     source: &str,
-    below: &HeightGrid,
+    below: &HeightMap,
     mask: &[bool],
-) -> Result<(LastBottom, HeightGrid), AdjustError> {
+) -> Result<(LastBottom, HeightMap), AdjustError> {
     let err = |why: String| AdjustError::Last {
         input: source.to_string(),
         why,
@@ -299,7 +299,7 @@ pub fn bottom_from_below(
             *z = f64::NAN;
         }
     }
-    if heights.valid_cells() == 0 {
+    if heights.valid_count() == 0 {
         return Err(err("the bottom outline covers no grid cell".into()));
     }
     let mut continued = heights.clone();
@@ -320,7 +320,7 @@ pub fn bottom_from_below(
 /// piece and its outline, as [`bottom_from_below`].
 pub fn scanned_bottom(
     source: &str,
-    below: &HeightGrid,
+    below: &HeightMap,
     down_cos: f64,
 ) -> Result<LastBottom, AdjustError> {
     let (nx, ny, c) = (below.nx, below.ny, below.cell_mm);
@@ -395,7 +395,7 @@ struct BoxField {
 }
 
 impl BoxField {
-    fn new(over: &HeightGrid, cell: f64, f: impl Fn(f64, f64) -> V3) -> BoxField {
+    fn new(over: &HeightMap, cell: f64, f: impl Fn(f64, f64) -> V3) -> BoxField {
         let (x0, y0) = (over.x0, over.y0);
         let nx = ((over.x(over.nx - 1) - x0) / cell).ceil() as usize + 1;
         let ny = ((over.y(over.ny - 1) - y0) / cell).ceil() as usize + 1;

@@ -30,7 +30,6 @@
 //! 6. Deviation (bottom minus foot) before (rigid fit only) and after: heights over the
 //!    footprint, outline, landmarks.
 
-pub mod height_grid;
 pub mod last;
 pub mod outline;
 pub mod output;
@@ -39,7 +38,7 @@ pub mod surface;
 pub mod synthetic;
 pub mod tps;
 
-pub use height_grid::HeightGrid;
+pub use footscan_geom::HeightMap;
 pub use outline::{outline_landmarks, OutlineLandmarks, Pt};
 pub use side::Side;
 
@@ -74,7 +73,7 @@ pub struct FootPlantar {
     /// Toe pad outlines, hallux first (may be empty).
     pub toe_outlines: Vec<Vec<Pt>>,
     pub landmarks: FootLandmarks,
-    pub heights: HeightGrid,
+    pub heights: HeightMap,
 }
 
 /// A last's bottom: its outline and heights in its own frame (x heel to toe, z up from the
@@ -84,7 +83,7 @@ pub struct LastBottom {
     /// What the bottom came from (a last file), for error messages.
     pub source: String,
     pub outline: Vec<Pt>,
-    pub heights: HeightGrid,
+    pub heights: HeightMap,
 }
 
 /// Knobs of [`adjust`]; the defaults are what the tests and benches use.
@@ -242,7 +241,7 @@ pub struct Adjustment {
     /// The thin-plate map from the scaled bottom to the adjusted one.
     pub forward: tps::Tps,
     /// Adjusted heights over the working rectangle (continued beyond the outline).
-    pub heights: HeightGrid,
+    pub heights: HeightMap,
     /// Cells inside the adjusted outline.
     pub inside: Vec<bool>,
     pub outline: Vec<Pt>,
@@ -253,8 +252,8 @@ pub struct Adjustment {
     pub before: Deviation,
     pub after: Deviation,
     /// Signed deviation maps (bottom minus foot) on the working grid, NaN off the footprint.
-    pub before_map: HeightGrid,
-    pub after_map: HeightGrid,
+    pub before_map: HeightMap,
+    pub after_map: HeightMap,
     /// Correspondences used (after smoothing of the targets).
     pub correspondences: usize,
     pub notes: Vec<String>,
@@ -310,7 +309,7 @@ fn check_foot(foot: &FootPlantar) -> Result<(), AdjustError> {
             g.cell_mm
         )));
     }
-    if g.valid_cells() == 0 {
+    if g.valid_count() == 0 {
         return Err(bad(
             "the height grid has no valid cell: no plantar surface".into()
         ));
@@ -352,11 +351,11 @@ pub fn adjust(
         input: bottom.source.clone(),
         why,
     };
-    if bottom.outline.len() < 8 || bottom.heights.valid_cells() == 0 {
+    if bottom.outline.len() < 8 || bottom.heights.valid_count() == 0 {
         return Err(last_err(format!(
             "the bottom has {} outline points and {} height cells; no bottom to adjust",
             bottom.outline.len(),
-            bottom.heights.valid_cells()
+            bottom.heights.valid_count()
         )));
     }
     let fl = &foot.landmarks;
@@ -520,8 +519,8 @@ pub fn adjust(
         .map(|&p| fwd.apply(p))
         .collect();
     let inside = outline::inside_mask(&adj_outline, x0, y0, c, nx, ny);
-    let mut hf = HeightGrid::new(x0, y0, c, nx, ny);
-    let mut hs = HeightGrid::new(x0, y0, c, nx, ny);
+    let mut hf = HeightMap::new(x0, y0, c, nx, ny);
+    let mut hs = HeightMap::new(x0, y0, c, nx, ny);
     let mut h_before = vec![f64::NAN; n];
     // Cells where both heights come from four finite corners (no blending at an edge).
     let mut full = vec![false; n];
@@ -581,7 +580,7 @@ pub fn adjust(
         zeta = zeta.clamp(0.25, 4.0);
     }
     // Heights scaled, then the correction to the plantar surface (exact at the arch point).
-    let mut corr = HeightGrid::new(x0, y0, c, nx, ny);
+    let mut corr = HeightMap::new(x0, y0, c, nx, ny);
     let mut pin = vec![false; n];
     for k in 0..n {
         if hf.z[k].is_finite() && hs.z[k].is_finite() {
@@ -600,13 +599,13 @@ pub fn adjust(
             corr.z[k] = fl.arch_height_mm - zeta * hs.z[k];
         }
     }
-    if corr.valid_cells() == 0 {
+    if corr.valid_count() == 0 {
         return Err(last_err(
             "the bottom and the footprint do not overlap after alignment".into(),
         ));
     }
     corr.fill();
-    let mut heights = HeightGrid::new(x0, y0, c, nx, ny);
+    let mut heights = HeightMap::new(x0, y0, c, nx, ny);
     for k in 0..n {
         heights.z[k] = if hs.z[k].is_finite() {
             zeta * hs.z[k] + corr.z[k]
@@ -624,8 +623,8 @@ pub fn adjust(
     heights.smooth4(&inside, &pin, opts.smooth_passes);
 
     // 6. Deviation before and after.
-    let mut before_map = HeightGrid::new(x0, y0, c, nx, ny);
-    let mut after_map = HeightGrid::new(x0, y0, c, nx, ny);
+    let mut before_map = HeightMap::new(x0, y0, c, nx, ny);
+    let mut after_map = HeightMap::new(x0, y0, c, nx, ny);
     let (mut sb, mut sa) = (Stats::default(), Stats::default());
     for k in 0..n {
         if !hf.z[k].is_finite() {

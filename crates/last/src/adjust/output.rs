@@ -4,7 +4,7 @@
 use super::last::{DeformReport, PreparedLast};
 use super::outline::Pt;
 use super::surface::BottomSurface;
-use super::{AdjustError, Adjustment, Deviation, HeightGrid, LandmarkPair};
+use super::{AdjustError, Adjustment, Deviation, HeightMap, LandmarkPair};
 use crate::draw::{self, Canvas, View, BLACK, BLUE, GREEN, GREY, WHITE};
 use footscan_geom::export::{iges, step, Header};
 use footscan_geom::mesh::{Format, TriMesh};
@@ -79,7 +79,7 @@ impl Report {
 fn panel(
     c: &mut Canvas,
     view: &View,
-    map: &HeightGrid,
+    map: &HeightMap,
     range: f64,
     outlines: [(&[Pt], draw::Colour); 2],
     marks: &[(Pt, draw::Colour)],
@@ -126,7 +126,7 @@ pub fn heatmap(adj: &Adjustment, title: &str) -> Canvas {
         }
     }
     let bounds = [lo[0] - 3.0, hi[0] + 3.0, lo[1] - 3.0, hi[1] + 3.0];
-    let range = |m: &HeightGrid, floor: f64| {
+    let range = |m: &HeightMap, floor: f64| {
         let mut v: Vec<f64> =
             m.z.iter()
                 .filter(|z| z.is_finite())

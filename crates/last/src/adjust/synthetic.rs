@@ -3,7 +3,7 @@
 //! amounts, so an adjustment must recover exactly those amounts.
 
 use super::outline::{self, Pt};
-use super::{FootLandmarks, FootPlantar, HeightGrid, LastBottom, Side};
+use super::{FootLandmarks, FootPlantar, HeightMap, LastBottom, Side};
 
 /// A smooth foot sole of length `length` (mm), heel at x = 0, toe toward +x.
 #[derive(Clone, Copy, Debug)]
@@ -138,7 +138,7 @@ impl AnalyticFoot {
         let (x0, y0) = (-2.0, -w);
         let nx = ((self.length + 4.0) / cell_mm).ceil() as usize + 1;
         let ny = (2.0 * w / cell_mm).ceil() as usize + 1;
-        let mut g = HeightGrid::new(x0, y0, cell_mm, nx, ny);
+        let mut g = HeightMap::new(x0, y0, cell_mm, nx, ny);
         for j in 0..ny {
             for i in 0..nx {
                 if let Some(h) = self.height(g.x(i), g.y(j)) {
@@ -219,7 +219,7 @@ impl AnalyticFoot {
         }
         let nx = ((hi[0] - lo[0] + 4.0) / cell_mm).ceil() as usize + 1;
         let ny = ((hi[1] - lo[1] + 4.0) / cell_mm).ceil() as usize + 1;
-        let mut g = HeightGrid::new(lo[0] - 2.0, lo[1] - 2.0, cell_mm, nx, ny);
+        let mut g = HeightMap::new(lo[0] - 2.0, lo[1] - 2.0, cell_mm, nx, ny);
         for j in 0..ny {
             for i in 0..nx {
                 let f = to_f([g.x(i), g.y(j)]);

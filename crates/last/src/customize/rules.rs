@@ -21,17 +21,15 @@ pub enum Shoe {
 }
 
 impl std::str::FromStr for Shoe {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Shoe, String> {
+    type Err = RulesError;
+    fn from_str(s: &str) -> Result<Shoe, RulesError> {
         match s {
             "dress" | "leather" => Ok(Shoe::Dress),
             "sport" => Ok(Shoe::Sport),
             "football" => Ok(Shoe::Football),
             "hiking" => Ok(Shoe::Hiking),
             "casual" => Ok(Shoe::Casual),
-            _ => Err(format!(
-                "unknown shoe type {s:?}; valid: dress (leather), sport, football, hiking, casual"
-            )),
+            _ => Err(RulesError::Shoe(s.to_string())),
         }
     }
 }
@@ -45,13 +43,13 @@ pub enum Wearer {
 }
 
 impl std::str::FromStr for Wearer {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Wearer, String> {
+    type Err = RulesError;
+    fn from_str(s: &str) -> Result<Wearer, RulesError> {
         match s {
             "man" => Ok(Wearer::Man),
             "woman" => Ok(Wearer::Woman),
             "child" => Ok(Wearer::Child),
-            _ => Err(format!("unknown wearer {s:?}; valid: man, woman, child")),
+            _ => Err(RulesError::Wearer(s.to_string())),
         }
     }
 }
@@ -222,20 +220,49 @@ pub struct RuleSet {
     pub iv: GirthRule,
 }
 
+/// Why a rule file, a shoe type or a wearer was refused; each names the input and what is
+/// valid.
+#[derive(Debug, thiserror::Error)]
+pub enum RulesError {
+    #[error("unknown shoe type {0:?}; valid: dress (leather), sport, football, hiking, casual")]
+    Shoe(String),
+    #[error("unknown wearer {0:?}; valid: man, woman, child")]
+    Wearer(String),
+    #[error("{}: cannot read the rule file", path.display())]
+    Read {
+        path: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// TOML's own message without its source excerpt; `line` when TOML knows it.
+    #[error("{name}: {}{message}", line.map(|l| format!("line {l}: ")).unwrap_or_default())]
+    Toml {
+        name: String,
+        line: Option<usize>,
+        message: String,
+    },
+    #[error("{name}: line {line}: rule {rule} acts on {expected}, not on {got}")]
+    WrongCurve {
+        name: String,
+        line: usize,
+        rule: &'static str,
+        expected: &'static str,
+        got: &'static str,
+    },
+}
+
 /// The file that ships with the crate's documentation (`config/last-rules.toml`).
 pub const DEFAULT_RULES: &str = include_str!("../../../../config/last-rules.toml");
 
 impl RuleSet {
     /// Parse a rule file; `name` names it in errors.
-    pub fn parse(text: &str, name: &str) -> Result<RuleSet, String> {
-        let r: RuleSet = toml::from_str(text).map_err(|e| {
-            let line = e
+    pub fn parse(text: &str, name: &str) -> Result<RuleSet, RulesError> {
+        let r: RuleSet = toml::from_str(text).map_err(|e| RulesError::Toml {
+            name: name.to_string(),
+            line: e
                 .span()
-                .map(|s| text[..s.start.min(text.len())].lines().count().max(1));
-            match line {
-                Some(l) => format!("{name}: line {l}: {}", e.message()),
-                None => format!("{name}: {}", e.message()),
-            }
+                .map(|s| text[..s.start.min(text.len())].lines().count().max(1)),
+            message: e.message().to_string(),
         })?;
         // Each rule's curve must be one of its type.
         let checks: [(&str, Curve, &[Curve]); 10] = [
@@ -252,19 +279,22 @@ impl RuleSet {
         ];
         for (rule, c, ok) in checks {
             if !ok.contains(&c) {
-                let line = find_line(text, rule);
-                return Err(format!(
-                    "{name}: line {line}: rule {rule} acts on {}, not on {}",
-                    ok[0].name(),
-                    c.name()
-                ));
+                return Err(RulesError::WrongCurve {
+                    name: name.to_string(),
+                    line: find_line(text, rule),
+                    rule,
+                    expected: ok[0].name(),
+                    got: c.name(),
+                });
             }
         }
         Ok(r)
     }
-    pub fn load(path: &Path) -> Result<RuleSet, String> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| format!("{}: cannot read the rule file: {e}", path.display()))?;
+    pub fn load(path: &Path) -> Result<RuleSet, RulesError> {
+        let text = std::fs::read_to_string(path).map_err(|source| RulesError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
         RuleSet::parse(&text, &path.display().to_string())
     }
     pub fn default_rules() -> RuleSet {

@@ -24,7 +24,8 @@ use crate::geom::HeightMap;
 use crate::measure::{measure_grid, MeasureError, Measurements, DEFAULT_CELL_MM};
 use crate::scandata::ScanGrid;
 use crate::surface::solid::{outline_solid, OutlineSolid};
-use crate::surface::{build_scan_model, BezierNetwork, Continuity, Mesh, SurfaceError};
+use crate::surface::{build_scan_model, BezierNetwork, Continuity, SurfaceError};
+use footscan_geom::mesh::{Format, GlbError, MeshError, TriMesh};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -58,6 +59,11 @@ pub enum CadError {
         path: PathBuf,
         source: std::io::Error,
     },
+    /// A mesh file (the error names it).
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    #[error("writing {}", path.display())]
+    Glb { path: PathBuf, source: GlbError },
 }
 
 /// Refuse a cell that is not a number, not positive, finer than [`MIN_CELL_MM`] or coarser
@@ -388,8 +394,6 @@ pub struct ModelSummary {
     pub files: Vec<PathBuf>,
 }
 
-type MeshWriter = fn(&std::path::Path, &Mesh) -> std::io::Result<()>;
-
 /// Cell of the solid whose filled heights (the bridged gaps) every other cell samples, so
 /// solids on different cells (the STL's, the STEP's) agree there.
 pub const FILL_CELL_MM: f64 = 0.5;
@@ -435,16 +439,12 @@ pub fn foot_landmarks(m: &Measurements, frame: &FootFrame) -> Vec<(&'static str,
 /// .glb; returns its triangle count.
 pub fn write_foot_glb(
     path: &std::path::Path,
-    mesh: &Mesh,
+    mesh: &TriMesh,
     m: &Measurements,
     frame: &FootFrame,
-) -> Result<usize, footscan_geom::mesh::GlbError> {
-    use footscan_geom::mesh::{write_glb_scene, GlbLine, GlbMark, GlbPart, GlbScene, TriMesh};
+) -> Result<usize, GlbError> {
+    use footscan_geom::mesh::{write_glb_scene, GlbLine, GlbMark, GlbPart, GlbScene};
     use footscan_geom::P3;
-    let tri = TriMesh::new(
-        mesh.vertices.iter().map(|v| P3::from(*v)).collect(),
-        mesh.triangles.clone(),
-    );
     let lm = foot_landmarks(m, frame);
     let marks: Vec<GlbMark> = lm
         .iter()
@@ -461,7 +461,7 @@ pub fn write_foot_glb(
         &GlbScene {
             parts: &[GlbPart {
                 name: "foot",
-                mesh: &tri,
+                mesh,
                 colour: [0.85, 0.68, 0.58, 1.0],
                 vertex_colours: None,
             }],
@@ -480,7 +480,7 @@ pub fn write_foot_glb(
             ],
         },
     )?;
-    Ok(tri.triangles.len())
+    Ok(mesh.triangles.len())
 }
 
 /// Build the network of `grid`, then [`write_foot_model`].
@@ -548,17 +548,13 @@ pub fn write_foot_model(
     }
     let mesh = solid.mesh();
     let mut written = Vec::new();
-    let writers: [(&Option<PathBuf>, MeshWriter); 3] = [
-        (&files.stl, crate::io::write_stl),
-        (&files.ply, crate::io::write_ply_mesh),
-        (&files.obj, crate::io::write_obj),
-    ];
-    for (path, write) in writers {
+    for (path, format) in [
+        (&files.stl, Format::StlBinary),
+        (&files.ply, Format::PlyBinary),
+        (&files.obj, Format::Obj),
+    ] {
         if let Some(p) = path {
-            write(p, &mesh).map_err(|source| CadError::Write {
-                path: p.clone(),
-                source,
-            })?;
+            mesh.write(p, format)?;
             written.push(p.clone());
         }
     }
@@ -577,16 +573,16 @@ pub fn write_foot_model(
             step_faces = Some(write_iges_solid(p, &s, "footscan foot model").map_err(err(p))?);
             written.push(p.clone());
         }
-        step_volume = Some(s.mesh().signed_volume());
+        step_volume = Some(s.mesh().volume());
     }
     let mut glb_triangles = None;
     if let Some(p) = &files.glb {
         let g = on(files.glb_cell_mm)?;
         glb_triangles =
             Some(
-                write_foot_glb(p, &g.mesh(), &m, &frame).map_err(|e| CadError::Write {
+                write_foot_glb(p, &g.mesh(), &m, &frame).map_err(|source| CadError::Glb {
                     path: p.clone(),
-                    source: std::io::Error::other(e.to_string()),
+                    source,
                 })?,
             );
         written.push(p.clone());
@@ -624,7 +620,7 @@ pub fn write_foot_model(
         triangles: mesh.triangles.len(),
         boundary_vertices: solid.boundary_len(),
         components,
-        volume_mm3: mesh.signed_volume(),
+        volume_mm3: mesh.volume(),
         base_z_mm: solid.base_z,
         step_cell_mm: step_volume.map(|_| files.step_cell_mm),
         step_faces,

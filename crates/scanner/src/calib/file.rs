@@ -1,5 +1,5 @@
 use super::bezier_depth::BezierDepth;
-use super::{CameraModel, Triangulator};
+use super::{CameraModel, ModelError, Triangulator};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -25,6 +25,21 @@ pub struct Calibration {
     pub bezier: Option<BezierDepth>,
 }
 
+/// Why a calibration's text is refused.
+#[derive(Debug, thiserror::Error)]
+pub enum ParseError {
+    #[error(transparent)]
+    Toml(#[from] toml::de::Error),
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    #[error("bezier: {rows} reference rows and {blocks} blocks for a {height}-row camera")]
+    Bezier {
+        rows: usize,
+        blocks: usize,
+        height: u32,
+    },
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum CalibrationError {
     #[error("cannot read calibration {path}")]
@@ -32,8 +47,12 @@ pub enum CalibrationError {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("calibration {path} is not valid: {message}")]
-    Parse { path: PathBuf, message: String },
+    /// Boxed: TOML's error is large, and this one is rare.
+    #[error("calibration {path} is not valid")]
+    Parse {
+        path: PathBuf,
+        source: Box<ParseError>,
+    },
     #[error("cannot write calibration {path}")]
     Write {
         path: PathBuf,
@@ -47,23 +66,22 @@ impl Calibration {
             path: path.to_owned(),
             source,
         })?;
-        Self::parse(&text).map_err(|message| CalibrationError::Parse {
+        Self::parse(&text).map_err(|e| CalibrationError::Parse {
             path: path.to_owned(),
-            message,
+            source: Box::new(e),
         })
     }
 
-    pub fn parse(text: &str) -> Result<Self, String> {
-        let c: Calibration = toml::from_str(text).map_err(|e| e.to_string())?;
+    pub fn parse(text: &str) -> Result<Self, ParseError> {
+        let c: Calibration = toml::from_str(text)?;
         c.model.validate()?;
         if let Some(b) = &c.bezier {
             if b.reference_col.len() != c.model.height as usize || b.blocks.is_empty() {
-                return Err(format!(
-                    "bezier: {} reference rows and {} blocks for a {}-row camera",
-                    b.reference_col.len(),
-                    b.blocks.len(),
-                    c.model.height
-                ));
+                return Err(ParseError::Bezier {
+                    rows: b.reference_col.len(),
+                    blocks: b.blocks.len(),
+                    height: c.model.height,
+                });
             }
         }
         Ok(c)
@@ -80,12 +98,10 @@ impl Calibration {
 
     /// Written atomically; an invalid model is refused rather than saved.
     pub fn save(&self, path: &Path) -> Result<(), CalibrationError> {
-        self.model
-            .validate()
-            .map_err(|message| CalibrationError::Parse {
-                path: path.to_owned(),
-                message,
-            })?;
+        self.model.validate().map_err(|e| CalibrationError::Parse {
+            path: path.to_owned(),
+            source: Box::new(e.into()),
+        })?;
         let text = toml::to_string_pretty(self).expect("calibration serialises");
         footscan_util::write_atomic(path, text.as_bytes()).map_err(|source| {
             CalibrationError::Write {
@@ -117,12 +133,49 @@ mod tests {
         assert_eq!(Calibration::load(&path).unwrap(), c);
     }
 
+    /// An invalid model is a typed cause under the file's error, not text inside it.
+    #[test]
+    fn an_invalid_model_is_the_cause() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("calib.toml");
+        let mut c = Calibration {
+            method: "simulator-truth".into(),
+            date: "2026-11-21T00:00:00Z".into(),
+            model: default_model(),
+            stddev: BTreeMap::new(),
+            residuals: BTreeMap::new(),
+            bezier: None,
+        };
+        c.model.d_mm = -1.0;
+        let e = c.save(&path).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!("calibration {} is not valid", path.display())
+        );
+        let cause = std::error::Error::source(&e).unwrap();
+        let parse = cause
+            .downcast_ref::<Box<ParseError>>()
+            .map(|b| &**b)
+            .or_else(|| cause.downcast_ref::<ParseError>());
+        assert!(
+            matches!(
+                parse,
+                Some(ParseError::Model(ModelError::NotPositive {
+                    key: "d_mm",
+                    ..
+                }))
+            ),
+            "{cause:?}"
+        );
+        assert!(!path.exists());
+    }
+
     #[test]
     fn bad_file_names_path_and_key() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("bad.toml");
         std::fs::write(&path, "method = \"x\"\ndate = \"d\"\n[model]\nf_px = 1\n").unwrap();
-        let e = Calibration::load(&path).unwrap_err().to_string();
+        let e = footscan_util::chain(&Calibration::load(&path).unwrap_err());
         assert!(e.contains("bad.toml") && e.contains("missing field"), "{e}");
     }
 }

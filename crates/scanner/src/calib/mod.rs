@@ -33,8 +33,8 @@ pub mod uncertainty;
 pub mod verify;
 
 pub use error::CalibError;
-pub use file::{Calibration, CalibrationError};
+pub use file::{Calibration, CalibrationError, ParseError};
 pub use gauge::untilted_equivalent;
-pub use model::{CameraModel, Triangulator};
+pub use model::{CameraModel, ModelError, Triangulator};
 pub use plan::CalibrationPlan;
 pub use run::{Calibrated, Method};

@@ -38,6 +38,22 @@ pub struct Triangulator {
     depth: Option<std::sync::Arc<super::bezier_depth::BezierDepth>>,
 }
 
+/// Why a camera model is refused (it would give silent nonsense heights); each names the key
+/// and what is valid.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    #[error("model.{key} = {value}: must be a positive number")]
+    NotPositive { key: &'static str, value: f64 },
+    #[error("model.l_mm = {0}: the laser offset must be non-zero (no triangulation baseline)")]
+    NoBaseline(f64),
+    #[error("model.width x height = {width}x{height}: must be at least 2x2")]
+    TooSmall { width: u32, height: u32 },
+    #[error("model.{key} = {value}: must be finite")]
+    NotFinite { key: &'static str, value: f64 },
+    #[error("tilt {0} deg: camera_tilt_deg and laser_tilt_deg must be within +/-45 deg")]
+    Tilt(f64),
+}
+
 impl CameraModel {
     /// The rotation camera -> world.
     pub fn rotation(&self) -> [[f64; 3]; 3] {
@@ -114,7 +130,7 @@ impl CameraModel {
     }
 
     /// Checks that would otherwise produce silent nonsense heights.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), ModelError> {
         let pos = [
             ("f_px", self.f_px),
             ("d_mm", self.d_mm),
@@ -122,20 +138,17 @@ impl CameraModel {
         ];
         for (k, v) in pos {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("model.{k} = {v}: must be a positive number"));
+                return Err(ModelError::NotPositive { key: k, value: v });
             }
         }
         if !(self.l_mm.is_finite() && self.l_mm.abs() > 1e-6) {
-            return Err(format!(
-                "model.l_mm = {}: the laser offset must be non-zero (no triangulation baseline)",
-                self.l_mm
-            ));
+            return Err(ModelError::NoBaseline(self.l_mm));
         }
         if self.width < 2 || self.height < 2 {
-            return Err(format!(
-                "model.width x height = {}x{}: must be at least 2x2",
-                self.width, self.height
-            ));
+            return Err(ModelError::TooSmall {
+                width: self.width,
+                height: self.height,
+            });
         }
         for (k, v) in [
             ("cx", self.cx),
@@ -146,14 +159,12 @@ impl CameraModel {
             ("p2", self.p2),
         ] {
             if !v.is_finite() {
-                return Err(format!("model.{k} = {v}: must be finite"));
+                return Err(ModelError::NotFinite { key: k, value: v });
             }
         }
         for t in self.camera_tilt_deg.iter().chain(&self.laser_tilt_deg) {
             if !(t.is_finite() && t.abs() < 45.0) {
-                return Err(format!(
-                    "tilt {t} deg: camera_tilt_deg and laser_tilt_deg must be within +/-45 deg"
-                ));
+                return Err(ModelError::Tilt(*t));
             }
         }
         Ok(())
@@ -296,6 +307,6 @@ pub(crate) mod tests {
     fn validate_names_the_key() {
         let mut m = default_model();
         m.d_mm = -1.0;
-        assert!(m.validate().unwrap_err().contains("d_mm"));
+        assert!(m.validate().unwrap_err().to_string().contains("d_mm"));
     }
 }

@@ -1,12 +1,10 @@
-//! File formats and renderings: PLY point clouds, meshes, PNG height maps; the atomic file writes
+//! File formats and renderings: PLY point clouds, PNG height maps (meshes: `footscan_geom::mesh`); the atomic file writes
 //! (from `footscan-util`) re-exported for the modules that write them.
 
 pub(crate) mod heightmap;
-mod mesh;
 mod ply;
 
 pub use heightmap::{render_heightmap, HeightMapImage, HeightMapLabel};
-pub use mesh::{write_obj, write_ply_mesh, write_stl};
 pub use ply::write_ply_points;
 
 pub use footscan_util::{write_atomic, write_atomic_with};

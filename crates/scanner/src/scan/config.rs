@@ -61,9 +61,19 @@ impl Default for CalibrationSection {
     }
 }
 
+/// A `[calibration]` value out of its range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("calibration.{key} = {value}: valid is [{lo}, {hi}]")]
+pub struct CalibrationRangeError {
+    pub key: &'static str,
+    pub value: f64,
+    pub lo: f64,
+    pub hi: f64,
+}
+
 impl CalibrationSection {
     /// Each value in its range; the error names the key.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), CalibrationRangeError> {
         for (k, v, lo, hi) in [
             ("max_residual_px", self.max_residual_px, 1e-4, 100.0),
             ("max_u_h_mm", self.max_u_h_mm, 1e-4, 100.0),
@@ -78,7 +88,12 @@ impl CalibrationSection {
             ("verify_step_mm", self.verify_step_mm, 0.05, 50.0),
         ] {
             if !(v.is_finite() && (lo..=hi).contains(&v)) {
-                return Err(format!("calibration.{k} = {v}: valid is [{lo}, {hi}]"));
+                return Err(CalibrationRangeError {
+                    key: k,
+                    value: v,
+                    lo,
+                    hi,
+                });
             }
         }
         Ok(())
@@ -416,19 +431,16 @@ impl LoadedConfig {
             ));
         }
         self.config.calibration.validate().map_err(|e| {
-            let key = e
-                .split(" =")
-                .next()
-                .unwrap_or("")
-                .trim_start_matches("calibration.");
             format!(
                 "{e}{}",
-                self.locate(&["calibration", key]).unwrap_or_default()
+                self.locate(&["calibration", e.key]).unwrap_or_default()
             )
         })?;
         self.config.quality.validate().map_err(|e| {
-            let key = e.split(['.', ' ']).nth(1).unwrap_or("bridge_mm");
-            format!("{e}{}", self.locate(&["quality", key]).unwrap_or_default())
+            format!(
+                "{e}{}",
+                self.locate(&["quality", e.key()]).unwrap_or_default()
+            )
         })?;
         if s.background == ScanBackground::Ends {
             let switched = match (&self.config.scanner.backend, &self.config.hardware) {

@@ -18,7 +18,7 @@ pub use config::{LoadedConfig, ScanConfig};
 pub use error::{
     DeviceError, DeviceFault, DeviceRole, FaultKind, ScanError, ScanFault, SetupError,
 };
-pub use quality::{Quality, QualitySection, ScanStatus};
+pub use quality::{Quality, QualityError, QualitySection, ScanStatus};
 pub use registry::{params, registry, ScanContext};
 pub use run::{run_scan, CancelToken, ScanOptions, ScanProgress};
 pub use summary::{ScanSummary, TruthSource, TruthStats};

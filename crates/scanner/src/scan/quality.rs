@@ -135,16 +135,32 @@ impl Default for QualitySection {
     }
 }
 
+/// A `[quality]` value out of its range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum QualityError {
+    #[error("quality.bridge_mm = {0}: valid range is [0, 20]")]
+    BridgeMm(f64),
+    #[error("quality.lost_warn and quality.lost_rescan are shares in [0, 1]")]
+    LostShares,
+}
+
+impl QualityError {
+    /// The key the error is about, to locate it in the config file.
+    pub fn key(&self) -> &'static str {
+        match self {
+            QualityError::BridgeMm(_) => "bridge_mm",
+            QualityError::LostShares => "lost_warn",
+        }
+    }
+}
+
 impl QualitySection {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), QualityError> {
         if !(self.bridge_mm >= 0.0 && self.bridge_mm <= 20.0) {
-            return Err(format!(
-                "quality.bridge_mm = {}: valid range is [0, 20]",
-                self.bridge_mm
-            ));
+            return Err(QualityError::BridgeMm(self.bridge_mm));
         }
         if !(0.0..=1.0).contains(&self.lost_warn) || !(0.0..=1.0).contains(&self.lost_rescan) {
-            return Err("quality.lost_warn and quality.lost_rescan are shares in [0, 1]".into());
+            return Err(QualityError::LostShares);
         }
         Ok(())
     }

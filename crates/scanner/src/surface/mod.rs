@@ -25,7 +25,7 @@ pub mod solid;
 
 pub use basis::{basis, basis_d1, basis_d2, interpolation_matrix};
 pub use export::build_scan_model;
-pub use mesh::Mesh;
+pub use mesh::closed_from_heightmap;
 pub use network::{BezierNetwork, Continuity, Segment};
 pub use point_grid::{PointGrid, Subsample};
 

@@ -14,9 +14,11 @@
 //! and a crossing point without one takes its edge's inside node.
 //!
 //! The solid is watertight by construction (every edge in exactly two triangles, once in
-//! each direction, outward normals); [`Mesh::check_watertight`] checks it.
+//! each direction, outward normals); [`TriMesh::check_closed`] checks it.
 
-use super::{Mesh, SurfaceError};
+use super::SurfaceError;
+use footscan_geom::mesh::TriMesh;
+use footscan_geom::P3;
 
 /// A crossing closer than this fraction of a cell to a grid node is moved to this distance,
 /// so no triangle degenerates (0.005 mm on 0.5 mm cells).
@@ -326,11 +328,11 @@ pub fn outline_solid(
 impl OutlineSolid {
     /// The closed triangle mesh: top, walls (two triangles per boundary chord), bottom (the
     /// top's triangulation at `base_z`, reversed).
-    pub fn mesh(&self) -> Mesh {
-        let mut m = Mesh {
-            vertices: self.vertices.clone(),
-            triangles: Vec::with_capacity(2 * self.top.len() + 2 * self.boundary_len()),
-        };
+    pub fn mesh(&self) -> TriMesh {
+        let mut m = TriMesh::new(
+            self.vertices.iter().map(|&v| P3::from(v)).collect(),
+            Vec::with_capacity(2 * self.top.len() + 2 * self.boundary_len()),
+        );
         for &[a, b, c] in &self.top {
             m.triangles.push([a, b, c]);
             m.triangles.push([a + 1, c + 1, b + 1]);
@@ -577,12 +579,12 @@ mod tests {
         let poly = circle(20.0, 720, 3.3, -1.7);
         let s = outline_solid(&poly, 0.5, Some(-2.0), |_, _| Some(3.0)).unwrap();
         let m = s.mesh();
-        m.check_watertight().unwrap();
+        m.check_closed().unwrap();
         assert_eq!(s.loops.len(), 1);
         assert_eq!(s.components(), 1);
         // Polygon area (inscribed 720-gon) times the 5 mm height, to the chord error.
         let area = 0.5 * signed_area(&poly);
-        let v = m.signed_volume();
+        let v = m.volume();
         assert!(
             (v - 5.0 * area).abs() < 5.0 * area * 2e-4,
             "{v} vs {}",
@@ -615,7 +617,7 @@ mod tests {
             }
         })
         .unwrap();
-        s.mesh().check_watertight().unwrap();
+        s.mesh().check_closed().unwrap();
         assert!(s.filled_nodes > 0);
         assert!(s.fill_residual_mm < 1e-4);
         let mid = s
@@ -647,7 +649,7 @@ mod tests {
             [0.0, 10.0],
         ];
         let s = outline_solid(&poly, 0.5, None, |_, _| Some(1.0)).unwrap();
-        s.mesh().check_watertight().unwrap();
+        s.mesh().check_closed().unwrap();
         assert_eq!(s.components(), 2);
         // A neck across a node row is kept: one piece.
         let mut wide = poly.clone();
@@ -656,7 +658,7 @@ mod tests {
         wide[8][1] = 5.15;
         wide[9][1] = 5.15;
         let s = outline_solid(&wide, 0.5, None, |_, _| Some(1.0)).unwrap();
-        s.mesh().check_watertight().unwrap();
+        s.mesh().check_closed().unwrap();
         assert_eq!(s.components(), 1);
     }
 }
