@@ -20,12 +20,14 @@ fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn build_cog_wasm(dir: &Path) -> PathBuf {
-    let out = dir.join("cog.wasm");
+/// The example as docs/plugins.md builds it (`-msimd128`) or scalar (`-mno-simd128`).
+fn build_cog_wasm(dir: &Path, simd: &str) -> PathBuf {
+    let out = dir.join(format!("cog{simd}.wasm"));
     let ok = Command::new("clang")
         .args([
             "--target=wasm32",
             "-O2",
+            simd,
             "-nostdlib",
             "-Wl,--no-entry",
             "-o",
@@ -97,14 +99,19 @@ fn bench(c: &mut Criterion) {
         })
     });
 
-    let plugin = WasmPlugin::load(&build_cog_wasm(dir.path())).unwrap();
-    let mut wasm = PluginDetector::new(plugin.detector(WasmLimits::default(), &args).unwrap());
-    g.bench_function("wasm_cog", |b| {
-        b.iter(|| {
-            k += 1;
-            wasm.detect(&frames[k % frames.len()], &mut out).unwrap();
-        })
-    });
+    for (name, simd) in [
+        ("wasm_cog", "-msimd128"),
+        ("wasm_cog_scalar", "-mno-simd128"),
+    ] {
+        let plugin = WasmPlugin::load(&build_cog_wasm(dir.path(), simd)).unwrap();
+        let mut wasm = PluginDetector::new(plugin.detector(WasmLimits::default(), &args).unwrap());
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                k += 1;
+                wasm.detect(&frames[k % frames.len()], &mut out).unwrap();
+            })
+        });
+    }
 
     let start = |cmd: Vec<String>, args: &[(String, f64)]| {
         PluginDetector::exec(ExecDetector::start(&cmd, args, ExecLimits::default()).unwrap())
