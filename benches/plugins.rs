@@ -1,6 +1,7 @@
 //! Plugin detectors against the built-in `detect.cog` at 1280x1024 Gray8 on simulated foot
 //! frames (default noise), one thread: the wasm example (examples/plugins/cog-wasm/cog.c,
-//! built here with clang + lld), the Python example (examples/plugins/python/cog_stage.py),
+//! built here with clang + lld, with wasm SIMD as documented and scalar for comparison),
+//! the Python example (examples/plugins/python/cog_stage.py),
 //! and a Python process stage that returns at once, whose time per frame is the protocol's
 //! and the shared-memory transfer's overhead. Targets (issue 33): wasm within 2x of the
 //! built-in's frames/s; the process overhead under 0.2 ms per frame.
