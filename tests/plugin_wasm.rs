@@ -14,14 +14,24 @@ use std::process::Command;
 
 const THRESHOLD_DN: f32 = 30.0;
 
-/// Build a C example into `dir` the way docs/plugins.md says.
+/// Build a C example into `dir` the way docs/plugins.md says (with wasm SIMD).
 fn build_c(source: &str, dir: &Path) -> PathBuf {
+    build_c_with(source, dir, "-msimd128")
+}
+
+/// Build a C example with one more clang flag (`-mno-simd128`: the scalar build).
+fn build_c_with(source: &str, dir: &Path, flag: &str) -> PathBuf {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join(source);
-    let out = dir.join(src.file_stem().unwrap()).with_extension("wasm");
+    let stem = src.file_stem().unwrap().to_string_lossy();
+    let out = match flag {
+        "-msimd128" => dir.join(format!("{stem}.wasm")),
+        _ => dir.join(format!("{stem}{flag}.wasm")),
+    };
     let o = Command::new("clang")
         .args([
             "--target=wasm32",
             "-O2",
+            flag,
             "-nostdlib",
             "-Wl,--no-entry",
             "-o",
@@ -74,8 +84,15 @@ fn same(a: &LinePeak, b: &LinePeak) -> bool {
 #[test]
 fn wasm_cog_equals_the_builtin_cog_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
-    let module = build_c("examples/plugins/cog-wasm/cog.c", dir.path());
-    let plugin = WasmPlugin::load(&module).unwrap();
+    // The SIMD build (the documented one) and the scalar build find the same first maximum.
+    for flag in ["-msimd128", "-mno-simd128"] {
+        let module = build_c_with("examples/plugins/cog-wasm/cog.c", dir.path(), flag);
+        compare_with_builtin(&module);
+    }
+}
+
+fn compare_with_builtin(module: &Path) {
+    let plugin = WasmPlugin::load(module).unwrap();
     let mut wasm = PluginDetector::new(
         plugin
             .detector(

@@ -8,6 +8,11 @@
 //!   offset 0 of the shared file (`size` bytes long; re-map when it changes); process: writes
 //!   one 24-byte record per row at offset `round_up(width*height*bytes_per_px, 8)`, then
 //!   answers `rows <n>` (or `error <text>`).
+//! * A per-scan stage is greeted `hello 1 scan ...`; host: `scan <seq> <len> <size>` with the
+//!   scan's points (`len` bytes, x y z f64 each) at offset 0; process: writes a report of
+//!   `key value` lines at offset `round_up(len, 8)` and answers `report <n>`.
+//! * A sink is greeted `hello 1 sink ...`; host: `sink <seq> <len> <size> <scan dir>` with the
+//!   scan summary (JSON, `len` bytes) at offset 0; process: a report as above.
 //! * Closing stdin ends the process; it must exit within a second.
 //!
 //! Why a process and not a library: a crash, a leak or a hang of a researcher's numpy code
@@ -73,11 +78,45 @@ impl Drop for Proc {
     }
 }
 
-/// A per-frame detector run by an external process.
+/// Where a process stage sits, the word its `hello` carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExecRole {
+    Detector,
+    Scan,
+    Sink,
+}
+
+impl ExecRole {
+    fn word(self) -> &'static str {
+        match self {
+            Self::Detector => "detector",
+            Self::Scan => "scan",
+            Self::Sink => "sink",
+        }
+    }
+
+    /// What one request is called in a message.
+    fn request(self) -> &'static str {
+        match self {
+            Self::Detector => "frame",
+            Self::Scan => "scan",
+            Self::Sink => "sink call",
+        }
+    }
+}
+
+/// Longest report a per-scan or sink process may write, bytes.
+pub const REPORT_CAP: usize = 64 << 10;
+
+/// A stage run by an external process: a per-frame detector, a per-scan stage or a sink.
+pub type ExecStage = ExecDetector;
+
+/// A process stage (named for its first use, the per-frame detector).
 pub struct ExecDetector {
     name: String,
+    role: ExecRole,
     command: Vec<String>,
-    args: Vec<(String, f64)>,
+    args: Vec<(String, String)>,
     limits: ExecLimits,
     shm: std::fs::File,
     shm_size: u64,
@@ -107,10 +146,25 @@ fn memfd() -> std::io::Result<std::fs::File> {
 }
 
 impl ExecDetector {
-    /// Start `command` and exchange `hello`/`ready`; any failure is a refusal at start.
+    /// Start `command` as a detector and exchange `hello`/`ready`; any failure is a refusal
+    /// at start.
     pub fn start(
         command: &[String],
         args: &[(String, f64)],
+        limits: ExecLimits,
+    ) -> Result<Self, PluginError> {
+        let args: Vec<(String, String)> = args
+            .iter()
+            .map(|(k, v)| (k.clone(), v.to_string()))
+            .collect();
+        Self::start_as(ExecRole::Detector, command, &args, limits)
+    }
+
+    /// Start `command` in `role`; `args` are sent as `key=value` words in `hello`.
+    pub fn start_as(
+        role: ExecRole,
+        command: &[String],
+        args: &[(String, String)],
         limits: ExecLimits,
     ) -> Result<Self, PluginError> {
         let name = format!("`{}`", command.join(" "));
@@ -131,9 +185,18 @@ impl ExecDetector {
                 "args key {k:?}: keys must be non-empty and hold no '=', space or newline"
             )));
         }
+        if let Some((k, v)) = args
+            .iter()
+            .find(|(_, v)| v.is_empty() || v.contains(char::is_whitespace))
+        {
+            return Err(refuse(format!(
+                "args.{k} = {v:?}: values must be non-empty and hold no space or newline"
+            )));
+        }
         let shm = memfd().map_err(|e| refuse(format!("cannot create its shared memory: {e}")))?;
         let mut d = Self {
             name: name.clone(),
+            role,
             command: command.to_vec(),
             args: args.to_vec(),
             limits,
@@ -228,7 +291,7 @@ impl ExecDetector {
             stdin,
             lines,
         });
-        let mut hello = format!("hello {PROTOCOL_VERSION} detector");
+        let mut hello = format!("hello {PROTOCOL_VERSION} {}", self.role.word());
         for (k, v) in &self.args {
             hello += &format!(" {k}={v}");
         }
@@ -300,40 +363,12 @@ impl ExecDetector {
             .map_err(|e| self.fault(format!("could not write the frame: {e}")))?;
         self.seq += 1;
         let msg = format!("frame {} {width} {height} {bpp} {size}", self.seq);
-        loop {
-            let failure = match self.exchange(&msg, self.limits.frame_timeout) {
-                Ok(answer) => match parse_rows_answer(&answer) {
-                    Ok(n) if n == h => break,
-                    Ok(n) => Failure::Broken(format!(
-                        "answered {n} rows for a frame of {h} rows (it must write one per row)"
-                    )),
-                    Err(e) => Failure::Broken(e),
-                },
-                Err(f) => f,
-            };
-            match failure {
-                Failure::Died(why) if self.restarts < self.limits.max_restarts => {
-                    self.restarts += 1;
-                    tracing::warn!(
-                        plugin = %self.name,
-                        restart = self.restarts,
-                        "{why} on frame {}; restarting it",
-                        self.seq
-                    );
-                    if let Err(Failure::Died(w) | Failure::Broken(w)) = self.spawn() {
-                        return Err(self.fault(format!("could not be restarted: {w}")));
-                    }
-                }
-                Failure::Died(why) => {
-                    return Err(self.fault(format!(
-                        "{why} on frame {} after {} restarts (max_restarts)",
-                        self.seq, self.restarts
-                    )))
-                }
-                Failure::Broken(why) => {
-                    return Err(self.fault(format!("{why} on frame {}", self.seq)))
-                }
-            }
+        let n = self.request(&msg, "rows")?;
+        if n != h {
+            return Err(self.fault(format!(
+                "answered {n} rows for a frame of {h} rows (it must write one per row) on frame {}",
+                self.seq
+            )));
         }
         self.scratch.resize(h * ROW_BYTES, 0);
         self.shm
@@ -344,12 +379,105 @@ impl ExecDetector {
     }
 }
 
-fn parse_rows_answer(answer: &str) -> Result<usize, String> {
+impl ExecDetector {
+    /// Send `msg` and wait for `<word> <n>`, restarting a process that died or hung (the
+    /// shared file keeps its contents, so the request is simply sent again).
+    fn request(&mut self, msg: &str, word: &str) -> Result<usize, PluginError> {
+        loop {
+            let failure = match self.exchange(msg, self.limits.frame_timeout) {
+                Ok(answer) => match parse_count_answer(&answer, word) {
+                    Ok(n) => return Ok(n),
+                    Err(e) => Failure::Broken(e),
+                },
+                Err(f) => f,
+            };
+            match failure {
+                Failure::Died(why) if self.restarts < self.limits.max_restarts => {
+                    self.restarts += 1;
+                    tracing::warn!(
+                        plugin = %self.name,
+                        restart = self.restarts,
+                        "{why} on {} {}; restarting it",
+                        self.role.request(),
+                        self.seq
+                    );
+                    if let Err(Failure::Died(w) | Failure::Broken(w)) = self.spawn() {
+                        return Err(self.fault(format!("could not be restarted: {w}")));
+                    }
+                }
+                Failure::Died(why) => {
+                    return Err(self.fault(format!(
+                        "{why} on {} {} after {} restarts (max_restarts)",
+                        self.role.request(),
+                        self.seq,
+                        self.restarts
+                    )))
+                }
+                Failure::Broken(why) => {
+                    return Err(self.fault(format!(
+                        "{why} on {} {}",
+                        self.role.request(),
+                        self.seq
+                    )))
+                }
+            }
+        }
+    }
+
+    /// A per-scan stage's or sink's one call: `input` in, its report out. `dir` (sinks) is
+    /// the scan directory, sent at the end of the request line.
+    pub fn run(
+        &mut self,
+        input: &[u8],
+        dir: Option<&std::path::Path>,
+    ) -> Result<Vec<u8>, PluginError> {
+        let word = match self.role {
+            ExecRole::Scan => "scan",
+            ExecRole::Sink => "sink",
+            ExecRole::Detector => {
+                return Err(self.fault("is a detector: it takes frames, not a scan".into()))
+            }
+        };
+        let out_off = input.len().div_ceil(8) * 8;
+        let size = (out_off + REPORT_CAP) as u64;
+        if size != self.shm_size {
+            self.shm
+                .set_len(size)
+                .map_err(|e| self.fault(format!("could not size its shared memory: {e}")))?;
+            self.shm_size = size;
+        }
+        self.shm
+            .write_all_at(input, 0)
+            .map_err(|e| self.fault(format!("could not write its input: {e}")))?;
+        self.seq += 1;
+        let mut msg = format!("{word} {} {} {size}", self.seq, input.len());
+        if let Some(d) = dir {
+            let d = d.display().to_string();
+            if d.contains('\n') {
+                return Err(self.fault(format!("cannot be sent the directory {d:?} (a newline)")));
+            }
+            msg += &format!(" {d}");
+        }
+        let n = self.request(&msg, "report")?;
+        if n > REPORT_CAP {
+            return Err(self.fault(format!(
+                "answered a report of {n} bytes, more than the {REPORT_CAP} it has"
+            )));
+        }
+        let mut report = vec![0; n];
+        self.shm
+            .read_exact_at(&mut report, out_off as u64)
+            .map_err(|e| self.fault(format!("could not read its report: {e}")))?;
+        Ok(report)
+    }
+}
+
+fn parse_count_answer(answer: &str, word: &str) -> Result<usize, String> {
     let words: Vec<&str> = answer.split_whitespace().collect();
     match words.as_slice() {
-        ["rows", n] => n.parse().map_err(|_| {
+        [w, n] if *w == word => n.parse().map_err(|_| {
             format!(
-                "answered {:?}: the row count is not a number",
+                "answered {:?}: the count is not a number",
                 preview(answer.as_bytes())
             )
         }),
@@ -358,7 +486,7 @@ fn parse_rows_answer(answer: &str) -> Result<usize, String> {
             answer.trim_start_matches("error").trim()
         )),
         _ => Err(format!(
-            "answered {:?}, not \"rows <n>\" (protocol {PROTOCOL_VERSION}, docs/plugins.md)",
+            "answered {:?}, not \"{word} <n>\" (protocol {PROTOCOL_VERSION}, docs/plugins.md)",
             preview(answer.as_bytes())
         )),
     }

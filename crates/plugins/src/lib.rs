@@ -10,6 +10,7 @@
 
 pub mod exec;
 pub mod rows;
+pub mod wasi;
 pub mod wasm;
 
 /// Why a plugin could not be used. Every message starts with the plugin (its file) so a
@@ -31,4 +32,53 @@ impl PluginError {
             Self::Load { plugin, .. } | Self::Fault { plugin, .. } => plugin,
         }
     }
+}
+
+/// The values a per-scan stage reports: one `key value` per line (blank lines and lines
+/// starting with `#` ignored), keys of 1-64 of `[a-z0-9_]`, values finite numbers. The
+/// error names the line and what would be valid.
+pub fn parse_values(report: &[u8]) -> Result<Vec<(String, f64)>, String> {
+    let text = std::str::from_utf8(report).map_err(|_| {
+        "reported bytes that are not UTF-8 text; report `key value` lines".to_string()
+    })?;
+    let mut out: Vec<(String, f64)> = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let mut words = line.split_whitespace();
+        let (Some(key), Some(value), None) = (words.next(), words.next(), words.next()) else {
+            return Err(format!(
+                "reported line {} {line:?}; each line must be `key value`",
+                n + 1
+            ));
+        };
+        let key_ok = !key.is_empty()
+            && key.len() <= 64
+            && key
+                .bytes()
+                .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_');
+        if !key_ok {
+            return Err(format!(
+                "reported the key {key:?} on line {}; keys are 1-64 of a-z, 0-9 and _",
+                n + 1
+            ));
+        }
+        let v: f64 = value
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .ok_or_else(|| {
+                format!(
+                    "reported {key} = {value:?} on line {}; values must be finite numbers",
+                    n + 1
+                )
+            })?;
+        if out.iter().any(|(k, _)| k == key) {
+            return Err(format!("reported {key} twice (line {})", n + 1));
+        }
+        out.push((key.to_string(), v));
+    }
+    Ok(out)
 }

@@ -9,8 +9,15 @@
 //! range). Each output row is 24 bytes: f64 column, f32 intensity, f32 width, f32 quality,
 //! u32 reject code ([`REJECT_CODES`]).
 //!
-//! Why no imports at all: a module that can call nothing of the host cannot reach a file, a
-//! socket or a clock, so the sandbox needs no policy. Why fuel rather than epochs: fuel counts
+//! A per-scan stage exports `footscan_scan(input, len, out, out_cap) -> i32` (the scan's
+//! points in, a report of `key value` lines out) and a sink `footscan_sink(input, len, out,
+//! out_cap) -> i32` (the scan summary as JSON in, a report out); both return the report's
+//! length or a negative error code of their own.
+//!
+//! Why almost no imports: a module that can call nothing of the host cannot reach a file, a
+//! socket or a clock, so the sandbox needs no policy. The one exception is the file part of
+//! WASI ([`crate::wasi`]) over exactly the directory a per-scan or sink stage's config grants;
+//! a module importing it without a grant is refused at start. Why fuel rather than epochs: fuel counts
 //! instructions, so a limit means the same on a loaded CI machine as on a quiet one and needs
 //! no ticker thread; a loop without end runs out of it on the frame it started.
 
@@ -25,7 +32,27 @@ use wasmtime::{
 };
 
 pub use crate::rows::{Pixels, RowOut, REJECT_CODES, ROW_BYTES};
+use crate::wasi::{self, Fs, Grant, HasFs};
 use crate::PluginError;
+
+/// What a module's store holds: its limits and, when granted, its directory.
+pub struct Host {
+    limits: StoreLimits,
+    fs: Option<Fs>,
+    name: String,
+}
+
+impl HasFs for Host {
+    fn fs(&mut self) -> Option<&mut Fs> {
+        self.fs.as_mut()
+    }
+    fn plugin_name(&self) -> &str {
+        &self.name
+    }
+}
+
+/// Longest report a per-scan or sink module may return, bytes.
+pub const REPORT_CAP: usize = 64 << 10;
 
 /// The ABI version this host speaks (`footscan_abi()` must return it).
 pub const ABI_VERSION: i32 = 1;
@@ -54,6 +81,12 @@ impl Default for WasmLimits {
 pub enum WasmKind {
     /// Per frame: a frame's rows in, a line position per row out (`footscan_detect`).
     Detector,
+    /// Per scan: the point set in, values (and files in a granted directory) out
+    /// (`footscan_scan`).
+    Scan,
+    /// A sink: the scan summary in and the scan directory read-only, a report out
+    /// (`footscan_sink`).
+    Sink,
 }
 
 impl WasmKind {
@@ -61,6 +94,8 @@ impl WasmKind {
     pub fn place(self) -> &'static str {
         match self {
             Self::Detector => "per frame (detector: frame rows in, line per row out)",
+            Self::Scan => "per scan (the point set in, values out)",
+            Self::Sink => "sink (the scan summary and directory in, a report out)",
         }
     }
 }
@@ -91,6 +126,8 @@ pub struct WasmPlugin {
     path: PathBuf,
     module: Module,
     kind: WasmKind,
+    /// The WASI functions it imports (the file system of a grant).
+    wasi: Vec<String>,
 }
 
 impl std::fmt::Debug for WasmPlugin {
@@ -130,6 +167,16 @@ const PARAM: Sig = Sig {
 const DETECT: Sig = Sig {
     name: "footscan_detect",
     params: &[I32, I32, I32, I32, I32],
+    results: &[I32],
+};
+const SCAN: Sig = Sig {
+    name: "footscan_scan",
+    params: &[I32, I32, I32, I32],
+    results: &[I32],
+};
+const SINK: Sig = Sig {
+    name: "footscan_sink",
+    params: &[I32, I32, I32, I32],
     results: &[I32],
 };
 
@@ -184,11 +231,12 @@ impl WasmPlugin {
                 m
             }
         };
-        let kind = check_module(&module).map_err(refuse)?;
+        let (kind, wasi) = check_module(&module).map_err(refuse)?;
         Ok(Self {
             path: path.to_path_buf(),
             module,
             kind,
+            wasi,
         })
     }
 
@@ -200,54 +248,167 @@ impl WasmPlugin {
         &self.path
     }
 
+    /// Whether the module imports the file system (and so needs a grant).
+    pub fn wants_files(&self) -> bool {
+        !self.wasi.is_empty()
+    }
+
+    /// A store, an instance and the ABI check, with `grant` preopened when given.
+    fn instantiate(
+        &self,
+        limits: WasmLimits,
+        grant: Option<&Grant>,
+    ) -> Result<(Store<Host>, Instance), PluginError> {
+        let name = self.path.display().to_string();
+        let refuse = |reason: String| PluginError::Load {
+            plugin: name.clone(),
+            reason,
+        };
+        if grant.is_none() && self.wants_files() {
+            return Err(refuse(format!(
+                "imports {}, which footscan does not grant: the config grants this stage no \
+                 directory (a per-frame stage never gets one; a per-scan or sink stage gets one \
+                 with grant = \"DIR\", docs/plugins.md)",
+                self.wasi
+                    .iter()
+                    .map(|f| format!("{}::{f}", wasi::MODULE))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )));
+        }
+        let fs = grant.map(Fs::open).transpose().map_err(&refuse)?;
+        let limiter = StoreLimitsBuilder::new()
+            .memory_size(limits.memory_bytes)
+            .trap_on_grow_failure(true)
+            .instances(1)
+            .build();
+        let mut store = Store::new(
+            engine(),
+            Host {
+                limits: limiter,
+                fs,
+                name: name.clone(),
+            },
+        );
+        store.limiter(|h| &mut h.limits);
+        store
+            .set_fuel(limits.fuel_per_call)
+            .map_err(|e| refuse(format!("cannot set its fuel: {e}")))?;
+        let mut linker = Linker::new(engine());
+        if self.wants_files() {
+            wasi::define(&mut linker)
+                .map_err(|e| refuse(format!("cannot be given its file functions: {e}")))?;
+        }
+        let instance = linker
+            .instantiate(&mut store, &self.module)
+            .map_err(|e| refuse(format!("cannot be instantiated: {}", describe(&e, limits))))?;
+        Ok((store, instance))
+    }
+
+    /// A per-scan or sink instance; `grant` is the directory its config grants, if any.
+    pub fn runner(
+        &self,
+        limits: WasmLimits,
+        params: &[(String, f64)],
+        grant: Option<&Grant>,
+    ) -> Result<WasmRunner, PluginError> {
+        let export = match self.kind {
+            WasmKind::Scan => SCAN.name,
+            WasmKind::Sink => SINK.name,
+            WasmKind::Detector => {
+                return Err(PluginError::Load {
+                    plugin: self.path.display().to_string(),
+                    reason: "exports footscan_detect: it sits per frame, not per scan or as a sink"
+                        .into(),
+                })
+            }
+        };
+        let (store, instance) = self.instantiate(limits, grant)?;
+        let mut core = Core::new(self, store, &instance, limits, params)?;
+        let name = core.name.clone();
+        let run =
+            typed(&instance, &mut core.store, export).map_err(|reason| PluginError::Load {
+                plugin: name,
+                reason,
+            })?;
+        Ok(WasmRunner { core, run, export })
+    }
+
     /// A detector instance with its own memory, `params` given to `footscan_param` in order.
     pub fn detector(
         &self,
         limits: WasmLimits,
         params: &[(String, f64)],
     ) -> Result<WasmDetector, PluginError> {
-        let name = self.path.display().to_string();
+        if self.kind != WasmKind::Detector {
+            return Err(PluginError::Load {
+                plugin: self.path.display().to_string(),
+                reason: format!(
+                    "is a {} stage, not a per-frame detector (it exports no footscan_detect)",
+                    self.kind.place()
+                ),
+            });
+        }
+        let (store, instance) = self.instantiate(limits, None)?;
+        let mut core = Core::new(self, store, &instance, limits, params)?;
+        let name = core.name.clone();
+        let detect = typed(&instance, &mut core.store, "footscan_detect").map_err(|reason| {
+            PluginError::Load {
+                plugin: name,
+                reason,
+            }
+        })?;
+        Ok(WasmDetector {
+            core,
+            detect,
+            shape: None,
+            in_ptr: 0,
+            out_ptr: 0,
+        })
+    }
+}
+
+/// What every kind of instance has: its store, memory, allocator and limits.
+struct Core {
+    name: String,
+    store: Store<Host>,
+    memory: Memory,
+    alloc: TypedFunc<i32, i32>,
+    limits: WasmLimits,
+}
+
+impl Core {
+    /// The common exports, the ABI version and the parameters.
+    fn new(
+        plugin: &WasmPlugin,
+        mut store: Store<Host>,
+        instance: &Instance,
+        limits: WasmLimits,
+        params: &[(String, f64)],
+    ) -> Result<Self, PluginError> {
+        let name = plugin.path.display().to_string();
         let refuse = |reason: String| PluginError::Load {
             plugin: name.clone(),
             reason,
         };
-        let limiter = StoreLimitsBuilder::new()
-            .memory_size(limits.memory_bytes)
-            .trap_on_grow_failure(true)
-            .instances(1)
-            .build();
-        let mut store = Store::new(engine(), limiter);
-        store.limiter(|l| l);
-        store
-            .set_fuel(limits.fuel_per_call)
-            .map_err(|e| refuse(format!("cannot set its fuel: {e}")))?;
-        let instance = Linker::new(engine())
-            .instantiate(&mut store, &self.module)
-            .map_err(|e| refuse(format!("cannot be instantiated: {}", describe(&e, limits))))?;
         let memory = instance
             .get_memory(&mut store, "memory")
             .ok_or_else(|| refuse("exports no memory named `memory`".into()))?;
         let abi: TypedFunc<(), i32> =
-            typed(&instance, &mut store, "footscan_abi").map_err(&refuse)?;
-        let alloc = typed(&instance, &mut store, "footscan_alloc").map_err(&refuse)?;
-        let detect = typed(&instance, &mut store, "footscan_detect").map_err(&refuse)?;
+            typed(instance, &mut store, "footscan_abi").map_err(&refuse)?;
+        let alloc = typed(instance, &mut store, "footscan_alloc").map_err(&refuse)?;
         let param: Option<TypedFunc<(i32, i32, f64), i32>> = instance
             .get_export(&mut store, "footscan_param")
             .is_some()
-            .then(|| typed(&instance, &mut store, "footscan_param"))
+            .then(|| typed(instance, &mut store, "footscan_param"))
             .transpose()
             .map_err(&refuse)?;
-        let mut d = WasmDetector {
+        let mut d = Core {
             name: name.clone(),
             store,
             memory,
             alloc,
-            detect,
             limits,
-            shape: None,
-            in_ptr: 0,
-            out_ptr: 0,
-            scratch: Vec::new(),
         };
         let version = d.call("footscan_abi", |s| abi.call(s, ()))?;
         if version != ABI_VERSION {
@@ -279,11 +440,48 @@ impl WasmPlugin {
         }
         Ok(d)
     }
+
+    fn fault(&self, what: String) -> PluginError {
+        PluginError::Fault {
+            plugin: self.name.clone(),
+            what,
+        }
+    }
+
+    /// Run one export with a full tank of fuel.
+    fn call<R>(
+        &mut self,
+        export: &str,
+        f: impl FnOnce(&mut Store<Host>) -> wasmtime::Result<R>,
+    ) -> Result<R, PluginError> {
+        let fuel = self.limits.fuel_per_call;
+        self.store
+            .set_fuel(fuel)
+            .map_err(|e| self.fault(format!("could not be given fuel: {e}")))?;
+        f(&mut self.store)
+            .map_err(|e| self.fault(format!("{export}: {}", describe(&e, self.limits))))
+    }
+
+    /// `size` bytes from the module's allocator, checked to lie inside its memory.
+    fn alloc(&mut self, size: usize, what: &str) -> Result<usize, PluginError> {
+        let n = i32::try_from(size)
+            .map_err(|_| self.fault(format!("cannot hold {what} of {size} bytes in wasm32")))?;
+        let alloc = self.alloc.clone();
+        let ptr = self.call("footscan_alloc", |s| alloc.call(s, n))?;
+        let len = self.memory.data_size(&self.store);
+        let start = ptr as u32 as usize;
+        if ptr <= 0 || start + size > len {
+            return Err(self.fault(format!(
+                "footscan_alloc({size}) for {what} returned {ptr}, not a block inside its {len}-byte memory"
+            )));
+        }
+        Ok(start)
+    }
 }
 
 fn typed<P, R>(
     instance: &Instance,
-    store: &mut Store<StoreLimits>,
+    store: &mut Store<Host>,
     name: &str,
 ) -> Result<TypedFunc<P, R>, String>
 where
@@ -297,18 +495,24 @@ where
 
 /// The module's kind, or why it is refused: imports (nothing is granted), a missing export or
 /// one of the wrong type.
-fn check_module(m: &Module) -> Result<WasmKind, String> {
-    let imports: Vec<String> = m
+fn check_module(m: &Module) -> Result<(WasmKind, Vec<String>), String> {
+    let (files, other): (Vec<_>, Vec<_>) = m
         .imports()
-        .map(|i| format!("{}::{}", i.module(), i.name()))
-        .collect();
-    if !imports.is_empty() {
+        .partition(|i| i.module() == wasi::MODULE && wasi::PROVIDED.contains(&i.name()));
+    if !other.is_empty() {
         return Err(format!(
-            "imports {}, which footscan does not grant: a wasm stage gets no file system, \
-             network, clock or WASI (build it freestanding, e.g. clang --target=wasm32 -nostdlib)",
-            imports.join(", ")
+            "imports {}, which footscan does not grant: a wasm stage gets no network, clock or \
+             host function, and of WASI only the files of a granted directory ({}) \
+             (build it freestanding, e.g. clang --target=wasm32 -nostdlib)",
+            other
+                .iter()
+                .map(|i| format!("{}::{}", i.module(), i.name()))
+                .collect::<Vec<_>>()
+                .join(", "),
+            wasi::PROVIDED.join(", ")
         ));
     }
+    let files: Vec<String> = files.iter().map(|i| i.name().to_string()).collect();
     let exports: HashMap<&str, ExternType> = m.exports().map(|e| (e.name(), e.ty())).collect();
     if !matches!(exports.get("memory"), Some(ExternType::Memory(_))) {
         return Err("exports no memory named `memory`".into());
@@ -343,13 +547,29 @@ fn check_module(m: &Module) -> Result<WasmKind, String> {
     check(&ABI, true)?;
     check(&ALLOC, true)?;
     check(&PARAM, false)?;
-    if check(&DETECT, false)? {
-        return Ok(WasmKind::Detector);
+    let found: Vec<WasmKind> = [
+        (check(&DETECT, false)?, WasmKind::Detector),
+        (check(&SCAN, false)?, WasmKind::Scan),
+        (check(&SINK, false)?, WasmKind::Sink),
+    ]
+    .into_iter()
+    .filter_map(|(has, k)| has.then_some(k))
+    .collect();
+    match found.as_slice() {
+        [k] => Ok((*k, files)),
+        [] => Err(format!(
+            "exports no stage function: a per-frame detector exports footscan_detect {}, a \
+             per-scan stage footscan_scan {}, a sink footscan_sink {} (docs/plugins.md)",
+            sig_text(DETECT.params, DETECT.results),
+            sig_text(SCAN.params, SCAN.results),
+            sig_text(SINK.params, SINK.results)
+        )),
+        _ => Err(
+            "exports more than one of footscan_detect, footscan_scan and footscan_sink: a module \
+             is one stage"
+                .into(),
+        ),
     }
-    Err(format!(
-        "exports no stage function: a per-frame detector exports footscan_detect {} (docs/plugins.md)",
-        sig_text(DETECT.params, DETECT.results)
-    ))
 }
 
 /// Why a call failed, in words a config author can act on.
@@ -378,65 +598,23 @@ fn describe(e: &wasmtime::Error, limits: WasmLimits) -> String {
 /// A per-frame detector instance: its own store and memory, buffers allocated in the module
 /// once per frame shape.
 pub struct WasmDetector {
-    name: String,
-    store: Store<StoreLimits>,
-    memory: Memory,
-    alloc: TypedFunc<i32, i32>,
+    core: Core,
     detect: TypedFunc<(i32, i32, i32, i32, i32), i32>,
-    limits: WasmLimits,
     shape: Option<(u32, u32, usize)>,
     in_ptr: usize,
     out_ptr: usize,
-    scratch: Vec<u8>,
 }
 
 impl std::fmt::Debug for WasmDetector {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("WasmDetector")
-            .field("name", &self.name)
-            .field("limits", &self.limits)
+            .field("name", &self.core.name)
+            .field("limits", &self.core.limits)
             .finish()
     }
 }
 
 impl WasmDetector {
-    fn fault(&self, what: String) -> PluginError {
-        PluginError::Fault {
-            plugin: self.name.clone(),
-            what,
-        }
-    }
-
-    /// Run one export with a full tank of fuel.
-    fn call<R>(
-        &mut self,
-        export: &str,
-        f: impl FnOnce(&mut Store<StoreLimits>) -> wasmtime::Result<R>,
-    ) -> Result<R, PluginError> {
-        let fuel = self.limits.fuel_per_call;
-        self.store
-            .set_fuel(fuel)
-            .map_err(|e| self.fault(format!("could not be given fuel: {e}")))?;
-        f(&mut self.store)
-            .map_err(|e| self.fault(format!("{export}: {}", describe(&e, self.limits))))
-    }
-
-    /// `size` bytes from the module's allocator, checked to lie inside its memory.
-    fn alloc(&mut self, size: usize, what: &str) -> Result<usize, PluginError> {
-        let n = i32::try_from(size)
-            .map_err(|_| self.fault(format!("cannot hold {what} of {size} bytes in wasm32")))?;
-        let alloc = self.alloc.clone();
-        let ptr = self.call("footscan_alloc", |s| alloc.call(s, n))?;
-        let len = self.memory.data_size(&self.store);
-        let start = ptr as u32 as usize;
-        if ptr <= 0 || start + size > len {
-            return Err(self.fault(format!(
-                "footscan_alloc({size}) for {what} returned {ptr}, not a block inside its {len}-byte memory"
-            )));
-        }
-        Ok(start)
-    }
-
     /// Detect the line in every row of a `width` x `height` frame into `out` (one per row).
     pub fn detect(
         &mut self,
@@ -448,13 +626,14 @@ impl WasmDetector {
         let (w, h, bpp) = (width as usize, height as usize, px.bytes_per_px());
         assert_eq!(px.len(), w * h, "pixels of a {width}x{height} frame");
         assert_eq!(out.len(), h, "one result per row");
+        let c = &mut self.core;
         if self.shape != Some((width, height, bpp)) {
-            self.in_ptr = self.alloc(w * h * bpp, "the frame")?;
-            self.out_ptr = self.alloc(h * ROW_BYTES, "the output rows")?;
+            self.in_ptr = c.alloc(w * h * bpp, "the frame")?;
+            self.out_ptr = c.alloc(h * ROW_BYTES, "the output rows")?;
             self.shape = Some((width, height, bpp));
         }
         let (in_ptr, out_ptr) = (self.in_ptr, self.out_ptr);
-        let mem = self.memory.data_mut(&mut self.store);
+        let mem = c.memory.data_mut(&mut c.store);
         px.write_le(&mut mem[in_ptr..]);
         let detect = self.detect.clone();
         let args = (
@@ -464,24 +643,67 @@ impl WasmDetector {
             bpp as i32,
             out_ptr as i32,
         );
-        let rows = self.call("footscan_detect", |s| detect.call(s, args))?;
+        let rows = c.call("footscan_detect", |s| detect.call(s, args))?;
         if rows < 0 {
-            return Err(self.fault(format!(
+            return Err(c.fault(format!(
                 "footscan_detect returned its error code {rows} on a {width}x{height} frame"
             )));
         }
         if rows as usize != h {
-            return Err(self.fault(format!(
+            return Err(c.fault(format!(
                 "footscan_detect returned {rows} rows for a frame of {h} rows (it must write one per row)"
             )));
         }
-        // Read through a copy: the memory may have moved if the module grew it.
-        let mut scratch = std::mem::take(&mut self.scratch);
-        scratch.clear();
-        scratch.extend_from_slice(&self.memory.data(&self.store)[out_ptr..out_ptr + h * ROW_BYTES]);
-        let result = crate::rows::parse(&scratch, width, out)
-            .map_err(|what| self.fault(format!("footscan_detect {what}")));
-        self.scratch = scratch;
-        result
+        // Parse straight from the module's memory: it cannot move while borrowed here.
+        let bytes = &c.memory.data(&c.store)[out_ptr..out_ptr + h * ROW_BYTES];
+        crate::rows::parse(bytes, width, out).map_err(|what| PluginError::Fault {
+            plugin: c.name.clone(),
+            what: format!("footscan_detect {what}"),
+        })
+    }
+}
+
+/// A per-scan or sink instance: bytes in, a report out.
+pub struct WasmRunner {
+    core: Core,
+    run: TypedFunc<(i32, i32, i32, i32), i32>,
+    export: &'static str,
+}
+
+impl std::fmt::Debug for WasmRunner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("WasmRunner")
+            .field("name", &self.core.name)
+            .field("export", &self.export)
+            .finish()
+    }
+}
+
+impl WasmRunner {
+    /// Hand `input` to the stage's function and return its report.
+    pub fn run(&mut self, input: &[u8]) -> Result<Vec<u8>, PluginError> {
+        let c = &mut self.core;
+        let in_ptr = c.alloc(input.len().max(1), "the input")?;
+        let out_ptr = c.alloc(REPORT_CAP, "the report")?;
+        c.memory.data_mut(&mut c.store)[in_ptr..in_ptr + input.len()].copy_from_slice(input);
+        let run = self.run.clone();
+        let args = (
+            in_ptr as i32,
+            input.len() as i32,
+            out_ptr as i32,
+            REPORT_CAP as i32,
+        );
+        let export = self.export;
+        let n = c.call(export, |s| run.call(s, args))?;
+        if n < 0 {
+            return Err(c.fault(format!("{export} returned its error code {n}")));
+        }
+        if n as usize > REPORT_CAP {
+            return Err(c.fault(format!(
+                "{export} returned a report of {n} bytes, more than the {REPORT_CAP} it was given"
+            )));
+        }
+        let mem = c.memory.data(&c.store);
+        Ok(mem[out_ptr..out_ptr + n as usize].to_vec())
     }
 }

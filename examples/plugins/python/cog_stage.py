@@ -18,18 +18,50 @@ from footscan_stage import ROW, run_detector
 NEAR_ROWS = 2
 
 
+# Half the width of the window around each row's maximum that the line is measured in.
+HALF_WINDOW = 48
+
+
 def cog(frame, args):
+    """The rows of `frame`: each row is measured in a window of 2*HALF_WINDOW+1 pixels around
+    its first maximum (found on the whole row), and rows whose run above the threshold comes
+    within 2 pixels of the window's edge (where it is not the frame's) are measured again on
+    the whole row, so the result is the whole-row computation's."""
     h, w = frame.shape
     full = np.float32(255 if frame.dtype == np.uint8 else 65535)
     scale = np.float32(1 if frame.dtype == np.uint8 else 257)
     thr = np.float32(args["threshold"]) * scale
     max_sat = int(args.get("max_saturated_px", 12))
+    pos = frame.argmax(axis=1)
+    win = 2 * HALF_WINDOW + 1
+    if w <= win:
+        out, _, _ = measure(frame, pos, np.zeros(h, dtype=np.int64), thr, full, max_sat)
+    else:
+        start = np.clip(pos - HALF_WINDOW, 0, w - win)
+        sub = np.take_along_axis(frame, start[:, None] + np.arange(win)[None, :], axis=1)
+        out, lo, hi = measure(sub, pos - start, start, thr, full, max_sat)
+        cut = (out["reject"] != 1) & (
+            ((lo < 2) & (start > 0)) | ((hi > win - 3) & (start + win < w))
+        )
+        if cut.any():
+            again, _, _ = measure(
+                frame[cut], pos[cut], np.zeros(cut.sum(), dtype=np.int64), thr, full, max_sat
+            )
+            out[cut] = again
+    isolate(out)
+    return out
+
+
+def measure(frame, pos, offset, thr, full, max_sat):
+    """Per row: the record (isolation not yet applied) and the run above the threshold, for
+    rows whose pixel 0 is column `offset` of the frame (positions are computed in the frame's
+    columns, so the float arithmetic is the whole row's)."""
+    h, w = frame.shape
     out = np.zeros(h, dtype=ROW)
     out["col"] = np.nan
     rows = np.arange(h)
     idx = np.arange(w)[None, :]
     f = frame.astype(np.float32)
-    pos = frame.argmax(axis=1)
     top = f[rows, pos]
     out["intensity"] = top
     reject = np.where(top <= thr, 1, 0).astype(np.uint32)
@@ -55,16 +87,16 @@ def cog(frame, args):
     l = np.maximum(lo_, np.where(below & (idx < a[:, None]), idx, -1).max(axis=1) + 1)
     l = np.where(ok, np.maximum(l, 1), 1)
     v0, v1 = f[rows, l - 1], f[rows, l]
-    xl = (l - 1).astype(np.float32) + np.clip((half - v0) / np.maximum(v1 - v0, np.float32(1e-6)), 0, 1)
+    xl = (l - 1 + offset).astype(np.float32) + np.clip((half - v0) / np.maximum(v1 - v0, np.float32(1e-6)), 0, 1)
     r = np.minimum(hi_, np.where(below & (idx > b[:, None]), idx, w).min(axis=1) - 1)
     r = np.where(ok, np.minimum(r, w - 2), 0)
     v0, v1 = f[rows, r], f[rows, r + 1]
-    xr = r.astype(np.float32) + np.clip((v0 - half) / np.maximum(v0 - v1, np.float32(1e-6)), 0, 1)
+    xr = (r + offset).astype(np.float32) + np.clip((v0 - half) / np.maximum(v0 - v1, np.float32(1e-6)), 0, 1)
     width = np.maximum(xr - xl, np.float32(0.5)).astype(np.float32)
     inside = (idx >= lo_[:, None]) & (idx <= hi_[:, None])
     wgt = np.where(inside, (f - thr).astype(np.float64), 0.0)
     s = wgt.sum(axis=1)
-    sx = (wgt * np.arange(w, dtype=np.float64)[None, :]).sum(axis=1)
+    sx = (wgt * (np.arange(w)[None, :] + offset[:, None]).astype(np.float64)).sum(axis=1)
     reject = np.where(ok & (s <= 0.0), 1, reject)
     ok = reject == 0
     sig = np.clip((top - thr) / np.maximum(np.float32(0.5) * full - thr, np.float32(1)), 0, 1)
@@ -72,7 +104,15 @@ def cog(frame, args):
     out["col"] = np.where(ok, sx / np.where(ok, s, 1.0), np.nan)
     out["width"] = np.where(ok, width, 0)
     out["quality"] = np.where(ok, quality, 0)
-    # A row with no other line within NEAR_ROWS rows is a speck, not the line.
+    out["reject"] = reject
+    return out, lo, hi
+
+
+def isolate(out):
+    """A row with no other line within NEAR_ROWS rows is a speck, not the line."""
+    h = len(out)
+    ok = out["reject"] == 0
+    reject = out["reject"].copy()
     near = np.zeros(h, dtype=bool)
     for k in range(1, NEAR_ROWS + 1):
         near[k:] |= ok[:-k]

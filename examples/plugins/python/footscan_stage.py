@@ -11,11 +11,14 @@ A researcher writes one function and hands it to `run_detector`:
 
     run_detector(detect)
 
+Per-scan stages and sinks are one function too (`run_scan`, `run_sink`, below).
+
 The frame is a view of the shared memory the host wrote it into (fd 3), not a copy; the
 returned rows are written back into the same memory. Everything printed to stderr goes to
 footscand's log; stdout belongs to the protocol (print() is redirected to stderr).
 """
 
+import json
 import mmap
 import sys
 
@@ -43,6 +46,99 @@ def rows_from_columns(frame, cols):
     return out
 
 
+def _hello(role, proto_out, stdin):
+    """Read `hello 1 <role> key=value ...`, answer `ready 1`; the args (numbers as floats,
+    other words as strings), or None after an `error` answer."""
+    hello = stdin.readline().split()
+    if len(hello) < 3 or hello[0] != b"hello" or hello[2] != role.encode():
+        proto_out.write(f"error expected 'hello 1 {role} ...'\n".encode())
+        proto_out.flush()
+        return None
+    if int(hello[1]) != PROTOCOL:
+        proto_out.write(b"error this helper speaks protocol 1\n")
+        proto_out.flush()
+        return None
+    args = {}
+    for kv in hello[3:]:
+        k, _, v = kv.decode().partition("=")
+        try:
+            args[k] = float(v)
+        except ValueError:
+            args[k] = v
+    proto_out.write(b"ready 1\n")
+    proto_out.flush()
+    return args
+
+
+def _report_error(proto_out, e):
+    msg = f"{type(e).__name__}: {e}".replace("\n", " ")
+    proto_out.write(f"error {msg}\n".encode())
+    proto_out.flush()
+
+
+def _serve_once(role, handle):
+    """The per-scan and sink loop: input bytes at offset 0 of the shared memory, a report
+    (bytes or str) written after it."""
+    proto_out = sys.stdout.buffer
+    sys.stdout = sys.stderr
+    stdin = sys.stdin.buffer
+    args = _hello(role, proto_out, stdin)
+    if args is None:
+        return 1
+    for line in stdin:
+        words = line.rstrip(b"\n").split(b" ", 4)
+        if len(words) < 4 or words[0] != role.encode():
+            proto_out.write(b"error unknown message\n")
+            proto_out.flush()
+            return 1
+        n, total = int(words[2]), int(words[3])
+        rest = words[4].decode() if len(words) > 4 else None
+        mm = mmap.mmap(FRAME_FD, total)
+        try:
+            data = bytes(mm[:n])
+            try:
+                report = handle(data, rest, args)
+            except Exception as e:
+                _report_error(proto_out, e)
+                raise
+            if isinstance(report, str):
+                report = report.encode()
+            off = (n + 7) // 8 * 8
+            if off + len(report) > total:
+                proto_out.write(b"error the report is larger than the space the host gave\n")
+                proto_out.flush()
+                return 1
+            mm[off : off + len(report)] = report
+        finally:
+            mm.close()
+        proto_out.write(b"report %d\n" % len(report))
+        proto_out.flush()
+    return 0
+
+
+def run_scan(stage):
+    """Serve a per-scan stage: `stage(points, args) -> {key: number}`, points an (n, 3)
+    float64 array (x, y, z in mm). The values are added to scan.json."""
+
+    def handle(data, _rest, args):
+        pts = np.frombuffer(data, dtype="<f8").reshape(-1, 3)
+        values = stage(pts, args)
+        return "".join(f"{k} {float(v)!r}\n" for k, v in values.items())
+
+    return _serve_once("scan", handle)
+
+
+def run_sink(sink):
+    """Serve a sink: `sink(summary, scan_dir, args) -> str`, summary the scan summary as a
+    dict, scan_dir the scan directory's path. The returned text is the sink's report, a file
+    in the scan directory."""
+
+    def handle(data, rest, args):
+        return sink(json.loads(data), rest, args)
+
+    return _serve_once("sink", handle)
+
+
 def run_detector(detect):
     """Serve frames to `detect(frame, args) -> rows` until the host closes stdin. `args` is
     the stage's `args` table as a dict of floats. A raised exception is reported to the host
@@ -50,21 +146,9 @@ def run_detector(detect):
     proto_out = sys.stdout.buffer
     sys.stdout = sys.stderr  # a stray print() must not break the protocol
     stdin = sys.stdin.buffer
-    hello = stdin.readline().split()
-    if len(hello) < 3 or hello[0] != b"hello" or hello[2] != b"detector":
-        proto_out.write(b"error expected 'hello 1 detector ...'\n")
-        proto_out.flush()
+    args = _hello("detector", proto_out, stdin)
+    if args is None:
         return 1
-    if int(hello[1]) != PROTOCOL:
-        proto_out.write(b"error this helper speaks protocol 1\n")
-        proto_out.flush()
-        return 1
-    args = {}
-    for kv in hello[3:]:
-        k, _, v = kv.decode().partition("=")
-        args[k] = float(v)
-    proto_out.write(b"ready 1\n")
-    proto_out.flush()
     mm, size = None, 0
     for line in stdin:
         words = line.split()

@@ -214,6 +214,12 @@ fn plugin_stages(path: &Path) -> Result<()> {
                     .with_context(|| format!("{at}: `module` (a .wasm file) is required"))?;
                 let p = footscan_plugins::wasm::WasmPlugin::load(Path::new(module))
                     .with_context(|| at.clone())?;
+                if p.wants_files() && s.params.get("grant").is_none() {
+                    anyhow::bail!(
+                        "{at}: plugin {module}: imports the file system (WASI), but the stage \
+                         grants it no directory (grant = \"DIR\" or \"scan\"; docs/plugins.md)"
+                    );
+                }
                 println!("{at:20} wasm {module}: {}", p.kind().place());
             }
             "exec" => {
@@ -227,17 +233,30 @@ fn plugin_stages(path: &Path) -> Result<()> {
                             .collect()
                     })
                     .with_context(|| format!("{at}: `command` (a list of strings) is required"))?;
+                use footscan_plugins::exec::ExecRole;
+                let (role, place) = match s.params.get("place").and_then(toml::Value::as_str) {
+                    None | Some("frame") => (
+                        ExecRole::Detector,
+                        "per frame (detector: frame rows in, line per row out)",
+                    ),
+                    Some("scan") => (ExecRole::Scan, "per scan (the point set in, values out)"),
+                    Some("sink") => (
+                        ExecRole::Sink,
+                        "sink (the scan summary and directory in, a report out)",
+                    ),
+                    Some(other) => anyhow::bail!(
+                        "{at}: place = {other:?}: valid places are \"frame\", \"scan\" and \"sink\""
+                    ),
+                };
                 // Started and stopped: the hello/ready exchange is the check.
-                footscan_plugins::exec::ExecDetector::start(
+                footscan_plugins::exec::ExecDetector::start_as(
+                    role,
                     &cmd,
                     &[],
                     footscan_plugins::exec::ExecLimits::default(),
                 )
                 .with_context(|| at.clone())?;
-                println!(
-                    "{at:20} exec {}: per frame (detector: frame rows in, line per row out)",
-                    cmd.join(" ")
-                );
+                println!("{at:20} exec {}: {place}", cmd.join(" "));
             }
             _ => continue,
         }

@@ -21,7 +21,7 @@ pub use error::{
 pub use quality::{Quality, QualityError, QualitySection, ScanStatus};
 pub use registry::{params, registry, ScanContext};
 pub use run::{run_scan, CancelToken, ScanOptions, ScanProgress};
-pub use summary::{ScanSummary, TruthSource, TruthStats};
+pub use summary::{PluginRecord, ScanSummary, TruthSource, TruthStats};
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
@@ -93,6 +93,8 @@ pub struct ScanCounters {
     foot_side: Mutex<Option<crate::measure::Side>>,
     /// The measured foot's doubtful figures, from `measure.foot`.
     measure_warnings: Mutex<Vec<String>>,
+    /// What the per-scan and sink plugin stages did, for scan.json.
+    plugins: Mutex<Vec<summary::PluginRecord>>,
 }
 
 impl ScanCounters {
@@ -136,6 +138,12 @@ impl ScanCounters {
     }
     pub fn measure_warnings(&self) -> Vec<String> {
         self.measure_warnings.lock().unwrap().clone()
+    }
+    pub fn add_plugin(&self, r: summary::PluginRecord) {
+        self.plugins.lock().unwrap().push(r);
+    }
+    pub fn plugins(&self) -> Vec<summary::PluginRecord> {
+        self.plugins.lock().unwrap().clone()
     }
     /// Laser-off frames and the rows found in them.
     pub fn laser_off(&self) -> (u64, u64) {

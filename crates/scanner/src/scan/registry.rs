@@ -1,12 +1,12 @@
 //! The one list of scan stages by name, with their parameters: what `[[pipeline.stages]]`
 //! may name and what `footscan stages` prints.
 
-#[cfg(feature = "plugins")]
-use super::stages::PluginDetector;
 use super::stages::{
     out_file, Accumulate, Acquire, AdjustParams, AdjustStage, Detect, GridSink, HeightMapSink,
     MeasureParams, MeasureStage, ModelParams, ModelStage, PlySink, SummarySink, Triangulate,
 };
+#[cfg(feature = "plugins")]
+use super::stages::{PluginDetector, PluginInfo, PluginRunner, PluginScanStage, PluginSinkStage};
 use super::{item::Item, Devices, ScanCounters, ScanPlan, TruthSource};
 use crate::calib::Calibration;
 use crate::detect::{build, DetectParams, DETECTORS};
@@ -75,6 +75,13 @@ struct WasmParams {
     fuel_per_frame: Option<u64>,
     /// Largest memory the module may grow to, MiB.
     memory_mb: Option<u64>,
+    /// A directory the module may open files in (WASI, preopened as fd 3): "scan" for the
+    /// scan's own directory, else a path. Read-only for sinks; none for per-frame stages.
+    grant: Option<PathBuf>,
+    /// false: a failing per-scan or sink stage is skipped (recorded in scan.json).
+    required: Option<bool>,
+    /// A sink's report file in the scan directory.
+    report: Option<String>,
 }
 
 /// An `exec` stage: an external process (docs/plugins.md).
@@ -91,6 +98,74 @@ struct ExecParams {
     frame_timeout_ms: Option<u64>,
     /// Restarts per scan after a crash or a hang.
     max_restarts: Option<u32>,
+    /// "frame" (a detector, the default), "scan" or "sink".
+    place: Option<String>,
+    /// false: a failing per-scan or sink stage is skipped (recorded in scan.json).
+    required: Option<bool>,
+    /// A sink's report file in the scan directory.
+    report: Option<String>,
+}
+
+/// An `exec` stage's `args` as the `key=value` words of its `hello`: numbers, booleans (1/0)
+/// and strings without spaces (a sink's URL).
+#[cfg(feature = "plugins")]
+fn exec_args(args: &toml::Table) -> Result<Vec<(String, String)>, BoxError> {
+    args.iter()
+        .map(|(k, v)| match v {
+            toml::Value::Integer(i) => Ok((k.clone(), i.to_string())),
+            toml::Value::Float(f) => Ok((k.clone(), f.to_string())),
+            toml::Value::Boolean(b) => Ok((k.clone(), u8::from(*b).to_string())),
+            toml::Value::String(t) if !t.is_empty() && !t.contains(char::is_whitespace) => {
+                Ok((k.clone(), t.clone()))
+            }
+            other => Err(format!(
+                "args.{k}: a process stage takes numbers, booleans or strings without spaces, found {other}"
+            )
+            .into()),
+        })
+        .collect()
+}
+
+/// What a per-frame stage cannot have: it is the scan's detector, so it is never optional,
+/// and it gets no directory.
+#[cfg(feature = "plugins")]
+fn frame_stage_only(
+    required: Option<bool>,
+    grant: bool,
+    report: &Option<String>,
+) -> Result<(), BoxError> {
+    if required == Some(false) {
+        return Err("required = false: a per-frame detector is where the scan's points come from, so it cannot be skipped; only per-scan and sink stages can be optional".into());
+    }
+    if grant {
+        return Err("grant: a per-frame detector gets no directory; grants are for per-scan and sink stages".into());
+    }
+    if report.is_some() {
+        return Err("report: only a sink writes a report".into());
+    }
+    Ok(())
+}
+
+/// A sink's report file (default `<stem>-report.txt` of the plugin) in the scan directory.
+#[cfg(feature = "plugins")]
+fn report_file(
+    ctx: &ScanContext,
+    report: Option<String>,
+    plugin: &str,
+) -> Result<PathBuf, BoxError> {
+    let stem: String = std::path::Path::new(plugin)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+        .chars()
+        .filter(|c| c.is_ascii_alphanumeric() || *c == '_' || *c == '-')
+        .take(40)
+        .collect();
+    let default = format!(
+        "{}-report.txt",
+        if stem.is_empty() { "sink" } else { &stem }
+    );
+    out_file(&ctx.out_dir, "report", &report.unwrap_or(default))
 }
 
 /// A plugin's `args`: what `footscan_param` or `hello` takes.
@@ -277,24 +352,61 @@ pub fn registry() -> Registry<Item, ScanContext> {
 fn plugin_stages(r: &mut Registry<Item, ScanContext>) {
     r.register(
         "wasm",
-        "a WebAssembly module's stage, sandboxed (module = file.wasm, args = { .. }, fuel_per_frame, memory_mb); one exporting footscan_detect sits per frame in place of detect.*: docs/plugins.md",
+        "a WebAssembly module's stage, sandboxed (module = file.wasm, args = { .. }, fuel_per_frame, memory_mb, grant, required, report); where it sits follows its exports: footscan_detect per frame in place of detect.*, footscan_scan per scan, footscan_sink a sink: docs/plugins.md",
         |p, ctx: &ScanContext| {
             let p: WasmParams = params(p)?;
             let limits = wasm_limits(&p)?;
             let args = plugin_args(&p.args)?;
             let plugin = footscan_plugins::wasm::WasmPlugin::load(&p.module)?;
+            let info = || PluginInfo {
+                stage: "wasm",
+                plugin: plugin.path().display().to_string(),
+                required: p.required.unwrap_or(true),
+                counters: ctx.counters.clone(),
+            };
+            let grant = |writable: bool| {
+                p.grant.as_ref().map(|g| footscan_plugins::wasi::Grant {
+                    dir: if g == std::path::Path::new("scan") {
+                        ctx.out_dir.clone()
+                    } else {
+                        g.clone()
+                    },
+                    writable,
+                })
+            };
+            use footscan_plugins::wasm::WasmKind;
             match plugin.kind() {
-                footscan_plugins::wasm::WasmKind::Detector => Ok(Node::stage(
-                    Detect::plugin("wasm", PluginDetector::new(plugin.detector(limits, &args)?))
-                        .with_tap(ctx.tap.clone())
-                        .with_counters(ctx.counters.clone()),
-                )),
+                WasmKind::Detector => {
+                    frame_stage_only(p.required, p.grant.is_some(), &p.report)?;
+                    Ok(Node::stage(
+                        Detect::plugin("wasm", PluginDetector::new(plugin.detector(limits, &args)?))
+                            .with_tap(ctx.tap.clone())
+                            .with_counters(ctx.counters.clone()),
+                    ))
+                }
+                WasmKind::Scan => {
+                    if p.report.is_some() {
+                        return Err("report: only a sink writes a report".into());
+                    }
+                    let runner = plugin.runner(limits, &args, grant(true).as_ref())?;
+                    Ok(Node::stage(PluginScanStage::new(info(), PluginRunner::Wasm(runner))))
+                }
+                WasmKind::Sink => {
+                    let runner = plugin.runner(limits, &args, grant(false).as_ref())?;
+                    let report = report_file(ctx, p.report.clone(), &p.module.display().to_string())?;
+                    Ok(Node::stage(PluginSinkStage::new(
+                        info(),
+                        PluginRunner::Wasm(runner),
+                        ctx.out_dir.clone(),
+                        report,
+                    )))
+                }
             }
         },
     );
     r.register(
         "exec",
-        "an external process's stage (command = [program, args..], args = { .. }, frame_timeout_ms, max_restarts): per frame in place of detect.*, frames through shared memory, restarted on a crash: docs/plugins.md",
+        "an external process's stage (command = [program, args..], args = { .. }, place = frame/scan/sink, frame_timeout_ms, max_restarts, required, report): per frame in place of detect.* (frames through shared memory), per scan (the points in, values out) or a sink (the summary in, a report out); restarted on a crash: docs/plugins.md",
         |p, ctx: &ScanContext| {
             let p: ExecParams = params(p)?;
             let d = footscan_plugins::exec::ExecLimits::default();
@@ -307,16 +419,53 @@ fn plugin_stages(r: &mut Registry<Item, ScanContext>) {
                 max_restarts: p.max_restarts.unwrap_or(d.max_restarts),
                 ..d
             };
-            let exec = footscan_plugins::exec::ExecDetector::start(
-                &p.command,
-                &plugin_args(&p.args)?,
-                limits,
-            )?;
-            Ok(Node::stage(
-                Detect::plugin("exec", PluginDetector::exec(exec))
-                    .with_tap(ctx.tap.clone())
-                    .with_counters(ctx.counters.clone()),
-            ))
+            use footscan_plugins::exec::{ExecDetector, ExecRole};
+            let role = match p.place.as_deref().unwrap_or("frame") {
+                "frame" => ExecRole::Detector,
+                "scan" => ExecRole::Scan,
+                "sink" => ExecRole::Sink,
+                other => {
+                    return Err(format!(
+                        "place = {other:?}: valid places are \"frame\" (a detector, the default), \"scan\" and \"sink\""
+                    )
+                    .into())
+                }
+            };
+            let info = PluginInfo {
+                stage: "exec",
+                plugin: format!("`{}`", p.command.join(" ")),
+                required: p.required.unwrap_or(true),
+                counters: ctx.counters.clone(),
+            };
+            match role {
+                ExecRole::Detector => {
+                    frame_stage_only(p.required, false, &p.report)?;
+                    let exec = ExecDetector::start(&p.command, &plugin_args(&p.args)?, limits)?;
+                    Ok(Node::stage(
+                        Detect::plugin("exec", PluginDetector::exec(exec))
+                            .with_tap(ctx.tap.clone())
+                            .with_counters(ctx.counters.clone()),
+                    ))
+                }
+                ExecRole::Scan => {
+                    if p.report.is_some() {
+                        return Err("report: only a sink writes a report".into());
+                    }
+                    let exec = ExecDetector::start_as(role, &p.command, &exec_args(&p.args)?, limits)?;
+                    Ok(Node::stage(PluginScanStage::new(info, PluginRunner::Exec(exec))))
+                }
+                ExecRole::Sink => {
+                    let exec = ExecDetector::start_as(role, &p.command, &exec_args(&p.args)?, limits)?;
+                    let name = p.command.last().cloned().unwrap_or_default();
+                    let report = report_file(ctx, p.report.clone(), &name)?;
+                    Ok(Node::stage(PluginSinkStage::new(
+                        info,
+                        PluginRunner::Exec(exec),
+                        ctx.out_dir.clone(),
+                        report,
+                    )))
+                }
+            }
         },
     );
 }

@@ -183,6 +183,7 @@ fn gate(
 }
 
 fn finish(s: &mut ScanSummary, counters: &ScanCounters, started: Instant) {
+    s.plugins = counters.plugins();
     s.frames = counters.frames();
     s.dropped_frames = counters.dropped();
     s.stationary_frames = counters.stationary();

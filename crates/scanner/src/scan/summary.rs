@@ -68,6 +68,31 @@ pub struct ScanSummary {
     /// What the quality gate looked at (scans that produced a grid).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub quality: Option<Quality>,
+    /// What each per-scan and sink plugin stage did: its values, its report, or why it was
+    /// skipped (docs/plugins.md).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub plugins: Vec<PluginRecord>,
+}
+
+/// One per-scan or sink plugin stage's outcome, kept in scan.json.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct PluginRecord {
+    /// `wasm` or `exec`.
+    pub stage: String,
+    /// The module's file or the command.
+    pub plugin: String,
+    /// `scan` or `sink`.
+    pub place: String,
+    /// "ok", or "skipped" (an optional stage that failed: `required = false`).
+    pub status: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    /// A per-scan stage's values.
+    #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub values: std::collections::BTreeMap<String, f64>,
+    /// A sink's report, a file in the scan directory.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub report: Option<String>,
 }
 
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
@@ -96,6 +121,7 @@ pub fn summarize(grid: &ScanGrid, truth: Option<&dyn TruthSource>) -> ScanSummar
         truth: truth.map(|t| compare(grid, t)),
         laser_off: None,
         quality: None,
+        plugins: Vec::new(),
     }
 }
 
@@ -149,6 +175,7 @@ impl ScanSummary {
             truth: None,
             laser_off: None,
             quality: None,
+            plugins: Vec::new(),
         }
     }
 

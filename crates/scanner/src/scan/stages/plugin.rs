@@ -82,3 +82,216 @@ const EMPTY: RowOut = RowOut {
     quality: 0.0,
     reject: 1,
 };
+
+/// A per-scan or sink plugin: a wasm module's instance or a process.
+pub enum PluginRunner {
+    Wasm(footscan_plugins::wasm::WasmRunner),
+    Exec(ExecDetector),
+}
+
+impl PluginRunner {
+    fn run(
+        &mut self,
+        input: &[u8],
+        dir: Option<&std::path::Path>,
+    ) -> Result<Vec<u8>, footscan_plugins::PluginError> {
+        match self {
+            Self::Wasm(w) => w.run(input),
+            Self::Exec(e) => e.run(input, dir),
+        }
+    }
+}
+
+/// What every per-scan and sink plugin stage shares: who it is, whether the scan needs it,
+/// and where its outcome is recorded.
+pub struct PluginInfo {
+    /// `wasm` or `exec`.
+    pub stage: &'static str,
+    /// The module's file or the command, as messages name it.
+    pub plugin: String,
+    /// `required = false`: a failure skips the stage instead of failing the scan.
+    pub required: bool,
+    pub counters: std::sync::Arc<crate::scan::ScanCounters>,
+}
+
+impl PluginInfo {
+    fn record(&self, place: &str) -> crate::scan::PluginRecord {
+        crate::scan::PluginRecord {
+            stage: self.stage.to_string(),
+            plugin: self.plugin.clone(),
+            place: place.to_string(),
+            status: "ok".into(),
+            reason: None,
+            values: Default::default(),
+            report: None,
+        }
+    }
+
+    /// A failure: the scan's error when the stage is required, else a skip kept in scan.json
+    /// and the log.
+    fn failed(&self, place: &str, why: String) -> Result<(), BoxError> {
+        if self.required {
+            return Err(why.into());
+        }
+        tracing::warn!(stage = self.stage, plugin = %self.plugin, "optional {place} stage skipped: {why}");
+        self.counters.add_plugin(crate::scan::PluginRecord {
+            status: "skipped".into(),
+            reason: Some(why),
+            ..self.record(place)
+        });
+        Ok(())
+    }
+}
+
+/// A per-scan plugin stage: the grid's valid points in (x y z, f64 little-endian each), the
+/// `key value` lines it reports added to scan.json.
+pub struct PluginScanStage {
+    pub info: PluginInfo,
+    pub runner: PluginRunner,
+    done: bool,
+}
+
+impl PluginScanStage {
+    pub fn new(info: PluginInfo, runner: PluginRunner) -> Self {
+        Self {
+            info,
+            runner,
+            done: false,
+        }
+    }
+
+    fn run(&mut self, grid: &crate::scandata::ScanGrid) -> Result<(), String> {
+        let mut input = Vec::with_capacity(grid.valid_count() * 24);
+        for (_, _, p, _) in grid.valid() {
+            for v in p {
+                input.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        let report = self.runner.run(&input, None).map_err(|e| e.to_string())?;
+        let values = footscan_plugins::parse_values(&report)
+            .map_err(|e| format!("plugin {} {e}", self.info.plugin))?;
+        self.info.counters.add_plugin(crate::scan::PluginRecord {
+            values: values.into_iter().collect(),
+            ..self.info.record("scan")
+        });
+        Ok(())
+    }
+}
+
+impl crate::pipeline::Stage<crate::scan::item::Item> for PluginScanStage {
+    fn process(
+        &mut self,
+        item: crate::scan::item::Item,
+        out: &mut crate::pipeline::Emitter<crate::scan::item::Item>,
+    ) -> Result<(), BoxError> {
+        if let crate::scan::item::Item::Grid(grid) = &item {
+            self.done = true;
+            if let Err(why) = self.run(grid) {
+                self.info.failed("scan", why)?;
+            }
+        }
+        let _ = out.emit(item);
+        Ok(())
+    }
+
+    fn finish(
+        &mut self,
+        _out: &mut crate::pipeline::Emitter<crate::scan::item::Item>,
+    ) -> Result<(), BoxError> {
+        if !self.done {
+            self.info.failed(
+                "scan",
+                format!(
+                    "plugin {} received no scan grid: place the per-scan stage after accumulate",
+                    self.info.plugin
+                ),
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// A sink plugin stage: the scan summary in (JSON, as scan.json holds it before the quality
+/// gate), the scan directory readable, its report written to `report` in the scan directory.
+pub struct PluginSinkStage {
+    pub info: PluginInfo,
+    pub runner: PluginRunner,
+    pub out_dir: std::path::PathBuf,
+    pub report: std::path::PathBuf,
+    done: bool,
+}
+
+impl PluginSinkStage {
+    pub fn new(
+        info: PluginInfo,
+        runner: PluginRunner,
+        out_dir: std::path::PathBuf,
+        report: std::path::PathBuf,
+    ) -> Self {
+        Self {
+            info,
+            runner,
+            out_dir,
+            report,
+            done: false,
+        }
+    }
+
+    fn run(&mut self, summary: &crate::scan::ScanSummary) -> Result<(), String> {
+        let mut s = summary.clone();
+        s.plugins = self.info.counters.plugins();
+        let input = serde_json::to_vec(&s).expect("the summary serialises");
+        let report = self
+            .runner
+            .run(&input, Some(&self.out_dir))
+            .map_err(|e| e.to_string())?;
+        crate::io::write_atomic(&self.report, &report).map_err(|e| {
+            format!(
+                "plugin {}: its report could not be written to {}: {e}",
+                self.info.plugin,
+                self.report.display()
+            )
+        })?;
+        self.info.counters.add_plugin(crate::scan::PluginRecord {
+            report: self
+                .report
+                .file_name()
+                .map(|f| f.to_string_lossy().into_owned()),
+            ..self.info.record("sink")
+        });
+        Ok(())
+    }
+}
+
+impl crate::pipeline::Stage<crate::scan::item::Item> for PluginSinkStage {
+    fn process(
+        &mut self,
+        item: crate::scan::item::Item,
+        out: &mut crate::pipeline::Emitter<crate::scan::item::Item>,
+    ) -> Result<(), BoxError> {
+        if let crate::scan::item::Item::Summary(s) = &item {
+            self.done = true;
+            if let Err(why) = self.run(s) {
+                self.info.failed("sink", why)?;
+            }
+        }
+        let _ = out.emit(item);
+        Ok(())
+    }
+
+    fn finish(
+        &mut self,
+        _out: &mut crate::pipeline::Emitter<crate::scan::item::Item>,
+    ) -> Result<(), BoxError> {
+        if !self.done {
+            self.info.failed(
+                "sink",
+                format!(
+                    "plugin {} received no scan summary: place the sink after sink.summary",
+                    self.info.plugin
+                ),
+            )?;
+        }
+        Ok(())
+    }
+}
