@@ -6,6 +6,7 @@
 //! it was). One job at a time, on the HTTP runtime's blocking threads: they run at its lower
 //! priority, so making a last never takes the CPU from a scan.
 
+use super::fitview::{write_fit_view, FitView, FIT_FILE};
 use super::{Daemon, DaemonError};
 use crate::archive::{ScanId, Status, VisitError};
 use footscan::lastcustom::{customize_scan, STOCK_EXTENSIONS};
@@ -118,6 +119,13 @@ pub struct LastJob {
     pub fits: Option<bool>,
     /// The files of `last/`, downloadable at `/api/scans/{id}/last/{name}`.
     pub files: Vec<String>,
+    /// The foot inside the last for the 3D view (`last/fit.glb`) and the placement it used;
+    /// absent before the last is written, or when it could not be made (`fit_error` says
+    /// why: the last itself is made all the same).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit: Option<FitView>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit_error: Option<String>,
 }
 
 /// The scan whose last is being made (one at a time).
@@ -309,6 +317,8 @@ impl Daemon {
             clearance: None,
             fits: None,
             files: Vec::new(),
+            fit: None,
+            fit_error: None,
         };
         if let Err(e) = write_job(&dir, &job) {
             *self.last_jobs.running.lock().unwrap() = None;
@@ -405,9 +415,9 @@ impl Daemon {
 
     /// The path of file `name` of the scan's last.
     pub fn last_file(&self, id: &ScanId, name: &str) -> Result<PathBuf, DaemonError> {
-        if !OUTPUT_FILES.contains(&name) {
+        if !OUTPUT_FILES.contains(&name) && name != FIT_FILE {
             return Err(DaemonError::BadRequest(format!(
-                "file {:?}: a last has {}",
+                "file {:?}: a last has {} and {FIT_FILE}",
                 name.chars().take(80).collect::<String>(),
                 OUTPUT_FILES.join(", ")
             )));
@@ -474,6 +484,23 @@ fn make_last(
         .iter()
         .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
         .collect();
+    // The 3D view's foot inside the last, written into the directory just replaced (so no
+    // earlier last's view is left beside this last). The last is made without it.
+    let fit = match footscan::scandata::ScanDir::new(dir).load_measurements() {
+        Ok(Some(m)) => write_fit_view(dir, &dir.join(LAST_DIR), &m, &c),
+        Ok(None) => Err("the scan has no measurements.json".into()),
+        Err(e) => Err(footscan_util::chain(&e)),
+    };
+    match fit {
+        Ok(f) => job.fit = Some(f),
+        Err(why) => {
+            tracing::warn!(
+                "scan {}: no 3D view of the foot in the last: {why}",
+                job.scan
+            );
+            job.fit_error = Some(why);
+        }
+    }
     if !misfits.is_empty() {
         return Err(format!(
             "the last does not do what its rules ask: {}; its files are kept marked as a \
