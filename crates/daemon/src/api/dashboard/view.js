@@ -14,7 +14,7 @@ const LANDMARK = 0xd01010;
 // The last drawn around the foot (style.css .swatch-last): a clear blue, apart from the skin
 // and from the red of the foot where it stands out.
 const LAST = 0x4a78d0;
-const LAST_OPACITY = 0.4;
+const LAST_OPACITY = 0.25;
 
 function authHeaders() {
   const t = sessionStorage.getItem(TOKEN_KEY) || '';
@@ -299,6 +299,9 @@ async function drawFit(id, job, key) {
       o.material = new THREE.MeshStandardMaterial({
         color: LAST, transparent: true, opacity: LAST_OPACITY, roughness: 0.8,
         metalness: 0, side: THREE.DoubleSide, depthWrite: false,
+        // Over the foot everywhere: its bottom lies on the sole, and depth-tested there the
+        // two speckled (a shell the foot is inside needs no depth order).
+        depthTest: false,
       });
       o.renderOrder = 5;
     }

@@ -106,6 +106,14 @@ const VISIT_ROWS = [
   ['Axis angle (°)', (m) => m.axis_angle_deg, 1],
 ];
 
+/** A difference with its sign, "0.0" when it rounds to nothing (not "-0.0"). */
+function visitSigned(x, d) {
+  if (typeof x !== 'number' || !Number.isFinite(x)) return '–';
+  const t = x.toFixed(d);
+  if (Number(t) === 0) return (0).toFixed(d);
+  return (x > 0 ? '+' : '') + t;
+}
+
 /** Both feet's figures and right minus left, as the visit report has them. */
 function visitCompare(ml, mr) {
   const box = $('visit-compare');
@@ -127,7 +135,7 @@ function visitCompare(ml, mr) {
     body.append(el('tr', {},
       el('th', { scope: 'row', text: label }), el('td', { class: 'num', text: fmt(l, d) }),
       el('td', { class: 'num', text: fmt(r, d) }),
-      el('td', { class: 'num diff', text: diff === undefined ? '–' : (diff > 0 ? '+' : '') + fmt(diff, d) })));
+      el('td', { class: 'num diff', text: visitSigned(diff, d) })));
   }
   t.append(body);
   box.append(t);
