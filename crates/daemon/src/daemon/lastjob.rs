@@ -350,10 +350,13 @@ impl Daemon {
                     job.reason = Some(why);
                 }
             }
+            // The record and the slot change together: a reader that sees the job ended must
+            // find the slot free (a visit deleted right after it, a next job posted).
+            let mut running = d.last_jobs.running.lock().unwrap();
             if let Err(e) = write_job(&dir, &job) {
                 tracing::error!("scan {}: cannot record its last job: {e}", job.scan);
             }
-            *d.last_jobs.running.lock().unwrap() = None;
+            *running = None;
         };
         match tokio::runtime::Handle::try_current() {
             // The runtime's blocking threads run at its lower priority (main.rs).
@@ -373,6 +376,8 @@ impl Daemon {
             )));
         };
         let p = dir.join(JOB_FILE);
+        // Held while the record is read: a job that ends meanwhile writes it under this lock.
+        let running = self.last_jobs.running.lock().unwrap();
         let bytes = match std::fs::read(&p) {
             Ok(b) => b,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
@@ -383,7 +388,7 @@ impl Daemon {
                 path: p.clone(),
                 source,
             })?;
-        let ours = self.last_jobs.running.lock().unwrap().as_deref() == Some(id.as_str());
+        let ours = running.as_deref() == Some(id.as_str());
         if job.state == LastState::Running && !ours {
             job.state = LastState::Failed;
             job.reason = Some(INTERRUPTED.into());
