@@ -83,6 +83,7 @@ fn a_scan_with_last_adjust_offers_the_adjusted_last() {
     );
     customized_last(&d, &id);
     dashboard_makes_a_last(&d, &id, dir.path());
+    viewer_draws_the_last(&d, &id, dir.path());
     // A job cut off by a stop reads as failed once the daemon is back.
     assert!(d.terminate(Duration::from_secs(20)).success());
     let scan_dir = archive.join(&id);
@@ -396,4 +397,171 @@ fn dashboard_makes_a_last(d: &Footscand, id: &str, dir: &std::path::Path) {
         &daemon_support::chromium::target_png("dashboard-last.png"),
         Some("last"),
     );
+}
+
+/// The extent (x, y, z in glTF metres) of node `name` of a .glb, from its POSITION
+/// accessor's bounds (required there by glTF).
+fn glb_extent(bytes: &[u8], name: &str) -> [f64; 3] {
+    let (lo, hi) = glb_bounds(bytes, name);
+    [0, 1, 2].map(|d| hi[d] - lo[d])
+}
+
+/// The bounds (min, max; glTF metres) of node `name` of a .glb.
+fn glb_bounds(bytes: &[u8], name: &str) -> ([f64; 3], [f64; 3]) {
+    let jl = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let doc: Value = serde_json::from_slice(&bytes[20..20 + jl]).unwrap();
+    let node = doc["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|n| n["name"] == name)
+        .unwrap_or_else(|| panic!("a node named {name}"));
+    let mesh = &doc["meshes"][node["mesh"].as_u64().unwrap() as usize];
+    let acc = &doc["accessors"][mesh["primitives"][0]["attributes"]["POSITION"]
+        .as_u64()
+        .unwrap() as usize];
+    let f = |k: &str, d: usize| acc[k][d].as_f64().unwrap();
+    (
+        [0, 1, 2].map(|d| f("min", d)),
+        [0, 1, 2].map(|d| f("max", d)),
+    )
+}
+
+/// view.js BACKGROUND.
+const BACKGROUND: [u8; 3] = [0xf7, 0xf7, 0xf5];
+
+/// The bounding box (x0, y0, x1, y1) and count of the pixels `keep` picks, the figure's
+/// 4 px frame left out.
+fn mask_box(img: &image::RgbImage, keep: impl Fn(u32, u32) -> bool) -> ([u32; 4], usize) {
+    mask_box_in(img.dimensions(), keep)
+}
+
+fn mask_box_in((w, h): (u32, u32), keep: impl Fn(u32, u32) -> bool) -> ([u32; 4], usize) {
+    let (mut b, mut n) = ([u32::MAX, u32::MAX, 0, 0], 0);
+    for y in 4..h - 4 {
+        for x in 4..w - 4 {
+            if keep(x, y) {
+                n += 1;
+                b = [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)];
+            }
+        }
+    }
+    (b, n)
+}
+
+fn off_background(p: &image::Rgb<u8>) -> bool {
+    (0..3).any(|c| (p[c] as i32 - BACKGROUND[c] as i32).abs() > 16)
+}
+
+/// The 3D view of the scan with its last (issue 35): the job's record gives the placement
+/// (fitted to the footprint within 0.05 mm) and fit.glb (the last laid flat around the foot,
+/// the foot coloured by its clearance). In headless Chromium (WebGL on SwiftShader), from the
+/// top and the side, the same camera with the last hidden and shown: the last's translucent
+/// blue covers a region whose aspect is the last's own (from fit.glb's bounds) and which holds
+/// the foot's image, reaching past the foot's toes (the toe allowance). Screenshots:
+/// target/dashboard-fit-{top,side}.png.
+fn viewer_draws_the_last(d: &Footscand, id: &str, dir: &std::path::Path) {
+    use daemon_support::chromium::{target_png, WEBGL};
+    let j = d.get_json(&format!("/api/scans/{id}/last"));
+    let fit = &j["fit"];
+    println!("last job fit: {fit}");
+    assert!(fit.is_object(), "no fit in the job: {j}");
+    assert!(fit["residual_mm"].as_f64().unwrap() < 0.05, "{fit}");
+    let r = d.get(&format!("/api/scans/{id}/last/fit.glb"));
+    assert_eq!(r.status(), 200);
+    assert_eq!(r.headers()["content-type"], "model/gltf-binary");
+    let glb = r.bytes().unwrap().to_vec();
+    let (foot, last) = (glb_extent(&glb, "foot"), glb_extent(&glb, "last"));
+    let mm = |e: [f64; 3]| e.map(|v| (v * 1e4).round() / 10.0);
+    let (fl, fh) = glb_bounds(&glb, "foot");
+    let (ll, lh) = glb_bounds(&glb, "last");
+    println!(
+        "fit.glb: {} bytes; foot {:?} mm, last {:?} mm; foot {:?}..{:?}, last {:?}..{:?} mm",
+        glb.len(),
+        mm(foot),
+        mm(last),
+        mm(fl),
+        mm(fh),
+        mm(ll),
+        mm(lh)
+    );
+    let mut b = Browser::launch_with(&dir.join("profile-fit"), 1280, 1800, &WEBGL);
+    b.open(
+        &format!("{}/", d.base),
+        "typeof loadResult === 'function' && window.footscanViewer",
+        Duration::from_secs(60),
+    );
+    b.eval(&format!("loadResult({id:?})"));
+    b.wait_for(
+        &format!("footscanViewer.id === {id:?} && footscanViewer.ready && !!footscanViewer.last"),
+        Duration::from_secs(60),
+    );
+    let legend = b.eval(
+        "document.getElementById('viewer-legend').hidden ? null : \
+         document.getElementById('viewer-legend').textContent",
+    );
+    println!("legend: {legend}");
+    assert!(legend.as_str().unwrap_or("").contains("mm"), "{legend}");
+    b.eval("footscanViewer.showMarks(false)");
+    // glTF x is the foot's length; across it, z the width (seen from the top), y the height.
+    for (view, across) in [("top", 2usize), ("side", 1)] {
+        b.eval(&format!("footscanViewer.setView({view:?})"));
+        b.eval("footscanViewer.showLast(false)");
+        std::thread::sleep(Duration::from_millis(300));
+        let bare = b.screenshot(
+            &target_png(&format!("dashboard-fit-{view}-foot.png")),
+            Some("viewer"),
+        );
+        b.eval("footscanViewer.showLast(true)");
+        std::thread::sleep(Duration::from_millis(300));
+        let img = b.screenshot(
+            &target_png(&format!("dashboard-fit-{view}.png")),
+            Some("viewer"),
+        );
+        // (The element's box may round to a pixel more or less between the two shots.)
+        let both = (
+            img.width().min(bare.width()),
+            img.height().min(bare.height()),
+        );
+        let (fb, nf) = mask_box(&bare, |x, y| off_background(bare.get_pixel(x, y)));
+        let (lb, nl) = mask_box(&img, |x, y| off_background(img.get_pixel(x, y)));
+        // Where only the last is: off the background now, background without it; blue.
+        let (_, ring) = mask_box_in(both, |x, y| {
+            off_background(img.get_pixel(x, y)) && !off_background(bare.get_pixel(x, y))
+        });
+        let (_, blue) = mask_box_in(both, |x, y| {
+            let p = img.get_pixel(x, y);
+            !off_background(bare.get_pixel(x, y)) && p[2] as i32 > p[0] as i32 + 15
+        });
+        let (lw, lh) = ((lb[2] - lb[0] + 1) as f64, (lb[3] - lb[1] + 1) as f64);
+        let want = last[0] / last[across];
+        println!(
+            "{view}: foot {nf} px in {fb:?}, with the last {nl} px in {lb:?} (aspect {:.2}, \
+             the last's {want:.2}); {ring} px of the last alone, {blue} of them blue",
+            lw / lh
+        );
+        assert!(
+            nf > 1000 && nl > nf,
+            "{view}: the last adds nothing to the view"
+        );
+        assert!(
+            (lw / lh / want - 1.0).abs() < 0.25,
+            "{view}: the view with the last spans {lw} x {lh} px, the last is {want:.2} long to {}",
+            if across == 2 { "wide" } else { "high" }
+        );
+        assert!(
+            blue as f64 > 0.9 * ring as f64 && ring > 2000,
+            "{view}: {ring} px show the last alone, {blue} of them in its translucent blue"
+        );
+        // The last holds the foot's image (a few px of the heel, behind the last by the
+        // heel allowance, may stand out) and reaches past its toes.
+        let slack = 0.04 * lw;
+        assert!(
+            fb[0] as f64 >= lb[0] as f64 - slack
+                && fb[1] as f64 >= lb[1] as f64 - slack
+                && fb[2] as f64 <= lb[2] as f64 + slack
+                && fb[3] as f64 <= lb[3] as f64 + slack,
+            "{view}: the foot's image {fb:?} is not inside the last's {lb:?}"
+        );
+    }
 }

@@ -6,8 +6,11 @@
 //! patient, the local time, both feet with the verdicts the archive gives and working links
 //! (the scan into Result, each foot's report, the visit's report), save notes typed into the
 //! page (read back over HTTP), and delete the visit with its scans only after the
-//! confirmation. Screenshots at target/dashboard-visits.png (the open visit) and
-//! target/dashboard-visits-delete.png (the confirmation), for people to look at.
+//! confirmation. The open visit shows both feet side by side: each in 3D (WebGL on
+//! SwiftShader, the canvas showing the foot) and the visit report's table of both feet's
+//! figures with right minus left, checked against the archive's measurements. Screenshots at
+//! target/dashboard-visits.png (the open visit), target/dashboard-visits-3d-{left,right}.png
+//! and target/dashboard-visits-delete.png (the confirmation), for people to look at.
 
 mod daemon_support;
 
@@ -161,7 +164,7 @@ fn visits_in_the_dashboard() {
     let shown_time = format!("{} {} ({})", &local[..10], &local[11..16], &local[19..]);
 
     // The list: both visits, newest first, in the clinic's time.
-    let mut b = Browser::launch(&tmp.path().join("profile"), 1280, 2400);
+    let mut b = Browser::launch_with(&tmp.path().join("profile"), 1280, 2400, &chromium::WEBGL);
     b.open(
         &format!("{}/#token={TOKEN}", d.base),
         "document.querySelectorAll('#visit-list tbody tr[data-visit-id]').length === 2",
@@ -251,6 +254,7 @@ fn visits_in_the_dashboard() {
             "{report}"
         );
     }
+    both_feet_side_by_side(&mut b, &d, &left, &right);
     // The links answer (with the token the page put in them): a foot's report and the visit's.
     let visit_report = c["visitReport"].as_str().unwrap().to_string();
     assert!(
@@ -350,4 +354,61 @@ fn visits_in_the_dashboard() {
     }
     let log = std::fs::read_to_string(archive.join("visits/deleted.log")).unwrap();
     assert!(log.contains(&vid) && log.contains(&right), "{log}");
+}
+
+/// The open visit's two feet: a 3D view each that shows its foot (a tenth of the canvas at
+/// least, away from the background), and the table of both feet's figures whose right minus
+/// left is the archive's (to the table's decimals).
+fn both_feet_side_by_side(b: &mut Browser, d: &Footscand, left: &str, right: &str) {
+    b.wait_for(
+        "(() => { const c = [...document.querySelectorAll('canvas.visit-viewer')]; \
+         return c.length === 2 && c.every((x) => x.dataset.ready === '1' || x.dataset.error); })()",
+        WAIT,
+    );
+    let v = b.eval(
+        "(() => ({ views: [...document.querySelectorAll('canvas.visit-viewer')].map((c) => \
+           ({ id: c.id, scan: c.dataset.scanId, ms: c.dataset.loadMs, tri: c.dataset.triangles, \
+              err: c.dataset.error || null })), \
+           rows: [...document.querySelectorAll('#visit-compare-table tbody tr')].map((r) => \
+              [...r.cells].map((c) => c.textContent)) }))()",
+    );
+    println!("visit 3D views and figures: {v}");
+    for (view, side, id) in [(0, "left", left), (1, "right", right)] {
+        let w = &v["views"][view];
+        assert_eq!(w["err"], Value::Null, "{w}");
+        assert_eq!(w["id"], format!("visit-viewer-{side}").as_str(), "{w}");
+        assert_eq!(w["scan"], id, "{w}");
+        let png = chromium::target_png(&format!("dashboard-visits-3d-{side}.png"));
+        let img = b.screenshot(&png, Some(&format!("visit-viewer-{side}")));
+        let bg = [0xf7u8, 0xf7, 0xf5];
+        let foot = img
+            .pixels()
+            .filter(|p| (0..3).any(|k| (p[k] as i32 - bg[k] as i32).abs() > 24))
+            .count();
+        let share = foot as f64 / (img.width() * img.height()) as f64;
+        println!("{side} foot in 3D: {:.1} % of its canvas", 100.0 * share);
+        assert!(share > 0.1, "{side}: the 3D view shows {share:.3} of foot");
+    }
+    let rows = v["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 8, "{v}");
+    let m = |id: &str| d.get_json(&format!("/api/scans/{id}"))["measurements"].clone();
+    let (ml, mr) = (m(left), m(right));
+    for (row, key, dec) in [
+        (0, "foot_length_mm", 1),
+        (2, "ball_width_mm", 1),
+        (4, "heel_width_mm", 1),
+        (6, "arch_index", 3),
+    ] {
+        let (l, r) = (ml[key].as_f64().unwrap(), mr[key].as_f64().unwrap());
+        let cells = rows[row].as_array().unwrap();
+        let num = |k: usize| cells[k].as_str().unwrap().parse::<f64>().unwrap();
+        let tol = 0.51 * 10f64.powi(-dec);
+        assert!((num(1) - l).abs() <= tol, "{key} left {l}: {cells:?}");
+        assert!((num(2) - r).abs() <= tol, "{key} right {r}: {cells:?}");
+        assert!(
+            (num(3) - (r - l)).abs() <= 2.0 * tol,
+            "{key} R - L {}: {cells:?}",
+            r - l
+        );
+    }
 }

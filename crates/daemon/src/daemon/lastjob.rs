@@ -6,6 +6,7 @@
 //! it was). One job at a time, on the HTTP runtime's blocking threads: they run at its lower
 //! priority, so making a last never takes the CPU from a scan.
 
+use super::fitview::{write_fit_view, FitView, FIT_FILE};
 use super::{Daemon, DaemonError};
 use crate::archive::{ScanId, Status, VisitError};
 use footscan::lastcustom::{customize_scan, STOCK_EXTENSIONS};
@@ -120,6 +121,13 @@ pub struct LastJob {
     pub fits: Option<bool>,
     /// The files of `last/`, downloadable at `/api/scans/{id}/last/{name}`.
     pub files: Vec<String>,
+    /// The foot inside the last for the 3D view (`last/fit.glb`) and the placement it used;
+    /// absent before the last is written, or when it could not be made (`fit_error` says
+    /// why: the last itself is made all the same).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit: Option<FitView>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit_error: Option<String>,
 }
 
 /// The scan whose last is being made (one at a time).
@@ -315,6 +323,8 @@ impl Daemon {
             clearance: None,
             fits: None,
             files: Vec::new(),
+            fit: None,
+            fit_error: None,
         };
         if let Err(e) = write_job(&dir, &job) {
             *self.last_jobs.running.lock().unwrap() = None;
@@ -346,10 +356,13 @@ impl Daemon {
                     job.reason = Some(why);
                 }
             }
+            // The record and the slot change together: a reader that sees the job ended must
+            // find the slot free (a visit deleted right after it, a next job posted).
+            let mut running = d.last_jobs.running.lock().unwrap();
             if let Err(e) = write_job(&dir, &job) {
                 tracing::error!("scan {}: cannot record its last job: {e}", job.scan);
             }
-            *d.last_jobs.running.lock().unwrap() = None;
+            *running = None;
         };
         match tokio::runtime::Handle::try_current() {
             // The runtime's blocking threads run at its lower priority (main.rs).
@@ -369,6 +382,8 @@ impl Daemon {
             )));
         };
         let p = dir.join(JOB_FILE);
+        // Held while the record is read: a job that ends meanwhile writes it under this lock.
+        let running = self.last_jobs.running.lock().unwrap();
         let bytes = match std::fs::read(&p) {
             Ok(b) => b,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
@@ -379,7 +394,7 @@ impl Daemon {
                 path: p.clone(),
                 source,
             })?;
-        let ours = self.last_jobs.running.lock().unwrap().as_deref() == Some(id.as_str());
+        let ours = running.as_deref() == Some(id.as_str());
         if job.state == LastState::Running && !ours {
             job.state = LastState::Failed;
             job.reason = Some(INTERRUPTED.into());
@@ -411,9 +426,9 @@ impl Daemon {
 
     /// The path of file `name` of the scan's last.
     pub fn last_file(&self, id: &ScanId, name: &str) -> Result<PathBuf, DaemonError> {
-        if !OUTPUT_FILES.contains(&name) {
+        if !OUTPUT_FILES.contains(&name) && name != FIT_FILE {
             return Err(DaemonError::BadRequest(format!(
-                "file {:?}: a last has {}",
+                "file {:?}: a last has {} and {FIT_FILE}",
                 name.chars().take(80).collect::<String>(),
                 OUTPUT_FILES.join(", ")
             )));
@@ -480,6 +495,23 @@ fn make_last(
         .iter()
         .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
         .collect();
+    // The 3D view's foot inside the last, written into the directory just replaced (so no
+    // earlier last's view is left beside this last). The last is made without it.
+    let fit = match footscan::scandata::ScanDir::new(dir).load_measurements() {
+        Ok(Some(m)) => write_fit_view(dir, &dir.join(LAST_DIR), &m, &c),
+        Ok(None) => Err("the scan has no measurements.json".into()),
+        Err(e) => Err(footscan_util::chain(&e)),
+    };
+    match fit {
+        Ok(f) => job.fit = Some(f),
+        Err(why) => {
+            tracing::warn!(
+                "scan {}: no 3D view of the foot in the last: {why}",
+                job.scan
+            );
+            job.fit_error = Some(why);
+        }
+    }
     if !misfits.is_empty() {
         return Err(format!(
             "the last does not do what its rules ask: {}; its files are kept marked as a \

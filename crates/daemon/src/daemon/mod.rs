@@ -3,6 +3,7 @@
 //! channel of events, and the live preview. The HTTP layer (`crate::api`) is a thin shell.
 
 pub mod config;
+pub mod fitview;
 mod fleet;
 pub mod guided;
 mod jobs;

@@ -77,7 +77,8 @@ async function visitOpenId(id) {
   $('visits-zone').textContent = `times in ${v.time_zone}`;
   $('visit-notes').value = v.notes || '';
   $('visit-notes-state').textContent = '';
-  await Promise.all([visitRenderFoot(v, 'left'), visitRenderFoot(v, 'right')]);
+  const [ml, mr] = await Promise.all([visitRenderFoot(v, 'left'), visitRenderFoot(v, 'right')]);
+  visitCompare(ml, mr);
   const report = $('visit-report');
   report.replaceChildren();
   if (v.left && v.right) {
@@ -91,7 +92,57 @@ async function visitOpenId(id) {
   await visitFillAdd(v);
 }
 
-/** One foot of the open visit: its scan's verdict, figures, plantar view and links. */
+/** The rows of the visit report's table (scanner report.rs render_visit): label, the
+ * value of one foot's measurements, decimals. */
+const VISIT_ROWS = [
+  ['Foot length (mm)', (m) => m.foot_length_mm, 1],
+  ['Ball width MT1–MT5 (mm)', (m) => (Array.isArray(m.mt1_head) && Array.isArray(m.mt5_head)
+    ? Math.hypot(m.mt1_head[0] - m.mt5_head[0], m.mt1_head[1] - m.mt5_head[1]) : undefined), 1],
+  ['Ball width, across axis (mm)', (m) => m.ball_width_mm, 1],
+  ['Mid-foot width (mm)', (m) => m.midfoot_width_mm, 1],
+  ['Heel width (mm)', (m) => m.heel_width_mm, 1],
+  ['Arch height (mm)', (m) => m.arch_height_mm, 1],
+  ['Arch index', (m) => m.arch_index, 3],
+  ['Axis angle (°)', (m) => m.axis_angle_deg, 1],
+];
+
+/** A difference with its sign, "0.0" when it rounds to nothing (not "-0.0"). */
+function visitSigned(x, d) {
+  if (typeof x !== 'number' || !Number.isFinite(x)) return '–';
+  const t = x.toFixed(d);
+  if (Number(t) === 0) return (0).toFixed(d);
+  return (x > 0 ? '+' : '') + t;
+}
+
+/** Both feet's figures and right minus left, as the visit report has them. */
+function visitCompare(ml, mr) {
+  const box = $('visit-compare');
+  box.replaceChildren();
+  if (!ml || !mr) {
+    box.append(el('p', { class: 'small', text: 'The comparison needs both feet measured.' }));
+    return;
+  }
+  const fmt = (x, d) => (typeof x === 'number' && Number.isFinite(x) ? x.toFixed(d) : '–');
+  const t = el('table', { class: 'data', id: 'visit-compare-table' },
+    el('caption', { text: 'Both feet (measurements.json) and right minus left' }),
+    el('thead', {}, el('tr', {},
+      el('th', { scope: 'col', text: 'Measure' }), el('th', { scope: 'col', class: 'num', text: 'Left' }),
+      el('th', { scope: 'col', class: 'num', text: 'Right' }), el('th', { scope: 'col', class: 'num', text: 'R − L' }))));
+  const body = el('tbody');
+  for (const [label, get, d] of VISIT_ROWS) {
+    const [l, r] = [get(ml), get(mr)];
+    const diff = typeof l === 'number' && typeof r === 'number' ? r - l : undefined;
+    body.append(el('tr', {},
+      el('th', { scope: 'row', text: label }), el('td', { class: 'num', text: fmt(l, d) }),
+      el('td', { class: 'num', text: fmt(r, d) }),
+      el('td', { class: 'num diff', text: visitSigned(diff, d) })));
+  }
+  t.append(body);
+  box.append(t);
+}
+
+/** One foot of the open visit: its scan's verdict, figures, plantar view, 3D view (view.js
+ * draws a canvas.visit-viewer) and links; its measurements, or null. */
 async function visitRenderFoot(v, side) {
   const box = $(`visit-foot-${side}`);
   const title = side === 'left' ? 'Left foot' : 'Right foot';
@@ -127,6 +178,12 @@ async function visitRenderFoot(v, side) {
   if (names.has('plantar.png')) {
     box.append(el('img', { src: fileUrl(rec.id, 'plantar.png'), alt: `${title}: plantar view with landmarks`, class: 'visit-plantar' }));
   }
+  if (names.has('model.glb')) {
+    box.append(el('canvas', {
+      class: 'visit-viewer', id: `visit-viewer-${side}`, width: 400, height: 300, 'data-scan-id': rec.id,
+      role: 'img', 'aria-label': `${title} in 3D: drag to turn, wheel or pinch to zoom`,
+    }));
+  }
   const links = el('p', { class: 'small links' });
   links.append(el('a', {
     href: '#result', class: 'scan-link', text: `Scan ${rec.id}`,
@@ -142,6 +199,7 @@ async function visitRenderFoot(v, side) {
     }));
   }
   box.append(links);
+  return m && typeof m.foot_length_mm === 'number' ? m : null;
 }
 
 /** The patient's ended scans not yet in the visit, for "Add a scan". */
