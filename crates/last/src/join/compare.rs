@@ -107,6 +107,11 @@ pub struct Row {
     /// Worst of the two kept parts against their meshes, mm.
     pub fit_rms_mm: f64,
     pub fit_max_mm: f64,
+    /// Fitting the kept parts to their meshes (back, toe), ms, and the fitted parts' largest
+    /// distance from their meshes on the fit's own check grid (back, toe), mm; zero where
+    /// the method does not fit them.
+    pub fit_ms: (f64, f64),
+    pub fit_check_max_mm: (f64, f64),
 }
 
 /// What the zebra picture of one result needs.
@@ -164,6 +169,8 @@ pub fn run(
                     fill_variation: var,
                     fit_rms_mm: d[0].rms_mm.max(d[1].rms_mm),
                     fit_max_mm: d[0].max_mm.max(d[1].max_mm),
+                    fit_ms: (0.0, 0.0),
+                    fit_check_max_mm: (0.0, 0.0),
                 }
             };
             match m {
@@ -188,6 +195,10 @@ pub fn run(
                         [&q.back_deviation, &q.toe_deviation],
                         [(&j.back_mesh, &j.back_plane), (&j.toe_mesh, &j.toe_plane)],
                     ));
+                    if let (Some(f), Some(r)) = (&j.fits, rows.last_mut()) {
+                        r.fit_ms = (f[0].ms, f[1].ms);
+                        r.fit_check_max_mm = (f[0].max_mm, f[1].max_mm);
+                    }
                     if pictures {
                         pics.push(Picture {
                             pair: pair.name.clone(),
@@ -242,10 +253,10 @@ pub fn run(
 /// max/mean, relative curvature jump mean); the fill's curvature variation; the kept parts'
 /// fit; time.
 pub fn table(rows: &[Row]) -> String {
-    let head = |a: [&str; 16]| {
+    let head = |a: [&str; 17]| {
         format!(
-            "{:<24} {:<22} {:>6} | {:>7} {:>11} {:>7} | {:>7} {:>11} {:>7} | {:>11} {:>5} | {:>11} {:>5} | {:>9} | {:>5} {:>5}\n",
-            a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15]
+            "{:<24} {:<22} {:>6} | {:>7} {:>11} {:>7} | {:>7} {:>11} {:>7} | {:>11} {:>5} | {:>11} {:>5} | {:>9} | {:>5} {:>5} | {:>9}\n",
+            a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15], a[16]
         )
     };
     let mut s = head([
@@ -265,10 +276,11 @@ pub fn table(rows: &[Row]) -> String {
         "fill var",
         "fit",
         "fit",
+        "fit parts",
     ]);
     s.push_str(&head([
         "", "", "", "mm", "max/mean", "max", "mm", "max/mean", "max", "deg", "mean", "deg", "mean",
-        "1/mm^2", "rms", "max",
+        "1/mm^2", "rms", "max", "ms b/t",
     ]));
     let nm = |max: f64, mean: f64| {
         if max < 1e-3 {
@@ -279,7 +291,7 @@ pub fn table(rows: &[Row]) -> String {
     };
     for r in rows {
         s.push_str(&format!(
-            "{:<24} {:<22} {:>6.1} | {:>7.0e} {:>11} {:>7.0e} | {:>7.0e} {:>11} {:>7.0e} | {:>11} {:>5.2} | {:>11} {:>5.2} | {:>9.3e} | {:>5.3} {:>5.3}\n",
+            "{:<24} {:<22} {:>6.1} | {:>7.0e} {:>11} {:>7.0e} | {:>7.0e} {:>11} {:>7.0e} | {:>11} {:>5.2} | {:>11} {:>5.2} | {:>9.3e} | {:>5.3} {:>5.3} | {:>9}\n",
             r.pair,
             r.method,
             r.time_ms,
@@ -295,7 +307,12 @@ pub fn table(rows: &[Row]) -> String {
             r.toe_original.curvature_rel_mean,
             r.fill_variation,
             r.fit_rms_mm,
-            r.fit_max_mm
+            r.fit_max_mm,
+            if r.fit_ms.0 > 0.0 {
+                format!("{:.0}/{:.0}", r.fit_ms.0, r.fit_ms.1)
+            } else {
+                "-".into()
+            }
         ));
     }
     let mut seen: Vec<&str> = Vec::new();

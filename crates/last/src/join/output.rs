@@ -30,6 +30,12 @@ pub struct Quality {
     pub guides_contribution_mm: f64,
     /// Largest distance between sections and guides at their common parameters, mm.
     pub network_mismatch_mm: f64,
+    /// The original lasts' own facet angles within 2.5 mm of each plane, deg (max, mean):
+    /// what a seam against them cannot go below ([`reference::facet_angles`]).
+    pub back_facets_deg: (f64, f64),
+    pub toe_facets_deg: (f64, f64),
+    /// How the kept parts were fitted to their meshes (back, toe), when they were.
+    pub fits: Option<[super::keep::PartFit; 2]>,
 }
 
 /// Measure a joined last (seams with `samples` points each); fails only where the original
@@ -62,6 +68,9 @@ pub fn quality(j: &Joined, samples: usize) -> Result<Quality, JoinError> {
         toe_original,
         guides_contribution_mm,
         network_mismatch_mm: g.network_mismatch,
+        back_facets_deg: reference::facet_angles(&j.back_mesh, &j.back_plane, 2.5),
+        toe_facets_deg: reference::facet_angles(&j.toe_mesh, &j.toe_plane, 2.5),
+        fits: j.fits,
     })
 }
 
