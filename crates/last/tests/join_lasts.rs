@@ -91,12 +91,12 @@ fn both_pairs_at_45_and_10_degrees_meet_the_seam_gates() {
                     assert!(d < 1e-8, "guide {i} off the surface by {d} at v {v}");
                 }
             }
-            // Kept parts against their meshes: the 0.1 mm goal is not met at the sharp top
-            // rim of the lasts (a C2 surface rounds it), at the toe tip and on long facets;
-            // these are the bounds met with sections 2.5 mm apart (5 mm gave up to 0.16 mm
-            // RMS and 1.2 mm max; figures printed above).
+            // Kept parts against their meshes on a 240 x 120 grid, now that they are fitted
+            // to their facets (join/keep.rs; the section surfaces were 0.02-0.11 mm RMS and
+            // up to 0.88 mm off): the 0.1 mm goal is still not met at the sharp top rim and
+            // the heel bottom (0.40 mm at most on this grid; figures printed above).
             for d in [&q.back_deviation, &q.toe_deviation] {
-                assert!(d.rms_mm < 0.15 && d.max_mm < 0.8, "{name} {angle}: {d:?}");
+                assert!(d.rms_mm < 0.03 && d.max_mm < 0.5, "{name} {angle}: {d:?}");
             }
         }
     }

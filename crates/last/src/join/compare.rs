@@ -540,3 +540,89 @@ pub fn time_vs_points_png(path: &Path, rows: &[study::Row]) -> std::io::Result<(
     c.text(10, 50, "ms", BLACK, 1);
     c.save_png(path)
 }
+
+/// Our Gordon surface against OpenCASCADE's GeomFill_Gordon on the same network.
+#[derive(Debug, Clone, Serialize)]
+pub struct OcctRow {
+    pub pair: String,
+    pub sections: usize,
+    pub guides: usize,
+    /// Best of 5 builds of our surface, ms, and OCCT's build, ms.
+    pub ours_ms: f64,
+    pub occt_ms: f64,
+    /// Largest distance between the two surfaces at equal parameters, mm, and of the network
+    /// curves from OCCT's surface.
+    pub same_param_max_mm: f64,
+    pub network_to_occt_max_mm: f64,
+}
+
+/// Build our Gordon surface on the main and auxiliary sections of a join of `pair` (kept
+/// parts sectioned every 5 mm, the network OCCT 8.0.1 builds; on the whole network of ~90
+/// sections it gives up) and have `script` (scripts/occt_gordon_compare.py) run by `python`
+/// build OCCT's on the same network and measure both. Fails naming the step.
+pub fn occt_gordon(pair: &Pair, python: &Path, script: &Path) -> Result<OcctRow, String> {
+    let p = JoinParams {
+        part_step_mm: 5.0,
+        fit_parts: false,
+        ..JoinParams::default()
+    };
+    let j = join(&pair.back, &pair.toe, &p).map_err(|e| format!("{}: join: {e}", pair.name))?;
+    let i_bm = j
+        .section_info
+        .iter()
+        .rposition(|s| s.0 == super::Part::Back)
+        .ok_or_else(|| format!("{}: no back section", pair.name))?;
+    let range = i_bm - p.aux_back..i_bm + 1 + p.aux_toe + 1;
+    let net = super::gordon::sub_network(&j.network, range)
+        .map_err(|e| format!("{}: sub-network: {e}", pair.name))?;
+    let mut best = f64::INFINITY;
+    let mut g = None;
+    for _ in 0..5 {
+        let t = Instant::now();
+        g = Some(
+            super::gordon::gordon(&net, 1e-6)
+                .map_err(|e| format!("{}: Gordon surface: {e}", pair.name))?,
+        );
+        best = best.min(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let g = g.expect("five builds");
+    let file = std::env::temp_dir().join(format!(
+        "footscan-occt-net-{}-{}.json",
+        std::process::id(),
+        pair.name.split_whitespace().next().unwrap_or("pair")
+    ));
+    std::fs::write(&file, jout::network_json_of(&net, &g.surface, best))
+        .map_err(|e| format!("writing {}: {e}", file.display()))?;
+    let o = std::process::Command::new(python)
+        .arg(script)
+        .arg(&file)
+        .output();
+    let _ = std::fs::remove_file(&file);
+    let o = o.map_err(|e| format!("running {}: {e}", python.display()))?;
+    let out = String::from_utf8_lossy(&o.stdout).to_string();
+    if !o.status.success() {
+        return Err(format!(
+            "{} failed: {out}{}",
+            script.display(),
+            String::from_utf8_lossy(&o.stderr)
+        ));
+    }
+    let v: serde_json::Value = serde_json::from_str(out.lines().last().unwrap_or(""))
+        .map_err(|e| format!("{}: no JSON answer ({e}): {out}", script.display()))?;
+    if v["occt_done"] != true {
+        return Err(format!(
+            "{}: OCCT did not build the surface: {v}",
+            pair.name
+        ));
+    }
+    let f = |k: &str| v[k].as_f64().unwrap_or(f64::NAN);
+    Ok(OcctRow {
+        pair: pair.name.clone(),
+        sections: net.sections.len(),
+        guides: net.guides.len(),
+        ours_ms: best,
+        occt_ms: f("occt_ms"),
+        same_param_max_mm: f("same_param_max"),
+        network_to_occt_max_mm: f("network_to_occt_max"),
+    })
+}
