@@ -112,7 +112,7 @@ impl Default for JoinParams {
             placement_toe: Placement::Ball,
             mid_guide_points: false,
             fit_parts: true,
-            continuity: keep::Continuity::G2,
+            continuity: keep::Continuity::G1,
         }
     }
 }
