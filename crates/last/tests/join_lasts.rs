@@ -55,7 +55,13 @@ fn both_pairs_at_45_and_10_degrees_meet_the_seam_gates() {
     for name in ["scan", "roundtip"] {
         let (b, t) = pair(name);
         for angle in [45.0, 10.0] {
-            let j = join::join(&b, &t, &params(angle)).unwrap();
+            // The Gordon surface's own seams (the section surfaces kept; the fitted parts
+            // and their G1 patch are tested in join_keep.rs).
+            let p = JoinParams {
+                fit_parts: false,
+                ..params(angle)
+            };
+            let j = join::join(&b, &t, &p).unwrap();
             let q = output::quality(&j, 200).unwrap();
             println!(
                 "{name} {angle} deg: {} sections x {} guides; seams gap {:.1e}/{:.1e} mm, \
@@ -91,12 +97,10 @@ fn both_pairs_at_45_and_10_degrees_meet_the_seam_gates() {
                     assert!(d < 1e-8, "guide {i} off the surface by {d} at v {v}");
                 }
             }
-            // Kept parts against their meshes on a 240 x 120 grid, now that they are fitted
-            // to their facets (join/keep.rs; the section surfaces were 0.02-0.11 mm RMS and
-            // up to 0.88 mm off): the 0.1 mm goal is still not met at the sharp top rim and
-            // the heel bottom (0.40 mm at most on this grid; figures printed above).
+            // The section surfaces against their meshes: the 0.1 mm goal is not met at the
+            // sharp top rim, the toe tip and on long facets (what join/keep.rs fits away).
             for d in [&q.back_deviation, &q.toe_deviation] {
-                assert!(d.rms_mm < 0.03 && d.max_mm < 0.5, "{name} {angle}: {d:?}");
+                assert!(d.rms_mm < 0.15 && d.max_mm < 0.9, "{name} {angle}: {d:?}");
             }
         }
     }
