@@ -43,7 +43,11 @@ fn pair(name: &str) -> (TriMesh, TriMesh) {
 fn kept_parts_follow_their_meshes_and_the_seams_the_originals() {
     for name in ["scan", "roundtip"] {
         let (b, t) = pair(name);
-        let j = join::join(&b, &t, &JoinParams::default()).unwrap();
+        let p = JoinParams {
+            fit_parts: true,
+            ..JoinParams::default()
+        };
+        let j = join::join(&b, &t, &p).unwrap();
         let q = output::quality(&j, 200).unwrap();
         let fits = j.fits.unwrap();
         for (part, f) in ["back", "toe"].iter().zip(&fits) {

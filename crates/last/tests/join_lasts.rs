@@ -119,7 +119,12 @@ fn venv_python() -> PathBuf {
 #[test]
 fn written_files_are_read_back_by_independent_readers() {
     let (b, t) = pair("scan");
-    let j = join::join(&b, &t, &params(45.0)).unwrap();
+    // With the kept parts fitted: the STL is the original meshes trimmed and the patch.
+    let p = JoinParams {
+        fit_parts: true,
+        ..params(45.0)
+    };
+    let j = join::join(&b, &t, &p).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let w = output::write(&j, dir.path(), "scan 45").unwrap();
     assert_eq!(w.files.len(), 7);

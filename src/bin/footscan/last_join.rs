@@ -95,6 +95,11 @@ pub struct JoinArgs {
     /// Join two lasts whose lengths differ by more than a size group (13 %).
     #[arg(long)]
     allow_size_mismatch: bool,
+    /// Gordon: refit the kept parts to their meshes' facets (within 0.08-0.26 mm on the real
+    /// pairs, the section surfaces 0.2-0.9 mm) and keep the original meshes in the STL; the
+    /// patch then meets them G1 only approximately (normal jumps up to 8-20 deg at the rim).
+    #[arg(long)]
+    fit_parts: bool,
     /// Output directory (created if missing).
     #[arg(long)]
     out: PathBuf,
@@ -239,6 +244,7 @@ pub fn run(a: JoinArgs) -> Result<()> {
         angle_deg: a.angle,
         placement_back: placement,
         placement_toe: placement,
+        fit_parts: a.fit_parts,
         ..JoinParams::default()
     };
     let j = join::join(&back, &toe, &p)?;

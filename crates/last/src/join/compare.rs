@@ -177,6 +177,7 @@ pub fn run(
                 Method::Gordon { angle_deg } => {
                     let p = JoinParams {
                         angle_deg: *angle_deg,
+                        fit_parts: true,
                         ..JoinParams::default()
                     };
                     // The join's own time without the fits of the kept parts (a cache per
