@@ -37,7 +37,11 @@ fn bench(c: &mut Criterion) {
             });
         }
         // The Gordon join on the same inputs, for the side-by-side figure.
-        let jp = JoinParams::default();
+        // The join itself, without the fits of the kept parts (timed by `footscan bench join`).
+        let jp = JoinParams {
+            fit_parts: false,
+            ..JoinParams::default()
+        };
         g.bench_function(format!("{} gordon 45 deg", pair.name), |bch| {
             bch.iter(|| join::join(black_box(&pair.back), black_box(&pair.toe), &jp).unwrap())
         });

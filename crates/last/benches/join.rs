@@ -21,6 +21,9 @@ fn bench(c: &mut Criterion) {
         for angle in [45.0, 10.0] {
             let p = JoinParams {
                 angle_deg: angle,
+                // The join itself; the fits of the kept parts (seconds, per last) are timed
+                // by `footscan bench join`.
+                fit_parts: false,
                 ..JoinParams::default()
             };
             g.bench_function(format!("{} {angle} deg 500 pts", pair.name), |b| {

@@ -55,7 +55,13 @@ fn both_pairs_at_45_and_10_degrees_meet_the_seam_gates() {
     for name in ["scan", "roundtip"] {
         let (b, t) = pair(name);
         for angle in [45.0, 10.0] {
-            let j = join::join(&b, &t, &params(angle)).unwrap();
+            // The Gordon surface's own seams (the section surfaces kept; the fitted parts
+            // and their G1 patch are tested in join_keep.rs).
+            let p = JoinParams {
+                fit_parts: false,
+                ..params(angle)
+            };
+            let j = join::join(&b, &t, &p).unwrap();
             let q = output::quality(&j, 200).unwrap();
             println!(
                 "{name} {angle} deg: {} sections x {} guides; seams gap {:.1e}/{:.1e} mm, \
@@ -91,12 +97,10 @@ fn both_pairs_at_45_and_10_degrees_meet_the_seam_gates() {
                     assert!(d < 1e-8, "guide {i} off the surface by {d} at v {v}");
                 }
             }
-            // Kept parts against their meshes: the 0.1 mm goal is not met at the sharp top
-            // rim of the lasts (a C2 surface rounds it), at the toe tip and on long facets;
-            // these are the bounds met with sections 2.5 mm apart (5 mm gave up to 0.16 mm
-            // RMS and 1.2 mm max; figures printed above).
+            // The section surfaces against their meshes: the 0.1 mm goal is not met at the
+            // sharp top rim, the toe tip and on long facets (what join/keep.rs fits away).
             for d in [&q.back_deviation, &q.toe_deviation] {
-                assert!(d.rms_mm < 0.15 && d.max_mm < 0.8, "{name} {angle}: {d:?}");
+                assert!(d.rms_mm < 0.15 && d.max_mm < 0.9, "{name} {angle}: {d:?}");
             }
         }
     }
@@ -115,7 +119,12 @@ fn venv_python() -> PathBuf {
 #[test]
 fn written_files_are_read_back_by_independent_readers() {
     let (b, t) = pair("scan");
-    let j = join::join(&b, &t, &params(45.0)).unwrap();
+    // With the kept parts fitted: the STL is the original meshes trimmed and the patch.
+    let p = JoinParams {
+        fit_parts: true,
+        ..params(45.0)
+    };
+    let j = join::join(&b, &t, &p).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let w = output::write(&j, dir.path(), "scan 45").unwrap();
     assert_eq!(w.files.len(), 7);

@@ -339,6 +339,41 @@ pub fn run(args: Args) -> Result<()> {
                 println!("\nGordon join parameter study (time: best of {repeats})");
                 print!("{}", study::table(&study_rows));
             }
+            // Our Gordon surface against OpenCASCADE's on the same network, where the test
+            // venv is (scripts/setup.sh makes it).
+            let python = std::env::var_os("FOOTSCAN_OCCT_PYTHON")
+                .map(PathBuf::from)
+                .unwrap_or_else(|| PathBuf::from("target/venv-occt/bin/python"));
+            let script = PathBuf::from("scripts/occt_gordon_compare.py");
+            if python.exists() && script.exists() {
+                println!(
+                    "\nour Gordon surface against OpenCASCADE 8's GeomFill_Gordon on the main and \
+                     auxiliary sections (time: ours best of 5)"
+                );
+                for pair in &pairs {
+                    match compare::occt_gordon(pair, &python, &script) {
+                        Ok(r) => println!(
+                            "{}: {} sections x {} guides, ours {:.1} ms, OCCT {:.0} ms, apart {:.1e} \
+                             mm at equal parameters, network {:.1e} mm from OCCT's",
+                            r.pair,
+                            r.sections,
+                            r.guides,
+                            r.ours_ms,
+                            r.occt_ms,
+                            r.same_param_max_mm,
+                            r.network_to_occt_max_mm
+                        ),
+                        Err(e) => println!("{}: OCCT comparison failed: {e}", pair.name),
+                    }
+                }
+            } else {
+                println!(
+                    "\n(no OpenCASCADE comparison: {} or {} missing; run scripts/setup.sh or set \
+                     FOOTSCAN_OCCT_PYTHON)",
+                    python.display(),
+                    script.display()
+                );
+            }
             if let Some(out) = out {
                 std::fs::create_dir_all(&out)?;
                 let p = out.join("time_vs_points.png");

@@ -95,6 +95,11 @@ pub struct JoinArgs {
     /// Join two lasts whose lengths differ by more than a size group (13 %).
     #[arg(long)]
     allow_size_mismatch: bool,
+    /// Gordon: refit the kept parts to their meshes' facets (within 0.08-0.26 mm on the real
+    /// pairs, the section surfaces 0.2-0.9 mm) and keep the original meshes in the STL; the
+    /// patch then meets them G1 only approximately (normal jumps up to 8-20 deg at the rim).
+    #[arg(long)]
+    fit_parts: bool,
     /// Output directory (created if missing).
     #[arg(long)]
     out: PathBuf,
@@ -239,6 +244,7 @@ pub fn run(a: JoinArgs) -> Result<()> {
         angle_deg: a.angle,
         placement_back: placement,
         placement_toe: placement,
+        fit_parts: a.fit_parts,
         ..JoinParams::default()
     };
     let j = join::join(&back, &toe, &p)?;
@@ -258,11 +264,38 @@ pub fn run(a: JoinArgs) -> Result<()> {
         a.angle
     );
     println!(
-        "join {:.1} ms (place {:.1}, sections {:.1}, curves {:.1}, Gordon {:.1}, split {:.1})",
-        t.total, t.place, t.sections, t.curves, t.gordon, t.split
+        "join {:.1} ms (place {:.1}, sections {:.1}, curves {:.1}, Gordon {:.1}, split {:.1}, \
+         patch to the fitted parts {:.1})",
+        t.join, t.place, t.sections, t.curves, t.gordon, t.split, t.meet
     );
+    if let Some(f) = &q.fits {
+        for (s, f) in [("back", &f[0]), ("toe", &f[1])] {
+            println!(
+                "{s} part fitted to its mesh in {:.0} ms: {} facet points, {} fits, {} x {} \
+                 spans; max {:.3} mm at ({:.1}, {:.1}, {:.1}), {:.1} mm from the {s} plane; \
+                 rms {:.4} mm",
+                f.ms,
+                f.samples,
+                f.rounds,
+                f.spans_u,
+                f.spans_v,
+                f.max_mm,
+                f.max_at[0],
+                f.max_at[1],
+                f.max_at[2],
+                f.max_from_plane_mm,
+                f.rms_mm
+            );
+        }
+        println!("joined.stl: the original lasts outside the planes, the patch between them");
+    }
     print_seams(&[("back", &q.back_seam), ("toe", &q.toe_seam)]);
     print_original(&[("back", &q.back_original), ("toe", &q.toe_original)]);
+    println!(
+        "the original lasts' own facets within 2.5 mm of the planes meet at {:.2} deg max, \
+         {:.2} mean (back), {:.2} max, {:.2} mean (toe)",
+        q.back_facets_deg.0, q.back_facets_deg.1, q.toe_facets_deg.0, q.toe_facets_deg.1
+    );
     print_deviation(&[("back", &q.back_deviation), ("toe", &q.toe_deviation)]);
     for f in in_out(&a.out, &w.files) {
         println!("wrote {}", f.display());

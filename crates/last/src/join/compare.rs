@@ -107,6 +107,11 @@ pub struct Row {
     /// Worst of the two kept parts against their meshes, mm.
     pub fit_rms_mm: f64,
     pub fit_max_mm: f64,
+    /// Fitting the kept parts to their meshes (back, toe), ms, and the fitted parts' largest
+    /// distance from their meshes on the fit's own check grid (back, toe), mm; zero where
+    /// the method does not fit them.
+    pub fit_ms: (f64, f64),
+    pub fit_check_max_mm: (f64, f64),
 }
 
 /// What the zebra picture of one result needs.
@@ -164,20 +169,24 @@ pub fn run(
                     fill_variation: var,
                     fit_rms_mm: d[0].rms_mm.max(d[1].rms_mm),
                     fit_max_mm: d[0].max_mm.max(d[1].max_mm),
+                    fit_ms: (0.0, 0.0),
+                    fit_check_max_mm: (0.0, 0.0),
                 }
             };
             match m {
                 Method::Gordon { angle_deg } => {
                     let p = JoinParams {
                         angle_deg: *angle_deg,
+                        fit_parts: true,
                         ..JoinParams::default()
                     };
-                    let time = best_of(&mut || {
-                        let t = Instant::now();
-                        join(&pair.back, &pair.toe, &p)?;
-                        Ok(t.elapsed().as_secs_f64() * 1e3)
-                    })?;
+                    // The join's own time without the fits of the kept parts (a cache per
+                    // last could hold those; they are reported apart).
                     let j = join(&pair.back, &pair.toe, &p)?;
+                    let mut time = j.timings.join;
+                    for _ in 1..repeats.max(1) {
+                        time = time.min(join(&pair.back, &pair.toe, &p)?.timings.join);
+                    }
                     let q = jout::quality(&j, 400)?;
                     let (var, _) = fair::surface_fairness(&j.patch, 96, 24);
                     rows.push(row_of(
@@ -187,6 +196,10 @@ pub fn run(
                         [&q.back_deviation, &q.toe_deviation],
                         [(&j.back_mesh, &j.back_plane), (&j.toe_mesh, &j.toe_plane)],
                     ));
+                    if let (Some(f), Some(r)) = (&j.fits, rows.last_mut()) {
+                        r.fit_ms = (f[0].ms, f[1].ms);
+                        r.fit_check_max_mm = (f[0].max_mm, f[1].max_mm);
+                    }
                     if pictures {
                         pics.push(Picture {
                             pair: pair.name.clone(),
@@ -241,10 +254,10 @@ pub fn run(
 /// max/mean, relative curvature jump mean); the fill's curvature variation; the kept parts'
 /// fit; time.
 pub fn table(rows: &[Row]) -> String {
-    let head = |a: [&str; 16]| {
+    let head = |a: [&str; 17]| {
         format!(
-            "{:<24} {:<22} {:>6} | {:>7} {:>11} {:>7} | {:>7} {:>11} {:>7} | {:>11} {:>5} | {:>11} {:>5} | {:>9} | {:>5} {:>5}\n",
-            a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15]
+            "{:<24} {:<22} {:>6} | {:>7} {:>11} {:>7} | {:>7} {:>11} {:>7} | {:>11} {:>5} | {:>11} {:>5} | {:>9} | {:>5} {:>5} | {:>9}\n",
+            a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15], a[16]
         )
     };
     let mut s = head([
@@ -264,10 +277,11 @@ pub fn table(rows: &[Row]) -> String {
         "fill var",
         "fit",
         "fit",
+        "fit parts",
     ]);
     s.push_str(&head([
         "", "", "", "mm", "max/mean", "max", "mm", "max/mean", "max", "deg", "mean", "deg", "mean",
-        "1/mm^2", "rms", "max",
+        "1/mm^2", "rms", "max", "ms b/t",
     ]));
     let nm = |max: f64, mean: f64| {
         if max < 1e-3 {
@@ -278,7 +292,7 @@ pub fn table(rows: &[Row]) -> String {
     };
     for r in rows {
         s.push_str(&format!(
-            "{:<24} {:<22} {:>6.1} | {:>7.0e} {:>11} {:>7.0e} | {:>7.0e} {:>11} {:>7.0e} | {:>11} {:>5.2} | {:>11} {:>5.2} | {:>9.3e} | {:>5.3} {:>5.3}\n",
+            "{:<24} {:<22} {:>6.1} | {:>7.0e} {:>11} {:>7.0e} | {:>7.0e} {:>11} {:>7.0e} | {:>11} {:>5.2} | {:>11} {:>5.2} | {:>9.3e} | {:>5.3} {:>5.3} | {:>9}\n",
             r.pair,
             r.method,
             r.time_ms,
@@ -294,7 +308,12 @@ pub fn table(rows: &[Row]) -> String {
             r.toe_original.curvature_rel_mean,
             r.fill_variation,
             r.fit_rms_mm,
-            r.fit_max_mm
+            r.fit_max_mm,
+            if r.fit_ms.0 > 0.0 {
+                format!("{:.0}/{:.0}", r.fit_ms.0, r.fit_ms.1)
+            } else {
+                "-".into()
+            }
         ));
     }
     let mut seen: Vec<&str> = Vec::new();
@@ -521,4 +540,90 @@ pub fn time_vs_points_png(path: &Path, rows: &[study::Row]) -> std::io::Result<(
     );
     c.text(10, 50, "ms", BLACK, 1);
     c.save_png(path)
+}
+
+/// Our Gordon surface against OpenCASCADE's GeomFill_Gordon on the same network.
+#[derive(Debug, Clone, Serialize)]
+pub struct OcctRow {
+    pub pair: String,
+    pub sections: usize,
+    pub guides: usize,
+    /// Best of 5 builds of our surface, ms, and OCCT's build, ms.
+    pub ours_ms: f64,
+    pub occt_ms: f64,
+    /// Largest distance between the two surfaces at equal parameters, mm, and of the network
+    /// curves from OCCT's surface.
+    pub same_param_max_mm: f64,
+    pub network_to_occt_max_mm: f64,
+}
+
+/// Build our Gordon surface on the main and auxiliary sections of a join of `pair` (kept
+/// parts sectioned every 5 mm, the network OCCT 8.0.1 builds; on the whole network of ~90
+/// sections it gives up) and have `script` (scripts/occt_gordon_compare.py) run by `python`
+/// build OCCT's on the same network and measure both. Fails naming the step.
+pub fn occt_gordon(pair: &Pair, python: &Path, script: &Path) -> Result<OcctRow, String> {
+    let p = JoinParams {
+        part_step_mm: 5.0,
+        fit_parts: false,
+        ..JoinParams::default()
+    };
+    let j = join(&pair.back, &pair.toe, &p).map_err(|e| format!("{}: join: {e}", pair.name))?;
+    let i_bm = j
+        .section_info
+        .iter()
+        .rposition(|s| s.0 == super::Part::Back)
+        .ok_or_else(|| format!("{}: no back section", pair.name))?;
+    let range = i_bm - p.aux_back..i_bm + 1 + p.aux_toe + 1;
+    let net = super::gordon::sub_network(&j.network, range)
+        .map_err(|e| format!("{}: sub-network: {e}", pair.name))?;
+    let mut best = f64::INFINITY;
+    let mut g = None;
+    for _ in 0..5 {
+        let t = Instant::now();
+        g = Some(
+            super::gordon::gordon(&net, 1e-6)
+                .map_err(|e| format!("{}: Gordon surface: {e}", pair.name))?,
+        );
+        best = best.min(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let g = g.expect("five builds");
+    let file = std::env::temp_dir().join(format!(
+        "footscan-occt-net-{}-{}.json",
+        std::process::id(),
+        pair.name.split_whitespace().next().unwrap_or("pair")
+    ));
+    std::fs::write(&file, jout::network_json_of(&net, &g.surface, best))
+        .map_err(|e| format!("writing {}: {e}", file.display()))?;
+    let o = std::process::Command::new(python)
+        .arg(script)
+        .arg(&file)
+        .output();
+    let _ = std::fs::remove_file(&file);
+    let o = o.map_err(|e| format!("running {}: {e}", python.display()))?;
+    let out = String::from_utf8_lossy(&o.stdout).to_string();
+    if !o.status.success() {
+        return Err(format!(
+            "{} failed: {out}{}",
+            script.display(),
+            String::from_utf8_lossy(&o.stderr)
+        ));
+    }
+    let v: serde_json::Value = serde_json::from_str(out.lines().last().unwrap_or(""))
+        .map_err(|e| format!("{}: no JSON answer ({e}): {out}", script.display()))?;
+    if v["occt_done"] != true {
+        return Err(format!(
+            "{}: OCCT did not build the surface: {v}",
+            pair.name
+        ));
+    }
+    let f = |k: &str| v[k].as_f64().unwrap_or(f64::NAN);
+    Ok(OcctRow {
+        pair: pair.name.clone(),
+        sections: net.sections.len(),
+        guides: net.guides.len(),
+        ours_ms: best,
+        occt_ms: f("occt_ms"),
+        same_param_max_mm: f("same_param_max"),
+        network_to_occt_max_mm: f("network_to_occt_max"),
+    })
 }

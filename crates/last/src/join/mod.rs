@@ -21,6 +21,7 @@ pub mod compare;
 pub mod error;
 pub mod gordon;
 pub mod guides;
+pub mod keep;
 pub mod landmarks;
 pub mod output;
 pub mod reference;
@@ -87,6 +88,13 @@ pub struct JoinParams {
     /// network sections of the kept parts (off by default: on the faceted real lasts those
     /// points zig-zag and the cubic guides then swing by millimetres across the gap).
     pub mid_guide_points: bool,
+    /// Refit the kept parts to their meshes' facets ([`keep`]) and bend the patch to meet
+    /// them. Off by default: the fitted parts are within 0.08-0.26 mm of their meshes, but
+    /// the G1 patch's normal jumps at the seams reach 7.7 deg at 500 points (20 deg at 300),
+    /// where the section surfaces' Gordon seams are G2 (docs/method.md 11.7).
+    pub fit_parts: bool,
+    /// Continuity of the patch against the fitted parts.
+    pub continuity: keep::Continuity,
 }
 
 impl Default for JoinParams {
@@ -105,6 +113,8 @@ impl Default for JoinParams {
             placement_back: Placement::Ball,
             placement_toe: Placement::Ball,
             mid_guide_points: false,
+            fit_parts: false,
+            continuity: keep::Continuity::G1,
         }
     }
 }
@@ -142,6 +152,9 @@ pub struct Joined {
     /// The two lasts as placed in the common frame.
     pub back_mesh: TriMesh,
     pub toe_mesh: TriMesh,
+    /// How the kept parts were fitted to their meshes (back, toe); `None` when
+    /// [`JoinParams::fit_parts`] is off.
+    pub fits: Option<[keep::PartFit; 2]>,
     /// Time of each step, ms.
     pub timings: Timings,
 }
@@ -154,6 +167,13 @@ pub struct Timings {
     pub curves: f64,
     pub gordon: f64,
     pub split: f64,
+    /// Fitting the kept parts to their meshes (each its own last's, so a cache per last
+    /// could hold it) and bending the patch to meet them.
+    pub fit_back: f64,
+    pub fit_toe: f64,
+    pub meet: f64,
+    /// The join without the fits of the kept parts.
+    pub join: f64,
     pub total: f64,
 }
 
@@ -447,7 +467,27 @@ pub fn join(back: &TriMesh, toe: &TriMesh, p: &JoinParams) -> Result<Joined, Joi
     let (back_s, rest) = gordon::split_v(&g.surface, v_bm)?;
     let (patch, toe_s) = gordon::split_v(&rest, v_tm)?;
     let unit = |s: NurbsSurface| s.reparametrized((0.0, 1.0), (0.0, 1.0));
+    let (mut back_s, mut patch, mut toe_s) = (unit(back_s), unit(patch), unit(toe_s));
     let t_split = t0.elapsed();
+    let mut fits = None;
+    let (mut fit_back, mut fit_toe) = (0.0, 0.0);
+    if p.fit_parts {
+        let deepest = |o: &[f64]| o.iter().copied().fold(0.0, f64::max);
+        let (b, fb) = keep::fit_part(&back_s, &bm, &back_plane, -1.0, deepest(&back_off))?;
+        let (t, ft) = keep::fit_part(&toe_s, &tm, &toe_plane, 1.0, deepest(&toe_off))?;
+        let (v0, v1) = g.surface.domain_v();
+        patch = keep::meet(
+            &patch,
+            &b,
+            &t,
+            [v_bm - v0, v_tm - v_bm, v1 - v_tm],
+            p.continuity,
+        )?;
+        (fit_back, fit_toe) = (fb.ms, ft.ms);
+        (back_s, toe_s) = (b, t);
+        fits = Some([fb, ft]);
+    }
+    let t_meet = t0.elapsed();
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
     let timings = Timings {
         place: ms(t_place),
@@ -455,12 +495,16 @@ pub fn join(back: &TriMesh, toe: &TriMesh, p: &JoinParams) -> Result<Joined, Joi
         curves: ms(t_curves - t_sections),
         gordon: ms(t_gordon - t_curves),
         split: ms(t_split - t_gordon),
-        total: ms(t_split),
+        fit_back,
+        fit_toe,
+        meet: ms(t_meet - t_split) - fit_back - fit_toe,
+        join: ms(t_meet) - fit_back - fit_toe,
+        total: ms(t_meet),
     };
     Ok(Joined {
-        back: unit(back_s),
-        patch: unit(patch),
-        toe: unit(toe_s),
+        back: back_s,
+        patch,
+        toe: toe_s,
         gordon: g,
         network,
         section_info: specs,
@@ -473,6 +517,7 @@ pub fn join(back: &TriMesh, toe: &TriMesh, p: &JoinParams) -> Result<Joined, Joi
         toe_plane,
         back_mesh: bm,
         toe_mesh: tm,
+        fits,
         timings,
     })
 }

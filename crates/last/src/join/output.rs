@@ -30,6 +30,12 @@ pub struct Quality {
     pub guides_contribution_mm: f64,
     /// Largest distance between sections and guides at their common parameters, mm.
     pub network_mismatch_mm: f64,
+    /// The original lasts' own facet angles within 2.5 mm of each plane, deg (max, mean):
+    /// what a seam against them cannot go below ([`reference::facet_angles`]).
+    pub back_facets_deg: (f64, f64),
+    pub toe_facets_deg: (f64, f64),
+    /// How the kept parts were fitted to their meshes (back, toe), when they were.
+    pub fits: Option<[super::keep::PartFit; 2]>,
 }
 
 /// Measure a joined last (seams with `samples` points each); fails only where the original
@@ -62,6 +68,9 @@ pub fn quality(j: &Joined, samples: usize) -> Result<Quality, JoinError> {
         toe_original,
         guides_contribution_mm,
         network_mismatch_mm: g.network_mismatch,
+        back_facets_deg: reference::facet_angles(&j.back_mesh, &j.back_plane, 2.5),
+        toe_facets_deg: reference::facet_angles(&j.toe_mesh, &j.toe_plane, 2.5),
+        fits: j.fits,
     })
 }
 
@@ -134,6 +143,88 @@ pub fn tessellate(j: &Joined, nu: usize, step_mm: f64) -> Tessellation {
         for tr in t.triangles.iter_mut() {
             tr.swap(1, 2);
         }
+    }
+    t
+}
+
+/// The closed STL of a join whose kept parts were fitted: the original meshes themselves on
+/// the kept sides of the planes (trimmed there), the patch between them with `nu` points
+/// around and rows about every `step_mm`, each seam closed by a strip between the trimmed
+/// mesh's boundary and the patch's end row (they are at most [`super::keep::TOL_MM`] apart,
+/// the fitted parts' distance from their meshes). Without fitted parts, or when a plane does
+/// not leave one loop, [`tessellate`].
+pub fn tessellate_kept(j: &Joined, nu: usize, step_mm: f64) -> Tessellation {
+    if j.fits.is_none() {
+        return tessellate(j, nu, step_mm);
+    }
+    let (bm, bl) = super::keep::trim(&j.back_mesh, &j.back_plane, -1.0);
+    let (tm, tl) = super::keep::trim(&j.toe_mesh, &j.toe_plane, 1.0);
+    if bl.len() < 3 || tl.len() < 3 {
+        return tessellate(j, nu, step_mm);
+    }
+    let mut t = Tessellation {
+        vertices: Vec::new(),
+        normals: Vec::new(),
+        part: Vec::new(),
+        triangles: Vec::new(),
+    };
+    let add_mesh = |t: &mut Tessellation, m: &TriMesh, part: u8| -> u32 {
+        let base = t.vertices.len() as u32;
+        t.vertices.extend_from_slice(&m.vertices);
+        t.normals.extend(m.vertex_normals());
+        t.part.extend(std::iter::repeat_n(part, m.vertices.len()));
+        t.triangles.extend(
+            m.triangles
+                .iter()
+                .map(|tr| [tr[0] + base, tr[1] + base, tr[2] + base]),
+        );
+        base
+    };
+    let bb = add_mesh(&mut t, &bm, 0);
+    // The patch's rows, v = 0 (the back seam) to 1.
+    let s = &j.patch;
+    let len = (0..16)
+        .map(|i| (s.point(i as f64 / 16.0, 0.0) - s.point(i as f64 / 16.0, 1.0)).norm())
+        .sum::<f64>()
+        / 16.0;
+    let nv = ((len / step_mm).ceil() as usize).max(2);
+    let pb = t.vertices.len() as u32;
+    for jv in 0..=nv {
+        let v = jv as f64 / nv as f64;
+        for i in 0..nu {
+            let u = i as f64 / nu as f64;
+            t.vertices.push(s.point(u, v));
+            t.normals.push(s.normal(u, v));
+            t.part.push(1);
+        }
+    }
+    let idx = |r: usize, i: usize| pb + (r * nu + i % nu) as u32;
+    for r in 0..nv {
+        for i in 0..nu {
+            t.triangles
+                .push([idx(r, i), idx(r, i + 1), idx(r + 1, i + 1)]);
+            t.triangles
+                .push([idx(r, i), idx(r + 1, i + 1), idx(r + 1, i)]);
+        }
+    }
+    let tb = add_mesh(&mut t, &tm, 2);
+    let axis = j.back_plane.normal;
+    let row = |r: usize| (0..nu).map(|i| idx(r, i)).collect::<Vec<u32>>();
+    for (lp, base, r) in [(&bl, bb, 0), (&tl, tb, nv)] {
+        let mut a: Vec<u32> = lp.iter().map(|&i| i + base).collect();
+        let b = row(r);
+        if super::keep::turn(&t.vertices, &a, &axis) != super::keep::turn(&t.vertices, &b, &axis) {
+            a.reverse();
+        }
+        let z = super::keep::zip(&t.vertices, &a, &b);
+        t.triangles.extend(z);
+    }
+    let mut m = TriMesh::new(t.vertices.clone(), t.triangles.clone());
+    if footscan_geom::mesh::orient_consistently(&mut m).is_ok() {
+        if m.volume() < 0.0 {
+            m.flip();
+        }
+        t.triangles = m.triangles;
     }
     t
 }
@@ -243,7 +334,7 @@ pub fn write(j: &Joined, dir: &Path, name: &str) -> std::io::Result<Written> {
     let p = dir.join("joined.step");
     step::write(&p, &[], &surfs, &header).map_err(io)?;
     files.push(p);
-    let t = tessellate(j, 240, 1.0);
+    let t = tessellate_kept(j, 240, 1.0);
     let mesh = TriMesh::new(t.vertices.clone(), t.triangles.clone());
     let stl_check = match mesh.check() {
         Ok(r) => format!("closed, volume {:.0} mm3", r.volume),

@@ -1,0 +1,785 @@
+//! Kept parts that stay the lasts they came from (issue 36).
+//!
+//! Resurfacing a kept part through its planar sections moves it off its mesh by up to 0.9 mm
+//! (the sharp top rim, the toe tip, long facets): the back a last maker chose is then not the
+//! back he gets. So each kept part is refitted by least squares to points spread over its
+//! own facets (not only the sections), starting from the section surface's parameters and
+//! knots, and knots are added in the spans where the surface still strays more than
+//! [`TOL_MM`] from the mesh until none does. The join patch is then bent to meet the fitted
+//! parts with their own position, first and second v derivatives ([`meet`]), so the seams
+//! stay G2 against the surfaces as fitted. The closed STL keeps the original meshes
+//! themselves outside the join region, trimmed at the planes ([`trim`]) and stitched to the
+//! patch ([`zip`]).
+
+// Tensor-product index loops read closer to the formulas.
+#![allow(clippy::needless_range_loop)]
+
+use super::JoinError;
+use footscan_geom::mesh::{Bvh, TriMesh};
+use footscan_geom::nurbs::basis::{basis_funs, ders_basis_funs, find_span};
+use footscan_geom::nurbs::{make_surfaces_compatible, NurbsSurface};
+use footscan_geom::plane::Plane;
+use footscan_geom::{P3, V3};
+use serde::Serialize;
+use std::collections::HashMap;
+use std::time::Instant;
+
+/// Largest distance of a fitted kept part from its mesh, mm.
+pub const TOL_MM: f64 = 0.1;
+/// Spacing of the points sampled on the facets, mm.
+const SAMPLE_MM: f64 = 1.0;
+/// Refinement rounds at most.
+const ROUNDS: usize = 4;
+/// Weight of the control net's second differences against the mean diagonal of the
+/// normal matrix.
+const SMOOTH: f64 = 1e-2;
+/// Weight of a point of the pinned end curves against a facet point.
+const END_WEIGHT: f64 = 20.0;
+
+/// How a kept part was fitted and how far it is from its mesh.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct PartFit {
+    /// Points on the facets fitted.
+    pub samples: usize,
+    /// Fits made (the first on the section surface's knots, then one per refinement).
+    pub rounds: usize,
+    /// Knot spans around and along.
+    pub spans_u: usize,
+    pub spans_v: usize,
+    /// Surface to mesh on a grid of 2 x 4 points per knot span of the section surface, mm: max, rms, and where the
+    /// max lies (and its distance from the cutting plane, negative inside the part).
+    pub max_mm: f64,
+    pub rms_mm: f64,
+    pub max_at: [f64; 3],
+    pub max_from_plane_mm: f64,
+    /// Largest distance of a fitted facet point from the surface, mm.
+    pub points_max_mm: f64,
+    /// Time of the fit, ms.
+    pub ms: f64,
+}
+
+/// Points every [`SAMPLE_MM`] over the facets that `keep` accepts.
+fn facet_points(mesh: &TriMesh, keep: &dyn Fn(&P3) -> bool) -> Vec<P3> {
+    let mut out = Vec::new();
+    for t in 0..mesh.triangles.len() {
+        let [a, b, c] = mesh.corners(t);
+        if !(keep(&a) || keep(&b) || keep(&c)) {
+            continue;
+        }
+        if keep(&a) {
+            out.push(a);
+        }
+        // Points spread by area (a long thin facet gets few): k per side for about one point
+        // per SAMPLE_MM^2.
+        let area = 0.5 * (b - a).cross(&(c - a)).norm();
+        let k = ((2.0 * area).sqrt() / SAMPLE_MM).ceil() as usize;
+        for i in 1..k {
+            for j in 1..k - i {
+                let (s, r) = (i as f64 / k as f64, j as f64 / k as f64);
+                let p = a + (b - a) * s + (c - a) * r;
+                if keep(&p) {
+                    out.push(p);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Finds the parameters of the nearest surface point: a tessellation's nearest triangle
+/// gives the start, Gauss-Newton the rest.
+struct Locator {
+    bvh: Bvh,
+    params: Vec<[(f64, f64); 3]>,
+    corners: Vec<[P3; 3]>,
+}
+
+impl Locator {
+    fn new(s: &NurbsSurface, nu: usize, nv: usize) -> Locator {
+        let (u0, u1) = s.domain_u();
+        let (v0, v1) = s.domain_v();
+        let uu = |i: usize| u0 + (u1 - u0) * i as f64 / nu as f64;
+        let vv = |j: usize| v0 + (v1 - v0) * j as f64 / nv as f64;
+        let mut verts = Vec::with_capacity(nu * (nv + 1));
+        for i in 0..nu {
+            for j in 0..=nv {
+                verts.push(s.point(uu(i), vv(j)));
+            }
+        }
+        let id = |i: usize, j: usize| ((i % nu) * (nv + 1) + j) as u32;
+        let mut tris = Vec::new();
+        let mut params = Vec::new();
+        for i in 0..nu {
+            for j in 0..nv {
+                let (a, b) = ((uu(i), vv(j)), (uu(i + 1), vv(j)));
+                let (c, d) = ((uu(i + 1), vv(j + 1)), (uu(i), vv(j + 1)));
+                tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                params.push([a, b, c]);
+                tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+                params.push([a, c, d]);
+            }
+        }
+        let m = TriMesh::new(verts, tris);
+        let corners = (0..m.triangles.len()).map(|t| m.corners(t)).collect();
+        Locator {
+            bvh: Bvh::new(&m),
+            params,
+            corners,
+        }
+    }
+
+    fn locate(&self, s: &NurbsSurface, p: &P3) -> (f64, f64) {
+        let c = self
+            .bvh
+            .closest_point(p)
+            .expect("a tessellation has triangles");
+        let [a, b, d] = self.corners[c.triangle];
+        let (e0, e1, e2) = (b - a, d - a, c.point - a);
+        let (d00, d01, d11) = (e0.dot(&e0), e0.dot(&e1), e1.dot(&e1));
+        let (d20, d21) = (e2.dot(&e0), e2.dot(&e1));
+        let den = (d00 * d11 - d01 * d01).max(1e-300);
+        let wb = ((d11 * d20 - d01 * d21) / den).clamp(0.0, 1.0);
+        let wd = ((d00 * d21 - d01 * d20) / den).clamp(0.0, 1.0 - wb);
+        let q = self.params[c.triangle];
+        let mut u = q[0].0 + wb * (q[1].0 - q[0].0) + wd * (q[2].0 - q[0].0);
+        let mut v = q[0].1 + wb * (q[1].1 - q[0].1) + wd * (q[2].1 - q[0].1);
+        project(s, p, &mut u, &mut v);
+        (u, v)
+    }
+}
+
+/// Gauss-Newton steps towards the foot point of `p` on `s` from (u, v).
+fn project(s: &NurbsSurface, p: &P3, u: &mut f64, v: &mut f64) {
+    let (u0, u1) = s.domain_u();
+    let (v0, v1) = s.domain_v();
+    for _ in 0..5 {
+        let d = s.derivatives(*u, *v, 1);
+        let r = p - P3::from(d[0][0]);
+        let (su, sv) = (d[1][0], d[0][1]);
+        let (a, b, c) = (su.dot(&su), su.dot(&sv), sv.dot(&sv));
+        let (ru, rv) = (su.dot(&r), sv.dot(&r));
+        let det = a * c - b * b;
+        if det.abs() < 1e-300 {
+            break;
+        }
+        let du = (c * ru - b * rv) / det;
+        let dv = (a * rv - b * ru) / det;
+        *u += du;
+        *v = (*v + dv).clamp(v0, v1);
+        *u = u0 + (*u - u0).rem_euclid(u1 - u0);
+        if du.abs() < 1e-10 && dv.abs() < 1e-10 {
+            break;
+        }
+    }
+}
+
+/// The non-zero basis products of one point: control indices (independent rows around) and
+/// weights.
+struct Row {
+    idx: [usize; 16],
+    w: [f64; 16],
+}
+
+fn basis_row(s: &NurbsSurface, u: f64, v: f64) -> Row {
+    let (p, q) = (s.degree_u, s.degree_v);
+    debug_assert!(p == 3 && q == 3);
+    let m = s.nu - p;
+    let su = find_span(s.nu - 1, p, u, &s.knots_u);
+    let sv = find_span(s.nv - 1, q, v, &s.knots_v);
+    let mut bu = [0.0; 4];
+    let mut bv = [0.0; 4];
+    basis_funs(su, u, p, &s.knots_u, &mut bu);
+    basis_funs(sv, v, q, &s.knots_v, &mut bv);
+    let mut r = Row {
+        idx: [0; 16],
+        w: [0.0; 16],
+    };
+    for a in 0..4 {
+        for b in 0..4 {
+            r.idx[a * 4 + b] = ((su - p + a) % m) * s.nv + sv - q + b;
+            r.w[a * 4 + b] = bu[a] * bv[b];
+        }
+    }
+    r
+}
+
+/// Least squares of the control points to the facet points at their parameters, with a small
+/// pull towards the current control points (it holds spans that few points reach), solved by
+/// conjugate gradients from the current points.
+fn solve(s: &NurbsSurface, pts: &[P3], uv: &[(f64, f64)], wt: &[f64]) -> NurbsSurface {
+    let m = s.nu - s.degree_u;
+    let n = m * s.nv;
+    let nv = s.nv as isize;
+    // Normal matrix as 7 x 7 neighbour blocks per unknown (cubic in both directions).
+    let key = |i: usize, j: usize| -> usize {
+        let (ai, aj) = ((i / s.nv) as isize, (i % s.nv) as isize);
+        let (bi, bj) = ((j / s.nv) as isize, (j % s.nv) as isize);
+        let mut di = bi - ai;
+        let mm = m as isize;
+        if di > 3 {
+            di -= mm;
+        } else if di < -3 {
+            di += mm;
+        }
+        ((di + 3) * 7 + (bj - aj + 3)) as usize
+    };
+    let mut a = vec![0.0f64; n * 49];
+    let mut rhs = vec![V3::zeros(); n];
+    for ((p, &(u, v)), &g) in pts.iter().zip(uv).zip(wt) {
+        let r = basis_row(s, u, v);
+        for k in 0..16 {
+            if r.w[k] == 0.0 {
+                continue;
+            }
+            rhs[r.idx[k]] += g * r.w[k] * p.coords;
+            for l in 0..16 {
+                a[r.idx[k] * 49 + key(r.idx[k], r.idx[l])] += g * r.w[k] * r.w[l];
+            }
+        }
+    }
+    let mean_diag = (0..n).map(|i| a[i * 49 + 24]).sum::<f64>() / n as f64;
+    let mu = 1e-3 * mean_diag.max(1e-12);
+    // Second differences of the control net around and along, a little: they keep the net
+    // from rippling between the facet points where knots are denser than the points.
+    let lam = SMOOTH * mean_diag.max(1e-12);
+    let mut rough = |c: [(isize, isize); 3]| {
+        let w = [1.0, -2.0, 1.0];
+        let ids: Vec<usize> = c
+            .iter()
+            .map(|&(i, j)| (i.rem_euclid(m as isize) as usize) * s.nv + j as usize)
+            .collect();
+        for x in 0..3 {
+            for y in 0..3 {
+                a[ids[x] * 49 + key(ids[x], ids[y])] += lam * w[x] * w[y];
+            }
+        }
+    };
+    for i in 0..m as isize {
+        for j in 0..nv {
+            rough([(i - 1, j), (i, j), (i + 1, j)]);
+            if j >= 1 && j + 1 < nv {
+                rough([(i, j - 1), (i, j), (i, j + 1)]);
+            }
+        }
+    }
+    let x0: Vec<V3> = (0..n)
+        .map(|i| s.points[(i / s.nv) * s.nv + i % s.nv].coords)
+        .collect();
+    for i in 0..n {
+        a[i * 49 + 24] += mu;
+        rhs[i] += mu * x0[i];
+    }
+    let matvec = |x: &[V3], y: &mut [V3]| {
+        for i in 0..n {
+            let (ri, rj) = ((i / s.nv) as isize, (i % s.nv) as isize);
+            let mut acc = V3::zeros();
+            for di in -3..=3isize {
+                let ii = (ri + di).rem_euclid(m as isize);
+                for dj in -3..=3isize {
+                    let jj = rj + dj;
+                    if jj < 0 || jj >= nv {
+                        continue;
+                    }
+                    let c = a[i * 49 + ((di + 3) * 7 + dj + 3) as usize];
+                    if c != 0.0 {
+                        acc += c * x[(ii * nv + jj) as usize];
+                    }
+                }
+            }
+            y[i] = acc;
+        }
+    };
+    // Jacobi-preconditioned conjugate gradients, the three coordinates side by side.
+    let diag: Vec<f64> = (0..n).map(|i| a[i * 49 + 24]).collect();
+    let mut x = x0.clone();
+    let mut ax = vec![V3::zeros(); n];
+    matvec(&x, &mut ax);
+    let mut r: Vec<V3> = rhs.iter().zip(&ax).map(|(b, q)| b - q).collect();
+    let mut z: Vec<V3> = r.iter().zip(&diag).map(|(r, d)| r / *d).collect();
+    let mut d = z.clone();
+    let dot3 = |a: &[V3], b: &[V3]| -> V3 {
+        a.iter()
+            .zip(b)
+            .fold(V3::zeros(), |s, (x, y)| s + x.component_mul(y))
+    };
+    let mut rz = dot3(&r, &z);
+    let b_norm = dot3(&rhs, &rhs).map(|x| x.sqrt().max(1e-300));
+    let mut ad = vec![V3::zeros(); n];
+    for _ in 0..80 {
+        matvec(&d, &mut ad);
+        let dad = dot3(&d, &ad);
+        let alpha = rz.zip_map(&dad, |a, b| if b > 0.0 { a / b } else { 0.0 });
+        for i in 0..n {
+            x[i] += d[i].component_mul(&alpha);
+            r[i] -= ad[i].component_mul(&alpha);
+        }
+        let rn = dot3(&r, &r).map(f64::sqrt);
+        if (0..3).all(|c| rn[c] <= 1e-7 * b_norm[c]) {
+            break;
+        }
+        for i in 0..n {
+            z[i] = r[i] / diag[i];
+        }
+        let rz1 = dot3(&r, &z);
+        let beta = rz1.zip_map(&rz, |a, b| if b > 0.0 { a / b } else { 0.0 });
+        rz = rz1;
+        for i in 0..n {
+            d[i] = z[i] + d[i].component_mul(&beta);
+        }
+    }
+    let mut out = s.clone();
+    for i in 0..s.nu {
+        for j in 0..s.nv {
+            out.points[i * s.nv + j] = P3::from(x[(i % m) * s.nv + j]);
+        }
+    }
+    out
+}
+
+/// Distance of `s` from the mesh on 2 points per knot span around and 4 per span of the
+/// section surface along (a distance over 5 mm counts as 5 mm).
+struct Check {
+    /// Grid points further than half the tolerance: parameters and the mesh's nearest point.
+    far: Vec<((f64, f64), P3)>,
+    max: f64,
+    rms: f64,
+    at: P3,
+}
+
+fn distinct(k: &[f64], lo: f64, hi: f64) -> Vec<f64> {
+    let mut v: Vec<f64> = k.iter().copied().filter(|&x| x >= lo && x <= hi).collect();
+    v.dedup();
+    v
+}
+
+fn check(s: &NurbsSurface, bvh: &Bvh, knots_v: &[f64]) -> Check {
+    let (u0, u1) = s.domain_u();
+    let (v0, v1) = s.domain_v();
+    let ku = distinct(&s.knots_u, u0, u1);
+    let kv = distinct(knots_v, v0, v1);
+    let mut c = Check {
+        far: Vec::new(),
+        max: 0.0,
+        rms: 0.0,
+        at: P3::origin(),
+    };
+    let mut us = Vec::new();
+    for w in ku.windows(2) {
+        for f in [0.0, 0.5] {
+            us.push(w[0] + f * (w[1] - w[0]));
+        }
+    }
+    let mut vs = Vec::new();
+    for w in kv.windows(2) {
+        for f in [0.0, 0.25, 0.5, 0.75] {
+            vs.push(w[0] + f * (w[1] - w[0]));
+        }
+    }
+    vs.push(v1);
+    let mut sum = 0.0;
+    for &u in &us {
+        for &v in &vs {
+            let p = s.point(u, v);
+            let near = bvh.closest_within(&p, 50.0 * TOL_MM);
+            let d = near.as_ref().map_or(50.0 * TOL_MM, |c| c.distance);
+            if let Some(n) = near {
+                if d > 0.5 * TOL_MM {
+                    c.far.push(((u, v), n.point));
+                }
+            }
+            sum += d * d;
+            if d > c.max {
+                c.max = d;
+                c.at = p;
+            }
+        }
+    }
+    c.rms = (sum / (us.len() * vs.len()) as f64).sqrt();
+    c
+}
+
+/// Fit the kept part `s0` (the section surface, v across [0, 1] from its far end to the cut
+/// when `cut_at_end`, else from the cut) to the facets of `mesh` between the cutting plane
+/// and the part's last section (`within`: distance from the plane into the part, positive).
+pub fn fit_part(
+    s0: &NurbsSurface,
+    mesh: &TriMesh,
+    plane: &Plane,
+    into_part: f64,
+    within: f64,
+) -> Result<(NurbsSurface, PartFit), JoinError> {
+    let t0 = Instant::now();
+    let depth = |p: &P3| into_part * plane.signed_distance(p);
+    let keep = |p: &P3| {
+        let d = depth(p);
+        (-1e-9..=within).contains(&d)
+    };
+    let pts = facet_points(mesh, &keep);
+    let bvh = Bvh::new(mesh);
+    let mut s = s0.clone();
+    let mut fit = PartFit::default();
+    let loc = Locator::new(&s, 600, 2 * (s.nv - s.degree_v));
+    let located: Vec<(P3, (f64, f64))> = pts.iter().map(|p| (*p, loc.locate(&s, p))).collect();
+    // Points whose foot lies on an end curve are past the part's end (the heel or toe cap,
+    // which the section surface does not reach) and would drag the end; points more than
+    // 3 mm from the section surface were placed on the wrong span.
+    let (v0, v1) = s.domain_v();
+    let (pts, mut uv): (Vec<P3>, Vec<(f64, f64)>) = located
+        .into_iter()
+        .filter(|(p, (u, v))| {
+            *v > v0 + 1e-9 && *v < v1 - 1e-9 && (s.point(*u, *v) - p).norm() < 3.0
+        })
+        .unzip();
+    // The two end curves stay where the sections put them (the cut and the part's last
+    // section, both on the mesh): pinned at their parameters, so the seam stays in the
+    // cutting plane and the far end does not swing past the last facet points.
+    let nfacet = pts.len();
+    fit.samples = nfacet;
+    let mut pts = pts;
+    let (u0, u1) = s.domain_u();
+    let ne = 2000;
+    for v in [v0, v1] {
+        for k in 0..ne {
+            let u = u0 + (u1 - u0) * k as f64 / ne as f64;
+            pts.push(s0.point(u, v));
+            uv.push((u, v));
+        }
+    }
+    let mut wt = vec![1.0; nfacet];
+    wt.extend(std::iter::repeat_n(END_WEIGHT, 2 * ne));
+    let mut c = None;
+    for round in 0..ROUNDS {
+        // The parameters stay those found on the section surface: knot insertion keeps the
+        // surface, and re-projecting onto a half-fitted surface let points on the flat top
+        // jump to far spans (a RoundTip back swung 30 mm off).
+        s = solve(&s, &pts, &uv, &wt);
+        fit.rounds = round + 1;
+        let kv = distinct(&s.knots_v, s.domain_v().0, s.domain_v().1);
+        let mut worst = vec![0.0f64; kv.len() - 1];
+        for (p, &(u, v)) in pts[..nfacet].iter().zip(&uv) {
+            let j = kv.partition_point(|&k| k <= v).clamp(1, kv.len() - 1) - 1;
+            worst[j] = worst[j].max((s.point(u, v) - p).norm());
+        }
+        let over_v: Vec<f64> = worst
+            .iter()
+            .enumerate()
+            .filter(|(_, &d)| d > 0.5 * TOL_MM)
+            .map(|(j, _)| 0.5 * (kv[j] + kv[j + 1]))
+            .collect();
+        let ck = check(&s, &bvh, &s0.knots_v);
+        let done = round + 1 == ROUNDS || (over_v.is_empty() && ck.max <= TOL_MM);
+        // Where the surface bulges away from the facets no facet point pulls it back (their
+        // feet are elsewhere): the grid points that stray pull towards their nearest mesh
+        // point in the next fit.
+        for &(q, p) in &ck.far {
+            pts.push(p);
+            uv.push(q);
+            wt.push(1.0);
+        }
+        c = Some(ck);
+        if done {
+            break;
+        }
+        s = s.refine_v(&over_v);
+    }
+    let c = c.expect("one round at least");
+    fit.points_max_mm = pts[..nfacet]
+        .iter()
+        .zip(&uv)
+        .map(|(p, &(u, v))| (s.point(u, v) - p).norm())
+        .fold(0.0, f64::max);
+    fit.spans_u = distinct(&s.knots_u, s.domain_u().0, s.domain_u().1).len() - 1;
+    fit.spans_v = distinct(&s.knots_v, s.domain_v().0, s.domain_v().1).len() - 1;
+    fit.max_mm = c.max;
+    fit.rms_mm = c.rms;
+    fit.max_at = [c.at.x, c.at.y, c.at.z];
+    fit.max_from_plane_mm = -depth(&c.at);
+    fit.ms = t0.elapsed().as_secs_f64() * 1e3;
+    Ok((s, fit))
+}
+
+/// The v derivatives of order 0..=2 of `s` at v as control points along u (the u basis is
+/// untouched by taking them).
+fn iso_ders(s: &NurbsSurface, v: f64) -> [Vec<V3>; 3] {
+    let q = s.degree_v;
+    let sv = find_span(s.nv - 1, q, v, &s.knots_v);
+    let d = ders_basis_funs(sv, v, q, 2, &s.knots_v);
+    let mut out = [
+        vec![V3::zeros(); s.nu],
+        vec![V3::zeros(); s.nu],
+        vec![V3::zeros(); s.nu],
+    ];
+    for (k, o) in out.iter_mut().enumerate() {
+        for (i, x) in o.iter_mut().enumerate() {
+            for b in 0..=q {
+                *x += d[k][b] * s.points[i * s.nv + sv - q + b].coords;
+            }
+        }
+    }
+    out
+}
+
+/// Seam continuity asked of the patch against the fitted parts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub enum Continuity {
+    /// Position and tangent plane: the patch's own v tangent turned into the fitted part's
+    /// tangent plane (the patch keeps its own curvature across the seam).
+    #[default]
+    G1,
+    /// Position, first and second v derivatives of the fitted parts: exact G2, but the
+    /// fitted parts' derivatives carry their parametrisation, and the patch bulged (8.7 mm
+    /// on the LastScan pair, 64 mm on the RoundTip pair); only where asked.
+    G2,
+}
+
+/// The patch bent to meet `back` at its v = 1 and `toe` at its v = 0: a quintic (G2) or cubic
+/// (G1) Hermite correction in v whose end values are the differences of position and of the
+/// v derivatives, these scaled by the parameter lengths (`lens`: back, patch, toe on the
+/// whole surface before each piece was mapped to [0, 1]). All three share their u knots.
+pub fn meet(
+    patch: &NurbsSurface,
+    back: &NurbsSurface,
+    toe: &NurbsSurface,
+    lens: [f64; 3],
+    c: Continuity,
+) -> Result<NurbsSurface, JoinError> {
+    // Bring the u knots together: the fitted parts may have gained knots around.
+    let mut parts = vec![back.clone(), patch.clone(), toe.clone()];
+    let ku: Vec<f64> = {
+        let mut k: Vec<f64> = Vec::new();
+        for s in &parts {
+            for &x in &s.knots_u[s.degree_u..=s.nu] {
+                if !k.iter().any(|&y| (y - x).abs() < 1e-12) {
+                    k.push(x);
+                }
+            }
+        }
+        k
+    };
+    for s in parts.iter_mut() {
+        let have = &s.knots_u[s.degree_u..=s.nu];
+        let add: Vec<f64> = ku
+            .iter()
+            .copied()
+            .filter(|x| !have.iter().any(|y| (y - x).abs() < 1e-12))
+            .collect();
+        *s = s.refine_u(&add);
+    }
+    let (b, p, t) = (&parts[0], &parts[1], &parts[2]);
+    let (fb, ft) = (lens[1] / lens[0], lens[1] / lens[2]);
+    let bd = iso_ders(b, 1.0);
+    let pd0 = iso_ders(p, 0.0);
+    let pd1 = iso_ders(p, 1.0);
+    let td = iso_ders(t, 0.0);
+    let nu = p.nu;
+    let diff = |a: &[V3], s: f64, bb: &[V3]| -> Vec<V3> {
+        a.iter().zip(bb).map(|(x, y)| x * s - y).collect::<Vec<_>>()
+    };
+    let d0 = diff(&bd[0], 1.0, &pd0[0]);
+    let d1 = diff(&bd[1], fb, &pd0[1]);
+    let d2 = diff(&bd[2], fb * fb, &pd0[2]);
+    let e0 = diff(&td[0], 1.0, &pd1[0]);
+    let e1 = diff(&td[1], ft, &pd1[1]);
+    let e2 = diff(&td[2], ft * ft, &pd1[2]);
+    // Bezier control values in v of the correction.
+    let cols: Vec<Vec<V3>> = match c {
+        Continuity::G2 => (0..nu)
+            .map(|i| {
+                vec![
+                    d0[i],
+                    d0[i] + d1[i] / 5.0,
+                    d0[i] + d1[i] * 0.4 + d2[i] / 20.0,
+                    e0[i] - e1[i] * 0.4 + e2[i] / 20.0,
+                    e0[i] - e1[i] / 5.0,
+                    e0[i],
+                ]
+            })
+            .collect(),
+        Continuity::G1 => {
+            // The patch's own v tangent turned into the fitted part's tangent plane at the
+            // Greville point of each control column: the fitted parts' v derivatives carry
+            // their parametrisation (short spans near the cut after refinement), and taking
+            // them whole bulged the patch by 1.5-12 mm (64 mm for G2 on the RoundTip pair).
+            let gr = |i: usize| {
+                let k = &p.knots_u;
+                (1..=p.degree_u).map(|a| k[i + a]).sum::<f64>() / p.degree_u as f64
+            };
+            let turn = |surf: &NurbsSurface, v: f64, pv: &[V3]| -> Vec<V3> {
+                (0..nu)
+                    .map(|i| {
+                        let n = surf.normal(gr(i), v);
+                        -n * n.dot(&pv[i])
+                    })
+                    .collect()
+            };
+            let t1 = turn(b, 1.0, &pd0[1]);
+            let u1 = turn(t, 0.0, &pd1[1]);
+            (0..nu)
+                .map(|i| vec![d0[i], d0[i] + t1[i] / 3.0, e0[i] - u1[i] / 3.0, e0[i]])
+                .collect()
+        }
+    };
+    let deg = cols[0].len() - 1;
+    let mut kv = vec![0.0; deg + 1];
+    kv.extend(vec![1.0; deg + 1]);
+    let pts: Vec<P3> = cols.iter().flatten().map(|x| P3::from(*x)).collect();
+    let corr = NurbsSurface::new(
+        p.degree_u,
+        deg,
+        p.knots_u.clone(),
+        kv,
+        nu,
+        deg + 1,
+        pts,
+        None,
+    )?
+    .with_periodic(p.periodic_u, false)?;
+    let both = make_surfaces_compatible(&[p.clone(), corr])?;
+    Ok(both[0].try_add(&both[1])?)
+}
+
+/// The part of `mesh` on the kept side of `plane` (`into_part` = +1 keeps the side the normal
+/// points to, -1 the other), triangles crossing the plane cut at it, and the boundary loop
+/// left on the plane, in the order of the kept triangles' edges.
+pub fn trim(mesh: &TriMesh, plane: &Plane, into_part: f64) -> (TriMesh, Vec<u32>) {
+    let d: Vec<f64> = mesh
+        .vertices
+        .iter()
+        .map(|v| {
+            let x = into_part * plane.signed_distance(v);
+            if x.abs() < 1e-9 {
+                0.0
+            } else {
+                x
+            }
+        })
+        .collect();
+    let mut verts: Vec<P3> = Vec::new();
+    let mut map: HashMap<u32, u32> = HashMap::new();
+    let mut cut: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut on_plane: Vec<bool> = Vec::new();
+    let mut tris: Vec<[u32; 3]> = Vec::new();
+    let mut keep_v = |i: u32, verts: &mut Vec<P3>, on: &mut Vec<bool>| -> u32 {
+        *map.entry(i).or_insert_with(|| {
+            verts.push(mesh.vertices[i as usize]);
+            on.push(d[i as usize] == 0.0);
+            (verts.len() - 1) as u32
+        })
+    };
+    for tri in &mesh.triangles {
+        let inside: Vec<bool> = tri.iter().map(|&i| d[i as usize] >= 0.0).collect();
+        let n_in = inside.iter().filter(|&&x| x).count();
+        if n_in == 0 {
+            continue;
+        }
+        // Vertices of the kept polygon in order.
+        let mut poly: Vec<u32> = Vec::with_capacity(4);
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            let (da, db) = (d[a as usize], d[b as usize]);
+            if da >= 0.0 {
+                poly.push(keep_v(a, &mut verts, &mut on_plane));
+            }
+            if (da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0) {
+                let key = (a.min(b), a.max(b));
+                let id = *cut.entry(key).or_insert_with(|| {
+                    let (pa, pb) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
+                    let t = da / (da - db);
+                    verts.push(pa + (pb - pa) * t);
+                    on_plane.push(true);
+                    (verts.len() - 1) as u32
+                });
+                poly.push(id);
+            }
+        }
+        for k in 1..poly.len().saturating_sub(1) {
+            let t = [poly[0], poly[k], poly[k + 1]];
+            if t[0] != t[1] && t[1] != t[2] && t[0] != t[2] {
+                tris.push(t);
+            }
+        }
+    }
+    let m = TriMesh::new(verts, tris);
+    // Boundary: directed edges used once, whose ends both lie on the plane.
+    let mut count: HashMap<(u32, u32), i32> = HashMap::new();
+    for t in &m.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *count.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let mut next: HashMap<u32, u32> = HashMap::new();
+    for t in &m.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            if count[&(a.min(b), a.max(b))] == 1 && on_plane[a as usize] && on_plane[b as usize] {
+                next.insert(a, b);
+            }
+        }
+    }
+    let mut loop_ = Vec::new();
+    if let Some((&start, _)) = next.iter().min_by_key(|(k, _)| **k) {
+        let mut c = start;
+        loop {
+            loop_.push(c);
+            match next.get(&c) {
+                Some(&n) if n != start && loop_.len() <= next.len() => c = n,
+                _ => break,
+            }
+        }
+    }
+    (m, loop_)
+}
+
+/// Triangles joining two closed loops of vertex ids `a` and `b` (in `verts`) that run the
+/// same way round: from the nearest pair, each step advances the loop whose next point makes
+/// the shorter diagonal.
+pub fn zip(verts: &[P3], a: &[u32], b: &[u32]) -> Vec<[u32; 3]> {
+    let (na, nb) = (a.len(), b.len());
+    let p = |i: u32| verts[i as usize];
+    let b0 = (0..nb)
+        .min_by(|&i, &j| {
+            (p(b[i]) - p(a[0]))
+                .norm()
+                .total_cmp(&(p(b[j]) - p(a[0])).norm())
+        })
+        .unwrap_or(0);
+    let bb = |j: usize| b[(b0 + j) % nb];
+    let aa = |i: usize| a[i % na];
+    let (mut i, mut j) = (0, 0);
+    let mut out = Vec::with_capacity(na + nb);
+    while i < na || j < nb {
+        let adv_a = if i == na {
+            false
+        } else if j == nb {
+            true
+        } else {
+            (p(aa(i + 1)) - p(bb(j))).norm() <= (p(bb(j + 1)) - p(aa(i))).norm()
+        };
+        if adv_a {
+            out.push([aa(i), aa(i + 1), bb(j)]);
+            i += 1;
+        } else {
+            out.push([aa(i), bb(j + 1), bb(j)]);
+            j += 1;
+        }
+    }
+    out
+}
+
+/// Which way a loop turns about `axis`: +1 counterclockwise looking against it.
+pub fn turn(verts: &[P3], l: &[u32], axis: &V3) -> f64 {
+    let c = l
+        .iter()
+        .fold(V3::zeros(), |s, &i| s + verts[i as usize].coords)
+        / l.len().max(1) as f64;
+    let mut a = V3::zeros();
+    for k in 0..l.len() {
+        let (p, q) = (
+            verts[l[k] as usize].coords - c,
+            verts[l[(k + 1) % l.len()] as usize].coords - c,
+        );
+        a += p.cross(&q);
+    }
+    a.dot(axis).signum()
+}
