@@ -363,7 +363,7 @@ impl Renderer {
                 .clamp(0.0, max) as u32;
             let g = other(1, lit, v, c.laser_rgb[1]);
             let b = other(2, lit, v, c.laser_rgb[2]);
-            *p = cast(c.channel.of(r, g, b));
+            *p = cast(c.channel.of_full(r, g, b, max as u32));
         }
     }
 

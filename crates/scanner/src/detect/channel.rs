@@ -307,7 +307,7 @@ fn convert(
                     };
                     d.resize(n, 0);
                     for (o, p) in d.iter_mut().zip(s.chunks_exact(3)) {
-                        *o = ch.of(p[0] as u32, p[1] as u32, p[2] as u32) as u16;
+                        *o = ch.of_full(p[0] as u32, p[1] as u32, p[2] as u32, 65535) as u16;
                     }
                 }
             }
