@@ -54,6 +54,7 @@
 //! the lit scene blotchy (a fixed pattern per camera pixel, the same in every channel): room
 //! light on a textured scene, which a threshold must not take for the line.
 
+mod kinds;
 mod noise;
 mod normal;
 mod rng;
@@ -62,6 +63,7 @@ mod scene;
 mod sloped;
 mod truth;
 
+pub use kinds::{render_kind, KindFrame, LineKind, LIT_DN};
 pub use noise::{ColourCamera, NoiseConfig, MAX_SPECKLE_CORR};
 pub(crate) use normal::inverse_normal_cdf;
 pub(crate) use rng::mix;
@@ -363,7 +365,7 @@ impl Renderer {
                 .clamp(0.0, max) as u32;
             let g = other(1, lit, v, c.laser_rgb[1]);
             let b = other(2, lit, v, c.laser_rgb[2]);
-            *p = cast(c.channel.of(r, g, b));
+            *p = cast(c.channel.of_full(r, g, b, max as u32));
         }
     }
 

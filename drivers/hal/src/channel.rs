@@ -49,18 +49,45 @@ impl Channel {
         }
     }
 
-    /// The channel's value of one pixel (in the pixel's own units; never above the largest
-    /// of `r`, `g`, `b`).
+    /// The channel's value of one 8-bit pixel ([`Channel::of_full`] with full scale 255).
     #[inline(always)]
     pub fn of(self, r: u32, g: u32, b: u32) -> u32 {
+        self.of_full(r, g, b, 255)
+    }
+
+    /// The channel's value of one pixel whose full scale is `full` (never above the largest of
+    /// `r`, `g`, `b`).
+    ///
+    /// A colour difference is full scale wherever the laser's own channel is: a laser bright
+    /// enough to clip its channel leaks through the Bayer filter into the other two and clips
+    /// them at its centre as well, and there R = G = B = full would make the difference 0 and
+    /// split the line in two (docs/method.md section 4.9). Clipped, the laser's channel says
+    /// only "at least full scale", so the difference is taken as large as it can be, and
+    /// nearly so over the top eighth of the scale.
+    #[inline(always)]
+    pub fn of_full(self, r: u32, g: u32, b: u32, full: u32) -> u32 {
         match self {
             Channel::Luma => (77 * r + 150 * g + 29 * b) >> 8,
             Channel::Red => r,
             Channel::Green => g,
             Channel::Blue => b,
-            Channel::RedMinusOthers => r.saturating_sub((g + b) / 2),
-            Channel::GreenMinusOthers => g.saturating_sub((r + b) / 2),
+            Channel::RedMinusOthers => r.saturating_sub((g + b) / 2).max(clipping(r, full)),
+            Channel::GreenMinusOthers => g.saturating_sub((r + b) / 2).max(clipping(g, full)),
         }
+    }
+}
+
+/// How near the laser's channel `v` is to clipping, as a channel value: 0 below 7/8 of full
+/// scale, rising to `full` at full scale. A ramp rather than a step: one pixel of a line's
+/// white centre clips and its neighbour stops at 250 of 255, and a step would leave the
+/// line's profile 255, 6, 255 there.
+#[inline(always)]
+fn clipping(v: u32, full: u32) -> u32 {
+    let knee = full - full / 8;
+    if v <= knee {
+        0
+    } else {
+        ((v.min(full) - knee) as u64 * full as u64 / (full - knee) as u64) as u32
     }
 }
 
@@ -103,7 +130,19 @@ mod tests {
             .unwrap_err()
             .contains("red-minus-others"));
         assert_eq!(Channel::Luma.of(255, 255, 255), 255);
-        assert_eq!(Channel::RedMinusOthers.of(255, 60, 40), 205);
+        assert_eq!(Channel::RedMinusOthers.of(200, 60, 40), 150);
         assert_eq!(Channel::GreenMinusOthers.of(60, 40, 255), 0);
+        // A clipped laser channel: full scale, though the others clipped too (a white centre).
+        assert_eq!(Channel::RedMinusOthers.of(255, 255, 255), 255);
+        assert_eq!(Channel::GreenMinusOthers.of(250, 255, 255), 255);
+        assert_eq!(Channel::RedMinusOthers.of_full(255, 255, 255, 65535), 0);
+        // Near clipping: a ramp over the top eighth of full scale.
+        assert_eq!(Channel::RedMinusOthers.of(250, 244, 244), 213);
+        assert_eq!(Channel::RedMinusOthers.of(224, 224, 224), 0);
+        assert_eq!(Channel::RedMinusOthers.of(230, 224, 224), 49);
+        assert_eq!(
+            Channel::RedMinusOthers.of_full(65535, 65535, 0, 65535),
+            65535
+        );
     }
 }

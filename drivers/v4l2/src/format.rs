@@ -837,7 +837,8 @@ mod tests {
         let mut c = Converter::new(SourceFormat::Bgr24, 2, 2, 8)
             .with_channel(Some(Channel::RedMinusOthers))
             .unwrap();
-        assert_eq!(convert8(&mut c, &bgr), vec![230, 0, 0, 0]);
+        // White is full scale: R clipped, as at a bright laser's white centre.
+        assert_eq!(convert8(&mut c, &bgr), vec![230, 255, 0, 0]);
     }
 
     #[test]
@@ -852,8 +853,9 @@ mod tests {
             (Channel::Red, [255, 255, 255, 0]),
             (Channel::Green, [0, 0, 255, 0]),
             (Channel::Blue, [0, 0, 255, 0]),
-            (Channel::RedMinusOthers, [255, 255, 0, 0]),
-            (Channel::GreenMinusOthers, [0, 0, 0, 0]),
+            // White: the laser's channel clipped, full scale (hal's `Channel::of_full`).
+            (Channel::RedMinusOthers, [255, 255, 255, 0]),
+            (Channel::GreenMinusOthers, [0, 0, 255, 0]),
         ];
         for (ch, want) in expect {
             let mut c = Converter::new(SourceFormat::Yuyv, 4, 1, 0)

@@ -307,7 +307,7 @@ fn convert(
                     };
                     d.resize(n, 0);
                     for (o, p) in d.iter_mut().zip(s.chunks_exact(3)) {
-                        *o = ch.of(p[0] as u32, p[1] as u32, p[2] as u32) as u16;
+                        *o = ch.of_full(p[0] as u32, p[1] as u32, p[2] as u32, 65535) as u16;
                     }
                 }
             }
@@ -330,13 +330,22 @@ mod tests {
 
     #[test]
     fn channels_of_a_red_line_on_white() {
-        let img = rgb(&[[250, 250, 250], [255, 60, 40], [10, 10, 10]]);
+        let img = rgb(&[[200, 200, 200], [200, 60, 40], [10, 10, 10]]);
         let mut p = Prep::new(Some(Channel::RedMinusOthers));
         let f = p.prepare(&img, "t").unwrap();
-        assert_eq!(f.pixels, Pixels::Gray8(vec![0, 205, 0]));
+        assert_eq!(f.pixels, Pixels::Gray8(vec![0, 150, 0]));
         let mut p = Prep::new(Some(Channel::Luma));
         let f = p.prepare(&img, "t").unwrap();
-        assert_eq!(f.pixels, Pixels::Gray8(vec![250, 116, 10]));
+        assert_eq!(f.pixels, Pixels::Gray8(vec![200, 99, 10]));
+        // Near clipping, white is taken for a clipped laser's white centre (hal's
+        // `Channel::of_full`): over-exposed white paper is no longer 0.
+        let img = rgb(&[[250, 250, 250], [255, 255, 255], [255, 60, 40]]);
+        let f = Prep::new(Some(Channel::RedMinusOthers))
+            .prepare(&img, "t")
+            .unwrap()
+            .pixels
+            .clone();
+        assert_eq!(f, Pixels::Gray8(vec![213, 255, 255]));
     }
 
     #[test]

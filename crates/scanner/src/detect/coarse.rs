@@ -133,7 +133,8 @@ pub struct CoarseConfig {
     /// A second peak outside the line of at least this fraction of the line's peak (above the
     /// background) makes the row ambiguous. > 1 disables the test.
     pub ambiguity: f32,
-    /// Rows whose saturated run is longer than this (px) are rejected as saturated.
+    /// Rows whose saturated run is longer than this (px) and than half the line's width at
+    /// half height are rejected as saturated.
     pub max_saturated_px: usize,
     /// Skip specular spikes: saturated runs of at most 6 px whose neighbours are dark.
     pub skip_spikes: bool,
@@ -363,6 +364,19 @@ impl<T: Px> CoarseScratch<T> {
             (Err((Reject::Ambiguous, v)), Some(n)) => {
                 coarse_row_near(row, &mut self.window_blocks, cfg, thr, n)
                     .ok_or((Reject::Ambiguous, v))
+            }
+            // Nothing above the threshold once the spikes were skipped, but the line of the
+            // rows above may be one of them: a saturated line a few pixels wide whose flanks
+            // fall steeply (a colour difference clipped at full scale) looks like a specular
+            // spike in one row. A spike is a disc of a few rows; a line continues.
+            (Err((Reject::BelowThreshold, v)), Some(n)) if cfg.skip_spikes => {
+                let kept = CoarseConfig {
+                    skip_spikes: false,
+                    ..*cfg
+                };
+                coarse_row_near(row, &mut self.window_blocks, &kept, thr, n)
+                    .filter(|pk| pk.saturated > 0)
+                    .ok_or((Reject::BelowThreshold, v))
             }
             (r, _) => r,
         }
@@ -637,9 +651,6 @@ pub fn coarse_row<T: Px>(
         break;
     }
     let saturated = if top >= full { m1 - m0 + 1 } else { 0 };
-    if saturated > cfg.max_saturated_px {
-        return Err((Reject::Saturated, top));
-    }
     let m = (m0 + m1) / 2;
     // Run above the threshold.
     let mut lo = m0;
@@ -680,6 +691,13 @@ pub fn coarse_row<T: Px>(
         r as f32 + ((v0 - half) / (v0 - v1).max(1e-6)).clamp(0.0, 1.0)
     };
     let width = (xr - xl).max(0.5);
+    // Over-exposed: a clipped run longer than `max_saturated_px` that is also most of the
+    // line (over half its width at half height) hides where the line's centre is. A wide line
+    // (20-40 px from a poor lens) clips over more than 12 px at its top alone and keeps its
+    // symmetric flanks.
+    if saturated > cfg.max_saturated_px && saturated as f32 > 0.5 * width {
+        return Err((Reject::Saturated, top));
+    }
     // A second peak outside the line and its immediate surroundings (spikes skipped).
     let mut second = 0.0;
     if cfg.ambiguity <= 1.0 {
