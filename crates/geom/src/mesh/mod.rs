@@ -7,6 +7,7 @@
 //! a tolerance).
 
 mod bvh;
+pub mod cloud;
 mod error;
 mod gltf;
 mod intake;

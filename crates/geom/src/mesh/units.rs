@@ -64,6 +64,9 @@ pub struct LoadReport {
     pub file_size: V3,
     /// Validation of the scaled mesh.
     pub mesh: MeshReport,
+    /// A point cloud read as a last: how far its points lie from the mesh made through them
+    /// (scaled).
+    pub cloud: Option<super::cloud::CloudFit>,
 }
 
 impl LoadReport {
@@ -81,8 +84,16 @@ impl LoadReport {
                 format!("scaled by {:.6} to a length of {length_mm} mm", self.scale)
             }
         };
+        let made = self.cloud.map_or(String::new(), |c| {
+            format!(
+                " (a point cloud of {} points made a closed mesh round their outside: points \
+                 off it {:.2} mm rms, {:.2} mm at the 99th percentile, none more than {:.2} \
+                 mm outside; {} points on inner walls left inside)",
+                c.points, c.rms_mm, c.p99_mm, c.outside_max_mm, c.inner_points
+            )
+        });
         format!(
-            "{:.4} x {:.4} x {:.4} in the file: {how}; {} triangles, volume {:.0} mm^3",
+            "{:.4} x {:.4} x {:.4} in the file: {how}; {} triangles, volume {:.0} mm^3{made}",
             s.x, s.y, s.z, self.mesh.triangles, self.mesh.volume
         )
     }
@@ -137,7 +148,12 @@ impl TriMesh {
         length_mm: Option<f64>,
     ) -> Result<(TriMesh, LoadReport), MeshError> {
         let path = path.as_ref();
-        let mut m = TriMesh::read(path)?;
+        let (mut m, cloud) = if super::cloud::is_cloud(path) {
+            let (m, fit) = super::cloud::read_last_points(path)?;
+            (m, Some(fit))
+        } else {
+            (TriMesh::read(path)?, None)
+        };
         m.validate(path)?;
         let file_size = m.bbox().extent();
         let (scale, decision) = units.resolve(file_size, length_mm, path)?;
@@ -152,6 +168,12 @@ impl TriMesh {
                 scale,
                 file_size,
                 mesh,
+                cloud: cloud.map(|f| super::cloud::CloudFit {
+                    rms_mm: f.rms_mm * scale,
+                    p99_mm: f.p99_mm * scale,
+                    outside_max_mm: f.outside_max_mm * scale,
+                    ..f
+                }),
             },
         ))
     }

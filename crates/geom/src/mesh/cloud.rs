@@ -1,0 +1,408 @@
+//! A closed mesh through a scanned last's points (an XYZ point cloud, as last scanners and
+//! digitisers write them).
+//!
+//! A last is a solid blob with no through-holes: scaled along its principal axes to a unit
+//! ball it is star-shaped about its centre almost everywhere (the rays from the centre cross
+//! its surface once), so its surface is a radius over the sphere of directions. The mesh is
+//! an icosphere whose every vertex is pushed out to the Gaussian-weighted mean radius of the
+//! points seen in a cone about its direction; directions no point covers take their
+//! neighbours' radius. Closed and 2-manifold by construction, whatever the points.
+//! docs/method.md 9.6 gives the fit on the shared scanned last.
+
+use super::{Bvh, TriMesh};
+use crate::{P3, V3};
+use std::collections::HashMap;
+
+/// Fewer points than this cannot describe a last.
+pub const MIN_POINTS: usize = 1000;
+/// More points than this are not read (a last scan has tens of thousands; 4 million XYZ
+/// lines is about 120 MB of text).
+pub const MAX_POINTS: usize = 4_000_000;
+/// Icosphere subdivisions: 20 480 triangles, a vertex every 2 degrees of direction.
+const LEVEL: usize = 5;
+/// Half-angle of the cone a vertex takes its radius from, in vertex spacings.
+const CONE: f64 = 1.5;
+/// The band of radii below a cone's outermost point taken as the outside (a fraction of
+/// the radius: 6 % is 3 mm across a last's width).
+const OUTER_BAND: f64 = 0.06;
+
+/// Deeper inside the solid than this (mm), a point is on an inner wall.
+const INNER_MM: f64 = 2.0;
+
+/// How well the mesh follows the points on its outside (mm), for the load report.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CloudFit {
+    pub points: usize,
+    /// Points inside the solid by more than 2 mm: inner walls (a slot, a hinge cut), left
+    /// out of the figures below.
+    pub inner_points: usize,
+    pub rms_mm: f64,
+    pub p99_mm: f64,
+    /// The farthest point outside the mesh: where it cuts into the scanned last.
+    pub outside_max_mm: f64,
+    /// Vertices no point's cone reached, filled from their neighbours.
+    pub filled_vertices: usize,
+}
+
+/// Whether `path` names a point cloud by its extension (.asc, .xyz, .pts).
+pub fn is_cloud(path: &std::path::Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "asc" | "xyz" | "pts"))
+}
+
+/// A point-cloud file read and made a closed mesh ([`last_from_points`]); errors name the
+/// file.
+pub fn read_last_points(path: &std::path::Path) -> Result<(TriMesh, CloudFit), super::MeshError> {
+    let parse = |what: String| super::MeshError::Parse {
+        path: path.to_path_buf(),
+        what,
+    };
+    let text = std::fs::read_to_string(path).map_err(|source| super::MeshError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let pts = parse_xyz(&text).map_err(|w| parse(format!("a point cloud (XYZ text): {w}")))?;
+    last_from_points(&pts).map_err(|w| parse(format!("a point cloud of a last: {w}")))
+}
+
+/// Reads XYZ text: three numbers per line (more columns, e.g. normals or colour, are
+/// ignored), blank lines and lines starting with '#' or '//' skipped.
+pub fn parse_xyz(text: &str) -> Result<Vec<P3>, String> {
+    let mut pts = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if l.is_empty() || l.starts_with('#') || l.starts_with("//") {
+            continue;
+        }
+        let mut f = l
+            .split(|c: char| c.is_whitespace() || c == ',' || c == ';')
+            .filter(|s| !s.is_empty())
+            .map(str::parse::<f64>);
+        let mut next = || match f.next() {
+            Some(Ok(v)) if v.is_finite() => Ok(v),
+            _ => Err(format!(
+                "line {}: {l:?} is not a point (three numbers x y z per line)",
+                n + 1
+            )),
+        };
+        pts.push(P3::new(next()?, next()?, next()?));
+        if pts.len() > MAX_POINTS {
+            return Err(format!(
+                "more than {MAX_POINTS} points: not a last's scan (thin it first)"
+            ));
+        }
+    }
+    if pts.len() < MIN_POINTS {
+        return Err(format!(
+            "{} points: a last's scan has thousands ({MIN_POINTS} at least)",
+            pts.len()
+        ));
+    }
+    Ok(pts)
+}
+
+/// The icosahedron subdivided `level` times, on the unit sphere (outward, counterclockwise).
+fn icosphere(level: usize) -> (Vec<V3>, Vec<[u32; 3]>) {
+    let t = 0.5 * (1.0 + 5f64.sqrt());
+    let mut v: Vec<V3> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .iter()
+    .map(|p| V3::new(p[0], p[1], p[2]).normalize())
+    .collect();
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..level {
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut split = |a: u32, b: u32, v: &mut Vec<V3>| {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                v.push((v[a as usize] + v[b as usize]).normalize());
+                (v.len() - 1) as u32
+            })
+        };
+        let mut g = Vec::with_capacity(4 * f.len());
+        for [a, b, c] in f {
+            let (ab, bc, ca) = (
+                split(a, b, &mut v),
+                split(b, c, &mut v),
+                split(c, a, &mut v),
+            );
+            g.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        f = g;
+    }
+    (v, f)
+}
+
+/// The distance along the unit direction `d` to the plane fitted (weighted least squares)
+/// to the points `near` (weight, position), when there are enough of them spread over a
+/// patch and the ray does not graze the plane.
+fn plane_radius(near: &[(f64, V3)], d: &V3) -> Option<f64> {
+    if near.len() < 6 {
+        return None;
+    }
+    let sw: f64 = near.iter().map(|(w, _)| w).sum();
+    let m = near.iter().fold(V3::zeros(), |s, (w, p)| s + p * *w) / sw;
+    let cov = near.iter().fold(nalgebra::Matrix3::zeros(), |s, (w, p)| {
+        let q = p - m;
+        s + q * q.transpose() * *w
+    }) / sw;
+    let eig = nalgebra::SymmetricEigen::new(cov);
+    let mut order = [0, 1, 2];
+    order.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
+    // A patch, not a line of points: its second spread well above its thickness.
+    if eig.eigenvalues[order[1]] < 4.0 * eig.eigenvalues[order[0]].max(0.0) {
+        return None;
+    }
+    let n = eig.eigenvectors.column(order[0]).into_owned();
+    let nd = n.dot(d);
+    if nd.abs() < 0.2 {
+        return None;
+    }
+    let r = n.dot(&m) / nd;
+    (r > 0.0).then_some(r)
+}
+
+/// A closed mesh through `pts` (see the module documentation), and how far the points lie
+/// from it.
+pub fn last_from_points(pts: &[P3]) -> Result<(TriMesh, CloudFit), String> {
+    if pts.len() < MIN_POINTS {
+        return Err(format!("{} points: too few for a last", pts.len()));
+    }
+    let n = pts.len() as f64;
+    let c = pts.iter().fold(V3::zeros(), |s, p| s + p.coords) / n;
+    let cov = pts.iter().fold(nalgebra::Matrix3::zeros(), |s, p| {
+        let d = p.coords - c;
+        s + d * d.transpose()
+    }) / n;
+    let eig = nalgebra::SymmetricEigen::new(cov);
+    let mut order = [0, 1, 2];
+    order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
+    let e1 = eig.eigenvectors.column(order[0]).into_owned();
+    let e2 = eig.eigenvectors.column(order[1]).into_owned();
+    let e = [e1, e2, e1.cross(&e2)];
+    let local = |p: &P3| {
+        let d = p.coords - c;
+        V3::new(d.dot(&e[0]), d.dot(&e[1]), d.dot(&e[2]))
+    };
+    let mut half = V3::zeros();
+    for p in pts {
+        half = half.sup(&local(p).abs());
+    }
+    if half.min() <= 0.0 || !half.min().is_finite() {
+        return Err("the points lie in a plane or a line: not a solid".into());
+    }
+    // Directions and radii in the scaled frame.
+    let dirs: Vec<(V3, f64)> = pts
+        .iter()
+        .filter_map(|p| {
+            let s = local(p).component_div(&half);
+            let r = s.norm();
+            (r > 1e-9).then(|| (s / r, r))
+        })
+        .collect();
+    let (sphere, faces) = icosphere(LEVEL);
+    let spacing = 63.43f64.to_radians() / (1 << LEVEL) as f64;
+    let cone = CONE * spacing;
+    let (cos_cone, sigma) = (cone.cos(), 0.5 * cone);
+    // Directions bucketed on a grid over [-1, 1]^3 with cells of the cone's chord.
+    let cell = 2.0 * (0.5 * cone).sin() * 2.0;
+    let key = |u: &V3| {
+        (
+            (u.x / cell).floor() as i32,
+            (u.y / cell).floor() as i32,
+            (u.z / cell).floor() as i32,
+        )
+    };
+    let mut grid: HashMap<(i32, i32, i32), Vec<usize>> = HashMap::new();
+    for (i, (u, _)) in dirs.iter().enumerate() {
+        grid.entry(key(u)).or_default().push(i);
+    }
+    let mut radius: Vec<Option<f64>> = sphere
+        .iter()
+        .map(|d| {
+            let k = key(d);
+            let mut sw = 0.0;
+            let mut near: Vec<(f64, V3)> = Vec::new();
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        let Some(ids) = grid.get(&(k.0 + dx, k.1 + dy, k.2 + dz)) else {
+                            continue;
+                        };
+                        for &i in ids {
+                            let (u, r) = dirs[i];
+                            let cs = u.dot(d);
+                            if cs >= cos_cone {
+                                let a = cs.min(1.0).acos() / sigma;
+                                let w = (-a * a).exp();
+                                sw += w;
+                                near.push((w, u * r));
+                            }
+                        }
+                    }
+                }
+            }
+            if sw <= 0.0 {
+                return None;
+            }
+            // The outside only: a scan may hold inner walls (the shared scanned last has a
+            // slot 8 mm wide down its forefoot), and their points, averaged in, pulled the
+            // outside in by up to 10 mm.
+            let rmax = near.iter().map(|(_, p)| p.norm()).fold(0.0, f64::max);
+            near.retain(|(_, p)| p.norm() >= (1.0 - OUTER_BAND) * rmax);
+            let (sw, sr) = near
+                .iter()
+                .fold((0.0, 0.0), |(a, b), (w, p)| (a + w, b + w * p.norm()));
+            // The ray through the plane fitted to those points where they make a patch.
+            Some(plane_radius(&near, d).unwrap_or(sr / sw))
+        })
+        .collect();
+    // Directions no point covers: their neighbours' mean, spread until all are set.
+    let filled_vertices = radius.iter().filter(|r| r.is_none()).count();
+    if filled_vertices * 4 > sphere.len() {
+        return Err(format!(
+            "the points cover only {:.0} % of the directions round their centre: not a whole \
+             last (a scan of one side, or several objects)",
+            100.0 * (sphere.len() - filled_vertices) as f64 / sphere.len() as f64
+        ));
+    }
+    let mut nbr = vec![Vec::new(); sphere.len()];
+    for t in &faces {
+        for k in 0..3 {
+            nbr[t[k] as usize].push(t[(k + 1) % 3]);
+        }
+    }
+    while radius.iter().any(Option::is_none) {
+        let next: Vec<Option<f64>> = (0..sphere.len())
+            .map(|i| {
+                radius[i].or_else(|| {
+                    let known: Vec<f64> =
+                        nbr[i].iter().filter_map(|&j| radius[j as usize]).collect();
+                    (!known.is_empty()).then(|| known.iter().sum::<f64>() / known.len() as f64)
+                })
+            })
+            .collect();
+        radius = next;
+    }
+    let world = |d: &V3, r: f64| {
+        let s = d * r;
+        P3::from(c + e[0] * (s.x * half.x) + e[1] * (s.y * half.y) + e[2] * (s.z * half.z))
+    };
+    let vertices: Vec<P3> = sphere
+        .iter()
+        .zip(&radius)
+        .map(|(d, r)| world(d, r.expect("filled")))
+        .collect();
+    let mesh = TriMesh {
+        vertices,
+        triangles: faces,
+    };
+    let bvh = Bvh::new(&mesh);
+    // Points inside the solid by more than INNER_MM are on inner walls, not on its outside.
+    let mut d = Vec::with_capacity(pts.len());
+    let (mut inner, mut outside_max) = (0, 0.0f64);
+    for p in pts {
+        let Some(q) = bvh.closest_point(p) else {
+            continue;
+        };
+        let inside = bvh.contains(p);
+        if q.distance > INNER_MM && inside {
+            inner += 1;
+        } else {
+            d.push(q.distance);
+        }
+        if !inside {
+            outside_max = outside_max.max(q.distance);
+        }
+    }
+    d.sort_by(f64::total_cmp);
+    let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len().max(1) as f64).sqrt();
+    let at = |q: f64| d[((q * (d.len() - 1) as f64).round() as usize).min(d.len() - 1)];
+    Ok((
+        mesh,
+        CloudFit {
+            points: pts.len(),
+            inner_points: inner,
+            rms_mm: rms,
+            p99_mm: at(0.99),
+            outside_max_mm: outside_max,
+            filled_vertices,
+        },
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An ellipsoid's points come back as a closed mesh within a fraction of their spacing.
+    #[test]
+    fn ellipsoid_points_make_a_closed_mesh_through_them() {
+        let (a, b, c) = (130.0, 45.0, 55.0);
+        let mut pts = Vec::new();
+        let n = 200;
+        for i in 0..n {
+            for j in 0..n {
+                let th = std::f64::consts::PI * (i as f64 + 0.5) / n as f64;
+                let ph = 2.0 * std::f64::consts::PI * j as f64 / n as f64;
+                pts.push(P3::new(
+                    10.0 + a * th.cos(),
+                    -3.0 + b * th.sin() * ph.cos(),
+                    40.0 + c * th.sin() * ph.sin(),
+                ));
+            }
+        }
+        let (m, fit) = last_from_points(&pts).unwrap();
+        m.check_closed().expect("closed");
+        assert!(m.volume() > 0.0, "outward");
+        let v = 4.0 / 3.0 * std::f64::consts::PI * a * b * c;
+        assert!(
+            (m.volume() / v - 1.0).abs() < 0.01,
+            "volume {} of {v}",
+            m.volume()
+        );
+        assert!(fit.rms_mm < 0.2 && fit.outside_max_mm < 1.0, "{fit:?}");
+        assert_eq!(fit.filled_vertices, 0);
+    }
+
+    #[test]
+    fn bad_xyz_is_named() {
+        let e = parse_xyz("# header\n1 2 3\n4 five 6\n").unwrap_err();
+        assert!(e.contains("line 3") && e.contains("three numbers"), "{e}");
+        let e = parse_xyz("1 2 3\n").unwrap_err();
+        assert!(e.contains("1000 at least"), "{e}");
+    }
+}
