@@ -795,6 +795,8 @@ fn clinic_shared_lasts_meet_every_applicable_rule() {
         ("LastScan_Warped.stl", None),
         ("Last_Flat_RoundTip.stl", Some("265")),
         ("Last_Heeled_RoundTip.stl", Some("260")),
+        // A scanned last as a point cloud (XYZ text, mm), made a closed mesh as it is read.
+        ("shoe_last_scanned.asc", None),
     ] {
         let out_dir = p(name);
         let stock = shared_last(name);

@@ -96,7 +96,7 @@ pub fn plantar_of_scan(dir: &Path) -> Result<Plantar, ClinicLastError> {
 }
 
 /// Mesh formats a stock last is read from.
-pub const STOCK_EXTENSIONS: [&str; 3] = ["stl", "obj", "ply"];
+pub const STOCK_EXTENSIONS: [&str; 6] = ["stl", "obj", "ply", "asc", "xyz", "pts"];
 
 /// Read a stock last: a closed mesh (STL, OBJ or PLY; millimetres or metres, z up).
 pub fn load_stock(path: &Path) -> Result<TriMesh, ClinicLastError> {

@@ -42,8 +42,9 @@ enum What {
 
 #[derive(Parser)]
 pub struct MeasureArgs {
-    /// The last: a closed mesh (STL, OBJ or PLY), z up, heel to toe along any horizontal
-    /// direction.
+    /// The last: a closed mesh (STL, OBJ or PLY) or a scanned point cloud (.asc, .xyz,
+    /// .pts: x y z per line, made a closed mesh round its outside), z up, heel to toe along
+    /// any horizontal direction.
     last: PathBuf,
     /// Units of the last file: mm, m, or auto (decided from the size).
     #[arg(long, default_value = "auto")]
@@ -65,9 +66,9 @@ pub struct AdjustArgs {
     /// measure.foot, or one `footscan measure` has measured).
     #[arg(long)]
     scan: PathBuf,
-    /// The last: a mesh file (STL, OBJ or PLY; a closed mesh), or the directory of a scan of
-    /// the last's bottom (`footscan scan` with a last on the glass; its grid.bin): then the
-    /// bottom is adjusted and there is no whole last to deform.
+    /// The last: a mesh file (STL, OBJ or PLY; a closed mesh, or an XYZ point cloud), or the
+    /// directory of a scan of the last's bottom (`footscan scan` with a last on the glass;
+    /// its grid.bin): then the bottom is adjusted and there is no whole last to deform.
     #[arg(long)]
     last: PathBuf,
     /// Units of the last file: mm, m, or auto (decided from the size).

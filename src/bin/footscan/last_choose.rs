@@ -71,7 +71,7 @@ pub fn run(a: ChooseArgs) -> Result<()> {
     files.sort();
     if files.is_empty() {
         bail!(
-            "{}: no lasts (STL, OBJ or PLY files) in the collection",
+            "{}: no lasts (STL, OBJ or PLY meshes, or XYZ point clouds) in the collection",
             a.stock_dir.display()
         );
     }
