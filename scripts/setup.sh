@@ -30,9 +30,6 @@ packages+=(make socat)
 # tests/plugin_wasm.rs builds the example wasm stage (examples/plugins/cog-wasm/cog.c) with
 # clang (above) for wasm32 and links it with lld's wasm-ld.
 packages+=(lld)
-# The test build links ~120 binaries, each with OpenCV and wasmtime: scripts/cc-link (rustc's
-# linker, .cargo/config.toml) links them with mold when it is installed, GNU ld otherwise.
-packages+=(mold)
 [ "$mode" = "--build" ] && packages=("${build_packages[@]}")
 missing=()
 for p in "${packages[@]}"; do
