@@ -52,19 +52,74 @@ fi
 [ "$mode" = "--build" ] && exit 0
 
 # crates/geom/tests/export_occt.rs reads every exported IGES and STEP file back with
-# OpenCASCADE 8 (scripts/occt_readback.py); it runs in a venv of its own under target/, made
-# only when it is absent or cannot import OCP. Test-time only: nothing in the product needs it.
+# OpenCASCADE 8 (scripts/occt_readback.py); it runs in a venv of its own (target/venv-occt),
+# made only when it is absent or cannot import OCP. Test-time only: nothing in the product
+# needs it.
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+
+# The test tools below are made once per machine, not once per clone: each lives in a
+# directory of the tool cache named by what it holds (the pinned packages), and target/NAME is a
+# symbolic link to it, so a fresh clone (CI) links what an earlier clone made instead of
+# downloading and unpacking it again (the OpenCASCADE venv alone is about 400 MB). The cache is
+# $FOOTSCAN_TOOL_CACHE, by default ~/.cache/footscan; FOOTSCAN_TOOL_CACHE=off makes the tools
+# inside target/ as before. A lock keeps two clones' setups from making one tool at once.
+tool_cache="${FOOTSCAN_TOOL_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/footscan}"
+mkdir -p "$repo/target"
+
+# tool_dir NAME KEY...: the directory to make the tool NAME in (printed): in the tool cache,
+# named by NAME and a hash of KEYs, or target/NAME when the cache is off.
+tool_dir() {
+  local name="$1"
+  shift
+  if [ "$tool_cache" = off ]; then
+    echo "$repo/target/$name"
+  else
+    echo "$tool_cache/$name-$(printf '%s\n' "$@" | sha256sum | cut -c1-12)"
+  fi
+}
+
+# link_tool NAME DIR: target/NAME is DIR (nothing to do when the cache is off).
+link_tool() {
+  local link="$repo/target/$1" dir="$2"
+  [ "$link" = "$dir" ] && return 0
+  [ -L "$link" ] && [ "$(readlink "$link")" = "$dir" ] && return 0
+  rm -rf "$link"
+  ln -s "$dir" "$link"
+}
+
+# locked CMD...: CMD under the tool cache's lock (a plain call when the cache is off).
+locked() {
+  if [ "$tool_cache" = off ]; then
+    "$@"
+  else
+    mkdir -p "$tool_cache"
+    (
+      flock 9
+      "$@"
+    ) 9>"$tool_cache/.lock"
+  fi
+}
 
 # venv NAME IMPORTS SIZE PACKAGE...: a Python venv at target/NAME with PACKAGEs, made only when
 # it is absent or cannot import IMPORTS (a comma-separated list); SIZE is said while it is made.
 venv() {
-  local dir="$repo/target/$1" imports="$2" size="$3"
+  local name="$1" imports="$2" size="$3"
+  shift 3
+  "$repo/target/$name/bin/python" -c "import $imports" >/dev/null 2>&1 && return 0
+  local dir
+  dir="$(tool_dir "$name" "$@")"
+  locked make_venv "$dir" "$imports" "$size" "$@"
+  link_tool "$name" "$dir"
+}
+
+make_venv() {
+  local dir="$1" imports="$2" size="$3"
   shift 3
   "$dir/bin/python" -c "import $imports" >/dev/null 2>&1 && return 0
   local py=/usr/bin/python3
   [ -x "$py" ] || py=python3
   echo "creating $dir ($*; about $size)"
+  rm -rf "$dir"
   "$py" -m venv "$dir"
   "$dir/bin/python" -m pip install -q --disable-pip-version-check "$@"
 }
@@ -74,15 +129,22 @@ venv venv-occt "OCP, numpy" "400 MB" cadquery-ocp-novtk==8.0.1.1.0 numpy
 # glTF file with the Khronos validator (npm gltf-validator, pinned, under target/npm-gltf) and
 # read it back with Python trimesh (a venv under target/venv-gltf). Each is made only when
 # absent; test-time only.
-npm_gltf="$repo/target/npm-gltf"
-if [ ! -f "$npm_gltf/node_modules/gltf-validator/package.json" ]; then
+gltf_validator=gltf-validator@2.0.0-dev.3.10
+make_npm_gltf() {
+  local dir="$1"
+  [ -f "$dir/node_modules/gltf-validator/package.json" ] && return 0
   command -v npm >/dev/null 2>&1 || {
     echo "npm not found: install Node.js 20 and npm for the glTF validator" >&2
     exit 1
   }
-  echo "installing the Khronos glTF validator into $npm_gltf"
-  mkdir -p "$npm_gltf"
-  npm install --prefix "$npm_gltf" --no-audit --no-fund --silent gltf-validator@2.0.0-dev.3.10
+  echo "installing the Khronos glTF validator into $dir"
+  mkdir -p "$dir"
+  npm install --prefix "$dir" --no-audit --no-fund --silent "$gltf_validator"
+}
+if [ ! -f "$repo/target/npm-gltf/node_modules/gltf-validator/package.json" ]; then
+  npm_gltf="$(tool_dir npm-gltf "$gltf_validator")"
+  locked make_npm_gltf "$npm_gltf"
+  link_tool npm-gltf "$npm_gltf"
 fi
 venv venv-gltf "trimesh, numpy" "100 MB" trimesh==4.12.2 numpy
 # The process-stage examples and tests (examples/plugins/python, crates/plugins/tests,

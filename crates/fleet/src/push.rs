@@ -8,6 +8,7 @@
 //! is there exactly as in the archive, whether this push or an earlier one put it there.
 
 use crate::{migrate::SOFTWARE, sha256_hex, FleetError};
+use footscan_util::scan_files;
 use postgres::Client;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -76,9 +77,9 @@ pub fn push(client: &mut Client, scan: &ScanUpload) -> Result<PushOutcome, Fleet
             .get(name)
             .and_then(|(_, b, _)| serde_json::from_slice::<serde_json::Value>(b).ok())
     };
-    let calibration = text_of("calibration.toml");
-    let measurements = json_of("measurements.json");
-    let summary = json_of("scan.json");
+    let calibration = text_of(scan_files::CALIBRATION);
+    let measurements = json_of(scan_files::MEASUREMENTS);
+    let summary = json_of(scan_files::SUMMARY);
 
     let mut out = PushOutcome {
         files: files.len(),

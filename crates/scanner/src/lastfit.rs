@@ -122,12 +122,17 @@ pub struct AdjustScanOptions {
     pub fade_mm: f64,
 }
 
+/// A fade height outside (0, 200] mm was asked for.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("fade {0} mm: valid range is (0, 200]")]
+pub struct FadeOutOfRange(pub f64);
+
 impl AdjustScanOptions {
     /// The defaults with the fade a user asked for (the CLI's --fade-mm, the stage's
     /// fade_mm), checked here once for both.
-    pub fn with_fade_mm(fade_mm: f64) -> Result<Self, String> {
+    pub fn with_fade_mm(fade_mm: f64) -> Result<Self, FadeOutOfRange> {
         if !(fade_mm > 0.0 && fade_mm <= 200.0) {
-            return Err(format!("fade {fade_mm} mm: valid range is (0, 200]"));
+            return Err(FadeOutOfRange(fade_mm));
         }
         Ok(AdjustScanOptions {
             fade_mm,
@@ -159,13 +164,13 @@ pub enum LastSource {
 /// lost its heel, toe or a side: its length and side would be guessed from what is left (a
 /// right last cut at the toe was read as a left one and mirrored), so it is refused.
 fn refuse_cut_last_scan(dir: &Path) -> Result<(), LastFitError> {
-    let Ok(text) = std::fs::read(dir.join("scan.json")) else {
+    let Ok(text) = std::fs::read(ScanDir::new(dir).summary_path()) else {
         return Ok(()); // an older scan directory: nothing to go by
     };
     let json: serde_json::Value =
         serde_json::from_slice(&text).map_err(|e| LastFitError::Scan {
             dir: dir.to_path_buf(),
-            what: "scan.json".into(),
+            what: ScanDir::SUMMARY.into(),
             why: e.to_string(),
         })?;
     let cut: Vec<&str> = json["quality"]["cut"]
@@ -178,8 +183,9 @@ fn refuse_cut_last_scan(dir: &Path) -> Result<(), LastFitError> {
     Err(LastFitError::Scan {
         dir: dir.to_path_buf(),
         what: format!(
-            "the last runs past the {} (scan.json)",
-            cut.join(" and the ")
+            "the last runs past the {} ({})",
+            cut.join(" and the "),
+            ScanDir::SUMMARY
         ),
         why: "part of its bottom was not scanned, so its length and side cannot be told; \
               scan it again with the whole last inside the scan range (config/sim-last.toml \

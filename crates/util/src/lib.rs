@@ -47,6 +47,30 @@ pub fn write_atomic_with(
     result
 }
 
+/// The names of the files a scan leaves in its directory. They are written here, below every
+/// crate that reads a scan directory, because the fleet crate (which depends on no other
+/// footscan crate) stores them too; the scanner's `ScanDir` takes its names from here.
+pub mod scan_files {
+    /// The run's summary, written for failed scans too.
+    pub const SUMMARY: &str = "scan.json";
+    /// The foot's measurements.
+    pub const MEASUREMENTS: &str = "measurements.json";
+    /// The plantar picture beside the measurements.
+    pub const PLANTAR: &str = "plantar.png";
+    /// The scan grid.
+    pub const GRID: &str = "grid.bin";
+    /// The point cloud.
+    pub const POINTS: &str = "points.ply";
+    /// The height-map picture.
+    pub const HEIGHTMAP: &str = "heightmap.png";
+    /// The simulator's ground truth of the foot, when the scan was simulated.
+    pub const TRUTH: &str = "truth.json";
+    /// The daemon archive's record of the scan.
+    pub const RECORD: &str = "record.json";
+    /// The calibration the scan was made with, copied beside it.
+    pub const CALIBRATION: &str = "calibration.toml";
+}
+
 /// An error and its causes on one line, `outer: cause: root`, for the edges that turn an
 /// error into text (an API answer, a record's reason, a log line). Library errors name what
 /// failed and leave the cause to their `source()`, so each cause is printed here exactly once.

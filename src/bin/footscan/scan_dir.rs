@@ -202,6 +202,10 @@ fn unfinished(dest: &Path) -> Vec<PathBuf> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use footscan::scandata::ScanDir;
+
+    const SUMMARY: &str = ScanDir::SUMMARY;
+    const POINTS: &str = ScanDir::POINTS;
 
     fn files(dir: &Path) -> Vec<String> {
         let mut v: Vec<String> = std::fs::read_dir(dir)
@@ -219,20 +223,17 @@ mod tests {
         // First scan: a new folder.
         let s = Staged::begin(&dest).unwrap();
         assert!(!dest.exists());
-        std::fs::write(s.partial.join("scan.json"), "1").unwrap();
-        std::fs::write(s.partial.join("points.ply"), "1").unwrap();
+        std::fs::write(s.partial.join(SUMMARY), "1").unwrap();
+        std::fs::write(s.partial.join(POINTS), "1").unwrap();
         assert!(s.finish().unwrap().previous.is_none());
-        assert_eq!(files(&dest), ["points.ply", "scan.json"]);
+        assert_eq!(files(&dest), [POINTS, SUMMARY]);
         // Second: fewer files; the first kept whole beside it.
         let s = Staged::begin(&dest).unwrap();
-        std::fs::write(s.partial.join("scan.json"), "2").unwrap();
+        std::fs::write(s.partial.join(SUMMARY), "2").unwrap();
         let prev = s.finish().unwrap().previous.unwrap();
-        assert_eq!(files(&dest), ["scan.json"]);
-        assert_eq!(
-            std::fs::read_to_string(dest.join("scan.json")).unwrap(),
-            "2"
-        );
-        assert_eq!(files(&prev), ["points.ply", "scan.json"]);
+        assert_eq!(files(&dest), [SUMMARY]);
+        assert_eq!(std::fs::read_to_string(dest.join(SUMMARY)).unwrap(), "2");
+        assert_eq!(files(&prev), [POINTS, SUMMARY]);
         assert!(prev
             .file_name()
             .unwrap()
@@ -243,15 +244,15 @@ mod tests {
         let partial = s.partial.clone();
         assert!(s.finish().unwrap().previous.is_none());
         assert!(!partial.exists());
-        assert_eq!(files(&dest), ["scan.json"]);
+        assert_eq!(files(&dest), [SUMMARY]);
         // Other files in --out: kept whole beside it too.
         let other = t.path().join("notes");
         std::fs::create_dir(&other).unwrap();
         std::fs::write(other.join("a.txt"), "x").unwrap();
         let s = Staged::begin(&other).unwrap();
-        std::fs::write(s.partial.join("scan.json"), "3").unwrap();
+        std::fs::write(s.partial.join(SUMMARY), "3").unwrap();
         let prev = s.finish().unwrap().previous.unwrap();
-        assert_eq!(files(&other), ["scan.json"]);
+        assert_eq!(files(&other), [SUMMARY]);
         assert_eq!(files(&prev), ["a.txt"]);
         // A file, the root, the working directory and what holds it: refused.
         std::fs::write(t.path().join("file"), "x").unwrap();

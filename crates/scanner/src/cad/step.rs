@@ -7,7 +7,7 @@
 use crate::surface::solid::OutlineSolid;
 use footscan_geom::export::step::Document;
 use footscan_geom::export::{real, Header};
-use footscan_geom::P3;
+use footscan_geom::{P3, V3};
 use std::path::Path;
 
 /// Writes `solid` to `path` as a faceted STEP solid, atomically; returns the face count.
@@ -42,7 +42,10 @@ pub fn faceted_step(solid: &OutlineSolid, name: &str) -> (String, usize) {
     }
     let mut faces = Vec::new();
     for f in facets(solid) {
-        let pts: Vec<[f64; 3]> = f.ids.iter().map(|&k| v[k as usize]).collect();
+        let (p0, p1) = (
+            P3::from(v[f.ids[0] as usize]),
+            P3::from(v[f.ids[1] as usize]),
+        );
         let n = f.normal;
         let loop_ = w.add(format!(
             "POLY_LOOP('',({}))",
@@ -55,9 +58,8 @@ pub fn faceted_step(solid: &OutlineSolid, name: &str) -> (String, usize) {
         let bound = w.add(format!("FACE_OUTER_BOUND('',#{loop_},.T.)"));
         // The plane through the first point, its normal the loop's (Newell), x along the
         // first edge made perpendicular to it.
-        let e = sub(pts[1], pts[0]);
-        let d = dot(e, n);
-        let xd = unit([e[0] - d * n[0], e[1] - d * n[1], e[2] - d * n[2]]);
+        let e = p1 - p0;
+        let xd = unit(e - n * e.dot(&n));
         let nd = w.add(format!(
             "DIRECTION('',({},{},{}))",
             real(n[0]),
@@ -100,7 +102,7 @@ pub fn faceted_step(solid: &OutlineSolid, name: &str) -> (String, usize) {
 /// its outward unit normal.
 pub(crate) struct Facet {
     pub ids: Vec<u32>,
-    pub normal: [f64; 3],
+    pub normal: V3,
 }
 
 /// The faces of `solid`: the top's triangles, one quad per wall chord, and the bottom as one
@@ -109,7 +111,7 @@ pub(crate) fn facets(solid: &OutlineSolid) -> Vec<Facet> {
     let v = &solid.vertices;
     let mut out = Vec::with_capacity(solid.top.len() + solid.boundary_len() + 1);
     let mut add = |ids: Vec<u32>| {
-        let pts: Vec<[f64; 3]> = ids.iter().map(|&k| v[k as usize]).collect();
+        let pts: Vec<P3> = ids.iter().map(|&k| P3::from(v[k as usize])).collect();
         let normal = newell(&pts);
         out.push(Facet { ids, normal });
     };
@@ -133,8 +135,8 @@ pub(crate) fn facets(solid: &OutlineSolid) -> Vec<Facet> {
 }
 
 /// Unit normal of a planar polygon by Newell's method (robust for any vertex count).
-fn newell(p: &[[f64; 3]]) -> [f64; 3] {
-    let mut n = [0.0; 3];
+fn newell(p: &[P3]) -> V3 {
+    let mut n = V3::zeros();
     for k in 0..p.len() {
         let (a, b) = (p[k], p[(k + 1) % p.len()]);
         n[0] += (a[1] - b[1]) * (a[2] + b[2]);
@@ -144,20 +146,12 @@ fn newell(p: &[[f64; 3]]) -> [f64; 3] {
     unit(n)
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn unit(a: [f64; 3]) -> [f64; 3] {
-    let l = dot(a, a).sqrt();
+fn unit(a: V3) -> V3 {
+    let l = a.norm();
     if l > 0.0 {
-        a.map(|c| c / l)
+        a / l
     } else {
-        [0.0, 0.0, 1.0]
+        V3::z()
     }
 }
 

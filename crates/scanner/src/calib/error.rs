@@ -14,8 +14,12 @@ pub enum CalibError {
     },
     #[error("{target}: no usable rows ({detail})")]
     NoUsableRows { target: String, detail: String },
-    #[error("{what} did not converge: {detail}")]
-    NotConverged { what: String, detail: String },
+    #[error("{what} did not converge")]
+    NotConverged {
+        what: String,
+        #[source]
+        source: super::lm::LmError,
+    },
     #[error("the calibration is implausible and was not kept: {0}")]
     Implausible(String),
     #[error("calibration plan: {0}")]

@@ -17,9 +17,18 @@ use super::CameraModel;
 const HEIGHTS: (f64, f64, usize) = (0.0, 60.0, 13);
 const ACROSS: (f64, f64, usize) = (-60.0, 60.0, 25);
 
+/// Why no untilted equivalent was found.
+#[derive(Debug, thiserror::Error)]
+pub enum UntiltedError {
+    #[error("the laser plane is not in view of the camera")]
+    NotInView,
+    #[error("fitting the untilted model")]
+    Fit(#[from] lm::LmError),
+}
+
 /// The untilted model equivalent to `m` and the largest image difference between the two over
 /// the scan volume, px. A model without camera tilt is its own equivalent.
-pub fn untilted_equivalent(m: &CameraModel) -> Result<(CameraModel, f64), String> {
+pub fn untilted_equivalent(m: &CameraModel) -> Result<(CameraModel, f64), UntiltedError> {
     if m.camera_tilt_deg.iter().all(|t| *t == 0.0) {
         return Ok((m.clone(), 0.0));
     }
@@ -42,7 +51,7 @@ pub fn untilted_equivalent(m: &CameraModel) -> Result<(CameraModel, f64), String
         }
     }
     if target.len() < 20 {
-        return Err("the laser plane is not in view of the camera".into());
+        return Err(UntiltedError::NotInView);
     }
     let model_of = |x: &[f64]| CameraModel {
         f_px: x[0],

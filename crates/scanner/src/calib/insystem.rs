@@ -491,9 +491,9 @@ fn solve_robust(
                 });
             }
         };
-        lm::solve(&residual, x0, &STEPS, opts.patience).map_err(|detail| CalibError::NotConverged {
+        lm::solve(&residual, x0, &STEPS, opts.patience).map_err(|source| CalibError::NotConverged {
             what: "the in-system fit of the general model".into(),
-            detail,
+            source,
         })
     };
     let sol = solve(obs, edges, &x0.to_vec())?;

@@ -77,6 +77,27 @@ pub struct Solution {
     pub termination: String,
 }
 
+/// Why the solver gave no solution.
+#[derive(Debug, thiserror::Error)]
+pub enum LmError {
+    #[error("no residuals")]
+    NoResiduals,
+    #[error("the starting point gives non-finite residuals")]
+    NonFiniteStart,
+    /// The solver stopped without success: its termination reason, as it names it.
+    #[error("{termination} after {evaluations} evaluations")]
+    Stopped {
+        termination: String,
+        evaluations: usize,
+    },
+    #[error("non-finite residuals at the solution")]
+    NonFiniteResiduals,
+    #[error("non-finite Jacobian at the solution")]
+    NonFiniteJacobian,
+    #[error("covariance: {0}")]
+    Covariance(&'static str),
+}
+
 /// Minimise the sum of squared residuals from `x0`. `step[k]` is the finite-difference step of
 /// parameter k. Err with the termination reason when the solver fails.
 pub fn solve(
@@ -84,15 +105,15 @@ pub fn solve(
     x0: &[f64],
     step: &[f64],
     patience: usize,
-) -> Result<Solution, String> {
+) -> Result<Solution, LmError> {
     assert_eq!(x0.len(), step.len());
     let mut first = Vec::new();
     f(x0, &mut first);
     if first.is_empty() {
-        return Err("no residuals".into());
+        return Err(LmError::NoResiduals);
     }
     if first.iter().any(|v| !v.is_finite()) {
-        return Err("the starting point gives non-finite residuals".into());
+        return Err(LmError::NonFiniteStart);
     }
     let problem = Problem {
         f,
@@ -105,16 +126,14 @@ pub fn solve(
         .minimize(problem);
     let termination = format!("{:?}", report.termination);
     if !report.termination.was_successful() {
-        return Err(format!(
-            "{termination} after {} evaluations",
-            report.number_of_evaluations
-        ));
+        return Err(LmError::Stopped {
+            termination,
+            evaluations: report.number_of_evaluations,
+        });
     }
     let x = problem.x.as_slice().to_vec();
-    let residuals = problem
-        .eval(&x)
-        .ok_or("non-finite residuals at the solution")?;
-    let j = jacobian(&problem, &x).ok_or("non-finite Jacobian at the solution")?;
+    let residuals = problem.eval(&x).ok_or(LmError::NonFiniteResiduals)?;
+    let j = jacobian(&problem, &x).ok_or(LmError::NonFiniteJacobian)?;
     let (m, n) = (j.nrows(), j.ncols());
     let dof = (m as f64 - n as f64).max(1.0);
     let reduced_chi2 = residuals.norm_squared() / dof;
@@ -135,7 +154,7 @@ pub fn solve(
     };
     let inv = svd
         .pseudo_inverse(smax * 1e-15)
-        .map_err(|e| format!("covariance: {e}"))?;
+        .map_err(LmError::Covariance)?;
     let mut covariance = inv * reduced_chi2;
     for a in 0..n {
         for b in 0..n {
@@ -156,6 +175,25 @@ pub fn solve(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The solver's reason is a typed source of the calibration error, said once in the chain.
+    #[test]
+    fn a_failed_fit_is_a_typed_source_said_once() {
+        let none = |_: &[f64], _: &mut Vec<f64>| {};
+        let e = solve(&none, &[1.0], &[1e-3], 10).unwrap_err();
+        assert!(matches!(e, LmError::NoResiduals), "{e:?}");
+        let nan = |_: &[f64], out: &mut Vec<f64>| out.push(f64::NAN);
+        let e = solve(&nan, &[1.0], &[1e-3], 10).unwrap_err();
+        assert!(matches!(e, LmError::NonFiniteStart), "{e:?}");
+        let calib = crate::calib::CalibError::NotConverged {
+            what: "the fit".into(),
+            source: e,
+        };
+        assert_eq!(
+            footscan_util::chain(&calib),
+            "the fit did not converge: the starting point gives non-finite residuals"
+        );
+    }
 
     #[test]
     fn fits_an_exponential_with_its_uncertainty() {

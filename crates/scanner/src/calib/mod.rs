@@ -34,7 +34,7 @@ pub mod verify;
 
 pub use error::CalibError;
 pub use file::{Calibration, CalibrationError, ParseError};
-pub use gauge::untilted_equivalent;
+pub use gauge::{untilted_equivalent, UntiltedError};
 pub use model::{CameraModel, ModelError, Triangulator};
 pub use plan::CalibrationPlan;
 pub use run::{Calibrated, Method};

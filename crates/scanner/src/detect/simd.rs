@@ -107,19 +107,29 @@ pub fn current() -> Isa {
     FORCED.with(|f| f.get()).unwrap_or_else(Isa::detected)
 }
 
+/// An instruction set this CPU lacks was asked for.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("instruction set {} is not supported by this CPU (available: {})", .isa.as_str(), list(.available))]
+pub struct UnsupportedIsa {
+    pub isa: Isa,
+    pub available: Vec<Isa>,
+}
+
+fn list(isas: &[Isa]) -> String {
+    isas.iter()
+        .map(|i| i.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// Run `f` with this thread's detectors on `isa`. Err (naming the set) if the CPU lacks it:
 /// a kernel for a missing set would fault.
-pub fn with_isa<R>(isa: Isa, f: impl FnOnce() -> R) -> Result<R, String> {
+pub fn with_isa<R>(isa: Isa, f: impl FnOnce() -> R) -> Result<R, UnsupportedIsa> {
     if !isa.supported() {
-        return Err(format!(
-            "instruction set {} is not supported by this CPU (available: {})",
-            isa.as_str(),
-            Isa::available()
-                .iter()
-                .map(|i| i.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
-        ));
+        return Err(UnsupportedIsa {
+            isa,
+            available: Isa::available(),
+        });
     }
     let before = FORCED.with(|c| c.replace(Some(isa)));
     struct Restore(Option<Isa>);
@@ -431,7 +441,7 @@ mod tests {
             if isa.supported() {
                 assert_eq!(r.unwrap(), isa);
             } else {
-                let e = r.unwrap_err();
+                let e = r.unwrap_err().to_string();
                 assert!(e.contains(isa.as_str()) && e.contains("available"), "{e}");
             }
         }

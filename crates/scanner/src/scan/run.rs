@@ -87,7 +87,8 @@ pub fn run_scan(
             crate::io::write_atomic(&path, &json)
                 .map_err(|source| ScanError::Write { path, source })?;
         }
-        let cal_path = opts.out_dir.join("calibration.toml");
+        let cal_path = crate::scandata::ScanDir::new(&opts.out_dir)
+            .file(crate::scandata::ScanDir::CALIBRATION);
         calibration
             .save(&cal_path)
             .map_err(|e| ScanError::Setup(footscan_util::chain(&e).into()))?;

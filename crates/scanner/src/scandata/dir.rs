@@ -4,6 +4,7 @@
 //! repeated in every reader.
 
 use super::ScanGrid;
+use footscan_util::scan_files;
 use std::path::{Path, PathBuf};
 
 /// A directory a scan was written to (by `footscan scan` or footscand's archive).
@@ -34,22 +35,24 @@ pub enum ScanDirError {
 
 impl ScanDir {
     /// The run's summary (`ScanSummary`), written for failed scans too.
-    pub const SUMMARY: &'static str = "scan.json";
+    pub const SUMMARY: &'static str = scan_files::SUMMARY;
     /// The foot's measurements (`measure::Measurements`), from the `measure.foot` stage or
     /// `footscan measure`.
-    pub const MEASUREMENTS: &'static str = "measurements.json";
+    pub const MEASUREMENTS: &'static str = scan_files::MEASUREMENTS;
     /// The plantar picture beside the measurements.
-    pub const PLANTAR: &'static str = "plantar.png";
+    pub const PLANTAR: &'static str = scan_files::PLANTAR;
     /// The scan grid ([`ScanGrid`]), from the `sink.grid` stage.
-    pub const GRID: &'static str = "grid.bin";
+    pub const GRID: &'static str = scan_files::GRID;
     /// The point cloud, from the `sink.ply` stage.
-    pub const POINTS: &'static str = "points.ply";
+    pub const POINTS: &'static str = scan_files::POINTS;
     /// The height-map picture, from the `sink.heightmap` stage.
-    pub const HEIGHTMAP: &'static str = "heightmap.png";
+    pub const HEIGHTMAP: &'static str = scan_files::HEIGHTMAP;
     /// The simulator's ground truth of the foot, when the scan was simulated.
-    pub const TRUTH: &'static str = "truth.json";
+    pub const TRUTH: &'static str = scan_files::TRUTH;
     /// The daemon archive's record of the scan (subject, side, status, times).
-    pub const RECORD: &'static str = "record.json";
+    pub const RECORD: &'static str = scan_files::RECORD;
+    /// The calibration the scan was made with, copied beside it.
+    pub const CALIBRATION: &'static str = scan_files::CALIBRATION;
 
     pub fn new(path: impl Into<PathBuf>) -> ScanDir {
         ScanDir { path: path.into() }

@@ -16,6 +16,7 @@ use super::ops::{dot, Scalar};
 use super::point_grid::{is_point, PointGrid};
 use super::SurfaceError;
 use crate::geom::HeightMap;
+use footscan_geom::V3;
 use std::sync::OnceLock;
 
 const NONE: u32 = u32::MAX;
@@ -425,8 +426,8 @@ impl Segment {
         };
         let first = [0, 1, 2].map(|k| self.contract(k, &d1.0, &d1.1));
         let second = [0, 1, 2].map(|k| self.contract(k, &d2.0, &d2.1));
-        let n1 = norm(first);
-        let n2 = norm(second);
+        let n1 = V3::from(first).norm();
+        let n2 = V3::from(second).norm();
         if n1 > 1e-12 * (1.0 + n2) {
             first
         } else {
@@ -437,15 +438,10 @@ impl Segment {
 
     /// Unit normal S_u x S_v at local (u, v) (see [`BezierNetwork::normal`]).
     pub fn normal(&self, u: f64, v: f64) -> [f64; 3] {
-        let a = self.tangent(u, v, true);
-        let b = self.tangent(u, v, false);
-        let n = [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ];
-        let l = norm(n);
-        n.map(|c| c / l)
+        let a = V3::from(self.tangent(u, v, true));
+        let b = V3::from(self.tangent(u, v, false));
+        let n = a.cross(&b);
+        (n / n.norm()).into()
     }
 
     /// Bounding box (x0, x1, y0, y1) of the x and y coefficients: the patch lies inside it
@@ -565,10 +561,6 @@ impl Segment {
             (0.5, 0.5)
         }
     }
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
 /// Uniform buckets over the segments' bounding boxes, for point location.
