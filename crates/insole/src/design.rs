@@ -16,11 +16,21 @@ const FOOT_CELL_MM: f64 = 0.5;
 /// Width of the heel cup's rise inside the outline (mm): the rim is at the outline, the cup
 /// meets the foot this far inside it.
 pub const CUP_WIDTH_MM: f64 = 12.0;
+/// How fast the heel cup's cap on the foot's own heights lifts inward: at cup weight g the
+/// top may stand (1 - g) times this above the rim (mm). Small, so a mesh node a cell inside
+/// the rim does not stand above it (at 1 mm: 0.2 mm).
+const CUP_CLAMP_MM: f64 = 10.0;
 /// Metatarsal pad: half its length along the foot and half its width (mm).
 pub const PAD_HALF_LENGTH_MM: f64 = 20.0;
 pub const PAD_HALF_WIDTH_MM: f64 = 12.0;
 /// The first ray cut-out starts this far behind the first metatarsal head (mm).
 pub const CUTOUT_BEHIND_MM: f64 = 15.0;
+/// In front of the metatarsal heads (from [`TOE_LINE_MM`] ahead of the foremost) the foot's
+/// heights are capped at this (mm): the toe pads' centres stand on the glass, but their
+/// rims and the gaps between them and the ball (filled from those rims) would stand as
+/// ridges of 5-11 mm around each toe, which no toe can use.
+pub const TOE_CAP_MM: f64 = 2.0;
+pub const TOE_LINE_MM: f64 = 5.0;
 /// Width over which a correction's edge blends in (mm).
 const BLEND_MM: f64 = 3.0;
 /// A bottom curve rising less than this is no curve: the foot stood on the glass (mm), as
@@ -105,6 +115,8 @@ pub struct Design {
     bottom: Vec<f64>,
     /// How far the midfoot stood off the glass (mm; 0 when it stood on it).
     pub bottom_rise_mm: f64,
+    /// x of the line in front of which the foot's heights are capped ([`TOE_CAP_MM`]).
+    pub toe_line_x: f64,
     /// Scanned arch height (laid flat) at the arch point and the insole's asked one (mm).
     pub scanned_arch_mm: f64,
     pub arch_target_mm: f64,
@@ -282,10 +294,14 @@ pub fn design(p: &Plantar, params: &Params) -> Result<Design, InsoleError> {
     } else {
         (vec![0.0; nx], 0.0)
     };
+    let toe_line_x = mt1[0].max(mt5[0]) + TOE_LINE_MM;
     for j in 0..ny {
         for (i, b) in bottom.iter().enumerate() {
-            let z = foot.get(i, j) - b;
-            foot.set(i, j, z.max(0.0));
+            let mut z = (foot.get(i, j) - b).max(0.0);
+            if foot.x(i) > toe_line_x {
+                z = z.min(TOE_CAP_MM);
+            }
+            foot.set(i, j, z);
         }
     }
 
@@ -304,6 +320,7 @@ pub fn design(p: &Plantar, params: &Params) -> Result<Design, InsoleError> {
         measured,
         bottom,
         bottom_rise_mm,
+        toe_line_x,
         scanned_arch_mm: 0.0,
         arch_target_mm: 0.0,
         seat_mm: 0.0,
@@ -328,14 +345,27 @@ pub fn design(p: &Plantar, params: &Params) -> Result<Design, InsoleError> {
             ),
         });
     }
-    if params.length == Length::ThreeQuarter
-        && d.pad_apex[0] + 0.5 * PAD_HALF_LENGTH_MM > heads_x - params.three_quarter_behind_mm
-        && params.met_pad_height_mm > 0.0
-    {
-        d.warnings.push(
-            "the metatarsal pad reaches past the end of the 3/4 insole: its front is cut off"
-                .into(),
-        );
+    if params.length == Length::ThreeQuarter && params.met_pad_height_mm > 0.0 {
+        // The end line at the pad's y; the apex must lie a pad's half-length behind it, or
+        // the end cuts the pad through its top.
+        let (a, b) = (mt1, mt5);
+        let t = (d.pad_apex[1] - a[1]) / (b[1] - a[1]);
+        let end_x = a[0] + t * (b[0] - a[0]) - params.three_quarter_behind_mm;
+        let lo = mt3[0] - end_x + 0.5 * PAD_HALF_LENGTH_MM;
+        if d.pad_apex[0] > end_x - 0.5 * PAD_HALF_LENGTH_MM {
+            return Err(InsoleError::Param {
+                name: "met_pad_behind_mm",
+                value: params.met_pad_behind_mm,
+                lo: (lo * 10.0).ceil() / 10.0,
+                hi: 25.0,
+                why: format!(
+                    "on a 3/4 insole ending {} mm behind the heads the pad's apex must lie at \
+                     least half its half-length ({} mm) behind the end, or the end cuts its top",
+                    params.three_quarter_behind_mm,
+                    0.5 * PAD_HALF_LENGTH_MM
+                ),
+            });
+        }
     }
     Ok(d)
 }
@@ -617,7 +647,7 @@ impl Design {
             // Up to the cup's surface, and never above its rim (the cup's edge cuts the
             // foot's side where the scan rises higher than the rim).
             r = r.max(self.seat_mm + d * g);
-            r = r.min(self.seat_mm + d + (1.0 - g) * 100.0);
+            r = r.min(self.seat_mm + d + (1.0 - g) * CUP_CLAMP_MM);
         }
         let a = self.arch_weight(x, y);
         if a > 0.0 {
@@ -649,6 +679,7 @@ impl Design {
             || (self.arch_weight(x, y) > 0.0 && self.arch_target_mm != self.scanned_arch_mm)
             || self.pad(x, y) > 0.0
             || self.cutout(x, y) > 0.0
+            || (x > self.toe_line_x - self.foot.cell_mm && self.foot_at(x, y) >= TOE_CAP_MM - 1e-3)
     }
 
     /// The solid on cells of `cell_mm`, bottom at z = 0.

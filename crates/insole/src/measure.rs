@@ -14,6 +14,8 @@ use serde::Serialize;
 pub const MM_BOUND: f64 = 0.2;
 pub const DEG_BOUND: f64 = 0.3;
 pub const CONTACT_BOUND_MM: f64 = 0.3;
+/// Largest slope of the sole (rise over run) counted as weight-bearing (about 11 degrees).
+pub const WEIGHT_BEARING_SLOPE: f64 = 0.2;
 
 /// One parameter: asked, measured on the mesh, and whether the difference is in bounds.
 #[derive(Clone, Debug, Serialize)]
@@ -58,14 +60,22 @@ pub struct Measured {
     /// points compared, largest and RMS difference (mm).
     pub contact_points: usize,
     pub contact_max_mm: f64,
+    pub contact_max_at: [f64; 2],
     pub contact_rms_mm: f64,
     pub ok: bool,
 }
 
 /// The mesh's top at (x, y) (foot frame), or None off the insole.
 fn top(bvh: &Bvh, x: f64, y: f64) -> Option<f64> {
-    bvh.ray_cast(&P3::new(x, y, 1000.0), &V3::new(0.0, 0.0, -1.0), 2000.0)
-        .map(|h| h.point.z)
+    // Nudged off the grid lines: a ray exactly on a box's face meets 0 x inf in the tree's
+    // slab test and misses (the mesh's vertices lie on whole millimetres, and the heel
+    // centre on the axis, y = 0).
+    bvh.ray_cast(
+        &P3::new(x + 1.3e-7, y + 0.7e-7, 1000.0),
+        &V3::new(0.0, 0.0, -1.0),
+        2000.0,
+    )
+    .map(|h| h.point.z)
 }
 
 /// Measures `mesh` (the shell, foot frame) against `d` and the scan `p`.
@@ -264,10 +274,10 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
         }
     }
 
-    // First ray cut-out: the top below the plantar surface under the first head, 10 mm in
-    // front of it and 4 mm medial of it.
+    // First ray cut-out: the top below the plantar surface under the first head, 8 mm in
+    // from the medial border (the head's landmark is on the border).
     if pr.first_ray_cutout_mm > 0.0 {
-        let (x, y) = (m1[0] + 10.0, m1[1] + 4.0 * d.medial);
+        let (x, y) = (m1[0], m1[1] - 8.0 * d.medial);
         let depth = match (above(x, y), plantar(x, y)) {
             (Some(a), Some(f)) => f - a,
             _ => f64::NAN,
@@ -294,8 +304,8 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
     let bound = pr.shell_mm() - pr.first_ray_cutout_mm;
 
     // The top against the plantar surface over the weight-bearing area: scanned cells at
-    // least 3 mm inside the outline, outside the heel cup, arch support, pad and cut-out.
-    let (mut n, mut maxd, mut ss) = (0usize, 0.0f64, 0.0);
+    // least 3 mm inside the footprint (the margin plus 3 mm inside the outline), outside the heel cup, arch support, pad and cut-out.
+    let (mut n, mut maxd, mut ss, mut max_at) = (0usize, 0.0f64, 0.0, [0.0; 2]);
     let outline = d.outline_polygon();
     let step = 2.0;
     let (mut x, x_end) = (
@@ -312,10 +322,28 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
             let q = footscan_geom::P2::new(x, y);
             if outline.contains(&q) && outline.distance_to_boundary(&q) >= 3.0 && !d.corrected(x, y)
             {
+                // Where the sole faces the glass: scanned 1 mm around, sloping under
+                // WEIGHT_BEARING_SLOPE (a rim turning up into the foot's side is not
+                // stood on, and a 1 mm mesh cannot follow its bend).
+                let near = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)]
+                    .map(|(dx, dy)| plantar(x + dx, y + dy));
+                let facing = match near {
+                    [Some(a), Some(b), Some(c), Some(e)] => {
+                        (0.5 * (a - b)).hypot(0.5 * (c - e)) < WEIGHT_BEARING_SLOPE
+                    }
+                    _ => false,
+                };
+                if !facing {
+                    y += step;
+                    continue;
+                }
                 if let (Some(a), Some(f)) = (above(x, y), plantar(x, y)) {
                     let e = a - f;
                     n += 1;
-                    maxd = maxd.max(e.abs());
+                    if e.abs() > maxd {
+                        maxd = e.abs();
+                        max_at = [x, y];
+                    }
                     ss += e * e;
                 }
             }
@@ -338,6 +366,7 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
         min_thickness_bound_mm: bound,
         contact_points: n,
         contact_max_mm: maxd,
+        contact_max_at: max_at,
         contact_rms_mm: rms,
         ok,
     }

@@ -226,7 +226,7 @@ pub fn side_picture(d: &Design, mesh: &TriMesh) -> Canvas {
         r.z.iter()
             .filter(|z| z.is_finite())
             .fold(0.0f64, |a, &b| a.max(b));
-    let ex = 4.0;
+    let ex = 2.0;
     for (k, (name, y, colour)) in lines.iter().enumerate() {
         let top = 60.0 + k as f64 * 230.0;
         let view = View::fit(

@@ -222,14 +222,16 @@ impl Report {
         }
         s += &format!(
             "  thinnest shell {:.3} mm at ({:.1}, {:.1}) (at least {:.3})\n  top vs scanned \
-             sole over the weight-bearing area: {} points, max {:.3} mm, RMS {:.3} mm (bound \
-             {})\n",
+             sole over the weight-bearing area: {} points, max {:.3} mm at ({:.1}, {:.1}), RMS \
+             {:.3} mm (bound {})\n",
             m.min_thickness_mm,
             m.min_thickness_at[0],
             m.min_thickness_at[1],
             m.min_thickness_bound_mm,
             m.contact_points,
             m.contact_max_mm,
+            m.contact_max_at[0],
+            m.contact_max_at[1],
             m.contact_rms_mm,
             crate::measure::CONTACT_BOUND_MM
         );
