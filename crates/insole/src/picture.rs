@@ -134,7 +134,7 @@ pub fn thickness_map(d: &Design, mesh: &TriMesh) -> Canvas {
             .fold((f64::MAX, f64::MIN), |(a, b), &z| (a.min(z), b.max(z)));
     let span = (hi - lo).max(1e-6);
     let title = format!(
-        "insole shell thickness (mm), {} foot, top view (x toward the toes); {:.2} to {:.2} mm",
+        "shell thickness, {} foot, from above, toes right: {:.2} to {:.2} mm",
         if d.medial > 0.0 { "right" } else { "left" },
         lo,
         hi
@@ -255,7 +255,7 @@ pub fn side_picture(d: &Design, mesh: &TriMesh) -> Canvas {
             40,
             top as i64 - 20,
             &format!(
-                "side profile {name}, heel left, toes right; top of the shell (colour), scanned sole + shell (grey dots); height x{ex}, {:.1} mm max",
+                "{name}: shell top (colour), sole + shell (grey); heel left; height x{ex}, max {:.1} mm",
                 zmax
             ),
             BLACK,
