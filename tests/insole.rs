@@ -293,6 +293,111 @@ fn simulated_scan_insole_meets_every_target_and_reads_back() {
     assert!(end > 0.5 * r34["foot_length_mm"].as_f64().unwrap());
 }
 
+/// The shoe's bottom from `footscan last adjust` (the shared LastScan_Default last adjusted to
+/// the simulated scan): the insole's outline is the adjusted last's bottom outline, so the
+/// insole lies inside the last's plan and spans its length; a directory without
+/// last_adjusted.stl is refused by name, nothing written.
+#[test]
+fn shoe_bottom_outline_from_last_adjust() {
+    let scan = sim_scan();
+    let tmp = tempfile::tempdir().unwrap();
+    let adj = tmp.path().join("adj");
+    let last = repo().join("../shared/data/lasts/LastScan_Default.stl");
+    let (ok, out, err) = footscan(&[
+        "last",
+        "adjust",
+        "--scan",
+        s(scan),
+        "--last",
+        s(&last),
+        "--out",
+        s(&adj),
+    ]);
+    assert!(ok, "{out}{err}");
+    let out_dir = tmp.path().join("insole");
+    let (ok, stdout, err) = footscan(&[
+        "insole",
+        "--scan",
+        s(scan),
+        "--shoe-bottom",
+        s(&adj),
+        "--out",
+        s(&out_dir),
+    ]);
+    println!("{stdout}{err}");
+    assert!(ok, "{stdout}{err}");
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("insole.json")).unwrap()).unwrap();
+    check_report(&r, "shoe bottom", 2000);
+    assert!(r["outline_from"]
+        .as_str()
+        .unwrap()
+        .starts_with("shoe bottom"));
+    let mesh = TriMesh::read(out_dir.join("insole.stl")).unwrap();
+    assert_eq!(mesh.check().unwrap().components, 1);
+    // The last's downward faces in the foot frame (insole.json's frame).
+    let lastm = TriMesh::read(adj.join("last_adjusted.stl")).unwrap();
+    let f = &r["frame"];
+    let (o, d) = (
+        [
+            f["origin"][0].as_f64().unwrap(),
+            f["origin"][1].as_f64().unwrap(),
+        ],
+        [
+            f["x_axis"][0].as_f64().unwrap(),
+            f["x_axis"][1].as_f64().unwrap(),
+        ],
+    );
+    let to = |p: &P3| {
+        let (x, y) = (p.x - o[0], p.y - o[1]);
+        [d[0] * x + d[1] * y, -d[1] * x + d[0] * y]
+    };
+    let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+    for t in 0..lastm.triangles.len() {
+        if lastm.face_normal(t).z < -0.5 {
+            for p in lastm.corners(t) {
+                let q = to(&p);
+                for k in 0..2 {
+                    lo[k] = lo[k].min(q[k]);
+                    hi[k] = hi[k].max(q[k]);
+                }
+            }
+        }
+    }
+    let bb = mesh.bbox();
+    println!(
+        "last bottom x {:.1}..{:.1} y {:.1}..{:.1}; insole {bb:?}",
+        lo[0], hi[0], lo[1], hi[1]
+    );
+    for (k, (a, b)) in [(bb.min.x, bb.max.x), (bb.min.y, bb.max.y)]
+        .into_iter()
+        .enumerate()
+    {
+        assert!(
+            a >= lo[k] - 0.5 && b <= hi[k] + 0.5,
+            "axis {k}: {a}..{b} outside the last's bottom"
+        );
+        assert!(
+            b - a >= 0.97 * (hi[k] - lo[k]),
+            "axis {k}: {a}..{b} much smaller than the last's bottom"
+        );
+    }
+    let missing = tmp.path().join("no-adjust");
+    std::fs::create_dir_all(&missing).unwrap();
+    let bad = tmp.path().join("bad");
+    let (ok, _, err) = footscan(&[
+        "insole",
+        "--scan",
+        s(scan),
+        "--shoe-bottom",
+        s(&missing),
+        "--out",
+        s(&bad),
+    ]);
+    assert!(!ok && err.contains("last_adjusted.stl"), "{err}");
+    assert!(!bad.exists());
+}
+
 fn image_size(p: &Path) -> (u32, u32) {
     let b = std::fs::read(p).unwrap();
     assert_eq!(&b[1..4], b"PNG", "{}", p.display());

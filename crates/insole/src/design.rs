@@ -78,6 +78,155 @@ impl Plantar {
     }
 }
 
+/// The shoe's inside bottom: the last `footscan last adjust` deformed to the foot
+/// (last_adjusted.stl of its output directory, in the scan's frame), whose bottom outline
+/// becomes the insole's.
+#[derive(Clone, Debug)]
+pub struct ShoeBottom {
+    pub last: footscan_geom::mesh::TriMesh,
+    pub source: String,
+}
+
+/// Bottom faces of the last: those whose normal points down more steeply than this (its
+/// z component below -0.5, i.e. within 60 degrees of straight down).
+const BOTTOM_NZ: f64 = -0.5;
+
+impl ShoeBottom {
+    /// `dir`/last_adjusted.stl, as `footscan last adjust` wrote it.
+    pub fn from_adjust_dir(dir: &Path) -> Result<ShoeBottom, InsoleError> {
+        let path = dir.join(footscan_last::adjust::output::LAST_STL);
+        if !path.exists() {
+            return Err(InsoleError::Foot {
+                what: format!("--shoe-bottom {}", dir.display()),
+                why: format!(
+                    "no {} there: give the output directory of `footscan last adjust` run \
+                     with a whole last (a scanned last bottom has no last to take the \
+                     shoe's bottom from)",
+                    footscan_last::adjust::output::LAST_STL
+                ),
+            });
+        }
+        let last = footscan_geom::mesh::TriMesh::read(&path).map_err(|e| InsoleError::Foot {
+            what: path.display().to_string(),
+            why: e.to_string(),
+        })?;
+        Ok(ShoeBottom {
+            last,
+            source: path.display().to_string(),
+        })
+    }
+
+    /// The outline of the last's bottom seen from below, in the foot frame: its downward
+    /// faces rasterised on 0.5 mm cells, the largest region's outline.
+    fn outline(&self, frame: &FootFrame) -> Result<Vec<[f64; 2]>, InsoleError> {
+        let m = &self.last;
+        let pts: Vec<[f64; 2]> = m
+            .vertices
+            .iter()
+            .map(|v| frame.to_foot([v.x, v.y]))
+            .collect();
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for q in &pts {
+            x0 = x0.min(q[0]);
+            x1 = x1.max(q[0]);
+            y0 = y0.min(q[1]);
+            y1 = y1.max(q[1]);
+        }
+        let c = FOOT_CELL_MM;
+        let nx = ((x1 - x0) / c).ceil() as usize + 3;
+        let ny = ((y1 - y0) / c).ceil() as usize + 3;
+        let mut mask = HeightMap::new(x0 - c, y0 - c, c, nx, ny);
+        for (t, tri) in m.triangles.iter().enumerate() {
+            if m.face_normal(t).z >= BOTTOM_NZ {
+                continue;
+            }
+            let q = tri.map(|k| pts[k as usize]);
+            let (lo_x, hi_x) = (
+                q[0][0].min(q[1][0]).min(q[2][0]),
+                q[0][0].max(q[1][0]).max(q[2][0]),
+            );
+            let (lo_y, hi_y) = (
+                q[0][1].min(q[1][1]).min(q[2][1]),
+                q[0][1].max(q[1][1]).max(q[2][1]),
+            );
+            let i0 = ((lo_x - mask.x0) / c).floor().max(0.0) as usize;
+            let i1 = (((hi_x - mask.x0) / c).ceil() as usize).min(nx - 1);
+            let j0 = ((lo_y - mask.y0) / c).floor().max(0.0) as usize;
+            let j1 = (((hi_y - mask.y0) / c).ceil() as usize).min(ny - 1);
+            let det = (q[1][0] - q[0][0]) * (q[2][1] - q[0][1])
+                - (q[2][0] - q[0][0]) * (q[1][1] - q[0][1]);
+            if det.abs() < 1e-12 {
+                continue;
+            }
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    let (x, y) = (mask.x(i), mask.y(j));
+                    let l1 = ((x - q[0][0]) * (q[2][1] - q[0][1])
+                        - (q[2][0] - q[0][0]) * (y - q[0][1]))
+                        / det;
+                    let l2 = ((q[1][0] - q[0][0]) * (y - q[0][1])
+                        - (x - q[0][0]) * (q[1][1] - q[0][1]))
+                        / det;
+                    if l1 >= -1e-9 && l2 >= -1e-9 && l1 + l2 <= 1.0 + 1e-9 {
+                        mask.set(i, j, 0.0);
+                    }
+                }
+            }
+        }
+        // The bottom's edge interleaves with the last's sides in hairs a cell or two wide,
+        // which would leave the outline necks thinner than a mesh cell: opened by 1 mm.
+        for (grow, times) in [(false, 2), (true, 2)] {
+            for _ in 0..times {
+                let z = mask.z.clone();
+                for j in 0..ny {
+                    for i in 0..nx {
+                        let mut any = false;
+                        let mut all = true;
+                        for dj in -1i64..=1 {
+                            for di in -1i64..=1 {
+                                let (a, b) = (i as i64 + di, j as i64 + dj);
+                                let inside = a >= 0
+                                    && b >= 0
+                                    && (a as usize) < nx
+                                    && (b as usize) < ny
+                                    && z[b as usize * nx + a as usize].is_finite();
+                                any |= inside;
+                                all &= inside;
+                            }
+                        }
+                        let keep = if grow { any } else { all };
+                        mask.set(i, j, if keep { 0.0 } else { f64::NAN });
+                    }
+                }
+            }
+        }
+        let regions = footscan::measure::regions(&mask);
+        let Some(r) = regions.first() else {
+            return Err(InsoleError::Foot {
+                what: self.source.clone(),
+                why: "the last has no face looking down: no bottom to take the outline from".into(),
+            });
+        };
+        // The raster's half-cell steps smoothed out: neighbour means (1/4, 1/2, 1/4) over
+        // the 0.5 mm vertices, 8 passes (a spread of 1 mm along the outline), then simplified.
+        let mut o = r.outline.clone();
+        let k = o.len();
+        for _ in 0..8 {
+            let prev = o.clone();
+            for i in 0..k {
+                let (a, b, c) = (prev[(i + k - 1) % k], prev[i], prev[(i + 1) % k]);
+                o[i] = [
+                    0.25 * a[0] + 0.5 * b[0] + 0.25 * c[0],
+                    0.25 * a[1] + 0.5 * b[1] + 0.25 * c[1],
+                ];
+            }
+        }
+        let mut poly = Polygon::from_arrays(&o).simplify(OUTLINE_TOL_MM);
+        poly.make_ccw();
+        Ok(poly.to_arrays())
+    }
+}
+
 /// Landmarks in the foot frame (mm).
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct Marks {
@@ -143,8 +292,18 @@ fn dome(dx: f64, dy: f64, a: f64, b: f64) -> f64 {
     }
 }
 
-/// Designs the insole for `p` with `params` (validated here, the foot's own limits too).
+/// Designs the insole for `p` with `params` (validated here, the foot's own limits too), its
+/// outline the footprint plus the margin.
 pub fn design(p: &Plantar, params: &Params) -> Result<Design, InsoleError> {
+    design_in(p, params, None)
+}
+
+/// [`design`], its outline the bottom of `shoe` when given (the margin then unused).
+pub fn design_in(
+    p: &Plantar,
+    params: &Params,
+    shoe: Option<&ShoeBottom>,
+) -> Result<Design, InsoleError> {
     params.validate()?;
     let m = &p.m;
     let frame = FootFrame::of(m);
@@ -205,12 +364,24 @@ pub fn design(p: &Plantar, params: &Params) -> Result<Design, InsoleError> {
         .map(|w| format!("measurements: {w}"))
         .chain(sole.warnings.iter().cloned())
         .collect();
-    let mut poly = Polygon::from_arrays(&sole.points).simplify(OUTLINE_TOL_MM);
-    poly.make_ccw();
-    if params.margin_mm > 0.0 {
-        poly = poly.offset(params.margin_mm);
-    }
-    let mut outline = poly.to_arrays();
+    let mut outline = match shoe {
+        Some(shoe) => {
+            warnings.push(format!(
+                "outline from the shoe's bottom ({}); the insole's bottom is flat: the last's \
+                 heel and toe spring are not bent into it",
+                shoe.source
+            ));
+            shoe.outline(&frame)?
+        }
+        None => {
+            let mut poly = Polygon::from_arrays(&sole.points).simplify(OUTLINE_TOL_MM);
+            poly.make_ccw();
+            if params.margin_mm > 0.0 {
+                poly = poly.offset(params.margin_mm);
+            }
+            poly.to_arrays()
+        }
+    };
     let heads_x = mt1[0].min(mt5[0]);
     match params.length {
         Length::Full => {

@@ -25,10 +25,10 @@ pub mod picture;
 pub mod threemf;
 pub mod write;
 
-pub use design::{design, Design, Plantar};
+pub use design::{design, design_in, Design, Plantar, ShoeBottom};
 pub use measure::{measure_back, Check, Measured};
 pub use params::{Length, Params, PostSide};
-pub use write::{write_insole, Report, Written};
+pub use write::{write_insole, write_insole_in, Report, Written};
 
 use std::path::PathBuf;
 

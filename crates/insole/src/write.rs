@@ -1,7 +1,7 @@
 //! Everything an insole run writes, all or nothing: insole.stl, insole.3mf, insole.step,
 //! thickness.png, top.png, side.png and insole.json.
 
-use crate::design::{design, Design, Marks, Plantar};
+use crate::design::{design_in, Design, Marks, Plantar, ShoeBottom};
 use crate::measure::{measure_back, Measured};
 use crate::params::Params;
 use crate::picture;
@@ -40,6 +40,8 @@ pub struct Report {
     /// How far the midfoot stood off the glass (0: the foot bore weight).
     pub midfoot_off_glass_mm: f64,
     pub outline_vertices: usize,
+    /// Where the outline came from: "footprint + margin" or the shoe bottom's last.
+    pub outline_from: String,
     /// Each parameter measured back on insole.stl's mesh.
     pub measured: Measured,
     pub mesh: MeshFacts,
@@ -76,8 +78,18 @@ pub struct Written {
 /// Designs the insole for `p`, measures it back and writes every file into `out` (a
 /// directory, replaced whole or left as it was).
 pub fn write_insole(p: &Plantar, params: &Params, out: &Path) -> Result<Written, InsoleError> {
+    write_insole_in(p, params, None, out)
+}
+
+/// [`write_insole`] with the outline of a shoe's bottom when given.
+pub fn write_insole_in(
+    p: &Plantar,
+    params: &Params,
+    shoe: Option<&ShoeBottom>,
+    out: &Path,
+) -> Result<Written, InsoleError> {
     let t0 = Instant::now();
-    let d = design(p, params)?;
+    let d = design_in(p, params, shoe)?;
     let solid = d.solid(params.mesh_cell_mm)?;
     let mesh = solid.mesh();
     let closed = mesh.check_closed();
@@ -115,6 +127,10 @@ pub fn write_insole(p: &Plantar, params: &Params, out: &Path) -> Result<Written,
         pad_apex_mm: d.pad_apex,
         midfoot_off_glass_mm: d.bottom_rise_mm,
         outline_vertices: d.outline.len(),
+        outline_from: match shoe {
+            Some(s) => format!("shoe bottom: {}", s.source),
+            None => format!("footprint + {} mm margin", params.margin_mm),
+        },
         measured,
         mesh: MeshFacts {
             cell_mm: params.mesh_cell_mm,
