@@ -151,3 +151,6 @@ venv venv-gltf "trimesh, numpy" "100 MB" trimesh==4.12.2 numpy
 # tests/plugin_exec.rs) run Python with numpy from a venv of their own under target/, made only
 # when it is absent or cannot import numpy.
 venv venv-plugins numpy "100 MB" numpy
+# tests/insole.rs reads every insole.3mf back with lib3mf, the 3MF Consortium's reference
+# library (scripts/threemf_lib3mf.py), in a venv of its own; test-time only.
+venv venv-3mf lib3mf "10 MB" lib3mf==2.5.0

@@ -40,6 +40,15 @@ const CRATE_RULES: &[(&str, &[&str])] = &[
         ],
     ),
     (
+        "footscan-insole",
+        &[
+            "footscan-scanner",
+            "footscan-last",
+            "footscan-geom",
+            "footscan-util",
+        ],
+    ),
+    (
         "footscand",
         &[
             "footscan-scanner",
@@ -62,6 +71,7 @@ const CRATE_RULES: &[(&str, &[&str])] = &[
             "footscan-last",
             "footscan-targets",
             "footscan-fleet",
+            "footscan-insole",
             "footscan-util",
         ],
     ),

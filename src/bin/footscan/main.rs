@@ -4,6 +4,7 @@ mod bench;
 mod calibrate;
 mod detect;
 mod fleet;
+mod insole;
 mod last;
 mod last_choose;
 mod last_customize;
@@ -87,6 +88,8 @@ enum Command {
     },
     /// Build the Bezier-network plantar model of a saved scan and write it as closed meshes.
     Model(model::Args),
+    /// An orthotic insole from a saved plantar scan: STL, 3MF, STEP, pictures, insole.json.
+    Insole(insole::Args),
     /// Foot measurements of a saved scan: measurements.json and plantar.png, in the scan
     /// directory or only in --out.
     Measure(measure::Args),
@@ -156,6 +159,7 @@ fn run() -> Result<()> {
             }
         }
         Command::Model(args) => model::run(args),
+        Command::Insole(args) => insole::run(args),
         Command::Measure(args) => measure::run(args),
         Command::Calibrate(args) => calibrate::run(args),
         Command::Verify(args) => verify::run(args),
