@@ -179,6 +179,26 @@ fn regressions() {
     }
 }
 
+/// Found by cargo-fuzz (fuzz/, mesh_ply): an element of no property said to have
+/// 499999999999 records, whose records take no byte, kept the reader looping for hours. It
+/// must answer (an error) at once; run on a thread so that a relapse fails instead of hanging.
+#[test]
+fn a_huge_count_of_empty_records_is_refused_at_once() {
+    let input: &[u8] =
+        b"ply\nformat ascii 1.0\ncomment z\nelement f\x01\x00\x00\x0ea 499999999999 0 0\n\
+        1 999)ertyes\nend_header\n0 0\n";
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let r = TriMesh::parse_ply(input, Path::new("empty-records.ply"));
+        let _ = tx.send(r.map(|_| ()).map_err(|e| e.to_string()));
+    });
+    let r = rx
+        .recv_timeout(std::time::Duration::from_secs(10))
+        .expect("the PLY reader did not answer within 10 s");
+    let e = r.expect_err("a count no body can hold is refused");
+    assert!(e.contains("499999999999"), "{e}");
+}
+
 /// The densest inputs each format allows: the most a reader holds per input byte, printed
 /// (docs/method.md, issue 37), and checked against the bound.
 #[test]

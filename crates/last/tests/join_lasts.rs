@@ -213,6 +213,19 @@ fn bad_inputs_give_errors_that_name_the_plane_or_last() {
     };
     let e = join::join(&b, &far_toe, &p).unwrap_err();
     assert!(matches!(e, JoinError::NoOverlap { .. }), "{e}");
+    // A last in millimetres read as metres (or the reverse) is refused before any section:
+    // the join once grew to 8.6 GB on one.
+    for k in [1000.0, 0.001] {
+        let mut huge = t.clone();
+        for v in &mut huge.vertices {
+            v.coords *= k;
+        }
+        let t0 = std::time::Instant::now();
+        let e = join::join(&b, &huge, &params(45.0)).unwrap_err();
+        assert!(matches!(e, JoinError::NotALast { last: "toe", .. }), "{e}");
+        assert!(e.to_string().contains("units"), "{e}");
+        assert!(t0.elapsed().as_secs_f64() < 5.0, "{:?}", t0.elapsed());
+    }
     // Parameters out of range.
     let e = join::join(&b, &t, &params(0.5)).unwrap_err();
     assert!(e.to_string().contains("angle"), "{e}");

@@ -5,14 +5,17 @@
 //! Why by hand and not the wasmtime-wasi crate: that crate brings the component model, tokio
 //! and cap-std (minutes of CI build for eight functions), and grants the rest of WASI (clocks,
 //! randomness, sockets) by default. Confinement is the kernel's: every path is opened with
-//! openat2(RESOLVE_BENEATH) from the granted directory's descriptor, so `..`, absolute paths
+//! openat2(RESOLVE_BENEATH) from the granted directory's descriptor (footscan_util::beneath,
+//! the copy the daemon's archive uses too), so `..`, absolute paths
 //! and symlinks out of the directory fail in the kernel, not in a check here that could miss
 //! a case.
 
 use std::collections::HashMap;
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom, Write};
-use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
+use std::os::fd::{AsFd, OwnedFd};
+
+use footscan_util::beneath::{open_beneath, Links};
 use std::path::PathBuf;
 
 use wasmtime::{Caller, Extern, Linker};
@@ -95,13 +98,7 @@ impl Fs {
         if write && !self.writable {
             return Err(E_NOTCAPABLE);
         }
-        #[repr(C)]
-        struct OpenHow {
-            flags: u64,
-            mode: u64,
-            resolve: u64,
-        }
-        let mut flags = libc::O_CLOEXEC | libc::O_NOCTTY;
+        let mut flags = libc::O_NOCTTY;
         flags |= if write { libc::O_RDWR } else { libc::O_RDONLY };
         if create {
             flags |= libc::O_CREAT;
@@ -109,28 +106,17 @@ impl Fs {
         if trunc {
             flags |= libc::O_TRUNC;
         }
-        let how = OpenHow {
-            flags: flags as u64,
-            mode: if create { 0o644 } else { 0 },
-            resolve: libc::RESOLVE_BENEATH | libc::RESOLVE_NO_MAGICLINKS,
-        };
-        let c = std::ffi::CString::new(path).map_err(|_| E_INVAL)?;
-        // SAFETY: openat2 reads the NUL-terminated path and `how` (of the size given) and
-        // returns a new descriptor owned here, or -1.
-        let fd = unsafe {
-            libc::syscall(
-                libc::SYS_openat2,
-                self.root.as_raw_fd(),
-                c.as_ptr(),
-                &how as *const OpenHow,
-                std::mem::size_of::<OpenHow>(),
-            )
-        };
-        if fd < 0 {
-            return Err(errno(std::io::Error::last_os_error()));
+        if path.as_bytes().contains(&0) {
+            return Err(E_INVAL);
         }
-        // SAFETY: the kernel just returned this descriptor and nothing else owns it.
-        let file = File::from(unsafe { OwnedFd::from_raw_fd(fd as i32) });
+        let file = open_beneath(
+            self.root.as_fd(),
+            std::path::Path::new(path),
+            flags,
+            if create { 0o644 } else { 0 },
+            Links::Inside,
+        )
+        .map_err(errno)?;
         if file.metadata().map(|m| m.is_dir()).unwrap_or(false) {
             return Err(31); // EISDIR: only files are opened
         }

@@ -62,8 +62,7 @@ pub async fn confirm_side(
             )));
         }
         let summary: serde_json::Value = a
-            .artifact_path(&rec, ScanDir::SUMMARY)
-            .and_then(|p| std::fs::read(p).ok())
+            .artifact_bytes(&rec, ScanDir::SUMMARY)
             .and_then(|b| serde_json::from_slice(&b).ok())
             .unwrap_or_default();
         let issues: Vec<Issue> =

@@ -98,8 +98,8 @@ pub async fn list(State(st): State<AppState>) -> Result<Json<Vec<Record>>, ApiEr
     Ok(Json(v))
 }
 
-fn read_json(path: Option<std::path::PathBuf>) -> serde_json::Value {
-    path.and_then(|p| std::fs::read(p).ok())
+fn read_json(bytes: Option<Vec<u8>>) -> serde_json::Value {
+    bytes
         .and_then(|b| serde_json::from_slice(&b).ok())
         .unwrap_or(serde_json::Value::Null)
 }
@@ -116,8 +116,8 @@ pub async fn show(
         let artifacts = a.artifacts(&r).unwrap_or_default();
         let mut v = serde_json::to_value(&r)?;
         v["artifacts"] = serde_json::to_value(&artifacts)?;
-        v["summary"] = read_json(a.artifact_path(&r, ScanDir::SUMMARY));
-        v["measurements"] = read_json(a.artifact_path(&r, ScanDir::MEASUREMENTS));
+        v["summary"] = read_json(a.artifact_bytes(&r, ScanDir::SUMMARY));
+        v["measurements"] = read_json(a.artifact_bytes(&r, ScanDir::MEASUREMENTS));
         v["history"] = serde_json::to_value(a.history(&r).unwrap_or_default())?;
         Ok(Json(v))
     })

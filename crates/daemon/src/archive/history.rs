@@ -37,7 +37,9 @@ impl Archive {
         let Some(path) = self.artifact_path(record, HISTORY) else {
             return Ok(Vec::new());
         };
-        let bytes = std::fs::read(&path).map_err(io_at(&path))?;
+        let bytes = self
+            .read_inside(&path, super::MAX_JSON_ARTIFACT)
+            .map_err(io_at(&path))?;
         serde_json::from_slice(&bytes).map_err(|e| ArchiveError::BadRecord {
             path,
             message: format!("{HISTORY}: {e}"),

@@ -43,6 +43,9 @@ pub const INDEX: &str = "index.sqlite";
 /// The lock file: held (flock, exclusive) by the one process writing into the archive, and
 /// naming it (`pid <n> <program>`) for whoever finds it taken.
 pub const LOCK: &str = ".lock";
+/// The most a JSON file of a scan's may hold to be read back (the daemon writes kilobytes:
+/// a summary, measurements, a history of corrections, a last job).
+pub const MAX_JSON_ARTIFACT: u64 = 16 << 20;
 /// Reason given to scans found unfinished at startup with nothing saying how they ended:
 /// neither the daemon's record nor the pipeline's summary was written.
 pub const INTERRUPTED: &str = "interrupted: the daemon stopped during the scan";
@@ -60,11 +63,35 @@ fn io_at(path: &Path) -> impl FnOnce(std::io::Error) -> ArchiveError + '_ {
     }
 }
 
+/// `f` is the file at `path` (not unlinked, not replaced by another since it was opened).
+fn linked_as(f: &File, path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (f.metadata(), path.symlink_metadata()) {
+        (Ok(a), Ok(b)) => a.nlink() > 0 && a.ino() == b.ino() && a.dev() == b.dev(),
+        _ => false,
+    }
+}
+
+/// Replace the contents of `f` by `bytes` in place (its blocks, no new ones for a shorter
+/// content) and fsync.
+fn overwrite(f: &File, bytes: &[u8]) -> std::io::Result<()> {
+    use std::os::unix::fs::FileExt;
+    f.write_all_at(bytes, 0)?;
+    f.set_len(bytes.len() as u64)?;
+    f.sync_all()
+}
+
 /// A scan being written: its directory is `.tmp-<id>` until [`Archive::finish`].
 #[derive(Debug)]
 pub struct ActiveScan {
     pub record: Record,
     pub dir: PathBuf,
+    /// The directory's `.reserve`, held open from the start: the record is written into its
+    /// blocks and the file renamed to record.json, so a full disk, or a directory that turned
+    /// read-only under a running scan (permissions are checked at open, not at write), still
+    /// takes the scan's end; where even the rename is refused, recovery reads the end from
+    /// `.reserve` itself.
+    reserve: Option<File>,
 }
 
 /// An artifact of a finished scan.
@@ -239,18 +266,30 @@ impl Archive {
         std::fs::create_dir(&dir).map_err(io_at(&dir))?;
         let reserve = dir.join(RESERVE);
         let res = (|| {
-            let mut f = File::create(&reserve)?;
+            let mut f = std::fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .create_new(true)
+                .open(&reserve)?;
             f.write_all(&vec![0u8; RESERVE_BYTES])?;
-            f.sync_all()
+            f.sync_all()?;
+            Ok::<_, std::io::Error>(f)
         })();
-        if let Err(e) = res {
-            let _ = std::fs::remove_dir_all(&dir);
-            return Err(io_at(&reserve)(e));
-        }
+        let reserve = match res {
+            Ok(f) => f,
+            Err(e) => {
+                let _ = std::fs::remove_dir_all(&dir);
+                return Err(io_at(&reserve)(e));
+            }
+        };
         let record = Record::running(id.to_string(), meta);
         self.index_upsert(&record);
         *self.last_progress.lock().unwrap() = Some(Instant::now());
-        Ok(ActiveScan { record, dir })
+        Ok(ActiveScan {
+            record,
+            dir,
+            reserve: Some(reserve),
+        })
     }
 
     /// Note a running scan's frame and point counts in the index (at most once a second,
@@ -288,7 +327,7 @@ impl Archive {
         record.frames = outcome.frames;
         record.points = outcome.points;
         record.finished = Some(footscan_util::now_rfc3339());
-        match self.seal(&scan.dir, &record) {
+        match self.seal(&scan.dir, &record, scan.reserve.as_ref()) {
             Ok(_) => {
                 self.index_upsert(&record);
                 Ok(record)
@@ -304,11 +343,26 @@ impl Archive {
                     let rec_path = scan.dir.join(RECORD);
                     let json = serde_json::to_vec_pretty(&record).expect("record serialises");
                     if let Err(we) = footscan_util::write_atomic(&rec_path, &json) {
-                        tracing::error!(
-                            "archive: scan {}: the failure could not be recorded in {}: {we}",
-                            record.id,
-                            rec_path.display()
-                        );
+                        // The reserve's own blocks, through the descriptor opened at the
+                        // start: what recovery reads when record.json is missing.
+                        let kept = scan
+                            .reserve
+                            .as_ref()
+                            .filter(|f| linked_as(f, &scan.dir.join(RESERVE)))
+                            .map(|f| overwrite(f, &json));
+                        match kept {
+                            Some(Ok(())) => tracing::warn!(
+                                "archive: scan {}: record.json refused ({we}); the end is \
+                                 kept in {RESERVE} for the next start",
+                                record.id
+                            ),
+                            _ => tracing::error!(
+                                "archive: scan {}: the failure could not be recorded in {}: \
+                                 {we}",
+                                record.id,
+                                rec_path.display()
+                            ),
+                        }
                     }
                 }
                 self.index_upsert(&record);
@@ -317,21 +371,39 @@ impl Archive {
         }
     }
 
-    /// The fsync-record-rename sequence shared by finish and recovery.
-    fn seal(&self, dir: &Path, record: &Record) -> Result<PathBuf, ArchiveError> {
-        let _ = std::fs::remove_file(dir.join(RESERVE));
+    /// The fsync-record-rename sequence shared by finish and recovery. With the scan's
+    /// reserve at hand, record.json is the reserve itself, overwritten and renamed (no new
+    /// block is needed, nor a directory open for writing files); else the reserve is removed
+    /// to make room and the record written anew.
+    fn seal(
+        &self,
+        dir: &Path,
+        record: &Record,
+        reserve: Option<&File>,
+    ) -> Result<PathBuf, ArchiveError> {
+        let json = serde_json::to_vec_pretty(record).expect("record serialises");
+        let rec_path = dir.join(RECORD);
+        let res_path = dir.join(RESERVE);
+        let reserve = reserve.filter(|f| linked_as(f, &res_path));
+        if reserve.is_none() {
+            let _ = std::fs::remove_file(&res_path);
+        }
         for entry in std::fs::read_dir(dir).map_err(io_at(dir))? {
             let entry = entry.map_err(io_at(dir))?;
-            if entry.file_type().map_err(io_at(dir))?.is_file() {
+            if entry.file_type().map_err(io_at(dir))?.is_file() && entry.file_name() != RESERVE {
                 let p = entry.path();
                 File::open(&p)
                     .and_then(|f| f.sync_all())
                     .map_err(io_at(&p))?;
             }
         }
-        let rec_path = dir.join(RECORD);
-        let json = serde_json::to_vec_pretty(record).expect("record serialises");
-        footscan_util::write_atomic(&rec_path, &json).map_err(io_at(&rec_path))?;
+        // The files are on disk before the record that says the scan is whole.
+        match reserve {
+            Some(f) => overwrite(f, &json)
+                .and_then(|()| std::fs::rename(&res_path, &rec_path))
+                .map_err(io_at(&rec_path))?,
+            None => footscan_util::write_atomic(&rec_path, &json).map_err(io_at(&rec_path))?,
+        }
         sync_dir(dir)?;
         let done = self.root.join(&record.id);
         std::fs::rename(dir, &done).map_err(io_at(&done))?;
@@ -359,9 +431,13 @@ impl Archive {
                 continue;
             }
             let dir = entry.path();
-            let own = std::fs::read(dir.join(RECORD))
-                .ok()
-                .and_then(|b| serde_json::from_slice::<Record>(&b).ok())
+            // record.json, else the end kept in the reserve when record.json was refused.
+            let own = [RECORD, RESERVE]
+                .iter()
+                .find_map(|name| {
+                    let b = std::fs::read(dir.join(name)).ok()?;
+                    serde_json::from_slice::<Record>(&b).ok()
+                })
                 .filter(|r| r.id == id && r.status != Status::Running);
             let indexed = self.with_index(|i| i.get(id)).ok().flatten();
             let record = match (own, indexed) {
@@ -403,7 +479,7 @@ impl Archive {
                 record.status.as_str(),
                 record.reason.as_deref().unwrap_or("")
             );
-            self.seal(&dir, &record)?;
+            self.seal(&dir, &record, None)?;
         }
         Ok(())
     }
@@ -572,60 +648,37 @@ impl Archive {
         p.symlink_metadata().ok().filter(|m| m.is_file()).map(|_| p)
     }
 
+    /// The bytes of a scan's JSON artifact `name` (summary, measurements, history), read
+    /// through [`Self::read_inside`]; None when missing, a symlink, or longer than
+    /// [`MAX_JSON_ARTIFACT`].
+    pub fn artifact_bytes(&self, record: &Record, name: &str) -> Option<Vec<u8>> {
+        let p = self.artifact_path(record, name)?;
+        self.read_inside(&p, MAX_JSON_ARTIFACT).ok()
+    }
+
     /// Open `path` (a file under the archive's root) for reading without following any
-    /// symlink below the root: each directory is opened with O_NOFOLLOW relative to the one
-    /// before, and the file itself too, so a component swapped for a symlink (a scan's
-    /// `last/` pointing outside the archive) fails with ELOOP or ENOTDIR instead of being
+    /// symlink below the root (footscan_util::beneath: openat2 RESOLVE_BENEATH with no
+    /// symlinks, the copy the plugins' WASI grant uses), so a component swapped for a symlink
+    /// (a scan's `last/` pointing outside the archive) fails with ELOOP instead of being
     /// served, and no check-then-open race remains. Only regular files open.
     pub fn open_inside(&self, path: &Path) -> std::io::Result<File> {
-        use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
-        use std::os::unix::ffi::OsStrExt;
+        use footscan_util::beneath::{open_beneath, Links};
+        use std::os::fd::AsFd;
         let rel = path.strip_prefix(&self.root).map_err(|_| {
             std::io::Error::new(
                 std::io::ErrorKind::PermissionDenied,
                 format!("{} is not under the archive", path.display()),
             )
         })?;
-        let parts: Vec<&std::ffi::OsStr> = rel
-            .components()
-            .map(|c| match c {
-                std::path::Component::Normal(n) => Ok(n),
-                _ => Err(std::io::Error::new(
-                    std::io::ErrorKind::PermissionDenied,
-                    format!("{}: only plain names below the archive", path.display()),
-                )),
-            })
-            .collect::<Result<_, _>>()?;
-        let Some((file, dirs)) = parts.split_last() else {
-            return Err(std::io::Error::new(
-                std::io::ErrorKind::InvalidInput,
-                "the archive root is not a file",
-            ));
-        };
-        let open_at = |at: &OwnedFd, name: &std::ffi::OsStr, flags: libc::c_int| {
-            let c = std::ffi::CString::new(name.as_bytes())
-                .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
-            // SAFETY: a valid directory descriptor and a NUL-terminated name; the new
-            // descriptor is owned at once.
-            let fd = unsafe {
-                libc::openat(
-                    at.as_raw_fd(),
-                    c.as_ptr(),
-                    flags | libc::O_NOFOLLOW | libc::O_CLOEXEC,
-                )
-            };
-            if fd < 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            // SAFETY: `fd` was just opened and is owned by nobody else.
-            Ok(unsafe { OwnedFd::from_raw_fd(fd) })
-        };
         // The root itself is the configured path (it may be a symlink the admin chose).
-        let mut dir: OwnedFd = File::open(&self.root)?.into();
-        for d in dirs {
-            dir = open_at(&dir, d, libc::O_RDONLY | libc::O_DIRECTORY)?;
-        }
-        let f = File::from(open_at(&dir, file, libc::O_RDONLY | libc::O_NONBLOCK)?);
+        let root = File::open(&self.root)?;
+        let f = open_beneath(
+            root.as_fd(),
+            rel,
+            libc::O_RDONLY | libc::O_NONBLOCK,
+            0,
+            Links::None,
+        )?;
         if !f.metadata()?.is_file() {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::InvalidInput,
@@ -633,6 +686,27 @@ impl Archive {
             ));
         }
         Ok(f)
+    }
+
+    /// The bytes of `path` (a file under the archive's root), opened as [`Self::open_inside`]
+    /// does, and refused when longer than `max` (a record or summary the daemon wrote is
+    /// kilobytes; anything longer was not written by it).
+    pub fn read_inside(&self, path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
+        use std::io::Read;
+        let f = self.open_inside(path)?;
+        let len = f.metadata()?.len();
+        if len > max {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!(
+                    "{} holds {len} bytes, more than the {max} such a file can hold",
+                    path.display()
+                ),
+            ));
+        }
+        let mut out = Vec::with_capacity(len as usize);
+        f.take(max).read_to_end(&mut out)?;
+        Ok(out)
     }
 
     /// Write `r` into the index; a refused write keeps `r` in memory (listed instead of the

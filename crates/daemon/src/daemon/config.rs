@@ -112,6 +112,11 @@ pub enum DaemonConfigError {
     },
     #[error("daemon config {path}: {message}")]
     Invalid { path: PathBuf, message: String },
+    #[error(
+        "daemon config {path}: longer than {} MiB, which no config is (is the path right?)",
+        MAX_CONFIG_BYTES >> 20
+    )]
+    TooLong { path: PathBuf },
     #[error("daemon config {path}")]
     Tls {
         path: PathBuf,
@@ -138,14 +143,29 @@ pub enum DaemonConfigError {
     PlainHttp { bind: SocketAddr, path: PathBuf },
 }
 
+/// The longest config file read (the repository's is a few KiB).
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
 impl DaemonConfig {
     /// Load `path`; `bind` (from the command line) overrides the file's, and FOOTSCAND_TOKEN
     /// the file's token.
     pub fn load(path: &Path, bind: Option<&str>) -> Result<DaemonConfig, DaemonConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| DaemonConfigError::Read {
+        use std::io::Read;
+        let read_err = |source| DaemonConfigError::Read {
             path: path.to_owned(),
             source,
-        })?;
+        };
+        // Read at most one byte past the limit: a path naming a device or a huge file must
+        // not make the daemon read it all before refusing it.
+        let mut text = String::new();
+        std::fs::File::open(path)
+            .and_then(|f| f.take(MAX_CONFIG_BYTES + 1).read_to_string(&mut text))
+            .map_err(read_err)?;
+        if text.len() as u64 > MAX_CONFIG_BYTES {
+            return Err(DaemonConfigError::TooLong {
+                path: path.to_owned(),
+            });
+        }
         let env_token = std::env::var(TOKEN_ENV).ok();
         Self::parse(path, &text, bind, env_token)
     }

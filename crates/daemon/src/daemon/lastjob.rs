@@ -384,7 +384,10 @@ impl Daemon {
         let p = dir.join(JOB_FILE);
         // Held while the record is read: a job that ends meanwhile writes it under this lock.
         let running = self.last_jobs.running.lock().unwrap();
-        let bytes = match std::fs::read(&p) {
+        let bytes = match self
+            .archive
+            .read_inside(&p, crate::archive::MAX_JSON_ARTIFACT)
+        {
             Ok(b) => b,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
             Err(source) => return Err(DaemonError::JobRead { path: p, source }),

@@ -291,8 +291,7 @@ impl Daemon {
         // The last scan, as status shows it until the next one starts.
         let last_scan = archive.list()?.into_iter().next().map(|r| {
             let summary: Option<serde_json::Value> = archive
-                .artifact_path(&r, ScanDir::SUMMARY)
-                .and_then(|p| std::fs::read(p).ok())
+                .artifact_bytes(&r, ScanDir::SUMMARY)
                 .and_then(|b| serde_json::from_slice(&b).ok());
             let num = |k: &str| summary.as_ref().and_then(|s| s[k].as_f64());
             Progress {

@@ -614,6 +614,32 @@ mod ply {
         for e in &elems {
             let pos_of = |n: &str| e.props.iter().position(|p| p.name == n && p.list.is_none());
             let xyz = [pos_of("x"), pos_of("y"), pos_of("z")];
+            // The least a record of the element takes: each property's size (binary), or
+            // a digit and a separator (ASCII). A count beyond what the rest of the body can
+            // hold is refused before the loop: records of no property take no byte, and a
+            // header's 499999999999 of them spun the reader for hours (cargo-fuzz, issue 37).
+            let least: usize = e
+                .props
+                .iter()
+                .map(|p| match (enc, p.list) {
+                    (Enc::Ascii, _) => 2,
+                    (_, Some(ct)) => ct.size(),
+                    (_, None) => p.ty.size(),
+                })
+                .sum::<usize>()
+                .max(1);
+            let room = rest.len().saturating_sub(body.pos) / least;
+            if e.count > room {
+                return Err(parse_err(
+                    path,
+                    format!(
+                        "PLY header says {} {} records; the {}-byte body holds at most {room}",
+                        e.count,
+                        e.name,
+                        rest.len()
+                    ),
+                ));
+            }
             if e.name == "vertex" {
                 if let Some(p) = xyz
                     .iter()
@@ -627,29 +653,6 @@ mod ply {
                             "PLY vertex property {} is 8-bit: 256 steps cannot describe a foot \
                              or a last (use float)",
                             p.name
-                        ),
-                    ));
-                }
-                // The least a vertex takes: each property's size (binary), or a digit and a
-                // separator (ASCII).
-                let least: usize = e
-                    .props
-                    .iter()
-                    .map(|p| match (enc, p.list) {
-                        (Enc::Ascii, _) => 2,
-                        (_, Some(ct)) => ct.size(),
-                        (_, None) => p.ty.size(),
-                    })
-                    .sum::<usize>()
-                    .max(1);
-                let room = rest.len().saturating_sub(body.pos) / least;
-                if e.count > room {
-                    return Err(parse_err(
-                        path,
-                        format!(
-                            "PLY header says {} vertices; the {}-byte body holds at most {room}",
-                            e.count,
-                            rest.len()
                         ),
                     ));
                 }

@@ -51,6 +51,13 @@ pub enum JoinError {
         toe: String,
         toe_side: &'static str,
     },
+    #[error(
+        "the {last} last is {length_mm:.1} mm long, not a last's size ({lo:.0}-{hi:.0} mm): a \
+         last in millimetres read as metres is 1000 times too long (check the units)",
+        lo = crate::size::LAST_LENGTH_MM.0,
+        hi = crate::size::LAST_LENGTH_MM.1
+    )]
+    NotALast { last: &'static str, length_mm: f64 },
     #[error("{last}: its landmarks cannot be found for the join ({why})")]
     Landmarks { last: String, why: String },
     #[error("section {section} cannot be aligned: {reason}")]

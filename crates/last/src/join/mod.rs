@@ -323,6 +323,16 @@ fn shifted(p: &Plane, d: f64) -> Plane {
 /// Join the toe part of `toe` to the back part of `back`.
 pub fn join(back: &TriMesh, toe: &TriMesh, p: &JoinParams) -> Result<Joined, JoinError> {
     check_params(p)?;
+    // The sections are spaced in millimetres along each last, so their number (and the
+    // memory of the join) grows with its length: a last in millimetres read as metres grew a
+    // join to 8.6 GB. Refused here too, for callers other than the CLI (which checks files).
+    for (last, m) in [("back", back), ("toe", toe)] {
+        let l = crate::size::last_length_mm(m);
+        let (lo, hi) = crate::size::LAST_LENGTH_MM;
+        if !(l.is_finite() && (lo..=hi).contains(&l)) {
+            return Err(JoinError::NotALast { last, length_mm: l });
+        }
+    }
     let t0 = Instant::now();
     let bm = place(back, &p.placement_back);
     let tm = place(toe, &p.placement_toe);
