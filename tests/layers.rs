@@ -15,7 +15,7 @@ const CRATE_RULES: &[(&str, &[&str])] = &[
     ("footscan-util", &[]),
     ("footscan-fleet", &["footscan-util"]),
     ("footscan-fuzzkit", &[]),
-    ("footscan-plugins", &[]),
+    ("footscan-plugins", &["footscan-util"]),
     ("footscan-targets", &["footscan-geom"]),
     ("footscan-last", &["footscan-geom", "footscan-util"]),
     ("footscan-grbl", &["footscan-hal", "footscan-util"]),

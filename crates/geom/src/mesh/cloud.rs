@@ -19,7 +19,7 @@ pub const MIN_POINTS: usize = 1000;
 /// lines is about 120 MB of text).
 pub const MAX_POINTS: usize = 4_000_000;
 /// Icosphere subdivisions: 20 480 triangles, a vertex every 2 degrees of direction.
-const LEVEL: usize = 5;
+const LEVEL: u32 = 5;
 /// Half-angle of the cone a vertex takes its radius from, in vertex spacings.
 const CONE: f64 = 1.5;
 /// The band of radii below a cone's outermost point taken as the outside (a fraction of
@@ -102,70 +102,6 @@ pub fn parse_xyz(text: &str) -> Result<Vec<P3>, String> {
     Ok(pts)
 }
 
-/// The icosahedron subdivided `level` times, on the unit sphere (outward, counterclockwise).
-fn icosphere(level: usize) -> (Vec<V3>, Vec<[u32; 3]>) {
-    let t = 0.5 * (1.0 + 5f64.sqrt());
-    let mut v: Vec<V3> = [
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ]
-    .iter()
-    .map(|p| V3::new(p[0], p[1], p[2]).normalize())
-    .collect();
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..level {
-        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut split = |a: u32, b: u32, v: &mut Vec<V3>| {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                v.push((v[a as usize] + v[b as usize]).normalize());
-                (v.len() - 1) as u32
-            })
-        };
-        let mut g = Vec::with_capacity(4 * f.len());
-        for [a, b, c] in f {
-            let (ab, bc, ca) = (
-                split(a, b, &mut v),
-                split(b, c, &mut v),
-                split(c, a, &mut v),
-            );
-            g.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        f = g;
-    }
-    (v, f)
-}
-
 /// The distance along the unit direction `d` to the plane fitted (weighted least squares)
 /// to the points `near` (weight, position), when there are enough of them spread over a
 /// patch and the ray does not graze the plane.
@@ -233,7 +169,9 @@ pub fn last_from_points(pts: &[P3]) -> Result<(TriMesh, CloudFit), String> {
             (r > 1e-9).then(|| (s / r, r))
         })
         .collect();
-    let (sphere, faces) = icosphere(LEVEL);
+    let ico = TriMesh::icosphere(P3::origin(), 1.0, LEVEL);
+    let sphere: Vec<V3> = ico.vertices.iter().map(|p| p.coords.normalize()).collect();
+    let faces = ico.triangles;
     let spacing = 63.43f64.to_radians() / (1 << LEVEL) as f64;
     let cone = CONE * spacing;
     let (cos_cone, sigma) = (cone.cos(), 0.5 * cone);
