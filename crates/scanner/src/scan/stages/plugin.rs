@@ -129,6 +129,30 @@ impl PluginInfo {
 
     /// A failure: the scan's error when the stage is required, else a skip kept in scan.json
     /// and the log.
+    /// A once-per-scan stage (`place` "scan" or "sink") has met the item it waits for when
+    /// `ran` is its run's result: marked done, and a failure handled as [`Self::failed`].
+    fn once_seen(
+        &self,
+        done: &mut bool,
+        place: &str,
+        ran: Option<Result<(), String>>,
+    ) -> Result<(), BoxError> {
+        let Some(ran) = ran else {
+            return Ok(());
+        };
+        *done = true;
+        ran.or_else(|why| self.failed(place, why))
+    }
+
+    /// At the end of the scan: a once-per-scan stage that never met its item fails with
+    /// `missing` (where to place it).
+    fn once_finished(&self, done: bool, place: &str, missing: &str) -> Result<(), BoxError> {
+        if done {
+            return Ok(());
+        }
+        self.failed(place, format!("plugin {} {missing}", self.plugin))
+    }
+
     fn failed(&self, place: &str, why: String) -> Result<(), BoxError> {
         if self.required {
             return Err(why.into());
@@ -184,12 +208,11 @@ impl crate::pipeline::Stage<crate::scan::item::Item> for PluginScanStage {
         item: crate::scan::item::Item,
         out: &mut crate::pipeline::Emitter<crate::scan::item::Item>,
     ) -> Result<(), BoxError> {
-        if let crate::scan::item::Item::Grid(grid) = &item {
-            self.done = true;
-            if let Err(why) = self.run(grid) {
-                self.info.failed("scan", why)?;
-            }
-        }
+        let ran = match &item {
+            crate::scan::item::Item::Grid(grid) => Some(self.run(grid)),
+            _ => None,
+        };
+        self.info.once_seen(&mut self.done, "scan", ran)?;
         let _ = out.emit(item);
         Ok(())
     }
@@ -198,16 +221,11 @@ impl crate::pipeline::Stage<crate::scan::item::Item> for PluginScanStage {
         &mut self,
         _out: &mut crate::pipeline::Emitter<crate::scan::item::Item>,
     ) -> Result<(), BoxError> {
-        if !self.done {
-            self.info.failed(
-                "scan",
-                format!(
-                    "plugin {} received no scan grid: place the per-scan stage after accumulate",
-                    self.info.plugin
-                ),
-            )?;
-        }
-        Ok(())
+        self.info.once_finished(
+            self.done,
+            "scan",
+            "received no scan grid: place the per-scan stage after accumulate",
+        )
     }
 }
 
@@ -269,12 +287,11 @@ impl crate::pipeline::Stage<crate::scan::item::Item> for PluginSinkStage {
         item: crate::scan::item::Item,
         out: &mut crate::pipeline::Emitter<crate::scan::item::Item>,
     ) -> Result<(), BoxError> {
-        if let crate::scan::item::Item::Summary(s) = &item {
-            self.done = true;
-            if let Err(why) = self.run(s) {
-                self.info.failed("sink", why)?;
-            }
-        }
+        let ran = match &item {
+            crate::scan::item::Item::Summary(s) => Some(self.run(s)),
+            _ => None,
+        };
+        self.info.once_seen(&mut self.done, "sink", ran)?;
         let _ = out.emit(item);
         Ok(())
     }
@@ -283,15 +300,10 @@ impl crate::pipeline::Stage<crate::scan::item::Item> for PluginSinkStage {
         &mut self,
         _out: &mut crate::pipeline::Emitter<crate::scan::item::Item>,
     ) -> Result<(), BoxError> {
-        if !self.done {
-            self.info.failed(
-                "sink",
-                format!(
-                    "plugin {} received no scan summary: place the sink after sink.summary",
-                    self.info.plugin
-                ),
-            )?;
-        }
-        Ok(())
+        self.info.once_finished(
+            self.done,
+            "sink",
+            "received no scan summary: place the sink after sink.summary",
+        )
     }
 }
