@@ -7,9 +7,8 @@
 //! centroids onto the output's, and a triangle whose normal then points against its output
 //! normal is folded.
 //!
-//! The parametric lasts' test is ignored until the deformation folds nothing on them (issue
-//! 31 item 6): it fails today and is kept as the measure (`cargo test -p footscan-last --test
-//! adjust_folds -- --ignored --nocapture`; FOLD_DEBUG=1 prints where each fold is).
+//! The untangling that undoes the faded field's folds may move a vertex only a little: at
+//! most `RELAX_MAX_MM` from where the field put it (FOLD_DEBUG=1 prints where each fold is).
 
 use footscan_geom::mesh::{TriMesh, Units};
 use footscan_geom::V3;
@@ -22,6 +21,12 @@ use footscan_sim::foot::Side as SimSide;
 use footscan_sim::last::{Last, LastParams, Toe};
 use nalgebra::Matrix3;
 use std::path::{Path, PathBuf};
+
+/// How far the untangling may move a vertex off where the faded field put it (mm; a bottom
+/// vertex sliding along the adjusted bottom is no change of shape and is not counted): 1.83
+/// at most in the 66 runs here, on the scanned last's 3-4 mm triangles at the toe, where the
+/// change is 60 mm; 0.75 on the other lasts.
+const RELAX_MAX_MM: f64 = 2.5;
 
 fn lasts_dir() -> PathBuf {
     let base = std::env::var_os("FOOTSCAN_DATA")
@@ -98,14 +103,20 @@ fn count(
     let back = TriMesh::read(dir.path().join(LAST_STL)).unwrap();
     let f = folds(&prep.mesh, &back);
     println!(
-        "{name}: {f} folded of {} (deform reports {}, {} vertices relaxed by up to {:.2} mm; \
-         bottom vs adjusted RMS {:.3} max {:.3} mm)",
+        "{name}: {f} folded of {} (deform reports {}, {} vertices moved by up to {:.2} mm, \
+         slid on the bottom by up to {:.2} mm; bottom vs adjusted RMS {:.3} max {:.3} mm)",
         back.triangles.len(),
         dr.flipped_triangles,
         dr.relaxed_vertices,
         dr.relaxed_max_mm,
+        dr.slid_max_mm,
         dr.bottom_rms_mm,
         dr.bottom_max_mm
+    );
+    assert!(
+        dr.relaxed_max_mm <= RELAX_MAX_MM,
+        "{name}: the untangling moved a vertex {} mm",
+        dr.relaxed_max_mm
     );
     assert!(
         dr.bottom_max_mm <= 1.0,
@@ -137,7 +148,7 @@ fn no_shared_last_folds() {
         .filter(|p| {
             matches!(
                 p.extension().and_then(|e| e.to_str()),
-                Some("stl" | "obj" | "ply")
+                Some("stl" | "obj" | "ply" | "asc")
             )
         })
         .collect();
@@ -162,7 +173,6 @@ fn no_shared_last_folds() {
 }
 
 #[test]
-#[ignore = "known failing: 78 folds in 36 runs, at most 9 (heel and toe rims); docs/method.md 9.2.1"]
 fn no_parametric_last_folds() {
     let mut total = 0;
     for (foot_name, len, foot) in feet() {

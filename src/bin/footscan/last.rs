@@ -158,12 +158,13 @@ fn run_adjust(a: AdjustArgs) -> Result<()> {
     );
     match &d.deformed {
         Some((_, r)) => println!(
-            "last deformed: fade {:.0} mm, largest change {:.2} mm, {} flipped triangles ({} vertices damped by up to {:.2} mm to undo folds), bottom vertices vs adjusted bottom RMS {:.3} max {:.3} mm, volume {:.0} -> {:.0} mm^3",
+            "last deformed: fade {:.0} mm, largest change {:.2} mm, {} flipped triangles ({} vertices moved by up to {:.2} mm and slid on the bottom by up to {:.2} mm to undo folds), bottom vertices vs adjusted bottom RMS {:.3} max {:.3} mm, volume {:.0} -> {:.0} mm^3",
             r.fade_mm,
             r.max_displacement_mm,
             r.flipped_triangles,
             r.relaxed_vertices,
             r.relaxed_max_mm,
+            r.slid_max_mm,
             r.bottom_rms_mm,
             r.bottom_max_mm,
             r.volume_before_mm3,

@@ -350,10 +350,12 @@ pub struct DeformReport {
     pub max_displacement_mm: f64,
     /// Triangles whose normal turned by more than 90 degrees (0 for a sound deformation).
     pub flipped_triangles: usize,
-    /// Vertices whose displacement was relaxed to undo a fold, and the most any of them
-    /// moved from where the faded field put it (mm).
+    /// Vertices moved to undo a fold, and the most any of them moved from where the faded
+    /// field put it (mm; a bottom vertex's move off the adjusted bottom).
     pub relaxed_vertices: usize,
     pub relaxed_max_mm: f64,
+    /// The most a bottom vertex slid along the adjusted bottom to undo a fold (mm, in plan).
+    pub slid_max_mm: f64,
     /// The deformed last's bottom vertices inside the adjusted outline against the adjusted
     /// bottom's heights: how many, RMS and largest height difference (mm).
     pub bottom_vertices: usize,
@@ -363,14 +365,6 @@ pub struct DeformReport {
     pub volume_after_mm3: f64,
 }
 
-/// Rounds of damping around folds (0.8 each: after 50 rounds 1e-5 of the change is left)
-/// before a fold is reported as left.
-const UNTANGLE_ROUNDS: usize = 50;
-const UNTANGLE_DAMPING: f64 = 0.8;
-/// Rounds (10 Jacobi sweeps each) in which the change around a fold is first smoothed
-/// towards its neighbours' mean, keeping most of it; damping follows only where that fails
-/// (a fan of slivers round one vertex).
-const SMOOTH_ROUNDS: usize = 25;
 /// A vertex within this height of the original bottom is a bottom vertex (mm).
 const BOTTOM_VERTEX_MM: f64 = 0.25;
 
@@ -574,17 +568,15 @@ pub fn deform_last(
     };
     // Where the faded field still folds a triangle (the rim where the bottom turns up into
     // the side, thin in plan, under a plan map that moves it much; the slivers of a narrow
-    // end), the change around the fold is first smoothed towards its neighbours' mean, then,
-    // where that does not undo it, damped a little more each round. Bottom vertices are
-    // pinned: the bottom stays the adjusted one, so a fold in the rim itself stays and is
-    // reported. The repair is local (it starts at the folds) and is kept only as far as it
-    // reduced them.
+    // end), the vertices round the fold are untangled: a small optimisation that moves
+    // them as little as it can, with bottom vertices sliding on the adjusted bottom so the
+    // bottom stays the adjusted one (docs/method.md 9.2.1). Folds it cannot undo are
+    // reported.
     let mut bad = flipped_now(&disp);
     let mut relaxed = vec![false; disp.len()];
-    // Bottom vertices are the adjusted bottom and stay: on the lowest surface and corners of
-    // a triangle facing down. Height alone also pinned the steep walls' vertices where a
-    // wall overhangs its own footprint (a pointed toe's tip, a heel's back), whose slivers
-    // then could not be repaired.
+    // Bottom vertices: on the lowest surface and corners of a triangle facing down. Height
+    // alone also took the steep walls' vertices where a wall overhangs its own footprint (a
+    // pointed toe's tip, a heel's back).
     let mut faces_down = vec![false; disp.len()];
     for (t, tri) in prep.mesh.triangles.iter().enumerate() {
         if prep.mesh.face_normal(t).z < -0.5 {
@@ -611,68 +603,50 @@ pub fn deform_last(
             n.sort_unstable();
             n.dedup();
         }
-        let mut region = vec![false; disp.len()];
-        let mut best = (bad.clone(), disp.clone(), relaxed.clone());
-        for round in 0..SMOOTH_ROUNDS + UNTANGLE_ROUNDS {
-            if bad.is_empty() {
-                break;
-            }
-            if round >= SMOOTH_ROUNDS {
-                region.iter_mut().for_each(|r| *r = false);
-            }
-            let grow: Vec<usize> = (0..disp.len())
-                .filter(|&i| region[i])
-                .flat_map(|i| nbrs[i].iter().map(|&n| n as usize))
-                .collect();
-            for i in grow {
-                region[i] = true;
-            }
-            for &t in &bad {
-                for &i in &mesh.triangles[t] {
-                    region[i as usize] = true;
-                    for &n in &nbrs[i as usize] {
-                        region[n as usize] = true;
-                    }
+        let mut pos: Vec<P3> = (0..disp.len()).map(|i| moves[i].0 + disp[i]).collect();
+        let area2: Vec<f64> = (0..mesh.triangles.len())
+            .map(|t| prep.mesh.face_normal_raw(t).norm())
+            .collect();
+        let off: Vec<f64> = pos
+            .iter()
+            .map(|p| p.z - new_bottom.sample_clamped(p.x, p.y))
+            .collect();
+        let task = Untangle {
+            triangles: &mesh.triangles,
+            wants: [&want, &want_whole],
+            area2: &area2,
+            pinned: &pinned,
+            off: &off,
+            bottom: &new_bottom,
+            nbrs: &nbrs,
+        };
+        let left = task.run(&mut pos, &bad);
+        if left.len() < bad.len() {
+            for (i, p) in pos.iter().enumerate() {
+                let d = p - moves[i].0;
+                if (d - disp[i]).norm() > 1e-9 {
+                    relaxed[i] = true;
                 }
-            }
-            if round < SMOOTH_ROUNDS {
-                for _ in 0..10 {
-                    let next: Vec<(usize, V3)> = (0..disp.len())
-                        .filter(|&i| region[i] && !pinned[i] && !nbrs[i].is_empty())
-                        .map(|i| {
-                            let m = nbrs[i].iter().map(|&n| disp[n as usize]).sum::<V3>()
-                                / nbrs[i].len() as f64;
-                            (i, m)
-                        })
-                        .collect();
-                    for (i, m) in next {
-                        disp[i] = m;
-                        relaxed[i] = true;
-                    }
-                }
-            } else {
-                for (i, d) in disp.iter_mut().enumerate() {
-                    if region[i] && !pinned[i] {
-                        *d *= UNTANGLE_DAMPING;
-                        relaxed[i] = true;
-                    }
-                }
+                disp[i] = d;
             }
             bad = flipped_now(&disp);
-            if bad.len() < best.0.len() {
-                best = (bad.clone(), disp.clone(), relaxed.clone());
-            }
         }
-        // The repair keeps what it did only as far as it helped: with the bottom pinned, a
-        // fold in the rim itself cannot be undone, and damping beside it can make more.
-        (bad, disp, relaxed) = best;
     }
     let mut max_d: f64 = 0.0;
-    let mut relax_max: f64 = 0.0;
+    let (mut relax_max, mut slid_max) = (0.0f64, 0.0f64);
     for (i, v) in mesh.vertices.iter_mut().enumerate() {
         *v = moves[i].0 + disp[i];
         max_d = max_d.max(disp[i].norm());
-        relax_max = relax_max.max((disp[i] - faded[i]).norm());
+        if pinned[i] {
+            // A bottom vertex slides along the adjusted bottom: that is no change of shape,
+            // its move off the bottom is.
+            let was = moves[i].0 + faded[i];
+            let above = |p: &P3| p.z - new_bottom.sample_clamped(p.x, p.y);
+            relax_max = relax_max.max((above(v) - above(&was)).abs());
+            slid_max = slid_max.max((v.xy() - was.xy()).norm());
+        } else {
+            relax_max = relax_max.max((disp[i] - faded[i]).norm());
+        }
     }
     // The deformed last's bottom against the adjusted bottom: bottom vertices (on the
     // original bottom) that land inside the adjusted outline.
@@ -710,6 +684,7 @@ pub fn deform_last(
             flipped_triangles: flipped,
             relaxed_vertices: relaxed.iter().filter(|&&r| r).count(),
             relaxed_max_mm: relax_max,
+            slid_max_mm: slid_max,
             bottom_vertices: bottom_n,
             bottom_rms_mm: (bottom_ss / bottom_n.max(1) as f64).sqrt(),
             bottom_max_mm: bottom_max,
@@ -717,6 +692,310 @@ pub fn deform_last(
             volume_after_mm3: report.volume,
         },
     ))
+}
+
+/// Least cosine between an untangled triangle's normal and its wanted one (84 deg): a
+/// margin, so a triangle is not left on edge where two readings of "wanted" differ.
+const UNTANGLE_MARGIN: f64 = 0.1;
+/// Weights, against the folds' penalty (dimensionless, one per triangle), of bending the
+/// deformed surface (an edge's change of displacement over its length, squared) and of
+/// leaving where the deformation put a vertex (its move over its edges' mean length,
+/// squared): the untangling moves a sliver by its own size, not a fan's centre by
+/// millimetres.
+const UNTANGLE_BEND: f64 = 0.05;
+const UNTANGLE_STAY: f64 = 0.001;
+/// Descent steps per region.
+const UNTANGLE_ITERATIONS: usize = 1000;
+
+/// Untangling of the folds a deformation left: the vertices round them move to minimise
+/// sum over triangles of max(0, margin - n.u / |n0|)^2 (n the triangle's area normal, u the
+/// wanted unit normal, |n0| its area normal's length on the input) plus a small pull back
+/// to where they were. Bottom vertices slide on the adjusted bottom (their height above it
+/// kept), so the bottom stays the adjusted one while a rim made of bottom vertices can turn
+/// back. Gradient descent with a backtracking step over a region grown ring by ring.
+struct Untangle<'a> {
+    triangles: &'a [[u32; 3]],
+    wants: [&'a [V3]; 2],
+    area2: &'a [f64],
+    pinned: &'a [bool],
+    off: &'a [f64],
+    bottom: &'a HeightMap,
+    nbrs: &'a [Vec<u32>],
+}
+
+impl Untangle<'_> {
+    fn folded(&self, pos: &[P3], t: usize) -> bool {
+        let [i, j, k] = self.triangles[t].map(|i| pos[i as usize]);
+        let n = (j - i).cross(&(k - i));
+        self.wants.iter().any(|w| n.dot(&w[t]) < 0.0)
+    }
+
+    /// Moves `pos` to undo the folded triangles `bad`; returns the folds left among all.
+    fn run(&self, pos: &mut [P3], bad: &[usize]) -> Vec<usize> {
+        let nv = pos.len();
+        let mut tris_of: Vec<Vec<u32>> = vec![Vec::new(); nv];
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for &i in tri {
+                tris_of[i as usize].push(t as u32);
+            }
+        }
+        let all_bad = |pos: &[P3]| -> Vec<usize> {
+            (0..self.triangles.len())
+                .filter(|&t| self.folded(pos, t))
+                .collect()
+        };
+        let mut left = bad.to_vec();
+        let mut region = vec![false; nv];
+        for &t in bad {
+            for &i in &self.triangles[t] {
+                region[i as usize] = true;
+            }
+        }
+        let mut pinned = self.pinned.to_vec();
+        // Rings grown round what is left; last, the corners of a fold made only of bottom
+        // vertices (a rim standing on edge) are let off the bottom.
+        for (rings, release) in [
+            (2usize, false),
+            (2, false),
+            (4, false),
+            (8, false),
+            (4, true),
+        ] {
+            if left.is_empty() {
+                break;
+            }
+            if release {
+                for &t in &left {
+                    for &i in &self.triangles[t] {
+                        pinned[i as usize] = false;
+                    }
+                }
+            }
+            for &t in &left {
+                for &i in &self.triangles[t] {
+                    region[i as usize] = true;
+                }
+            }
+            for _ in 0..rings {
+                let grow: Vec<usize> = (0..nv)
+                    .filter(|&i| region[i])
+                    .flat_map(|i| self.nbrs[i].iter().map(|&n| n as usize))
+                    .collect();
+                for i in grow {
+                    region[i] = true;
+                }
+            }
+            let verts: Vec<usize> = (0..nv).filter(|&i| region[i]).collect();
+            let mut tris: Vec<usize> = verts
+                .iter()
+                .flat_map(|&i| tris_of[i].iter().map(|&t| t as usize))
+                .collect();
+            tris.sort_unstable();
+            tris.dedup();
+            let before: Vec<P3> = pos.to_vec();
+            self.descend(pos, &verts, &tris, &pinned);
+            let now = all_bad(pos);
+            if now.len() < left.len() {
+                left = now;
+            } else {
+                pos.copy_from_slice(&before);
+            }
+        }
+        left
+    }
+
+    /// The energy over `tris` and the moved `verts` (pull back to `start`).
+    fn energy(
+        &self,
+        pos: &[P3],
+        start: &[P3],
+        verts: &[usize],
+        tris: &[usize],
+        scale: &Scale,
+    ) -> f64 {
+        let mut e = 0.0;
+        for &t in tris {
+            let [i, j, k] = self.triangles[t].map(|i| pos[i as usize]);
+            let n = (j - i).cross(&(k - i));
+            let a = scale.a_ref[t];
+            for w in self.wants {
+                let s = (UNTANGLE_MARGIN * n.norm() - n.dot(&w[t])) / a;
+                if s > 0.0 {
+                    e += s * s;
+                }
+            }
+        }
+        for (k, &v) in verts.iter().enumerate() {
+            let d = pos[v] - start[v];
+            e += UNTANGLE_STAY * d.norm_squared() * scale.inv_len2[k];
+            for (&n, &w) in self.nbrs[v].iter().zip(&scale.edge_w[k]) {
+                let n = n as usize;
+                // Each edge inside the region counted once, edges to the rest whole.
+                if scale.in_region[n] == usize::MAX || n > v {
+                    e += UNTANGLE_BEND * w * (d - (pos[n] - start[n])).norm_squared();
+                }
+            }
+        }
+        e
+    }
+
+    fn descend(&self, pos: &mut [P3], verts: &[usize], tris: &[usize], pinned: &[bool]) {
+        let start: Vec<P3> = pos.to_vec();
+        let mut in_region = vec![usize::MAX; pos.len()];
+        for (k, &v) in verts.iter().enumerate() {
+            in_region[v] = k;
+        }
+        let mut grad = vec![V3::zeros(); verts.len()];
+        let mut diag = vec![0.0f64; verts.len()];
+        let mut scale = Scale::new(pos, verts, in_region, self.nbrs);
+        // Each triangle's penalty is measured against its area normal's length at the start
+        // (or on the input, if larger): a flipped triangle keeps a gradient, and a sliver
+        // stretched by the deformation is not held to its input's tiny scale.
+        scale.a_ref = vec![1.0; self.triangles.len()];
+        for &t in tris {
+            let [i, j, k] = self.triangles[t].map(|i| pos[i as usize]);
+            scale.a_ref[t] = (j - i).cross(&(k - i)).norm().min(self.area2[t]).max(1e-12);
+        }
+        let in_region = &scale.in_region;
+        let mut e = self.energy(pos, &start, verts, tris, &scale);
+        let mut step: f64 = 0.0;
+        for _ in 0..UNTANGLE_ITERATIONS {
+            let mut active = 0usize;
+            grad.iter_mut().for_each(|g| *g = V3::zeros());
+            for (k, &v) in verts.iter().enumerate() {
+                let d = pos[v] - start[v];
+                grad[k] += 2.0 * UNTANGLE_STAY * scale.inv_len2[k] * d;
+                diag[k] = 2.0 * UNTANGLE_STAY * scale.inv_len2[k];
+                for (&n, &w) in self.nbrs[v].iter().zip(&scale.edge_w[k]) {
+                    let n = n as usize;
+                    let dn = pos[n] - start[n];
+                    grad[k] += 2.0 * UNTANGLE_BEND * w * (d - dn);
+                    diag[k] += 2.0 * UNTANGLE_BEND * w;
+                }
+            }
+            for &t in tris {
+                let [a, b, c] = self.triangles[t].map(|i| i as usize);
+                let (pa, pb, pc) = (pos[a], pos[b], pos[c]);
+                let n = (pb - pa).cross(&(pc - pa));
+                let ar = scale.a_ref[t];
+                let nh = n / n.norm().max(1e-12);
+                for w in self.wants {
+                    let u = w[t];
+                    let s = (UNTANGLE_MARGIN * n.norm() - n.dot(&u)) / ar;
+                    if s <= 0.0 {
+                        continue;
+                    }
+                    active += 1;
+                    // s = (margin |n| - n.u) / ar: ds = -q . dn with q = (u - margin nh) / ar,
+                    // and q . dn over a corner's move is the move dotted with q x (the
+                    // opposite edge), so d(s^2)/dpa = -2 s q x (pc - pb) and cyclically.
+                    let q = (u - UNTANGLE_MARGIN * nh) / ar;
+                    for (v, g) in [
+                        (a, q.cross(&(pc - pb))),
+                        (b, q.cross(&(pa - pc))),
+                        (c, q.cross(&(pb - pa))),
+                    ] {
+                        if in_region[v] != usize::MAX {
+                            grad[in_region[v]] += -2.0 * s * g;
+                            diag[in_region[v]] += 2.0 * g.norm_squared();
+                        }
+                    }
+                }
+            }
+            for (k, &v) in verts.iter().enumerate() {
+                if pinned[v] {
+                    // z follows the bottom: the chain rule through z = bottom(x, y) + off.
+                    let (hx, hy) = self.slope(pos[v].x, pos[v].y);
+                    let gz = grad[k].z;
+                    grad[k] = V3::new(grad[k].x + gz * hx, grad[k].y + gz * hy, 0.0);
+                }
+            }
+            // Each vertex's step scaled by its own curvature (Jacobi): a sliver's corner and
+            // a large triangle's move at their own scales.
+            let dir: Vec<V3> = grad.iter().zip(&diag).map(|(g, &h)| -g / h).collect();
+            // Done once every triangle keeps its margin: what is left is only the pull
+            // back, and the region's moves are already as small as the folds allowed.
+            if active == 0 {
+                break;
+            }
+            let gmax = dir.iter().map(|g| g.norm()).fold(0.0, f64::max);
+            if gmax < 1e-9 {
+                break;
+            }
+            if step == 0.0 {
+                step = 1.0;
+            }
+            step = step.min(0.5 / gmax);
+            let g2: f64 = -grad.iter().zip(&dir).map(|(g, d)| g.dot(d)).sum::<f64>();
+            let base: Vec<P3> = verts.iter().map(|&v| pos[v]).collect();
+            let mut accepted = false;
+            for _ in 0..30 {
+                for (k, &v) in verts.iter().enumerate() {
+                    let mut p = base[k] + step * dir[k];
+                    if pinned[v] {
+                        p.z = self.bottom.sample_clamped(p.x, p.y) + self.off[v];
+                    }
+                    pos[v] = p;
+                }
+                let e2 = self.energy(pos, &start, verts, tris, &scale);
+                if e2 <= e - 1e-4 * step * g2 {
+                    e = e2;
+                    accepted = true;
+                    step = (step * 2.0).min(1.0);
+                    break;
+                }
+                step *= 0.5;
+            }
+            if !accepted {
+                for (k, &v) in verts.iter().enumerate() {
+                    pos[v] = base[k];
+                }
+                break;
+            }
+        }
+    }
+
+    /// The adjusted bottom's slope at (x, y) (central differences, 0.05 mm).
+    fn slope(&self, x: f64, y: f64) -> (f64, f64) {
+        let h = 0.05;
+        let f = |x, y| self.bottom.sample_clamped(x, y);
+        (
+            (f(x + h, y) - f(x - h, y)) / (2.0 * h),
+            (f(x, y + h) - f(x, y - h)) / (2.0 * h),
+        )
+    }
+}
+
+/// Per region vertex: its index map, 1 / its edges' mean length squared, and 1 / length
+/// squared of each of its edges (in the order of `nbrs`), all at the start of a descent.
+struct Scale {
+    in_region: Vec<usize>,
+    inv_len2: Vec<f64>,
+    edge_w: Vec<Vec<f64>>,
+    /// Per triangle (of the whole mesh): the length its fold penalty is measured in.
+    a_ref: Vec<f64>,
+}
+
+impl Scale {
+    fn new(pos: &[P3], verts: &[usize], in_region: Vec<usize>, nbrs: &[Vec<u32>]) -> Scale {
+        let mut inv_len2 = Vec::with_capacity(verts.len());
+        let mut edge_w = Vec::with_capacity(verts.len());
+        for &v in verts {
+            let lens: Vec<f64> = nbrs[v]
+                .iter()
+                .map(|&n| (pos[n as usize] - pos[v]).norm().max(1e-3))
+                .collect();
+            let mean = lens.iter().sum::<f64>() / lens.len().max(1) as f64;
+            inv_len2.push(1.0 / (mean * mean).max(1e-6));
+            edge_w.push(lens.iter().map(|l| 1.0 / (l * l)).collect());
+        }
+        Scale {
+            in_region,
+            inv_len2,
+            edge_w,
+            a_ref: Vec::new(),
+        }
+    }
 }
 
 /// The orthogonal map (a mirror allowed) that best takes `m`'s triangle centroids onto the
