@@ -7,6 +7,7 @@ scripts/setup.sh --build
 export PATH="$HOME/.cargo/bin:$PATH"
 out="${1:-scans/demo}"
 # Without default features: the simulated scan needs neither OpenCV (`calibrate --method
-# opencv`) nor wasmtime (the `wasm` and `exec` stages), which are most of a fresh build
-# (docs/method.md section 14b). `cargo build --release` builds the full CLI.
+# opencv`), wasmtime (the `wasm` and `exec` stages) nor the fleet client (`footscan fleet`:
+# PostgreSQL, tokio, OpenSSL), which are most of a fresh build (docs/method.md sections 14b
+# and 14g). `cargo build --release` builds the full CLI.
 cargo run --release --no-default-features --bin footscan -- scan --config config/sim.toml --out "$out"

@@ -2,18 +2,20 @@
 # Install what footscan needs to build on Debian: the system packages below and, if cargo is
 # missing, a Rust toolchain through rustup. Safe to run again; it only installs what is absent.
 # `setup.sh --build` (what scripts/scan-sim.sh runs) installs only what its build (without the
-# default features' OpenCV and wasmtime) needs; OpenCV and the test tools below (Chromium,
-# PostgreSQL, poppler, the OpenCASCADE venv) come with scripts/test.sh.
+# default features' OpenCV, wasmtime and fleet client) needs; OpenCV and the test tools below
+# (Chromium, PostgreSQL, poppler, the OpenCASCADE venv) come with scripts/test.sh.
 set -euo pipefail
 mode="${1:-all}"
-# The build of what the simulated scan needs: bindgen for the V4L2 bindings (clang) and OpenSSL
-# for the fleet client's TLS.
-build_packages=(pkg-config libudev-dev gcc clang libclang-dev libssl-dev)
+# The build of what the simulated scan needs: bindgen for the V4L2 bindings (clang), libudev.
+build_packages=(pkg-config libudev-dev gcc clang libclang-dev)
 
 packages=("${build_packages[@]}")
 # The default build's OpenCV reference calibration (`calibrate --method opencv`); scan-sim.sh
 # builds without it.
 packages+=(libopencv-dev)
+# footscand's archive index links Debian's SQLite (crates/daemon's `bundled-sqlite` feature
+# compiles its own copy instead).
+packages+=(libsqlite3-dev)
 # The dashboard's screenshot test (tests/dashboard_chromium.rs) runs Debian's headless Chromium.
 packages+=(chromium fonts-dejavu-core)
 # tests/daemon_api.rs runs the curl examples of docs/API.md.

@@ -15,6 +15,8 @@ use footscan_insole::{write_insole, Params, Plantar, PostSide};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -42,17 +44,10 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// The default simulated scan (250 mm right foot), made once per test binary under the
-/// target's temporary directory (about 17 s), replaced by the next run.
+/// The default simulated scan (250 mm right foot): the package's shared one (tests/common),
+/// read only.
 fn sim_scan() -> &'static Path {
-    static SCAN: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
-    SCAN.get_or_init(|| {
-        let p = Path::new(env!("CARGO_TARGET_TMPDIR")).join("insole-sim-scan");
-        let _ = std::fs::remove_dir_all(&p);
-        let (ok, out, err) = footscan(&["scan", "--config", "config/sim.toml", "--out", s(&p)]);
-        assert!(ok, "{out}{err}");
-        p
-    })
+    common::default_scan()
 }
 
 /// Every row of insole.json's checks within its bound, the thinnest place and the contact

@@ -7,6 +7,8 @@ use footscan_geom::P3;
 use std::path::Path;
 use std::process::Command;
 
+mod common;
+
 fn footscan(args: &[&str]) -> (bool, String, String) {
     let o = Command::new(env!("CARGO_BIN_EXE_footscan"))
         .args(args)
@@ -43,15 +45,8 @@ fn copy(m: &TriMesh, k: f64, mirror: bool, turn_deg: f64) -> TriMesh {
 fn ranking_puts_the_nearest_copy_first_and_customizes_it() {
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n);
-    // One simulated scan for the whole test binary (15-60 s): the simulator's 250 mm right foot.
-    let (ok, out, err) = footscan(&[
-        "scan",
-        "--config",
-        "config/sim.toml",
-        "--out",
-        s(&p("scan")),
-    ]);
-    assert!(ok, "{out}{err}");
+    // The simulator's 250 mm right foot: the package's shared default scan (tests/common).
+    let scan = common::default_scan();
     let (ok, out, err) = footscan(&["sim", "foot", "--length", "250", "--out", s(&p("f250.stl"))]);
     assert!(ok, "{out}{err}");
     let (ok, out, err) = footscan(&[
@@ -83,12 +78,12 @@ fn ranking_puts_the_nearest_copy_first_and_customizes_it() {
         "ball = 260.0\ninstep = 247.6\nlong_heel = 367.3\nankle = 196.4\n",
     )
     .unwrap();
-    let (scan, girths, shop) = (p("scan"), p("girths.toml"), p("shop"));
+    let (girths, shop) = (p("girths.toml"), p("shop"));
     let args = [
         "last",
         "choose",
         "--scan",
-        s(&scan),
+        s(scan),
         "--girths",
         s(&girths),
         "--stock-dir",

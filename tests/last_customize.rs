@@ -11,6 +11,8 @@ use footscan_last::customize::MISFIT_FILE;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+
 fn footscan(args: &[&str]) -> (bool, String, String) {
     let o = Command::new(env!("CARGO_BIN_EXE_footscan"))
         .args(args)
@@ -756,19 +758,10 @@ fn rules_default_and_sim_foot_missing_dir() {
 /// solves the 238 and 240 mm ones too). The stock last deformed: every rule met on last.stl
 /// cut here, the plantar figures within 0.5 mm of the simulator's foot.
 /// Girths missing from the tape file are named, nothing written.
-/// The default simulated scan (250 mm right foot), made once for this test binary (a
-/// simulated scan takes 15-60 s) in one directory under the target's temporary directory,
-/// replaced by the next run (a static is never dropped, so a temporary directory would be
-/// left behind by every run).
+/// The default simulated scan (250 mm right foot): the package's shared one (tests/common),
+/// read only.
 fn sim_scan() -> &'static Path {
-    static SCAN: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
-    SCAN.get_or_init(|| {
-        let p = Path::new(env!("CARGO_TARGET_TMPDIR")).join("last_customize-sim-scan");
-        let _ = std::fs::remove_dir_all(&p);
-        let (ok, out, err) = footscan(&["scan", "--config", "config/sim.toml", "--out", s(&p)]);
-        assert!(ok, "{out}{err}");
-        p
-    })
+    common::default_scan()
 }
 
 /// The shared shop lasts (DATA/lasts, read where they are; never copied into the repo).

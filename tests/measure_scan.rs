@@ -12,18 +12,25 @@ use footscan::scan::{run_scan, LoadedConfig, ScanOptions};
 use footscan_sim::foot::{FootParams, Side as SimSide};
 use std::path::Path;
 
+mod common;
+
 fn config() -> LoadedConfig {
     LoadedConfig::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("config/sim.toml")).unwrap()
 }
 
-/// Scan `foot` (None: the config's) into `dir`; the stage's measurements and their errors.
+/// Scan `foot` into `dir` (None: a copy of the package's shared default scan, tests/common);
+/// the stage's measurements and their errors.
 fn scan(dir: &Path, foot: Option<FootParams>) -> (Measurements, TruthComparison) {
-    let mut cfg = config();
     if let Some(f) = foot {
+        let mut cfg = config();
         cfg.config.sim.foot = f;
+        let s = run_scan(&cfg, &ScanOptions::new(dir), |_| {}).expect("scan runs");
+        assert_eq!(s.status, "complete", "{:?}", s.reason);
+    } else {
+        common::copy_default_scan(dir);
+        let s = common::summary(dir);
+        assert_eq!(s["status"], "complete", "{}", s["reason"]);
     }
-    let s = run_scan(&cfg, &ScanOptions::new(dir), |_| {}).expect("scan runs");
-    assert_eq!(s.status, "complete", "{:?}", s.reason);
     let m: Measurements =
         serde_json::from_slice(&std::fs::read(dir.join("measurements.json")).unwrap()).unwrap();
     let truth = std::fs::read_to_string(dir.join("truth.json")).unwrap();

@@ -7,10 +7,12 @@
 //! absurd model, naming the value and the valid range; grid.bin parses by the description in
 //! docs/grid-bin.md alone.
 
-use footscan::scan::{run_scan, LoadedConfig, ScanGrid, ScanOptions};
+use footscan::scan::{run_scan, LoadedConfig, ScanGrid, ScanOptions, ScanStatus};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+mod common;
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -215,11 +217,14 @@ fn footscan(args: &[&str]) -> std::process::Output {
 
 #[test]
 fn simulated_scan_model_is_one_closed_solid_on_the_outline_and_step_reads_back() {
+    // A copy of the package's shared default scan (tests/common): the models are written
+    // into it.
     let dir = tempfile::tempdir().unwrap();
-    let cfg = LoadedConfig::load(&repo().join("config/sim.toml")).expect("config/sim.toml loads");
-    let s = run_scan(&cfg, &ScanOptions::new(dir.path()), |_| {}).expect("scan runs");
+    common::copy_default_scan(dir.path());
+    let s = common::summary(dir.path());
+    let status: ScanStatus = serde_json::from_value(s["status"].clone()).unwrap();
     // A frame dropped under the load of a shared machine is bridged: usable, with a warning.
-    assert!(s.status.is_usable(), "{}: {:?}", s.status, s.reason);
+    assert!(status.is_usable(), "{status}: {}", s["reason"]);
     let truth: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.path().join("truth.json")).unwrap()).unwrap();
     let m: serde_json::Value =

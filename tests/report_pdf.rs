@@ -3,9 +3,10 @@
 //! the PDF itself and 100.0 +- 0.5 mm when rendered (pdftoppm at 254 dpi: 10 px a mm), and
 //! whose heel-to-toe line is the measured foot length at 1:1.
 
-use footscan::scan::{run_scan, LoadedConfig, ScanOptions, ScanStatus};
 use std::path::Path;
 use std::process::Command;
+
+mod common;
 
 fn tool(name: &str) -> String {
     let p = format!("/usr/bin/{name}");
@@ -46,17 +47,11 @@ fn extent(img: &image::RgbImage, rgb: [u8; 3]) -> Option<([u32; 2], [u32; 2])> {
 #[test]
 fn report_pdf_is_printed_at_one_to_one() {
     let (pdftoppm, pdfinfo, pdftotext) = (tool("pdftoppm"), tool("pdfinfo"), tool("pdftotext"));
-    // A quick whole-foot scan (1 mm a frame).
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/sim.toml");
-    let text = std::fs::read_to_string(&path)
-        .unwrap()
-        .replace("step_mm = 0.5 ", "step_mm = 1.0 ")
-        .replace("max_rate_mm_min = 3000.0", "max_rate_mm_min = 6000.0");
-    let cfg = LoadedConfig::parse(&path, text).unwrap();
+    // The package's shared default scan (tests/common), read only.
     let tmp = tempfile::tempdir().unwrap();
-    let dir = tmp.path().join("scan");
-    let s = run_scan(&cfg, &ScanOptions::new(&dir), |_| {}).expect("scan runs");
-    assert_eq!(s.status, ScanStatus::Complete, "{}", s.verdict());
+    let dir = common::default_scan();
+    let s = common::summary(dir);
+    assert_eq!(s["status"], "complete", "{}", s["reason"]);
     let m: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("measurements.json")).unwrap()).unwrap();
     let length = m["foot_length_mm"].as_f64().unwrap();
@@ -64,7 +59,7 @@ fn report_pdf_is_printed_at_one_to_one() {
     let pdf = tmp.path().join("report.pdf");
     let said = run(Command::new(env!("CARGO_BIN_EXE_footscan"))
         .args(["report", "--scan"])
-        .arg(&dir)
+        .arg(dir)
         .arg("--out")
         .arg(&pdf));
     println!("{}", said.trim());
@@ -105,9 +100,9 @@ fn report_pdf_is_printed_at_one_to_one() {
     let both = tmp.path().join("both.pdf");
     run(Command::new(env!("CARGO_BIN_EXE_footscan"))
         .args(["report", "--left"])
-        .arg(&dir)
+        .arg(dir)
         .arg("--right")
-        .arg(&dir)
+        .arg(dir)
         .arg("--out")
         .arg(&both));
     let info = run(Command::new(&pdfinfo).arg(&both));

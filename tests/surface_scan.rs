@@ -1,7 +1,7 @@
 //! The plantar model on a real simulated scan: the `model.bezier` stage writes a closed
 //! model.stl, and the network represents the simulator's analytic sole within 0.05 mm RMS.
 
-use footscan::scan::{run_scan, LoadedConfig, ScanGrid, ScanOptions};
+use footscan::scan::{LoadedConfig, ScanGrid};
 use footscan::surface::compare::{eval_params, representation_errors, rms, Fitted};
 use footscan::surface::{BezierNetwork, PointGrid};
 use footscan_geom::mesh::TriMesh;
@@ -9,6 +9,8 @@ use footscan_geom::P3;
 use footscan_sim::foot::Foot;
 use std::collections::HashMap;
 use std::path::Path;
+
+mod common;
 
 /// Read a binary STL back, merging vertices with identical coordinates.
 fn read_stl(p: &Path) -> TriMesh {
@@ -41,17 +43,18 @@ fn read_stl(p: &Path) -> TriMesh {
 fn simulated_scan_model_meets_the_representation_target() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let cfg = LoadedConfig::load(&root.join("config/sim.toml")).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let s = run_scan(&cfg, &ScanOptions::new(dir.path()), |_| {}).expect("scan runs");
-    assert_eq!(s.status, "complete");
+    // The package's shared default scan (tests/common) of this config.
+    let dir = common::default_scan();
+    let s = common::summary(dir);
+    assert_eq!(s["status"], "complete", "{}", s["reason"]);
 
     // The stage's mesh: closed and consistently oriented once read back from the STL.
-    let mesh = read_stl(&dir.path().join("model.stl"));
+    let mesh = read_stl(&dir.join("model.stl"));
     assert!(mesh.triangles.len() > 100_000);
     mesh.check_closed().unwrap();
     assert!(mesh.volume() > 10_000.0);
 
-    let grid = ScanGrid::load(&dir.path().join("grid.bin")).unwrap();
+    let grid = ScanGrid::load(&dir.join("grid.bin")).unwrap();
     let foot = Foot::new(cfg.config.sim.foot.clone()).unwrap();
     let truth = |x: f64, y: f64| foot.height(x, y);
     let full = PointGrid::from_scan(&grid);

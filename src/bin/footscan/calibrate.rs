@@ -144,7 +144,7 @@ pub fn run(args: Args) -> Result<()> {
         Some(p) => CalibrationPlan::load(p)?,
         None => CalibrationPlan::default(),
     };
-    let method: Method = args.method.parse().map_err(anyhow::Error::msg)?;
+    let method: Method = args.method.parse()?;
     let prior = procedure::prior_calibration(&cfg)?;
     let bar = if args.quiet {
         ProgressBar::hidden()

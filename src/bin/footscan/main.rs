@@ -3,6 +3,7 @@
 mod bench;
 mod calibrate;
 mod detect;
+#[cfg(feature = "fleet")]
 mod fleet;
 mod insole;
 mod last;
@@ -108,6 +109,7 @@ enum Command {
     /// The simulator's objects as files with their truth (see `footscan sim --help`).
     Sim(sim::Args),
     /// The fleet database the daemons push scans to: migrate, list, show, fetch.
+    #[cfg(feature = "fleet")]
     Fleet(fleet::Args),
 }
 
@@ -168,6 +170,7 @@ fn run() -> Result<()> {
         Command::Detect(args) => detect::run(args),
         Command::Last(args) => last::run(args),
         Command::Sim(args) => sim::run(args),
+        #[cfg(feature = "fleet")]
         Command::Fleet(args) => fleet::run(args),
     }
 }

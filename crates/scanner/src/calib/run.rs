@@ -31,13 +31,18 @@ impl Method {
     }
 }
 
+/// A calibration method's name that is none of [`Method::ALL`].
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown method `{0}`: one of insystem, bezier, opencv")]
+pub struct UnknownMethod(pub String);
+
 impl std::str::FromStr for Method {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownMethod;
+    fn from_str(s: &str) -> Result<Self, UnknownMethod> {
         Method::ALL
             .into_iter()
             .find(|m| m.name() == s)
-            .ok_or_else(|| format!("unknown method `{s}`: one of insystem, bezier, opencv"))
+            .ok_or_else(|| UnknownMethod(s.to_string()))
     }
 }
 
@@ -157,5 +162,23 @@ pub fn check_limits(
         Ok(())
     } else {
         Err(CalibError::Limits(over.join("; ")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn methods_parse_by_name_and_an_unknown_one_is_named_with_the_valid_ones() {
+        for m in Method::ALL {
+            assert_eq!(m.name().parse::<Method>(), Ok(m));
+        }
+        let e = "checkerboard".parse::<Method>().unwrap_err();
+        assert_eq!(e, UnknownMethod("checkerboard".into()));
+        assert_eq!(
+            e.to_string(),
+            "unknown method `checkerboard`: one of insystem, bezier, opencv"
+        );
     }
 }

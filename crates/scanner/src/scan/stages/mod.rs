@@ -16,7 +16,9 @@ pub use adjust::{AdjustParams, AdjustStage};
 pub use measure::{MeasureParams, MeasureStage};
 pub use model::{ModelParams, ModelStage};
 #[cfg(feature = "plugins")]
-pub use plugin::{PluginDetector, PluginInfo, PluginRunner, PluginScanStage, PluginSinkStage};
+pub use plugin::{
+    PluginDetector, PluginInfo, PluginRunner, PluginScanStage, PluginSinkStage, PluginStageError,
+};
 pub use process::{Accumulate, Detect, Triangulate};
 pub use sinks::{GridSink, HeightMapSink, PlySink, SummarySink};
 pub use tap::FrameTap;

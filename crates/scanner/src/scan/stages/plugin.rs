@@ -83,6 +83,31 @@ const EMPTY: RowOut = RowOut {
     reject: 1,
 };
 
+/// Why a per-scan or sink plugin stage failed. Each message names the plugin; a cause is its
+/// source, not repeated in the message.
+#[derive(Debug, thiserror::Error)]
+pub enum PluginStageError {
+    /// The plugin did not run to its end (its error names it).
+    #[error(transparent)]
+    Run(#[from] footscan_plugins::PluginError),
+    /// A per-scan plugin's report is not `key value` lines; `problem` says which line.
+    #[error("plugin {plugin} {problem}")]
+    Values { plugin: String, problem: String },
+    /// A sink plugin's report could not be kept in the scan directory.
+    #[error("plugin {plugin}: its report could not be written to {}", path.display())]
+    Report {
+        plugin: String,
+        path: std::path::PathBuf,
+        source: std::io::Error,
+    },
+    /// The stage never met the item it runs on; `missing` says where to place it.
+    #[error("plugin {plugin} {missing}")]
+    NeverRan {
+        plugin: String,
+        missing: &'static str,
+    },
+}
+
 /// A per-scan or sink plugin: a wasm module's instance or a process.
 pub enum PluginRunner {
     Wasm(footscan_plugins::wasm::WasmRunner),
@@ -135,7 +160,7 @@ impl PluginInfo {
         &self,
         done: &mut bool,
         place: &str,
-        ran: Option<Result<(), String>>,
+        ran: Option<Result<(), PluginStageError>>,
     ) -> Result<(), BoxError> {
         let Some(ran) = ran else {
             return Ok(());
@@ -146,17 +171,29 @@ impl PluginInfo {
 
     /// At the end of the scan: a once-per-scan stage that never met its item fails with
     /// `missing` (where to place it).
-    fn once_finished(&self, done: bool, place: &str, missing: &str) -> Result<(), BoxError> {
+    fn once_finished(
+        &self,
+        done: bool,
+        place: &str,
+        missing: &'static str,
+    ) -> Result<(), BoxError> {
         if done {
             return Ok(());
         }
-        self.failed(place, format!("plugin {} {missing}", self.plugin))
+        self.failed(
+            place,
+            PluginStageError::NeverRan {
+                plugin: self.plugin.clone(),
+                missing,
+            },
+        )
     }
 
-    fn failed(&self, place: &str, why: String) -> Result<(), BoxError> {
+    fn failed(&self, place: &str, why: PluginStageError) -> Result<(), BoxError> {
         if self.required {
             return Err(why.into());
         }
+        let why = footscan_util::chain(&why);
         tracing::warn!(stage = self.stage, plugin = %self.plugin, "optional {place} stage skipped: {why}");
         self.counters.add_plugin(crate::scan::PluginRecord {
             status: "skipped".into(),
@@ -184,16 +221,20 @@ impl PluginScanStage {
         }
     }
 
-    fn run(&mut self, grid: &crate::scandata::ScanGrid) -> Result<(), String> {
+    fn run(&mut self, grid: &crate::scandata::ScanGrid) -> Result<(), PluginStageError> {
         let mut input = Vec::with_capacity(grid.valid_count() * 24);
         for (_, _, p, _) in grid.valid() {
             for v in p {
                 input.extend_from_slice(&v.to_le_bytes());
             }
         }
-        let report = self.runner.run(&input, None).map_err(|e| e.to_string())?;
-        let values = footscan_plugins::parse_values(&report)
-            .map_err(|e| format!("plugin {} {e}", self.info.plugin))?;
+        let report = self.runner.run(&input, None)?;
+        let values = footscan_plugins::parse_values(&report).map_err(|problem| {
+            PluginStageError::Values {
+                plugin: self.info.plugin.clone(),
+                problem,
+            }
+        })?;
         self.info.counters.add_plugin(crate::scan::PluginRecord {
             values: values.into_iter().collect(),
             ..self.info.record("scan")
@@ -255,20 +296,17 @@ impl PluginSinkStage {
         }
     }
 
-    fn run(&mut self, summary: &crate::scan::ScanSummary) -> Result<(), String> {
+    fn run(&mut self, summary: &crate::scan::ScanSummary) -> Result<(), PluginStageError> {
         let mut s = summary.clone();
         s.plugins = self.info.counters.plugins();
         let input = serde_json::to_vec(&s).expect("the summary serialises");
-        let report = self
-            .runner
-            .run(&input, Some(&self.out_dir))
-            .map_err(|e| e.to_string())?;
-        crate::io::write_atomic(&self.report, &report).map_err(|e| {
-            format!(
-                "plugin {}: its report could not be written to {}: {e}",
-                self.info.plugin,
-                self.report.display()
-            )
+        let report = self.runner.run(&input, Some(&self.out_dir))?;
+        crate::io::write_atomic(&self.report, &report).map_err(|source| {
+            PluginStageError::Report {
+                plugin: self.info.plugin.clone(),
+                path: self.report.clone(),
+                source,
+            }
         })?;
         self.info.counters.add_plugin(crate::scan::PluginRecord {
             report: self
@@ -305,5 +343,57 @@ impl crate::pipeline::Stage<crate::scan::item::Item> for PluginSinkStage {
             "sink",
             "received no scan summary: place the sink after sink.summary",
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn info(required: bool) -> PluginInfo {
+        PluginInfo {
+            stage: "exec",
+            plugin: "post.py".into(),
+            required,
+            counters: Default::default(),
+        }
+    }
+
+    /// A skipped optional stage keeps its failure and its cause in scan.json, each said once.
+    #[test]
+    fn a_skipped_stage_keeps_its_reason_with_the_cause_once() {
+        let i = info(false);
+        let why = PluginStageError::Report {
+            plugin: i.plugin.clone(),
+            path: "/scan/post-report.txt".into(),
+            source: std::io::Error::other("disk full"),
+        };
+        i.failed("sink", why).unwrap();
+        let r = i.counters.plugins();
+        assert_eq!(r[0].status, "skipped");
+        assert_eq!(
+            r[0].reason.as_deref(),
+            Some("plugin post.py: its report could not be written to /scan/post-report.txt: disk full")
+        );
+    }
+
+    /// A required stage fails the scan with a typed error, its cause as its source.
+    #[test]
+    fn a_required_stage_fails_with_the_typed_error() {
+        let i = info(true);
+        let e = i
+            .once_finished(
+                false,
+                "scan",
+                "received no scan grid: place it after accumulate",
+            )
+            .unwrap_err();
+        let e = e.downcast_ref::<PluginStageError>().expect("typed");
+        assert!(matches!(e, PluginStageError::NeverRan { .. }), "{e:?}");
+        assert_eq!(
+            e.to_string(),
+            "plugin post.py received no scan grid: place it after accumulate"
+        );
+        assert!(i.counters.plugins().is_empty());
     }
 }
