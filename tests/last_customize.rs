@@ -858,6 +858,18 @@ fn clinic_shared_lasts_meet_every_applicable_rule() {
         ] {
             assert!(out_dir.join(f).exists(), "{name}: no {f}");
         }
+        // The clinic path has no whole foot: foot_in_last.glb's inner node is the stock
+        // last and is named so, not "foot".
+        let glb = std::fs::read(out_dir.join("foot_in_last.glb")).unwrap();
+        let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+        let json: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+        let names: Vec<&str> = json["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|n| n["name"].as_str())
+            .collect();
+        assert_eq!(names, ["stock last", "last"], "{name}: glb nodes");
         // The heel the rules used is the stock last's own, as a last maker measures it,
         // said in a note: the last keeps its bottom curve, so its heel is the shoe's.
         let mut margs = vec!["last", "measure", s(&stock), "--json"];

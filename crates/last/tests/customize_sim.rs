@@ -122,7 +122,8 @@ fn simulated_feet() {
                 // The glTF outputs: the last, and the foot inside it in one frame (the foot's
                 // box within the last's but for 5 mm), the foot red where it stands out.
                 assert!(dir.join("last.glb").is_file());
-                let (_, proud) = footscan_geom::mesh::foot_in_last_glb(&c.foot, &c.last).unwrap();
+                let (_, proud) =
+                    footscan_geom::mesh::foot_in_last_glb(&c.foot, "foot", &c.last).unwrap();
                 let (fb, lb) = (c.foot.bbox(), c.last.bbox());
                 println!(
                     "  foot_in_last.glb: the foot stands out of the last by {proud:.2} mm at most"

@@ -396,10 +396,14 @@ const PROUD: [f32; 4] = [0.85, 0.05, 0.05, 1.0];
 pub const PROUD_FULL_MM: f64 = 2.0;
 
 /// The foot inside the last, for a last maker to look at before the milling: the foot
-/// (node "foot") coloured by where it stands out of the last (skin inside, shading to red at
+/// (node `inner`: "foot", or "stock last" where a stock last stands for the foot) coloured by where it stands out of the last (skin inside, shading to red at
 /// [`PROUD_FULL_MM`] out), the last (node "last") translucent around it. Both in the same
 /// frame, millimetres. Returns the bytes and the foot's largest protrusion (mm, 0 if none).
-pub fn foot_in_last_glb(foot: &TriMesh, last: &TriMesh) -> Result<(Vec<u8>, f64), GlbError> {
+pub fn foot_in_last_glb(
+    foot: &TriMesh,
+    inner: &str,
+    last: &TriMesh,
+) -> Result<(Vec<u8>, f64), GlbError> {
     let bvh = super::Bvh::new(last);
     let mut worst = 0.0f64;
     let colours: Vec<[f32; 4]> = foot
@@ -414,7 +418,7 @@ pub fn foot_in_last_glb(foot: &TriMesh, last: &TriMesh) -> Result<(Vec<u8>, f64)
         .collect();
     let bytes = glb(&[
         GlbPart {
-            name: "foot",
+            name: inner,
             mesh: foot,
             colour: [1.0; 4],
             vertex_colours: Some(&colours),
@@ -433,10 +437,11 @@ pub fn foot_in_last_glb(foot: &TriMesh, last: &TriMesh) -> Result<(Vec<u8>, f64)
 pub fn write_foot_in_last_glb(
     path: impl AsRef<Path>,
     foot: &TriMesh,
+    inner: &str,
     last: &TriMesh,
 ) -> Result<f64, GlbError> {
     let path = path.as_ref();
-    let (bytes, worst) = foot_in_last_glb(foot, last)?;
+    let (bytes, worst) = foot_in_last_glb(foot, inner, last)?;
     let mut name = path.file_name().unwrap_or_default().to_os_string();
     name.push(".tmp");
     let tmp = path.with_file_name(name);

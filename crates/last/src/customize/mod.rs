@@ -1037,7 +1037,14 @@ fn write_files(
     )
     .map_err(|e| out(&p, e.to_string()))?;
     let p = dir.join("foot_in_last.glb");
-    footscan_geom::mesh::write_foot_in_last_glb(&p, &c.foot, &c.last)
+    // On the clinic path (a stock last placed on the footprint) there is no whole foot:
+    // the stock last stands inside, named so.
+    let inner = if c.placement.is_some() {
+        "stock last"
+    } else {
+        "foot"
+    };
+    footscan_geom::mesh::write_foot_in_last_glb(&p, &c.foot, inner, &c.last)
         .map_err(|e| out(&p, e.to_string()))?;
     let surf = surface::last_surface(c)?;
     let hdr = footscan_geom::export::Header::new("footscan customized last");
