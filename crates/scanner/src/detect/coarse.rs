@@ -47,6 +47,30 @@ pub trait Px: Copy + Ord + Default + Send + Sync + 'static {
         let _ = (isa, blocks);
         None
     }
+    /// The first index in `from..to` whose value is not above `t` (not > `t` when `strict`,
+    /// not >= `t` otherwise), `to` if every one is: where a run of the line ends going right.
+    #[inline]
+    fn run_fwd_on(isa: Isa, row: &[Self], from: usize, to: usize, t: f32, strict: bool) -> usize {
+        let _ = isa;
+        let above = |v: Self| if strict { v.f() > t } else { v.f() >= t };
+        let mut k = from;
+        while k < to && above(row[k]) {
+            k += 1;
+        }
+        k
+    }
+    /// One past the last index in `from..to` whose value is not above `t` (as
+    /// [`Self::run_fwd_on`]), `from` if every one is: where a run ends going left from `to`.
+    #[inline]
+    fn run_back_on(isa: Isa, row: &[Self], from: usize, to: usize, t: f32, strict: bool) -> usize {
+        let _ = isa;
+        let above = |v: Self| if strict { v.f() > t } else { v.f() >= t };
+        let mut k = to;
+        while k > from && above(row[k - 1]) {
+            k -= 1;
+        }
+        k
+    }
     /// The largest block maximum outside blocks `lo..=hi`, on `isa` (None: the portable fold).
     #[inline]
     fn blocks_outside_on(isa: Isa, blocks: &[Self], lo: usize, hi: usize) -> Option<Self> {
@@ -82,6 +106,38 @@ impl Px for u8 {
     fn blocks_outside_on(isa: Isa, blocks: &[u8], lo: usize, hi: usize) -> Option<u8> {
         simd::max_outside_u8(isa, blocks, lo, hi)
     }
+    #[inline]
+    fn run_fwd_on(isa: Isa, row: &[u8], from: usize, to: usize, t: f32, strict: bool) -> usize {
+        match at_most_u8(t, strict) {
+            Some(c) if isa != Isa::Scalar && from < to => {
+                simd::first_at_most_u8(&row[from..to], c).map_or(to, |k| from + k)
+            }
+            _ => {
+                let above = |v: u8| if strict { v.f() > t } else { v.f() >= t };
+                let mut k = from;
+                while k < to && above(row[k]) {
+                    k += 1;
+                }
+                k
+            }
+        }
+    }
+    #[inline]
+    fn run_back_on(isa: Isa, row: &[u8], from: usize, to: usize, t: f32, strict: bool) -> usize {
+        match at_most_u8(t, strict) {
+            Some(c) if isa != Isa::Scalar && from < to => {
+                simd::last_at_most_u8(&row[from..to], c).map_or(from, |k| from + k + 1)
+            }
+            _ => {
+                let above = |v: u8| if strict { v.f() > t } else { v.f() >= t };
+                let mut k = to;
+                while k > from && above(row[k - 1]) {
+                    k -= 1;
+                }
+                k
+            }
+        }
+    }
     /// Eight bytes per step: the classic "has a zero byte" test on `word ^ v..v`; its lowest
     /// set bit always marks the first match.
     #[inline]
@@ -104,6 +160,28 @@ impl Px for u8 {
             .iter()
             .position(|&x| x == v)
             .unwrap_or(s.len() - base)
+    }
+}
+
+/// The byte c with "v is not above t" exactly when v <= c, for every byte v: "not above" is
+/// v <= t (strict, v > t is above) or v < t; None when no byte or every byte is above (t out
+/// of range), where the portable loop decides.
+#[inline]
+fn at_most_u8(t: f32, strict: bool) -> Option<u8> {
+    if !(0.0..255.0).contains(&t) {
+        return None;
+    }
+    // t in [0, 255): its floor fits a byte.
+    let f = t as u32;
+    if strict {
+        // v <= t  <=>  v <= floor(t) for an integer v.
+        Some(f as u8)
+    } else if (f as f32) == t {
+        // v < t = f  <=>  v <= f - 1.
+        f.checked_sub(1).map(|c| c as u8)
+    } else {
+        // v < t, t not an integer  <=>  v <= floor(t).
+        Some(f as u8)
     }
 }
 
@@ -731,14 +809,8 @@ pub fn coarse_row_on<T: Px>(
     let saturated = if top >= full { m1 - m0 + 1 } else { 0 };
     let m = (m0 + m1) / 2;
     // Run above the threshold.
-    let mut lo = m0;
-    while lo > 0 && row[lo - 1].f() > thr {
-        lo -= 1;
-    }
-    let mut hi = m1;
-    while hi + 1 < w && row[hi + 1].f() > thr {
-        hi += 1;
-    }
+    let lo = T::run_back_on(isa, row, 0, m0, thr, true);
+    let hi = T::run_fwd_on(isa, row, m1 + 1, w, thr, true) - 1;
     if lo == 0 || hi + 1 == w {
         return Err((Reject::Border, top));
     }
@@ -752,18 +824,12 @@ pub fn coarse_row_on<T: Px>(
     }
     // Width at half height, linear interpolation at both crossings.
     let half = bg + 0.5 * (top - bg);
-    let mut l = m0;
-    while l > lo && row[l - 1].f() >= half {
-        l -= 1;
-    }
+    let l = T::run_back_on(isa, row, lo, m0, half, false);
     let xl = {
         let (v0, v1) = (row[l - 1].f(), row[l].f());
         (l - 1) as f32 + ((half - v0) / (v1 - v0).max(1e-6)).clamp(0.0, 1.0)
     };
-    let mut r = m1;
-    while r < hi && row[r + 1].f() >= half {
-        r += 1;
-    }
+    let r = T::run_fwd_on(isa, row, m1 + 1, hi + 1, half, false) - 1;
     let xr = {
         let (v0, v1) = (row[r].f(), row[r + 1].f());
         r as f32 + ((v0 - half) / (v0 - v1).max(1e-6)).clamp(0.0, 1.0)

@@ -302,6 +302,32 @@ pub fn position_u16(isa: Isa, s: &[u16], v: u16) -> Option<usize> {
     None
 }
 
+/// The first index of a byte <= `c` in `s` (None if there is none): the end of a run of the
+/// line going right. The portable loop is one compare and branch per pixel, and its exit
+/// (where the run ends, a different place every row) is a mispredicted branch; here 16
+/// pixels per compare and the end from the mask. SSE4.1 on every set above scalar (runs are a
+/// few pixels long).
+#[inline]
+pub fn first_at_most_u8(s: &[u8], c: u8) -> Option<usize> {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: called only for a set above Scalar (see `block_max_u8`), all of which include
+    // SSE4.1.
+    return unsafe { x86::first_at_most_u8_sse41(s, c) };
+    #[cfg(not(target_arch = "x86_64"))]
+    s.iter().position(|&v| v <= c)
+}
+
+/// The last index of a byte <= `c` in `s` (None if there is none): the end of a run going
+/// left ([`first_at_most_u8`]).
+#[inline]
+pub fn last_at_most_u8(s: &[u8], c: u8) -> Option<usize> {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: as in `first_at_most_u8`.
+    return unsafe { x86::last_at_most_u8_sse41(s, c) };
+    #[cfg(not(target_arch = "x86_64"))]
+    s.iter().rposition(|&v| v <= c)
+}
+
 /// p(s) = sum a_i s^i and p'(s), given `a` and `da` (da_i = (i + 1) a_(i+1), so p' = sum
 /// da_i s^i), both zero-padded to a multiple of 4 terms. Horner's rule is one chain of
 /// dependent multiply-adds per term; here the terms are split by i mod 4 into four
@@ -707,6 +733,44 @@ mod x86 {
         hmax_u16(m)
     }
 
+    /// Mask of the bytes <= c among the 16 at `p`.
+    #[target("x86_64+sse4.1")]
+    #[inline]
+    unsafe fn at_most_mask(p: *const u8, c: __m128i) -> u32 {
+        let v = _mm_loadu_si128(p as *const __m128i);
+        _mm_movemask_epi8(_mm_cmpeq_epi8(_mm_min_epu8(v, c), v)) as u32
+    }
+
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn first_at_most_u8_sse41(s: &[u8], c: u8) -> Option<usize> {
+        let cv = _mm_set1_epi8(c as i8);
+        let p = s.as_ptr();
+        let mut o = 0;
+        while o + 16 <= s.len() {
+            let m = at_most_mask(p.add(o), cv);
+            if m != 0 {
+                return Some(o + m.trailing_zeros() as usize);
+            }
+            o += 16;
+        }
+        s[o..].iter().position(|&v| v <= c).map(|k| o + k)
+    }
+
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn last_at_most_u8_sse41(s: &[u8], c: u8) -> Option<usize> {
+        let cv = _mm_set1_epi8(c as i8);
+        let p = s.as_ptr();
+        let mut e = s.len();
+        while e >= 16 {
+            let m = at_most_mask(p.add(e - 16), cv);
+            if m != 0 {
+                return Some(e - 16 + 31 - m.leading_zeros() as usize);
+            }
+            e -= 16;
+        }
+        s[..e].iter().rposition(|&v| v <= c)
+    }
+
     /// `super::poly_and_derivative` with the four i-mod-4 polynomials in the lanes of one
     /// 256-bit register, a fused multiply-add per four terms.
     #[target("x86_64+avx2+fma+sse4.1")]
@@ -877,6 +941,21 @@ mod tests {
                             assert_eq!(got, want, "{isa:?} position16 {v} len {len}");
                         }
                     }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn run_ends_match_the_portable_search() {
+        for len in [0usize, 1, 5, 15, 16, 17, 31, 32, 40, 100] {
+            for seed in 0..50usize {
+                let s: Vec<u8> = (0..len)
+                    .map(|i| ((i * 131 + seed * 17) % 97 + 100) as u8)
+                    .collect();
+                for c in [0u8, 99, 120, 150, 196, 255] {
+                    assert_eq!(first_at_most_u8(&s, c), s.iter().position(|&v| v <= c));
+                    assert_eq!(last_at_most_u8(&s, c), s.iter().rposition(|&v| v <= c));
                 }
             }
         }
