@@ -75,14 +75,14 @@ impl Isa {
         Isa::ALL.into_iter().filter(|i| i.supported()).collect()
     }
 
-    /// The set detectors use unless a thread forces one (detected once): AVX2 before
-    /// AVX-512, which was 2-6 % slower per frame on this machine's CPU (docs/method.md
-    /// section 4.7: a block's reduction starts with two extracts, and the rest of the row
-    /// work gains nothing from the wider registers); AVX-512 stays available by force.
+    /// The set detectors use unless a thread forces one (detected once): the fastest on this
+    /// machine's CPU. AVX-512 was 2-6 % slower than AVX2 before the packed block scans and
+    /// order statistics (docs/method.md 4.7); since them it is 3 % (bezier-plus) and 7-8 %
+    /// (cog) faster (4.7.1), and AVX2 is the fallback.
     pub fn detected() -> Isa {
         static BEST: OnceLock<Isa> = OnceLock::new();
         *BEST.get_or_init(|| {
-            [Isa::Avx2, Isa::Avx512, Isa::Sse41]
+            [Isa::Avx512, Isa::Avx2, Isa::Sse41]
                 .into_iter()
                 .find(|i| i.supported())
                 .unwrap_or(Isa::Scalar)
