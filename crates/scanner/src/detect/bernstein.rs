@@ -14,6 +14,7 @@
 //! are the shared ones of `footscan_geom::bernstein`; what is here is the detector's use of
 //! them: which polynomial, which root, and how it is searched.
 
+use super::simd::{self, Isa};
 pub use footscan_geom::bernstein::Binomials;
 use footscan_geom::bernstein::{de_casteljau, horner, to_power_form, MAX_TERMS};
 
@@ -53,23 +54,40 @@ pub fn bisect_literal(samples: &[f64]) -> f64 {
 
 /// Root t* of I'(t) (a maximum of I: + to - crossing) nearest `t0`, to about 1e-6 px.
 /// `samples` are the n + 1 window values; `binom` from [`Binomials`]. None if I'(t) has no
-/// + to - crossing in [0, 1].
+/// + to - crossing in [0, 1]. The portable code (Horner's rule): the scalar path.
 pub fn root_near(samples: &[f32], binom: &Binomials, t0: f64) -> Option<f64> {
+    root_near_on(Isa::Scalar, samples, binom, t0)
+}
+
+/// [`root_near`] with p(s) and p'(s) evaluated on the instruction set `isa`
+/// ([`simd::poly_and_derivative`]; Horner's rule on the scalar set).
+pub fn root_near_on(isa: Isa, samples: &[f32], binom: &Binomials, t0: f64) -> Option<f64> {
     let n = samples.len() - 1;
     debug_assert!((2..MAX_N).contains(&n));
-    let mut a = [0.0f64; MAX_N];
+    // Zero-padded to a multiple of 4 terms for the packed evaluation (MAX_N + 3 >= n + 3).
+    let mut a = [0.0f64; MAX_N + 4];
     for i in 0..n {
         a[i] = (samples[i + 1] - samples[i]) as f64;
     }
-    let a = &mut a[..n];
-    to_power_form(a, binom);
-    let a = &*a;
+    to_power_form(&mut a[..n], binom);
+    let padded = n.next_multiple_of(4);
+    let mut da = [0.0f64; MAX_N + 4];
+    if isa != Isa::Scalar {
+        for i in 0..n - 1 {
+            da[i] = (i + 1) as f64 * a[i + 1];
+        }
+    }
+    let (a4, da4) = (&a[..padded], &da[..padded]);
+    let a = &a[..n];
+    let eval = |s: f64| -> (f64, f64) {
+        simd::poly_and_derivative(isa, a4, da4, s).unwrap_or_else(|| horner(a, s))
+    };
     // Fast path: Newton on p(s) from the starting point; a maximum has p' < 0 at the root.
     {
         let tc = t0.clamp(0.02, 0.98);
         let mut s = tc / (1.0 - tc);
         for _ in 0..8 {
-            let (p, dp) = horner(a, s);
+            let (p, dp) = eval(s);
             if dp.is_nan() || dp >= 0.0 {
                 break;
             }
@@ -93,7 +111,7 @@ pub fn root_near(samples: &[f32], binom: &Binomials, t0: f64) -> Option<f64> {
             return (a[n - 1], 0.0);
         }
         let u = 1.0 - t;
-        let (p, dp) = horner(a, t / u);
+        let (p, dp) = eval(t / u);
         (p, dp / (u * u))
     };
     // Bracket [lo, hi] with g(lo) > 0 >= g(hi), searched outward from t0 in steps of half a px.

@@ -25,11 +25,12 @@
 //!    Cost along y: the impulse response of the default (sigma 1.5 rows) has a FWHM of
 //!    3.5 rows = 0.44 mm at the glass (rows are (D + h) / F = 0.125 mm apart at h = 0).
 
-use super::bernstein::{root_near, Binomials, MAX_N};
+use super::bernstein::{root_near, root_near_on, Binomials, MAX_N};
 use super::coarse::{
     prefetch_ahead, reject_isolated, CoarseConfig, CoarseScratch, Near, Peak, Px, NEAR_ROWS,
 };
 use super::estimators::{accepted, binomials};
+use super::simd::Isa;
 use super::{Detector, LinePeak, Reject};
 use footscan_hal::{Frame, Pixels};
 
@@ -249,7 +250,7 @@ impl BezierPlus {
                     col,
                     width: if width.is_finite() { width as f32 } else { 3.0 },
                 });
-            out[r] = match scratch.row_near(row, &cfg, thr, near) {
+            out[r] = match scratch.row_near_on(isa, row, &cfg, thr, near) {
                 Err((why, v)) => {
                     self.raw[r] = f64::NAN;
                     LinePeak::rejected(why, v)
@@ -268,7 +269,7 @@ impl BezierPlus {
                     } else {
                         pk.width as f64
                     } / 2.3548;
-                    match estimate_row(row, &pk, sigma, &self.cfg, self.bias.as_ref(), binom) {
+                    match estimate_row(isa, row, &pk, sigma, &self.cfg, self.bias.as_ref(), binom) {
                         Some(c) => {
                             self.raw[r] = c;
                             accepted(c, &pk, T::FULL as f32)
@@ -305,6 +306,7 @@ pub(crate) fn bin_for(sigma: f64) -> usize {
 
 /// Steps 3 of the module doc for one row: None if no window fits.
 fn estimate_row<T: Px>(
+    isa: Isa,
     row: &[T],
     pk: &Peak,
     sigma: f64,
@@ -404,7 +406,7 @@ fn estimate_row<T: Px>(
     // Bin i's centre is at pixel x0 + (b - 1) / 2 + b i; x(t) = that at i = n t.
     let first = x0 as f64 + (bf - 1.0) / 2.0;
     let t0 = ((c1 - first) / (bf * n as f64)).clamp(0.0, 1.0);
-    let t = root_near(&smp[..=n], binom, t0)?;
+    let t = root_near_on(isa, &smp[..=n], binom, t0)?;
     let c2 = first + bf * n as f64 * t;
     let delta = (c2 - centre) / bf;
     let corr = match bias {

@@ -34,6 +34,49 @@ pub trait Px: Copy + Ord + Default + Send + Sync + 'static {
     fn position(s: &[Self], v: Self) -> usize {
         s.iter().position(|&x| x == v).unwrap_or(s.len())
     }
+    /// [`Self::position`] on the instruction set `isa`.
+    #[inline]
+    fn position_on(isa: Isa, s: &[Self], v: Self) -> usize {
+        let _ = isa;
+        Self::position(s, v)
+    }
+    /// The largest block maximum and the first block holding it, on `isa` (None: the
+    /// portable scan of [`first_max`]).
+    #[inline]
+    fn first_block_on(isa: Isa, blocks: &[Self]) -> Option<(Self, usize)> {
+        let _ = (isa, blocks);
+        None
+    }
+    /// The first index in `from..to` whose value is not above `t` (not > `t` when `strict`,
+    /// not >= `t` otherwise), `to` if every one is: where a run of the line ends going right.
+    #[inline]
+    fn run_fwd_on(isa: Isa, row: &[Self], from: usize, to: usize, t: f32, strict: bool) -> usize {
+        let _ = isa;
+        let above = |v: Self| if strict { v.f() > t } else { v.f() >= t };
+        let mut k = from;
+        while k < to && above(row[k]) {
+            k += 1;
+        }
+        k
+    }
+    /// One past the last index in `from..to` whose value is not above `t` (as
+    /// [`Self::run_fwd_on`]), `from` if every one is: where a run ends going left from `to`.
+    #[inline]
+    fn run_back_on(isa: Isa, row: &[Self], from: usize, to: usize, t: f32, strict: bool) -> usize {
+        let _ = isa;
+        let above = |v: Self| if strict { v.f() > t } else { v.f() >= t };
+        let mut k = to;
+        while k > from && above(row[k - 1]) {
+            k -= 1;
+        }
+        k
+    }
+    /// The largest block maximum outside blocks `lo..=hi`, on `isa` (None: the portable fold).
+    #[inline]
+    fn blocks_outside_on(isa: Isa, blocks: &[Self], lo: usize, hi: usize) -> Option<Self> {
+        let _ = (isa, blocks, lo, hi);
+        None
+    }
 }
 
 impl Px for u8 {
@@ -50,6 +93,50 @@ impl Px for u8 {
     #[inline]
     fn background_on(isa: Isa, row: &[u8]) -> (f32, f32, f32) {
         row_background_u8(isa, row)
+    }
+    #[inline]
+    fn position_on(isa: Isa, s: &[u8], v: u8) -> usize {
+        simd::position_u8(isa, s, v).unwrap_or_else(|| Self::position(s, v))
+    }
+    #[inline]
+    fn first_block_on(isa: Isa, blocks: &[u8]) -> Option<(u8, usize)> {
+        simd::first_max_u8(isa, blocks)
+    }
+    #[inline]
+    fn blocks_outside_on(isa: Isa, blocks: &[u8], lo: usize, hi: usize) -> Option<u8> {
+        simd::max_outside_u8(isa, blocks, lo, hi)
+    }
+    #[inline]
+    fn run_fwd_on(isa: Isa, row: &[u8], from: usize, to: usize, t: f32, strict: bool) -> usize {
+        match at_most_u8(t, strict) {
+            Some(c) if isa != Isa::Scalar && from < to => {
+                simd::first_at_most_u8(&row[from..to], c).map_or(to, |k| from + k)
+            }
+            _ => {
+                let above = |v: u8| if strict { v.f() > t } else { v.f() >= t };
+                let mut k = from;
+                while k < to && above(row[k]) {
+                    k += 1;
+                }
+                k
+            }
+        }
+    }
+    #[inline]
+    fn run_back_on(isa: Isa, row: &[u8], from: usize, to: usize, t: f32, strict: bool) -> usize {
+        match at_most_u8(t, strict) {
+            Some(c) if isa != Isa::Scalar && from < to => {
+                simd::last_at_most_u8(&row[from..to], c).map_or(from, |k| from + k + 1)
+            }
+            _ => {
+                let above = |v: u8| if strict { v.f() > t } else { v.f() >= t };
+                let mut k = to;
+                while k > from && above(row[k - 1]) {
+                    k -= 1;
+                }
+                k
+            }
+        }
     }
     /// Eight bytes per step: the classic "has a zero byte" test on `word ^ v..v`; its lowest
     /// set bit always marks the first match.
@@ -76,6 +163,28 @@ impl Px for u8 {
     }
 }
 
+/// The byte c with "v is not above t" exactly when v <= c, for every byte v: "not above" is
+/// v <= t (strict, v > t is above) or v < t; None when no byte or every byte is above (t out
+/// of range), where the portable loop decides.
+#[inline]
+fn at_most_u8(t: f32, strict: bool) -> Option<u8> {
+    if !(0.0..255.0).contains(&t) {
+        return None;
+    }
+    // t in [0, 255): its floor fits a byte.
+    let f = t as u32;
+    if strict {
+        // v <= t  <=>  v <= floor(t) for an integer v.
+        Some(f as u8)
+    } else if (f as f32) == t {
+        // v < t = f  <=>  v <= f - 1.
+        f.checked_sub(1).map(|c| c as u8)
+    } else {
+        // v < t, t not an integer  <=>  v <= floor(t).
+        Some(f as u8)
+    }
+}
+
 impl Px for u16 {
     const FULL: u32 = 65535;
     const SCALE: f32 = 257.0;
@@ -86,6 +195,18 @@ impl Px for u16 {
     #[inline]
     fn block_max_on(isa: Isa, row: &[u16], blocks: &mut [u16]) {
         super::simd::block_max_u16(isa, row, blocks)
+    }
+    #[inline]
+    fn position_on(isa: Isa, s: &[u16], v: u16) -> usize {
+        simd::position_u16(isa, s, v).unwrap_or_else(|| Self::position(s, v))
+    }
+    #[inline]
+    fn first_block_on(isa: Isa, blocks: &[u16]) -> Option<(u16, usize)> {
+        simd::first_max_u16(isa, blocks)
+    }
+    #[inline]
+    fn blocks_outside_on(isa: Isa, blocks: &[u16], lo: usize, hi: usize) -> Option<u16> {
+        simd::max_outside_u16(isa, blocks, lo, hi)
     }
 }
 
@@ -294,9 +415,7 @@ fn row_background_u8(isa: Isa, row: &[u8]) -> (f32, f32, f32) {
         s[k] = v;
         d[k] = v.abs_diff(row[(i + 1).min(row.len() - 1)]);
     }
-    let q3 = simd::kth_u8(isa, &s, 3 * n / 4);
-    let mad = simd::kth_u8(isa, &d, n / 2);
-    let tail = simd::kth_u8(isa, &d, AUTO_TAIL * n / 16);
+    let (q3, mad, tail) = simd::kth3_u8(isa, &s, 3 * n / 4, &d, n / 2, AUTO_TAIL * n / 16);
     (
         q3 as f32,
         1.4826 * mad as f32 / std::f32::consts::SQRT_2,
@@ -359,10 +478,22 @@ impl<T: Px> CoarseScratch<T> {
         thr: f32,
         near: Option<Near>,
     ) -> Result<Peak, (Reject, f32)> {
-        let first = coarse_row(row, &self.blocks, cfg, thr);
+        self.row_near_on(simd::current(), row, cfg, thr, near)
+    }
+
+    /// [`Self::row_near`] on the instruction set `isa`.
+    pub fn row_near_on(
+        &mut self,
+        isa: Isa,
+        row: &[T],
+        cfg: &CoarseConfig,
+        thr: f32,
+        near: Option<Near>,
+    ) -> Result<Peak, (Reject, f32)> {
+        let first = coarse_row_on(isa, row, &self.blocks, cfg, thr);
         match (first, near) {
             (Err((Reject::Ambiguous, v)), Some(n)) => {
-                coarse_row_near(row, &mut self.window_blocks, cfg, thr, n)
+                coarse_row_near_on(isa, row, &mut self.window_blocks, cfg, thr, n)
                     .ok_or((Reject::Ambiguous, v))
             }
             // Nothing above the threshold once the spikes were skipped, but the line of the
@@ -374,7 +505,7 @@ impl<T: Px> CoarseScratch<T> {
                     skip_spikes: false,
                     ..*cfg
                 };
-                coarse_row_near(row, &mut self.window_blocks, &kept, thr, n)
+                coarse_row_near_on(isa, row, &mut self.window_blocks, &kept, thr, n)
                     .filter(|pk| pk.saturated > 0)
                     .ok_or((Reject::BelowThreshold, v))
             }
@@ -506,7 +637,13 @@ fn seg_max<T: Px>(s: &[T]) -> T {
 
 /// Maximum of the row outside `ex`, from the block maxima: the value and the first position of
 /// it (the position only if `want_pos`; value 0 and position 0 if nothing is left).
-fn max_outside<T: Px>(row: &[T], blocks: &[T], ex: &Ranges, want_pos: bool) -> (T, usize) {
+fn max_outside<T: Px>(
+    isa: Isa,
+    row: &[T],
+    blocks: &[T],
+    ex: &Ranges,
+    want_pos: bool,
+) -> (T, usize) {
     let w = row.len();
     let mut best = T::default();
     // Where the best lies: [lo, hi] of a whole block or of a piece of one.
@@ -551,7 +688,7 @@ fn max_outside<T: Px>(row: &[T], blocks: &[T], ex: &Ranges, want_pos: bool) -> (
         }
     }
     match at {
-        Some((a, z)) if want_pos => (best, a + T::position(&row[a..=z], best).min(z - a)),
+        Some((a, z)) if want_pos => (best, a + T::position_on(isa, &row[a..=z], best).min(z - a)),
         Some(_) => (best, 0),
         None => (T::default(), 0),
     }
@@ -559,26 +696,34 @@ fn max_outside<T: Px>(row: &[T], blocks: &[T], ex: &Ranges, want_pos: bool) -> (
 
 /// The row's maximum and its first position, from the block maxima.
 #[inline]
-fn first_max<T: Px>(row: &[T], blocks: &[T]) -> (T, usize) {
-    let (mut m, mut b) = (T::default(), 0);
-    for (i, &v) in blocks.iter().enumerate() {
-        if v > m {
-            m = v;
-            b = i;
+fn first_max<T: Px>(isa: Isa, row: &[T], blocks: &[T]) -> (T, usize) {
+    let (m, b) = T::first_block_on(isa, blocks).unwrap_or_else(|| {
+        let (mut m, mut b) = (T::default(), 0);
+        for (i, &v) in blocks.iter().enumerate() {
+            if v > m {
+                m = v;
+                b = i;
+            }
         }
-    }
+        (m, b)
+    });
     let b0 = b * BLOCK;
     let end = (b0 + BLOCK).min(row.len());
-    (m, b0 + T::position(&row[b0..end], m).min(end - b0 - 1))
+    (
+        m,
+        b0 + T::position_on(isa, &row[b0..end], m).min(end - b0 - 1),
+    )
 }
 
 /// The row's maximum outside [lo, hi] (0 if nothing is left), from the block maxima.
 #[inline]
-fn max_excluding<T: Px>(row: &[T], blocks: &[T], lo: usize, hi: usize) -> T {
+fn max_excluding<T: Px>(isa: Isa, row: &[T], blocks: &[T], lo: usize, hi: usize) -> T {
     let (bl, bh) = (lo / BLOCK, hi / BLOCK);
     let end = ((bh + 1) * BLOCK).min(row.len());
-    let mut m = blocks[..bl].iter().copied().fold(T::default(), T::max);
-    m = blocks[bh + 1..].iter().copied().fold(m, T::max);
+    let m = T::blocks_outside_on(isa, blocks, bl, bh).unwrap_or_else(|| {
+        let m = blocks[..bl].iter().copied().fold(T::default(), T::max);
+        blocks[bh + 1..].iter().copied().fold(m, T::max)
+    });
     m.max(seg_max(&row[bl * BLOCK..lo]))
         .max(seg_max(&row[(hi + 1).min(end)..end]))
 }
@@ -614,6 +759,17 @@ pub fn coarse_row<T: Px>(
     cfg: &CoarseConfig,
     thr: f32,
 ) -> Result<Peak, (Reject, f32)> {
+    coarse_row_on(simd::current(), row, blocks, cfg, thr)
+}
+
+/// [`coarse_row`] on the instruction set `isa`.
+pub fn coarse_row_on<T: Px>(
+    isa: Isa,
+    row: &[T],
+    blocks: &[T],
+    cfg: &CoarseConfig,
+    thr: f32,
+) -> Result<Peak, (Reject, f32)> {
     let w = row.len();
     if w < 3 {
         return Err((Reject::Border, 0.0));
@@ -623,9 +779,9 @@ pub fn coarse_row<T: Px>(
     let (mut m0, mut m1, mut top);
     loop {
         let (v, pos) = if ex.n == 0 {
-            first_max(row, blocks)
+            first_max(isa, row, blocks)
         } else {
-            max_outside(row, blocks, &ex, true)
+            max_outside(isa, row, blocks, &ex, true)
         };
         let vf = v.f();
         if vf <= thr {
@@ -653,14 +809,8 @@ pub fn coarse_row<T: Px>(
     let saturated = if top >= full { m1 - m0 + 1 } else { 0 };
     let m = (m0 + m1) / 2;
     // Run above the threshold.
-    let mut lo = m0;
-    while lo > 0 && row[lo - 1].f() > thr {
-        lo -= 1;
-    }
-    let mut hi = m1;
-    while hi + 1 < w && row[hi + 1].f() > thr {
-        hi += 1;
-    }
+    let lo = T::run_back_on(isa, row, 0, m0, thr, true);
+    let hi = T::run_fwd_on(isa, row, m1 + 1, w, thr, true) - 1;
     if lo == 0 || hi + 1 == w {
         return Err((Reject::Border, top));
     }
@@ -674,18 +824,12 @@ pub fn coarse_row<T: Px>(
     }
     // Width at half height, linear interpolation at both crossings.
     let half = bg + 0.5 * (top - bg);
-    let mut l = m0;
-    while l > lo && row[l - 1].f() >= half {
-        l -= 1;
-    }
+    let l = T::run_back_on(isa, row, lo, m0, half, false);
     let xl = {
         let (v0, v1) = (row[l - 1].f(), row[l].f());
         (l - 1) as f32 + ((half - v0) / (v1 - v0).max(1e-6)).clamp(0.0, 1.0)
     };
-    let mut r = m1;
-    while r < hi && row[r + 1].f() >= half {
-        r += 1;
-    }
+    let r = T::run_fwd_on(isa, row, m1 + 1, hi + 1, half, false) - 1;
     let xr = {
         let (v0, v1) = (row[r].f(), row[r + 1].f());
         r as f32 + ((v0 - half) / (v0 - v1).max(1e-6)).clamp(0.0, 1.0)
@@ -705,7 +849,7 @@ pub fn coarse_row<T: Px>(
         let (a, z) = (lo.saturating_sub(gap), (hi + gap).min(w - 1));
         let rel = |v: T| ((v.f() - bg) / (top - bg).max(1.0)).max(0.0);
         let mut v2 = if ex.n == 0 {
-            max_excluding(row, blocks, a, z)
+            max_excluding(isa, row, blocks, a, z)
         } else {
             T::default()
         };
@@ -713,7 +857,7 @@ pub fn coarse_row<T: Px>(
             // Rare: look closer, skipping spikes.
             ex.push(a, z);
             loop {
-                let (v, pos) = max_outside(row, blocks, &ex, true);
+                let (v, pos) = max_outside(isa, row, blocks, &ex, true);
                 v2 = v;
                 if v.f() <= thr || rel(v) < cfg.ambiguity || ex.n + 1 >= ex.r.len() {
                     break;
@@ -805,6 +949,18 @@ pub fn coarse_row_near<T: Px>(
     thr: f32,
     near: Near,
 ) -> Option<Peak> {
+    coarse_row_near_on(simd::current(), row, blocks, cfg, thr, near)
+}
+
+/// [`coarse_row_near`] on the instruction set `isa`.
+pub fn coarse_row_near_on<T: Px>(
+    isa: Isa,
+    row: &[T],
+    blocks: &mut [T],
+    cfg: &CoarseConfig,
+    thr: f32,
+    near: Near,
+) -> Option<Peak> {
     let w = row.len();
     if !near.col.is_finite() || near.col < 0.0 || near.col >= w as f64 {
         return None;
@@ -815,12 +971,12 @@ pub fn coarse_row_near<T: Px>(
     let z = ((near.col + reach).ceil() as usize).min(w - 1);
     let sub = &row[a..=z];
     let nb = sub.len().div_ceil(BLOCK);
-    block_max(sub, &mut blocks[..nb]);
+    T::block_max_on(isa, sub, &mut blocks[..nb]);
     let single = CoarseConfig {
         ambiguity: 2.0,
         ..*cfg
     };
-    let mut pk = coarse_row(sub, &blocks[..nb], &single, thr).ok()?;
+    let mut pk = coarse_row_on(isa, sub, &blocks[..nb], &single, thr).ok()?;
     // The highest other peak in the window, beyond the line's own flanks.
     let gap = (pk.width as usize + 1).max(2);
     let (fl, fh) = (pk.lo.saturating_sub(gap), (pk.hi + gap).min(sub.len() - 1));

@@ -57,7 +57,7 @@ fn run_rows<T: Px, E: Estimate>(
                 col: p.col,
                 width: p.width,
             });
-        out[r] = match scratch.row_near(row, cfg, thr, near) {
+        out[r] = match scratch.row_near_on(isa, row, cfg, thr, near) {
             Err((r, v)) => LinePeak::rejected(r, v),
             Ok(pk) => match est.estimate(row, &pk, cfg) {
                 Ok(col) => accepted(col, &pk, T::FULL as f32),

@@ -27,7 +27,7 @@ mod line;
 mod list;
 pub mod simd;
 
-pub use bernstein::{bisect_literal, root_near, Binomials, MAX_N};
+pub use bernstein::{bisect_literal, root_near, root_near_on, Binomials, MAX_N};
 pub use bezier_plus::{BezierPlus, BezierPlusConfig};
 pub use channel::{Channel, ColorImage, ColorPixels, Image, Prep};
 pub use coarse::{sum_bytes, CoarseConfig, Peak, Threshold};

@@ -25,8 +25,9 @@ pub enum Isa {
     /// SSE2 on x86_64).
     Scalar,
     Sse41,
+    /// AVX2 + FMA.
     Avx2,
-    /// AVX-512F + BW.
+    /// AVX-512F + BW (and AVX2 + FMA).
     Avx512,
 }
 
@@ -52,10 +53,12 @@ impl Isa {
                 Isa::Avx2 => {
                     std::arch::is_x86_feature_detected!("sse4.1")
                         && std::arch::is_x86_feature_detected!("avx2")
+                        && std::arch::is_x86_feature_detected!("fma")
                 }
                 Isa::Avx512 => {
                     std::arch::is_x86_feature_detected!("sse4.1")
                         && std::arch::is_x86_feature_detected!("avx2")
+                        && std::arch::is_x86_feature_detected!("fma")
                         && std::arch::is_x86_feature_detected!("avx512f")
                         && std::arch::is_x86_feature_detected!("avx512bw")
                 }
@@ -72,14 +75,14 @@ impl Isa {
         Isa::ALL.into_iter().filter(|i| i.supported()).collect()
     }
 
-    /// The set detectors use unless a thread forces one (detected once): AVX2 before
-    /// AVX-512, which was 2-6 % slower per frame on this machine's CPU (docs/method.md
-    /// section 4.7: a block's reduction starts with two extracts, and the rest of the row
-    /// work gains nothing from the wider registers); AVX-512 stays available by force.
+    /// The set detectors use unless a thread forces one (detected once): the fastest on this
+    /// machine's CPU. AVX-512 was 2-6 % slower than AVX2 before the packed block scans and
+    /// order statistics (docs/method.md 4.7); since them it is 3 % (bezier-plus) and 7-8 %
+    /// (cog) faster (4.7.1), and AVX2 is the fallback.
     pub fn detected() -> Isa {
         static BEST: OnceLock<Isa> = OnceLock::new();
         *BEST.get_or_init(|| {
-            [Isa::Avx2, Isa::Avx512, Isa::Sse41]
+            [Isa::Avx512, Isa::Avx2, Isa::Sse41]
                 .into_iter()
                 .find(|i| i.supported())
                 .unwrap_or(Isa::Scalar)
@@ -197,6 +200,157 @@ pub fn kth_u8(isa: Isa, v: &[u8; 64], k: usize) -> u8 {
     *s.select_nth_unstable(k).1
 }
 
+/// The three order statistics of a row's background at once: the `ks`-th smallest of `s` and
+/// the `kd1`-th and `kd2`-th of `d` ([`kth_u8`] each). The three bit-by-bit searches are
+/// independent, so interleaving them hides each step's compare-count-decide latency behind
+/// the others' (one search alone is a chain of 8 dependent steps).
+#[inline]
+pub fn kth3_u8(
+    isa: Isa,
+    s: &[u8; 64],
+    ks: usize,
+    d: &[u8; 64],
+    kd1: usize,
+    kd2: usize,
+) -> (u8, u8, u8) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: as in `block_max_u8`.
+        match isa {
+            Isa::Avx512 => return unsafe { x86::kth3_u8_avx512(s, ks, d, kd1, kd2) },
+            Isa::Avx2 => return unsafe { x86::kth3_u8_avx2(s, ks, d, kd1, kd2) },
+            Isa::Sse41 => return unsafe { x86::kth3_u8_sse41(s, ks, d, kd1, kd2) },
+            Isa::Scalar => {}
+        }
+    }
+    (kth_u8(isa, s, ks), kth_u8(isa, d, kd1), kth_u8(isa, d, kd2))
+}
+
+/// The largest of `blocks` (block maxima of a row) and the first index holding it; (0, 0) for
+/// a row of zeros, as the scalar scan gives. The scalar scan is a chain of dependent
+/// compare-and-moves, one per block; here 16 blocks (8 for Gray16) per packed max.
+#[inline]
+pub fn first_max_u8(isa: Isa, blocks: &[u8]) -> Option<(u8, usize)> {
+    #[cfg(target_arch = "x86_64")]
+    if isa != Isa::Scalar && blocks.len() >= 16 {
+        // SAFETY: as in `block_max_u8`; every set above Scalar includes SSE4.1.
+        return Some(unsafe { x86::first_max_u8_sse41(blocks) });
+    }
+    let _ = (isa, blocks);
+    None
+}
+
+/// [`first_max_u8`] of Gray16 block maxima.
+#[inline]
+pub fn first_max_u16(isa: Isa, blocks: &[u16]) -> Option<(u16, usize)> {
+    #[cfg(target_arch = "x86_64")]
+    if isa != Isa::Scalar && blocks.len() >= 8 {
+        // SAFETY: as in `first_max_u8`.
+        return Some(unsafe { x86::first_max_u16_sse41(blocks) });
+    }
+    let _ = (isa, blocks);
+    None
+}
+
+/// The largest of `blocks` outside the indices `lo..=hi` (0 if none is left). None: use the
+/// portable code (scalar set, or a row too short or too long for the packed indices).
+#[inline]
+pub fn max_outside_u8(isa: Isa, blocks: &[u8], lo: usize, hi: usize) -> Option<u8> {
+    #[cfg(target_arch = "x86_64")]
+    if isa != Isa::Scalar && blocks.len() >= 16 && blocks.len() <= 256 {
+        // SAFETY: as in `first_max_u8`.
+        return Some(unsafe { x86::max_outside_u8_sse41(blocks, lo, hi) });
+    }
+    let _ = (isa, blocks, lo, hi);
+    None
+}
+
+/// [`max_outside_u8`] of Gray16 block maxima.
+#[inline]
+pub fn max_outside_u16(isa: Isa, blocks: &[u16], lo: usize, hi: usize) -> Option<u16> {
+    #[cfg(target_arch = "x86_64")]
+    if isa != Isa::Scalar && blocks.len() >= 8 && blocks.len() <= 65536 {
+        // SAFETY: as in `first_max_u8`.
+        return Some(unsafe { x86::max_outside_u16_sse41(blocks, lo, hi) });
+    }
+    let _ = (isa, blocks, lo, hi);
+    None
+}
+
+/// First index of `v` in `s` (`s.len()` if absent), 16 bytes per compare. None: the portable
+/// code.
+#[inline]
+pub fn position_u8(isa: Isa, s: &[u8], v: u8) -> Option<usize> {
+    #[cfg(target_arch = "x86_64")]
+    if isa != Isa::Scalar && s.len() >= 16 {
+        // SAFETY: as in `first_max_u8`.
+        return Some(unsafe { x86::position_u8_sse41(s, v) });
+    }
+    let _ = (isa, s, v);
+    None
+}
+
+/// [`position_u8`] of a Gray16 slice (8 values per compare).
+#[inline]
+pub fn position_u16(isa: Isa, s: &[u16], v: u16) -> Option<usize> {
+    #[cfg(target_arch = "x86_64")]
+    if isa != Isa::Scalar && s.len() >= 8 {
+        // SAFETY: as in `first_max_u8`.
+        return Some(unsafe { x86::position_u16_sse41(s, v) });
+    }
+    let _ = (isa, s, v);
+    None
+}
+
+/// The first index of a byte <= `c` in `s` (None if there is none): the end of a run of the
+/// line going right. The portable loop is one compare and branch per pixel, and its exit
+/// (where the run ends, a different place every row) is a mispredicted branch; here 16
+/// pixels per compare and the end from the mask. SSE4.1 on every set above scalar (runs are a
+/// few pixels long).
+#[inline]
+pub fn first_at_most_u8(s: &[u8], c: u8) -> Option<usize> {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: called only for a set above Scalar (see `block_max_u8`), all of which include
+    // SSE4.1.
+    return unsafe { x86::first_at_most_u8_sse41(s, c) };
+    #[cfg(not(target_arch = "x86_64"))]
+    s.iter().position(|&v| v <= c)
+}
+
+/// The last index of a byte <= `c` in `s` (None if there is none): the end of a run going
+/// left ([`first_at_most_u8`]).
+#[inline]
+pub fn last_at_most_u8(s: &[u8], c: u8) -> Option<usize> {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: as in `first_at_most_u8`.
+    return unsafe { x86::last_at_most_u8_sse41(s, c) };
+    #[cfg(not(target_arch = "x86_64"))]
+    s.iter().rposition(|&v| v <= c)
+}
+
+/// p(s) = sum a_i s^i and p'(s), given `a` and `da` (da_i = (i + 1) a_(i+1), so p' = sum
+/// da_i s^i), both zero-padded to a multiple of 4 terms. Horner's rule is one chain of
+/// dependent multiply-adds per term; here the terms are split by i mod 4 into four
+/// polynomials in s^4 evaluated side by side in the lanes of one register (two on SSE4.1),
+/// p(s) = P0(s^4) + s P1(s^4) + s^2 P2(s^4) + s^3 P3(s^4): a quarter of the chain. The sums
+/// round differently from Horner's (relative 1e-16, far below the 1e-6 px the root is found
+/// to). None on the scalar set: the caller keeps Horner's rule.
+#[inline]
+pub fn poly_and_derivative(isa: Isa, a: &[f64], da: &[f64], s: f64) -> Option<(f64, f64)> {
+    debug_assert!(a.len().is_multiple_of(4) && a.len() == da.len());
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: as in `block_max_u8`.
+        match isa {
+            Isa::Avx512 | Isa::Avx2 => return Some(unsafe { x86::poly4_avx2(a, da, s) }),
+            Isa::Sse41 => return Some(unsafe { x86::poly4_sse41(a, da, s) }),
+            Isa::Scalar => {}
+        }
+    }
+    let _ = (isa, a, da, s);
+    None
+}
+
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     use super::super::coarse::BLOCK;
@@ -245,7 +399,7 @@ mod x86 {
         tail(row, blocks);
     }
 
-    #[target("x86_64+avx2+sse4.1")]
+    #[target("x86_64+avx2+fma+sse4.1")]
     pub unsafe fn block_max_u8_avx2(row: &[u8], blocks: &mut [u8]) {
         for (b, ch) in blocks.iter_mut().zip(row.chunks_exact(BLOCK)) {
             let p = ch.as_ptr() as *const __m256i;
@@ -256,7 +410,7 @@ mod x86 {
         tail(row, blocks);
     }
 
-    #[target("x86_64+avx512f+avx512bw+avx2+sse4.1")]
+    #[target("x86_64+avx512f+avx512bw+avx2+fma+sse4.1")]
     pub unsafe fn block_max_u8_avx512(row: &[u8], blocks: &mut [u8]) {
         for (b, ch) in blocks.iter_mut().zip(row.chunks_exact(BLOCK)) {
             let z = _mm512_loadu_si512(ch.as_ptr() as *const _);
@@ -280,7 +434,7 @@ mod x86 {
         tail(row, blocks);
     }
 
-    #[target("x86_64+avx2+sse4.1")]
+    #[target("x86_64+avx2+fma+sse4.1")]
     pub unsafe fn block_max_u16_avx2(row: &[u16], blocks: &mut [u16]) {
         for (b, ch) in blocks.iter_mut().zip(row.chunks_exact(BLOCK)) {
             let p = ch.as_ptr() as *const __m256i;
@@ -294,7 +448,7 @@ mod x86 {
         tail(row, blocks);
     }
 
-    #[target("x86_64+avx512f+avx512bw+avx2+sse4.1")]
+    #[target("x86_64+avx512f+avx512bw+avx2+fma+sse4.1")]
     pub unsafe fn block_max_u16_avx512(row: &[u16], blocks: &mut [u16]) {
         for (b, ch) in blocks.iter_mut().zip(row.chunks_exact(BLOCK)) {
             let p = ch.as_ptr();
@@ -337,7 +491,7 @@ mod x86 {
         ans
     }
 
-    #[target("x86_64+avx2+sse4.1")]
+    #[target("x86_64+avx2+fma+sse4.1")]
     pub unsafe fn kth_u8_avx2(v: &[u8; 64], k: usize) -> u8 {
         let p = v.as_ptr() as *const __m256i;
         let flip = _mm256_set1_epi8(i8::MIN);
@@ -356,7 +510,7 @@ mod x86 {
         ans
     }
 
-    #[target("x86_64+avx512f+avx512bw+avx2+sse4.1")]
+    #[target("x86_64+avx512f+avx512bw+avx2+fma+sse4.1")]
     pub unsafe fn kth_u8_avx512(v: &[u8; 64], k: usize) -> u8 {
         let z = _mm512_loadu_si512(v.as_ptr() as *const _);
         let mut ans = 0u8;
@@ -368,6 +522,300 @@ mod x86 {
             }
         }
         ans
+    }
+
+    /// Three bit-by-bit searches (see `kth_u8_sse41`) interleaved.
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn kth3_u8_sse41(
+        s: &[u8; 64],
+        ks: usize,
+        d: &[u8; 64],
+        kd1: usize,
+        kd2: usize,
+    ) -> (u8, u8, u8) {
+        let (ps, pd) = (s.as_ptr() as *const __m128i, d.as_ptr() as *const __m128i);
+        let xs = [0, 1, 2, 3].map(|i| _mm_loadu_si128(ps.add(i)));
+        let xd = [0, 1, 2, 3].map(|i| _mm_loadu_si128(pd.add(i)));
+        let count = |x: &[__m128i; 4], c: u8| -> usize {
+            let cv = _mm_set1_epi8(c as i8);
+            x.iter()
+                .map(|&x| below_128(x, cv).count_ones())
+                .sum::<u32>() as usize
+        };
+        let (mut a, mut b, mut c) = (0u8, 0u8, 0u8);
+        for bit in (0..8).rev() {
+            let (ca, cb, cc) = (a | (1 << bit), b | (1 << bit), c | (1 << bit));
+            let (na, nb, nc) = (count(&xs, ca), count(&xd, cb), count(&xd, cc));
+            if na <= ks {
+                a = ca;
+            }
+            if nb <= kd1 {
+                b = cb;
+            }
+            if nc <= kd2 {
+                c = cc;
+            }
+        }
+        (a, b, c)
+    }
+
+    #[target("x86_64+avx2+fma+sse4.1")]
+    pub unsafe fn kth3_u8_avx2(
+        s: &[u8; 64],
+        ks: usize,
+        d: &[u8; 64],
+        kd1: usize,
+        kd2: usize,
+    ) -> (u8, u8, u8) {
+        let flip = _mm256_set1_epi8(i8::MIN);
+        let load = |p: *const u8, i: usize| {
+            _mm256_xor_si256(_mm256_loadu_si256((p as *const __m256i).add(i)), flip)
+        };
+        let (s0, s1) = (load(s.as_ptr(), 0), load(s.as_ptr(), 1));
+        let (d0, d1) = (load(d.as_ptr(), 0), load(d.as_ptr(), 1));
+        let count = |x0: __m256i, x1: __m256i, c: u8| -> usize {
+            let cv = _mm256_set1_epi8((c ^ 0x80) as i8);
+            ((_mm256_movemask_epi8(_mm256_cmpgt_epi8(cv, x0)) as u32).count_ones()
+                + (_mm256_movemask_epi8(_mm256_cmpgt_epi8(cv, x1)) as u32).count_ones())
+                as usize
+        };
+        let (mut a, mut b, mut c) = (0u8, 0u8, 0u8);
+        for bit in (0..8).rev() {
+            let (ca, cb, cc) = (a | (1 << bit), b | (1 << bit), c | (1 << bit));
+            let (na, nb, nc) = (count(s0, s1, ca), count(d0, d1, cb), count(d0, d1, cc));
+            if na <= ks {
+                a = ca;
+            }
+            if nb <= kd1 {
+                b = cb;
+            }
+            if nc <= kd2 {
+                c = cc;
+            }
+        }
+        (a, b, c)
+    }
+
+    #[target("x86_64+avx512f+avx512bw+avx2+fma+sse4.1")]
+    pub unsafe fn kth3_u8_avx512(
+        s: &[u8; 64],
+        ks: usize,
+        d: &[u8; 64],
+        kd1: usize,
+        kd2: usize,
+    ) -> (u8, u8, u8) {
+        let zs = _mm512_loadu_si512(s.as_ptr() as *const _);
+        let zd = _mm512_loadu_si512(d.as_ptr() as *const _);
+        let count =
+            |z: __m512i, c: u8| _mm512_cmplt_epu8_mask(z, _mm512_set1_epi8(c as i8)).count_ones();
+        let (mut a, mut b, mut c) = (0u8, 0u8, 0u8);
+        for bit in (0..8).rev() {
+            let (ca, cb, cc) = (a | (1 << bit), b | (1 << bit), c | (1 << bit));
+            let (na, nb, nc) = (count(zs, ca), count(zd, cb), count(zd, cc));
+            if na as usize <= ks {
+                a = ca;
+            }
+            if nb as usize <= kd1 {
+                b = cb;
+            }
+            if nc as usize <= kd2 {
+                c = cc;
+            }
+        }
+        (a, b, c)
+    }
+
+    /// The 16-byte pieces of a slice of at least 16: whole pieces from the start, then one
+    /// ending at the slice's end (overlapping the one before; max and "first match" are
+    /// unchanged by looking at a byte twice). Offsets of each piece.
+    #[inline(always)]
+    fn pieces(n: usize, lanes: usize) -> impl Iterator<Item = usize> {
+        let whole = n / lanes;
+        let tail = (!n.is_multiple_of(lanes)).then_some(n - lanes);
+        (0..whole).map(move |i| i * lanes).chain(tail)
+    }
+
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn first_max_u8_sse41(blocks: &[u8]) -> (u8, usize) {
+        let p = blocks.as_ptr();
+        let mut m = _mm_setzero_si128();
+        for o in pieces(blocks.len(), 16) {
+            m = _mm_max_epu8(m, _mm_loadu_si128(p.add(o) as *const __m128i));
+        }
+        let mx = hmax_u8(m);
+        (mx, position_u8_sse41(blocks, mx))
+    }
+
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn first_max_u16_sse41(blocks: &[u16]) -> (u16, usize) {
+        let p = blocks.as_ptr();
+        let mut m = _mm_setzero_si128();
+        for o in pieces(blocks.len(), 8) {
+            m = _mm_max_epu16(m, _mm_loadu_si128(p.add(o) as *const __m128i));
+        }
+        let mx = hmax_u16(m);
+        (mx, position_u16_sse41(blocks, mx))
+    }
+
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn position_u8_sse41(s: &[u8], v: u8) -> usize {
+        let p = s.as_ptr();
+        let vv = _mm_set1_epi8(v as i8);
+        for o in pieces(s.len(), 16) {
+            let hit = _mm_movemask_epi8(_mm_cmpeq_epi8(
+                _mm_loadu_si128(p.add(o) as *const __m128i),
+                vv,
+            ));
+            if hit != 0 {
+                return o + hit.trailing_zeros() as usize;
+            }
+        }
+        s.len()
+    }
+
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn position_u16_sse41(s: &[u16], v: u16) -> usize {
+        let p = s.as_ptr();
+        let vv = _mm_set1_epi16(v as i16);
+        for o in pieces(s.len(), 8) {
+            let hit = _mm_movemask_epi8(_mm_cmpeq_epi16(
+                _mm_loadu_si128(p.add(o) as *const __m128i),
+                vv,
+            ));
+            if hit != 0 {
+                return o + (hit.trailing_zeros() / 2) as usize;
+            }
+        }
+        s.len()
+    }
+
+    /// Block indices as packed bytes: piece offset + 0..15 (blocks.len() <= 256).
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn max_outside_u8_sse41(blocks: &[u8], lo: usize, hi: usize) -> u8 {
+        let p = blocks.as_ptr();
+        let step = _mm_setr_epi8(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        // Indices are at most 255; a range beyond it clamps without changing the test.
+        let (lv, hv) = (
+            _mm_set1_epi8(lo.min(255) as u8 as i8),
+            _mm_set1_epi8(hi.min(255) as u8 as i8),
+        );
+        let mut m = _mm_setzero_si128();
+        for o in pieces(blocks.len(), 16) {
+            let idx = _mm_add_epi8(_mm_set1_epi8(o as u8 as i8), step);
+            let inside = _mm_and_si128(
+                _mm_cmpeq_epi8(_mm_max_epu8(idx, lv), idx),
+                _mm_cmpeq_epi8(_mm_min_epu8(idx, hv), idx),
+            );
+            let v = _mm_andnot_si128(inside, _mm_loadu_si128(p.add(o) as *const __m128i));
+            m = _mm_max_epu8(m, v);
+        }
+        hmax_u8(m)
+    }
+
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn max_outside_u16_sse41(blocks: &[u16], lo: usize, hi: usize) -> u16 {
+        let p = blocks.as_ptr();
+        let step = _mm_setr_epi16(0, 1, 2, 3, 4, 5, 6, 7);
+        let (lv, hv) = (
+            _mm_set1_epi16(lo.min(65535) as u16 as i16),
+            _mm_set1_epi16(hi.min(65535) as u16 as i16),
+        );
+        let mut m = _mm_setzero_si128();
+        for o in pieces(blocks.len(), 8) {
+            let idx = _mm_add_epi16(_mm_set1_epi16(o as u16 as i16), step);
+            let inside = _mm_and_si128(
+                _mm_cmpeq_epi16(_mm_max_epu16(idx, lv), idx),
+                _mm_cmpeq_epi16(_mm_min_epu16(idx, hv), idx),
+            );
+            let v = _mm_andnot_si128(inside, _mm_loadu_si128(p.add(o) as *const __m128i));
+            m = _mm_max_epu16(m, v);
+        }
+        hmax_u16(m)
+    }
+
+    /// Mask of the bytes <= c among the 16 at `p`.
+    #[target("x86_64+sse4.1")]
+    #[inline]
+    unsafe fn at_most_mask(p: *const u8, c: __m128i) -> u32 {
+        let v = _mm_loadu_si128(p as *const __m128i);
+        _mm_movemask_epi8(_mm_cmpeq_epi8(_mm_min_epu8(v, c), v)) as u32
+    }
+
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn first_at_most_u8_sse41(s: &[u8], c: u8) -> Option<usize> {
+        let cv = _mm_set1_epi8(c as i8);
+        let p = s.as_ptr();
+        let mut o = 0;
+        while o + 16 <= s.len() {
+            let m = at_most_mask(p.add(o), cv);
+            if m != 0 {
+                return Some(o + m.trailing_zeros() as usize);
+            }
+            o += 16;
+        }
+        s[o..].iter().position(|&v| v <= c).map(|k| o + k)
+    }
+
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn last_at_most_u8_sse41(s: &[u8], c: u8) -> Option<usize> {
+        let cv = _mm_set1_epi8(c as i8);
+        let p = s.as_ptr();
+        let mut e = s.len();
+        while e >= 16 {
+            let m = at_most_mask(p.add(e - 16), cv);
+            if m != 0 {
+                return Some(e - 16 + 31 - m.leading_zeros() as usize);
+            }
+            e -= 16;
+        }
+        s[..e].iter().rposition(|&v| v <= c)
+    }
+
+    /// `super::poly_and_derivative` with the four i-mod-4 polynomials in the lanes of one
+    /// 256-bit register, a fused multiply-add per four terms.
+    #[target("x86_64+avx2+fma+sse4.1")]
+    pub unsafe fn poly4_avx2(a: &[f64], da: &[f64], s: f64) -> (f64, f64) {
+        let s2 = s * s;
+        let s4 = _mm256_set1_pd(s2 * s2);
+        let (pa, pd) = (a.as_ptr(), da.as_ptr());
+        let mut k = a.len();
+        let (mut p, mut q) = (_mm256_setzero_pd(), _mm256_setzero_pd());
+        while k >= 4 {
+            k -= 4;
+            p = _mm256_fmadd_pd(p, s4, _mm256_loadu_pd(pa.add(k)));
+            q = _mm256_fmadd_pd(q, s4, _mm256_loadu_pd(pd.add(k)));
+        }
+        // Lane j times s^j, then the sum of the lanes.
+        let pw = _mm256_setr_pd(1.0, s, s2, s2 * s);
+        let (p, q) = (_mm256_mul_pd(p, pw), _mm256_mul_pd(q, pw));
+        let hsum = |v: __m256d| {
+            let h = _mm_add_pd(_mm256_castpd256_pd128(v), _mm256_extractf128_pd::<1>(v));
+            _mm_cvtsd_f64(_mm_add_sd(h, _mm_unpackhi_pd(h, h)))
+        };
+        (hsum(p), hsum(q))
+    }
+
+    /// `poly4_avx2` in two 128-bit registers per polynomial, without FMA.
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn poly4_sse41(a: &[f64], da: &[f64], s: f64) -> (f64, f64) {
+        let s2 = s * s;
+        let s4 = _mm_set1_pd(s2 * s2);
+        let (pa, pd) = (a.as_ptr(), da.as_ptr());
+        let mut k = a.len();
+        let z = _mm_setzero_pd();
+        let (mut p0, mut p1, mut q0, mut q1) = (z, z, z, z);
+        while k >= 4 {
+            k -= 4;
+            p0 = _mm_add_pd(_mm_mul_pd(p0, s4), _mm_loadu_pd(pa.add(k)));
+            p1 = _mm_add_pd(_mm_mul_pd(p1, s4), _mm_loadu_pd(pa.add(k + 2)));
+            q0 = _mm_add_pd(_mm_mul_pd(q0, s4), _mm_loadu_pd(pd.add(k)));
+            q1 = _mm_add_pd(_mm_mul_pd(q1, s4), _mm_loadu_pd(pd.add(k + 2)));
+        }
+        let (w0, w1) = (_mm_setr_pd(1.0, s), _mm_setr_pd(s2, s2 * s));
+        let p = _mm_add_pd(_mm_mul_pd(p0, w0), _mm_mul_pd(p1, w1));
+        let q = _mm_add_pd(_mm_mul_pd(q0, w0), _mm_mul_pd(q1, w1));
+        let hsum = |h: __m128d| _mm_cvtsd_f64(_mm_add_sd(h, _mm_unpackhi_pd(h, h)));
+        (hsum(p), hsum(q))
     }
 }
 
@@ -429,6 +877,138 @@ mod tests {
                     let mut s = v;
                     let want = *s.select_nth_unstable(k).1;
                     assert_eq!(kth_u8(isa, &v, k), want, "{isa:?} trial {trial} k {k}");
+                }
+            }
+        }
+    }
+
+    /// The packed block scans against the portable ones: every length class (shorter than a
+    /// register, whole registers, a tail that overlaps), ties, the range at every place.
+    #[test]
+    fn block_scans_match_the_scalar_path_on_every_set() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for isa in Isa::available() {
+            for len in [1usize, 7, 8, 9, 15, 16, 17, 20, 31, 32, 33, 64, 100, 256] {
+                for trial in 0..60 {
+                    let top = [3u64, 40, 256][trial % 3];
+                    let b: Vec<u8> = (0..len).map(|_| (next() % top) as u8).collect();
+                    let b16: Vec<u16> = b.iter().map(|&v| v as u16 * 250 + 3).collect();
+                    let first = |v: &[u8]| {
+                        let m = v.iter().copied().max().unwrap();
+                        (m, v.iter().position(|&x| x == m).unwrap())
+                    };
+                    if let Some(got) = first_max_u8(isa, &b) {
+                        assert_eq!(got, first(&b), "{isa:?} len {len} trial {trial}");
+                    }
+                    if let Some((m, i)) = first_max_u16(isa, &b16) {
+                        assert_eq!((i, m), (first(&b).1, b16[first(&b).1]), "{isa:?} u16");
+                    }
+                    let (lo, hi) = ((next() as usize) % len, (next() as usize) % len);
+                    let (lo, hi) = (lo.min(hi), lo.max(hi));
+                    let want = b
+                        .iter()
+                        .enumerate()
+                        .filter(|&(i, _)| i < lo || i > hi)
+                        .map(|(_, &v)| v)
+                        .max()
+                        .unwrap_or(0);
+                    if let Some(got) = max_outside_u8(isa, &b, lo, hi) {
+                        assert_eq!(got, want, "{isa:?} len {len} [{lo}, {hi}]");
+                    }
+                    if let Some(got) = max_outside_u16(isa, &b16, lo, hi) {
+                        let w16 =
+                            if want == 0 && b.iter().enumerate().all(|(i, _)| i >= lo && i <= hi) {
+                                0
+                            } else {
+                                want as u16 * 250 + 3
+                            };
+                        assert_eq!(got, w16, "{isa:?} u16 len {len} [{lo}, {hi}]");
+                    }
+                    for v in [b[len / 2], 255, 0] {
+                        let want = b.iter().position(|&x| x == v).unwrap_or(len);
+                        if let Some(got) = position_u8(isa, &b, v) {
+                            assert_eq!(got, want, "{isa:?} position {v} len {len}");
+                        }
+                        let v16 = v as u16 * 250 + 3;
+                        let want = b16.iter().position(|&x| x == v16).unwrap_or(len);
+                        if let Some(got) = position_u16(isa, &b16, v16) {
+                            assert_eq!(got, want, "{isa:?} position16 {v} len {len}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn run_ends_match_the_portable_search() {
+        for len in [0usize, 1, 5, 15, 16, 17, 31, 32, 40, 100] {
+            for seed in 0..50usize {
+                let s: Vec<u8> = (0..len)
+                    .map(|i| ((i * 131 + seed * 17) % 97 + 100) as u8)
+                    .collect();
+                for c in [0u8, 99, 120, 150, 196, 255] {
+                    assert_eq!(first_at_most_u8(&s, c), s.iter().position(|&v| v <= c));
+                    assert_eq!(last_at_most_u8(&s, c), s.iter().rposition(|&v| v <= c));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn three_order_statistics_at_once_match_one_at_a_time() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        for isa in Isa::available() {
+            for trial in 0..200 {
+                let mut v = [[0u8; 64]; 2];
+                for x in v.iter_mut().flatten() {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    *x = [(state % 256) as u8, (state % 3) as u8][trial % 2];
+                }
+                let want = (
+                    kth_u8(Isa::Scalar, &v[0], 48),
+                    kth_u8(Isa::Scalar, &v[1], 32),
+                    kth_u8(Isa::Scalar, &v[1], 60),
+                );
+                assert_eq!(kth3_u8(isa, &v[0], 48, &v[1], 32, 60), want, "{isa:?}");
+            }
+        }
+    }
+
+    /// The packed polynomial against Horner's rule, relative 1e-12, over the degrees and
+    /// arguments the root search uses.
+    #[test]
+    fn packed_polynomial_matches_horner() {
+        for isa in Isa::available() {
+            for n in 2..40usize {
+                let a: Vec<f64> = (0..n).map(|i| ((i * 7919) % 23) as f64 - 11.5).collect();
+                let p4 = n.next_multiple_of(4);
+                let mut a4 = a.clone();
+                a4.resize(p4, 0.0);
+                let mut d4: Vec<f64> = (0..n - 1).map(|i| (i + 1) as f64 * a[i + 1]).collect();
+                d4.resize(p4, 0.0);
+                for s in [0.0, 0.02, 0.3, 1.0, 1.7, 49.0] {
+                    let (p, dp) = footscan_geom::bernstein::horner(&a, s);
+                    let Some((q, dq)) = poly_and_derivative(isa, &a4, &d4, s) else {
+                        continue;
+                    };
+                    let scale = a.iter().map(|c| c.abs()).sum::<f64>() * s.max(1.0).powi(n as i32);
+                    assert!(
+                        (p - q).abs() <= 1e-12 * scale,
+                        "{isa:?} n {n} s {s}: {p} {q}"
+                    );
+                    assert!(
+                        (dp - dq).abs() <= 1e-12 * scale * n as f64,
+                        "{isa:?} n {n} s {s}"
+                    );
                 }
             }
         }
