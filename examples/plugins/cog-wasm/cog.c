@@ -4,7 +4,7 @@
  * Freestanding C: no libc, no WASI, no imports, so the host grants it nothing. Build with
  * Debian's clang and lld (`make` here, or examples/plugins/cog-wasm/build.sh):
  *
- *   clang --target=wasm32 -O2 -msimd128 -nostdlib -Wl,--no-entry -o cog.wasm cog.c
+ *   clang --target=wasm32 -O2 -msimd128 -nostdlib -Wl,--no-entry -I.. -o cog.wasm cog.c
  *
  * -msimd128 lets the row's maximum be found 16 (8-bit) or 8 (16-bit) pixels at a time with
  * WebAssembly's 128-bit SIMD, which wasmtime compiles to SSE/NEON; without it the same C
@@ -23,11 +23,7 @@
  * (default 12).
  */
 
-typedef unsigned char u8;
-typedef unsigned short u16;
-typedef unsigned int u32;
-
-#define EXPORT(name) __attribute__((export_name(name)))
+#include "footscan_abi.h"
 
 enum { ACCEPTED = 0, BELOW_THRESHOLD = 1, SATURATED = 2, AMBIGUOUS = 3, BORDER = 4, ISOLATED = 5 };
 #define NEAR_ROWS 2
@@ -43,27 +39,6 @@ struct row_out {
 
 static float threshold_dn = -1.0f;
 static u32 max_saturated_px = 12;
-
-/* A bump allocator over the memory after the data: the host calls it only when the frame's
- * shape changes, so nothing is freed. */
-extern u8 __heap_base;
-static unsigned long heap_top;
-
-EXPORT("footscan_abi") int footscan_abi(void) { return 1; }
-
-EXPORT("footscan_alloc") int footscan_alloc(int size) {
-    if (size < 0) return 0;
-    if (!heap_top) heap_top = (unsigned long)&__heap_base;
-    unsigned long start = (heap_top + 15) & ~15ul;
-    unsigned long end = start + (unsigned long)size;
-    unsigned long have = __builtin_wasm_memory_size(0) * 65536ul;
-    if (end > have) {
-        unsigned long pages = (end - have + 65535) / 65536;
-        if (__builtin_wasm_memory_grow(0, pages) == (unsigned long)-1) return 0;
-    }
-    heap_top = end;
-    return (int)start;
-}
 
 static int key_is(const u8 *k, int n, const char *s) {
     int i = 0;
