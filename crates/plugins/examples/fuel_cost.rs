@@ -26,7 +26,17 @@ fn main() {
             px[r * w as usize + c] = (bg + (200.0 * (-d * d).exp()) as u32).min(255) as u8;
         }
     }
-    for (fuel, epoch) in [(true, false), (false, true), (false, false)] {
+    // The same frame as Gray16 (value x 4, little-endian): both of cog.c's paths.
+    let px16: Vec<u8> = px
+        .iter()
+        .flat_map(|&v| (v as u16 * 4).to_le_bytes())
+        .collect();
+    for (bpp, px, fuel, epoch) in [
+        (1, &px, true, false),
+        (1, &px, false, true),
+        (1, &px, false, false),
+        (2, &px16, true, false),
+    ] {
         let mut cfg = Config::new();
         cfg.consume_fuel(fuel);
         cfg.epoch_interruption(epoch);
@@ -53,21 +63,27 @@ fn main() {
         let key = alloc.call(&mut store, 16).unwrap();
         mem.data_mut(&mut store)[key as usize..key as usize + 9].copy_from_slice(b"threshold");
         assert_eq!(param.call(&mut store, (key, 9, 30.0)).unwrap(), 0);
-        let inp = alloc.call(&mut store, w * h).unwrap();
+        let inp = alloc.call(&mut store, w * h * bpp).unwrap();
         let out = alloc.call(&mut store, h * 24).unwrap();
-        mem.data_mut(&mut store)[inp as usize..(inp + w * h) as usize].copy_from_slice(&px);
+        mem.data_mut(&mut store)[inp as usize..(inp + w * h * bpp) as usize].copy_from_slice(px);
         let mut best = f64::INFINITY;
         let n = 200;
         for _round in 0..5 {
             let t = Instant::now();
             for _ in 0..n {
-                let rows = detect.call(&mut store, (inp, w, h, 1, out)).unwrap();
+                let rows = detect.call(&mut store, (inp, w, h, bpp, out)).unwrap();
                 assert_eq!(rows, h);
             }
             best = best.min(t.elapsed().as_secs_f64() / n as f64);
         }
+        // FNV-1a of the output rows: two builds of a detector must print the same.
+        let rows = &mem.data(&store)[out as usize..(out + h * 24) as usize];
+        let hash = rows.iter().fold(0xcbf2_9ce4_8422_2325u64, |a, &b| {
+            (a ^ b as u64).wrapping_mul(0x100_0000_01b3)
+        });
         println!(
-            "{}: {:.1} us per 1280x1024 frame (best of 5 rounds of {n})",
+            "Gray{} {}: {:.1} us per 1280x1024 frame (best of 5 rounds of {n}), rows {hash:016x}",
+            8 * bpp,
             match (fuel, epoch) {
                 (true, _) => "fuel metering      ",
                 (_, true) => "epoch interruption ",
