@@ -57,8 +57,11 @@ fn main() {
             "-msimd128",
             "-nostdlib",
             "-Wl,--no-entry",
-            "-o",
         ])
+        // The examples' shared footscan_abi.h (also for copies built from a temporary dir).
+        .arg("-I")
+        .arg(repo().join("examples/plugins"))
+        .arg("-o")
         .arg(&wasm)
         .arg(repo().join("examples/plugins/cog-wasm/cog.c"))
         .status()

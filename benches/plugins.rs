@@ -31,8 +31,11 @@ fn build_cog_wasm(dir: &Path, simd: &str) -> PathBuf {
             simd,
             "-nostdlib",
             "-Wl,--no-entry",
-            "-o",
         ])
+        // The examples' shared footscan_abi.h (also for copies built from a temporary dir).
+        .arg("-I")
+        .arg(repo().join("examples/plugins"))
+        .arg("-o")
         .arg(&out)
         .arg(repo().join("examples/plugins/cog-wasm/cog.c"))
         .status()

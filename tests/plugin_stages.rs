@@ -33,13 +33,11 @@ fn python() -> String {
 fn build_c(src: &Path, dir: &Path) -> PathBuf {
     let out = dir.join(src.file_stem().unwrap()).with_extension("wasm");
     let o = Command::new("clang")
-        .args([
-            "--target=wasm32",
-            "-O2",
-            "-nostdlib",
-            "-Wl,--no-entry",
-            "-o",
-        ])
+        .args(["--target=wasm32", "-O2", "-nostdlib", "-Wl,--no-entry"])
+        // The examples' shared footscan_abi.h (also for copies built from a temporary dir).
+        .arg("-I")
+        .arg(repo().join("examples/plugins"))
+        .arg("-o")
         .arg(&out)
         .arg(src)
         .output()

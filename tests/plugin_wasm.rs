@@ -34,8 +34,11 @@ fn build_c_with(source: &str, dir: &Path, flag: &str) -> PathBuf {
             flag,
             "-nostdlib",
             "-Wl,--no-entry",
-            "-o",
         ])
+        // The examples' shared footscan_abi.h (also for copies built from a temporary dir).
+        .arg("-I")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/plugins"))
+        .arg("-o")
         .arg(&out)
         .arg(&src)
         .output()

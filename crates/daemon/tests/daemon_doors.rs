@@ -738,3 +738,81 @@ fn the_first_reason_survives_an_archive_that_refused_everything() {
             .unwrap();
     assert_eq!(rec["frames"], 141);
 }
+
+/// Unmounts the test's tmpfs however the test ends.
+struct Mounted(std::path::PathBuf);
+
+impl Drop for Mounted {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("umount")
+            .arg("-l")
+            .arg(&self.0)
+            .status();
+    }
+}
+
+fn mount(args: &[&str], at: &std::path::Path) -> Result<(), String> {
+    let out = std::process::Command::new("mount")
+        .args(args)
+        .arg(at)
+        .output()
+        .map_err(|e| format!("mount: {e}"))?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        Err(String::from_utf8_lossy(&out.stderr).trim().to_string())
+    }
+}
+
+/// The read-only remount, on a real filesystem (a tmpfs; needs root, skipped
+/// otherwise): the scan holds its `.reserve` open for writing from its start, so the kernel
+/// refuses to remount the archive read-only under it ("mount point is busy") and the scan
+/// ends complete with its frames, instead of losing its end and becoming "interrupted". Only
+/// a remount the kernel forces after an I/O error bypasses this (docs/method.md 14.2.2).
+#[test]
+fn a_read_only_remount_is_refused_while_a_scan_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mnt = tmp.path().join("mnt");
+    std::fs::create_dir(&mnt).unwrap();
+    if let Err(e) = mount(&["-t", "tmpfs", "-o", "size=16m", "tmpfs"], &mnt) {
+        eprintln!("skipped: a tmpfs cannot be mounted here ({e}); needs root");
+        return;
+    }
+    let _guard = Mounted(mnt.clone());
+    let root = mnt.join("archive");
+    let a = Archive::open(&root).unwrap();
+    let s = a
+        .begin(NewScan {
+            subject: "P-1".into(),
+            side: "left".into(),
+            notes: String::new(),
+        })
+        .unwrap();
+    std::fs::write(s.dir.join("frames.bin"), vec![7u8; 4096]).unwrap();
+    let refused = mount(&["-o", "remount,ro"], &mnt);
+    println!("remount read-only during the scan: {refused:?}");
+    assert!(refused.is_err(), "the archive was remounted under a scan");
+    let id = s.record.id.clone();
+    let r = a
+        .finish(
+            s,
+            ScanEnd {
+                status: Status::Complete,
+                reason: None,
+                frames: 141,
+                points: 75_000,
+            },
+        )
+        .expect("the scan is archived");
+    assert_eq!((r.status, r.frames), (Status::Complete, 141));
+    drop(a);
+    // With the daemon gone the remount goes through, and the scan reads back whole.
+    mount(&["-o", "remount,ro"], &mnt).expect("remount once nothing is open");
+    let rec: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(root.join(&id).join("record.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        (rec["status"].as_str(), rec["frames"].as_u64()),
+        (Some("complete"), Some(141))
+    );
+}

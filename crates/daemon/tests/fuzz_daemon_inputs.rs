@@ -108,3 +108,49 @@ fn json_bodies_never_panic_nor_hoard() {
         t.elapsed().as_secs_f64()
     );
 }
+
+/// The cargo-fuzz targets of grid.bin and calibration plans start from seeds made here
+/// (fuzz/seeds/grid_bin, fuzz/seeds/calibration_plan), not copied from a scan: a grid of
+/// three frames of four rows, written by the scanner's own writer, and the default plan.
+/// This checks they are current; `FOOTSCAN_WRITE_SEEDS=1` rewrites them. (Here rather than
+/// in tests/fuzz_inputs.rs, whose binary needs OpenCV: this one builds without it.)
+#[test]
+fn the_fuzz_seeds_are_current() {
+    use footscan::scandata::{FrameMeta, ScanGrid};
+    let tmp = tempfile::tempdir().unwrap();
+    let mut g = ScanGrid::new(4);
+    for i in 0..3u64 {
+        g.frames.push(FrameMeta {
+            index: i,
+            seq: i,
+            timestamp: footscan_hal::Timestamp { nanos: i * 1000 },
+            x_mm: i as f64,
+        });
+        for _ in 0..4 {
+            g.lines.push(footscan::detect::LinePeak::NONE);
+            g.points.push([1.0, 2.0, 3.0]);
+        }
+    }
+    g.save(&tmp.path().join("grid.bin")).unwrap();
+    let grid = std::fs::read(tmp.path().join("grid.bin")).unwrap();
+    assert!(ScanGrid::parse(&grid, Path::new("seed grid.bin")).is_ok());
+    let plan = toml::to_string(&footscan::calib::CalibrationPlan::default()).unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/seeds");
+    for (dir, name, bytes) in [
+        ("grid_bin", "three_frames.bin", grid),
+        ("calibration_plan", "default.toml", plan.into_bytes()),
+    ] {
+        let p = root.join(dir).join(name);
+        if std::env::var_os("FOOTSCAN_WRITE_SEEDS").is_some() {
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(&p, &bytes).unwrap();
+        }
+        let kept = std::fs::read(&p)
+            .unwrap_or_else(|e| panic!("{}: {e} (FOOTSCAN_WRITE_SEEDS=1 makes it)", p.display()));
+        assert!(
+            kept == bytes,
+            "{} differs from the seed made here: FOOTSCAN_WRITE_SEEDS=1 rewrites it",
+            p.display()
+        );
+    }
+}

@@ -14,7 +14,7 @@
 //! `fuzz_readers.proptest-regressions`).
 
 use footscan_fuzzkit::{peak_of, Counting};
-use footscan_geom::mesh::TriMesh;
+use footscan_geom::mesh::{cloud, TriMesh};
 use proptest::prelude::*;
 use std::path::Path;
 
@@ -29,7 +29,7 @@ static A: Counting = Counting;
 
 type Reader = fn(&[u8]);
 
-fn readers() -> [(&'static str, Reader); 3] {
+fn readers() -> [(&'static str, Reader); 4] {
     [
         ("stl", |b| {
             drop(TriMesh::parse_stl(b, Path::new("fuzz.stl")))
@@ -40,6 +40,9 @@ fn readers() -> [(&'static str, Reader); 3] {
         ("ply", |b| {
             drop(TriMesh::parse_ply(b, Path::new("fuzz.ply")))
         }),
+        // The point-cloud reader's text (the mesh made from the points is
+        // `cloud_load_grows_by_the_points_alone` below).
+        ("xyz", |b| drop(cloud::parse_xyz_bytes(b))),
     ]
 }
 
@@ -216,6 +219,19 @@ fn densest_inputs_stay_within_the_bound() {
     for _ in 0..n / 10 {
         obj_nine.extend_from_slice(b"f 1 2 3 4 5 6 7 8 9\n");
     }
+    // The same faces with 8 triangles per vertex, the most the reader takes.
+    let mut obj_nine_capped = Vec::new();
+    let v = 2000;
+    for _ in 0..v {
+        obj_nine_capped.extend_from_slice(b"v 0 0 0\n");
+    }
+    for _ in 0..8 * v / 7 {
+        obj_nine_capped.extend_from_slice(b"f 1 2 3 4 5 6 7 8 9\n");
+    }
+    let mut xyz = Vec::new();
+    for _ in 0..n {
+        xyz.extend_from_slice(b"1 2 3\n");
+    }
     let mut obj_vertices = Vec::new();
     for _ in 0..n {
         obj_vertices.extend_from_slice(b"v 0 0 0\n");
@@ -252,6 +268,12 @@ fn densest_inputs_stay_within_the_bound() {
     for (name, bytes, read) in [
         ("OBJ fan", &obj_fan, readers()[1].1),
         ("OBJ nine-corner faces", &obj_nine, readers()[1].1),
+        (
+            "OBJ nine-corner faces, 8 triangles a vertex",
+            &obj_nine_capped,
+            readers()[1].1,
+        ),
+        ("XYZ points", &xyz, readers()[3].1),
         ("OBJ vertices", &obj_vertices, readers()[1].1),
         ("PLY uchar vertices", &ply_uchar, readers()[2].1),
         ("PLY one long face", &ply_faces, readers()[2].1),
@@ -269,6 +291,12 @@ fn densest_inputs_stay_within_the_bound() {
     println!("{}", worst.join("\n"));
     for (name, bytes) in [
         ("OBJ fan", &obj_fan),
+        ("OBJ nine-corner faces", &obj_nine),
+        (
+            "OBJ nine-corner faces, 8 triangles a vertex",
+            &obj_nine_capped,
+        ),
+        ("XYZ points", &xyz),
         ("OBJ vertices", &obj_vertices),
         ("PLY uchar vertices", &ply_uchar),
         ("PLY one long face", &ply_faces),
@@ -285,4 +313,77 @@ fn valid_files_read_within_the_bound() {
     for s in seeds() {
         check(&s).unwrap();
     }
+}
+
+/// Dense faces over few vertices make more triangles than any surface has per vertex: they
+/// are refused, naming the line, before they cost more than the bound (issue 37: nine-corner
+/// faces of one-digit indices held 4.20x their text).
+#[test]
+fn more_triangles_than_a_surface_has_are_refused() {
+    let mut obj = Vec::new();
+    for _ in 0..9 {
+        obj.extend_from_slice(b"v 0 0 0\n");
+    }
+    for _ in 0..2000 {
+        obj.extend_from_slice(b"f 1 2 3 4 5 6 7 8 9\n");
+    }
+    let e = TriMesh::parse_obj(&obj, Path::new("dense.obj"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("dense.obj") && e.contains("line 20") && e.contains("8 triangles per vertex"),
+        "{e}"
+    );
+    // A real polygon mesh is far from the cap: the cuboid as quads.
+    let quads = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+        f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n";
+    let m = TriMesh::parse_obj(quads.as_bytes(), Path::new("quads.obj")).unwrap();
+    assert_eq!(m.triangles.len(), 12);
+}
+
+/// Points on an ellipsoid the size of a last, as the shortest XYZ text can write them
+/// (integers, one space): what loading them holds beyond a fixed amount (the mesh, its
+/// search tree) grows by no more than 4x the text. Two sizes: the growth between them
+/// is what the points cost.
+#[test]
+fn cloud_load_grows_by_the_points_alone() {
+    let text = |n: usize| {
+        let mut t = Vec::new();
+        let (mut i, mut k) = (0usize, 0usize);
+        while k < n {
+            // A Fibonacci sphere stretched to 260 x 100 x 110 mm, rounded to the millimetre
+            // (duplicates kept: a scan repeats points too).
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).sqrt();
+            let th = i as f64 * 2.399_963_229_728_653;
+            let p = [130.0 * z, 50.0 * r * th.cos(), 55.0 * r * th.sin()];
+            t.extend_from_slice(format!("{:.0} {:.0} {:.0}\n", p[0], p[1], p[2]).as_bytes());
+            i += 1;
+            k += 1;
+        }
+        t
+    };
+    let mut seen = Vec::new();
+    for n in [5_000, 40_000] {
+        let t = text(n);
+        let (peak, panicked) = peak_of(|| {
+            let (m, fit) = cloud::last_from_xyz(&t).expect("an ellipsoid's points read");
+            assert_eq!(fit.points, n);
+            assert!(fit.rms_mm < 1.0, "{fit:?}");
+            drop(m);
+        });
+        assert!(!panicked);
+        println!(
+            "{n} points, {} bytes of text: held {peak} bytes ({:.2}x)",
+            t.len(),
+            peak as f64 / t.len() as f64
+        );
+        seen.push((t.len(), peak));
+    }
+    let (d_in, d_held) = (seen[1].0 - seen[0].0, seen[1].1 - seen[0].1);
+    println!(
+        "growth: {d_held} bytes held for {d_in} more bytes of text ({:.2}x)",
+        d_held as f64 / d_in as f64
+    );
+    assert!(d_held <= RATIO * d_in, "{d_held} for {d_in}");
 }

@@ -175,49 +175,78 @@ fn iovecs(mem: &[u8], iovs: i32, n: i32) -> Option<Vec<std::ops::Range<usize>>> 
         .collect()
 }
 
+/// Every host call starts the same way: the module's memory and the host state, borrowed
+/// together (wasmtime's `data_and_store_mut`); `f` gets both, or the call answers EFAULT
+/// when the module exports no memory.
+fn with_mem<T: HasFs>(c: &mut Caller<'_, T>, f: impl FnOnce(&mut [u8], &mut T) -> i32) -> i32 {
+    let Some(m) = memory(c) else {
+        return E_FAULT;
+    };
+    let (mem, host) = m.data_and_store_mut(c);
+    f(mem, host)
+}
+
+/// [`with_mem`] with the grant: `no_grant` is the answer for a module given none.
+fn with_fs<T: HasFs>(
+    c: &mut Caller<'_, T>,
+    no_grant: i32,
+    f: impl FnOnce(&mut [u8], &mut Fs) -> i32,
+) -> i32 {
+    with_mem(c, |mem, host| match host.fs() {
+        Some(fs) => f(mem, fs),
+        None => no_grant,
+    })
+}
+
+/// [`with_fs`] with the file `fd` names (EBADF for no grant or no such file).
+fn with_file<T: HasFs>(
+    c: &mut Caller<'_, T>,
+    fd: i32,
+    f: impl FnOnce(&mut [u8], &mut File) -> i32,
+) -> i32 {
+    with_fs(c, E_BADF, |mem, fs| match fs.files.get_mut(&(fd as u32)) {
+        Some(file) => f(mem, file),
+        None => E_BADF,
+    })
+}
+
 /// Define the [`PROVIDED`] functions in `linker`.
 pub fn define<T: HasFs + 'static>(linker: &mut Linker<T>) -> wasmtime::Result<()> {
     linker.func_wrap(
         MODULE,
         "fd_prestat_get",
         |mut c: Caller<'_, T>, fd: i32, buf: i32| -> i32 {
-            let Some(m) = memory(&mut c) else {
-                return E_FAULT;
-            };
-            let (mem, host) = m.data_and_store_mut(&mut c);
-            let Some(fs) = host.fs() else { return E_BADF };
-            if fd as u32 != DIR_FD {
-                return E_BADF;
-            }
-            let Some(r) = range(mem, buf, 8) else {
-                return E_FAULT;
-            };
-            mem[r.start..r.start + 4].copy_from_slice(&0u32.to_le_bytes());
-            mem[r.start + 4..r.end].copy_from_slice(&(fs.name.len() as u32).to_le_bytes());
-            SUCCESS
+            with_fs(&mut c, E_BADF, |mem, fs| {
+                if fd as u32 != DIR_FD {
+                    return E_BADF;
+                }
+                let Some(r) = range(mem, buf, 8) else {
+                    return E_FAULT;
+                };
+                mem[r.start..r.start + 4].copy_from_slice(&0u32.to_le_bytes());
+                mem[r.start + 4..r.end].copy_from_slice(&(fs.name.len() as u32).to_le_bytes());
+                SUCCESS
+            })
         },
     )?;
     linker.func_wrap(
         MODULE,
         "fd_prestat_dir_name",
         |mut c: Caller<'_, T>, fd: i32, ptr: i32, len: i32| -> i32 {
-            let Some(m) = memory(&mut c) else {
-                return E_FAULT;
-            };
-            let (mem, host) = m.data_and_store_mut(&mut c);
-            let Some(fs) = host.fs() else { return E_BADF };
-            if fd as u32 != DIR_FD {
-                return E_BADF;
-            }
-            let name = fs.name.as_bytes();
-            if (len as u32 as usize) < name.len() {
-                return E_INVAL;
-            }
-            let Some(r) = range(mem, ptr, name.len()) else {
-                return E_FAULT;
-            };
-            mem[r].copy_from_slice(name);
-            SUCCESS
+            with_fs(&mut c, E_BADF, |mem, fs| {
+                if fd as u32 != DIR_FD {
+                    return E_BADF;
+                }
+                let name = fs.name.as_bytes();
+                if (len as u32 as usize) < name.len() {
+                    return E_INVAL;
+                }
+                let Some(r) = range(mem, ptr, name.len()) else {
+                    return E_FAULT;
+                };
+                mem[r].copy_from_slice(name);
+                SUCCESS
+            })
         },
     )?;
     linker.func_wrap(
@@ -234,173 +263,149 @@ pub fn define<T: HasFs + 'static>(linker: &mut Linker<T>) -> wasmtime::Result<()
          fdflags: i32,
          opened: i32|
          -> i32 {
-            let Some(m) = memory(&mut c) else {
-                return E_FAULT;
-            };
-            let (mem, host) = m.data_and_store_mut(&mut c);
-            let Some(fs) = host.fs() else {
-                return E_NOTCAPABLE;
-            };
-            if fd as u32 != DIR_FD {
-                return E_BADF;
-            }
-            let Some(r) = range(mem, path, path_len as u32 as usize) else {
-                return E_FAULT;
-            };
-            let Ok(p) = std::str::from_utf8(&mem[r]) else {
-                return E_INVAL;
-            };
-            let (create, directory, trunc) = (oflags & 1 != 0, oflags & 2 != 0, oflags & 8 != 0);
-            if directory {
-                return E_NOTCAPABLE; // files only: the grant is one flat directory to read
-            }
-            // fd_write right (bit 6), or an open that creates, truncates or appends.
-            let write = rights & (1 << 6) != 0 || create || trunc || fdflags & 1 != 0;
-            if fs.files.len() >= MAX_OPEN {
-                return E_MFILE;
-            }
-            let file = match fs.open_beneath(p, write, create, trunc) {
-                Ok(f) => f,
-                Err(e) => return e,
-            };
-            let Some(out) = range(mem, opened, 4) else {
-                return E_FAULT;
-            };
-            let n = fs.next;
-            fs.next += 1;
-            fs.files.insert(n, file);
-            mem[out].copy_from_slice(&n.to_le_bytes());
-            SUCCESS
+            with_fs(&mut c, E_NOTCAPABLE, |mem, fs| {
+                if fd as u32 != DIR_FD {
+                    return E_BADF;
+                }
+                let Some(r) = range(mem, path, path_len as u32 as usize) else {
+                    return E_FAULT;
+                };
+                let Ok(p) = std::str::from_utf8(&mem[r]) else {
+                    return E_INVAL;
+                };
+                let (create, directory, trunc) =
+                    (oflags & 1 != 0, oflags & 2 != 0, oflags & 8 != 0);
+                if directory {
+                    return E_NOTCAPABLE; // files only: the grant is one flat directory to read
+                }
+                // fd_write right (bit 6), or an open that creates, truncates or appends.
+                let write = rights & (1 << 6) != 0 || create || trunc || fdflags & 1 != 0;
+                if fs.files.len() >= MAX_OPEN {
+                    return E_MFILE;
+                }
+                let file = match fs.open_beneath(p, write, create, trunc) {
+                    Ok(f) => f,
+                    Err(e) => return e,
+                };
+                let Some(out) = range(mem, opened, 4) else {
+                    return E_FAULT;
+                };
+                let n = fs.next;
+                fs.next += 1;
+                fs.files.insert(n, file);
+                mem[out].copy_from_slice(&n.to_le_bytes());
+                SUCCESS
+            })
         },
     )?;
     linker.func_wrap(
         MODULE,
         "fd_read",
         |mut c: Caller<'_, T>, fd: i32, iovs: i32, n: i32, nread: i32| -> i32 {
-            let Some(m) = memory(&mut c) else {
-                return E_FAULT;
-            };
-            let (mem, host) = m.data_and_store_mut(&mut c);
-            let Some(fs) = host.fs() else { return E_BADF };
-            let Some(file) = fs.files.get_mut(&(fd as u32)) else {
-                return E_BADF;
-            };
-            let Some(bufs) = iovecs(mem, iovs, n) else {
-                return E_FAULT;
-            };
-            let Some(out) = range(mem, nread, 4) else {
-                return E_FAULT;
-            };
-            let mut total = 0u32;
-            for b in bufs {
-                let want = b.len();
-                match file.read(&mut mem[b]) {
-                    Ok(got) => {
-                        total += got as u32;
-                        if got < want {
-                            break;
+            with_file(&mut c, fd, |mem, file| {
+                let Some(bufs) = iovecs(mem, iovs, n) else {
+                    return E_FAULT;
+                };
+                let Some(out) = range(mem, nread, 4) else {
+                    return E_FAULT;
+                };
+                let mut total = 0u32;
+                for b in bufs {
+                    let want = b.len();
+                    match file.read(&mut mem[b]) {
+                        Ok(got) => {
+                            total += got as u32;
+                            if got < want {
+                                break;
+                            }
                         }
+                        Err(e) => return errno(e),
                     }
-                    Err(e) => return errno(e),
                 }
-            }
-            mem[out].copy_from_slice(&total.to_le_bytes());
-            SUCCESS
+                mem[out].copy_from_slice(&total.to_le_bytes());
+                SUCCESS
+            })
         },
     )?;
     linker.func_wrap(
         MODULE,
         "fd_write",
         |mut c: Caller<'_, T>, fd: i32, iovs: i32, n: i32, nwritten: i32| -> i32 {
-            let Some(m) = memory(&mut c) else {
-                return E_FAULT;
-            };
-            let (mem, host) = m.data_and_store_mut(&mut c);
-            let Some(bufs) = iovecs(mem, iovs, n) else {
-                return E_FAULT;
-            };
-            let Some(out) = range(mem, nwritten, 4) else {
-                return E_FAULT;
-            };
-            let mut total = 0u32;
-            if fd == 1 || fd == 2 {
-                // stdout and stderr: the module's diagnostics, to the log.
-                let text: Vec<u8> = bufs.iter().flat_map(|b| mem[b.clone()].to_vec()).collect();
-                for line in String::from_utf8_lossy(&text).lines() {
-                    tracing::warn!(plugin = %host.plugin_name(), "{line}");
-                }
-                total = text.len() as u32;
-            } else {
-                let Some(fs) = host.fs() else { return E_BADF };
-                let Some(file) = fs.files.get_mut(&(fd as u32)) else {
-                    return E_BADF;
+            with_mem(&mut c, |mem, host| {
+                let Some(bufs) = iovecs(mem, iovs, n) else {
+                    return E_FAULT;
                 };
-                for b in bufs {
-                    if let Err(e) = file.write_all(&mem[b.clone()]) {
-                        return errno(e);
+                let Some(out) = range(mem, nwritten, 4) else {
+                    return E_FAULT;
+                };
+                let mut total = 0u32;
+                if fd == 1 || fd == 2 {
+                    // stdout and stderr: the module's diagnostics, to the log.
+                    let text: Vec<u8> = bufs.iter().flat_map(|b| mem[b.clone()].to_vec()).collect();
+                    for line in String::from_utf8_lossy(&text).lines() {
+                        tracing::warn!(plugin = %host.plugin_name(), "{line}");
                     }
-                    total += b.len() as u32;
+                    total = text.len() as u32;
+                } else {
+                    let Some(fs) = host.fs() else { return E_BADF };
+                    let Some(file) = fs.files.get_mut(&(fd as u32)) else {
+                        return E_BADF;
+                    };
+                    for b in bufs {
+                        if let Err(e) = file.write_all(&mem[b.clone()]) {
+                            return errno(e);
+                        }
+                        total += b.len() as u32;
+                    }
                 }
-            }
-            mem[out].copy_from_slice(&total.to_le_bytes());
-            SUCCESS
+                mem[out].copy_from_slice(&total.to_le_bytes());
+                SUCCESS
+            })
         },
     )?;
     linker.func_wrap(
         MODULE,
         "fd_seek",
         |mut c: Caller<'_, T>, fd: i32, offset: i64, whence: i32, newoffset: i32| -> i32 {
-            let Some(m) = memory(&mut c) else {
-                return E_FAULT;
-            };
-            let (mem, host) = m.data_and_store_mut(&mut c);
-            let Some(fs) = host.fs() else { return E_BADF };
-            let Some(file) = fs.files.get_mut(&(fd as u32)) else {
-                return E_BADF;
-            };
-            let to = match whence {
-                0 if offset >= 0 => SeekFrom::Start(offset as u64),
-                1 => SeekFrom::Current(offset),
-                2 => SeekFrom::End(offset),
-                _ => return E_INVAL,
-            };
-            let Some(out) = range(mem, newoffset, 8) else {
-                return E_FAULT;
-            };
-            match file.seek(to) {
-                Ok(p) => {
-                    mem[out].copy_from_slice(&p.to_le_bytes());
-                    SUCCESS
+            with_file(&mut c, fd, |mem, file| {
+                let to = match whence {
+                    0 if offset >= 0 => SeekFrom::Start(offset as u64),
+                    1 => SeekFrom::Current(offset),
+                    2 => SeekFrom::End(offset),
+                    _ => return E_INVAL,
+                };
+                let Some(out) = range(mem, newoffset, 8) else {
+                    return E_FAULT;
+                };
+                match file.seek(to) {
+                    Ok(p) => {
+                        mem[out].copy_from_slice(&p.to_le_bytes());
+                        SUCCESS
+                    }
+                    Err(e) => errno(e),
                 }
-                Err(e) => errno(e),
-            }
+            })
         },
     )?;
     linker.func_wrap(
         MODULE,
         "fd_filestat_get",
         |mut c: Caller<'_, T>, fd: i32, buf: i32| -> i32 {
-            let Some(m) = memory(&mut c) else {
-                return E_FAULT;
-            };
-            let (mem, host) = m.data_and_store_mut(&mut c);
-            let Some(fs) = host.fs() else { return E_BADF };
-            let Some(file) = fs.files.get_mut(&(fd as u32)) else {
-                return E_BADF;
-            };
-            let Some(r) = range(mem, buf, 64) else {
-                return E_FAULT;
-            };
-            let meta = match file.metadata() {
-                Ok(m) => m,
-                Err(e) => return errno(e),
-            };
-            let b = &mut mem[r];
-            b.fill(0);
-            b[16] = 4; // filetype: regular file
-            b[24..32].copy_from_slice(&1u64.to_le_bytes()); // nlink
-            b[32..40].copy_from_slice(&meta.len().to_le_bytes());
-            SUCCESS
+            with_file(&mut c, fd, |mem, file| {
+                let Some(r) = range(mem, buf, 64) else {
+                    return E_FAULT;
+                };
+                let meta = match file.metadata() {
+                    Ok(m) => m,
+                    Err(e) => return errno(e),
+                };
+                let b = &mut mem[r];
+                b.fill(0);
+                b[16] = 4; // filetype: regular file
+                b[24..32].copy_from_slice(&1u64.to_le_bytes()); // nlink
+                b[32..40].copy_from_slice(&meta.len().to_le_bytes());
+                SUCCESS
+            })
         },
     )?;
     linker.func_wrap(MODULE, "fd_close", |mut c: Caller<'_, T>, fd: i32| -> i32 {

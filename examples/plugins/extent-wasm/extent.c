@@ -4,34 +4,14 @@
  *
  * Freestanding C (no libc, no WASI, no imports). Build with Debian's clang and lld:
  *
- *   clang --target=wasm32 -O2 -nostdlib -Wl,--no-entry -o extent.wasm extent.c
+ *   clang --target=wasm32 -O2 -nostdlib -Wl,--no-entry -I.. -o extent.wasm extent.c
  *
  * Input: `len` bytes of points, x y z as little-endian f64 each (24 bytes a point, mm, the
  * foot frame). Output: points, x_min_mm, x_max_mm, length_mm (x), width_mm (y), z_max_mm.
  * examples/plugins/python/extent_stage.py is the same in numpy.
  */
 
-typedef unsigned char u8;
-#define EXPORT(name) __attribute__((export_name(name)))
-
-extern u8 __heap_base;
-static unsigned long heap_top;
-
-EXPORT("footscan_abi") int footscan_abi(void) { return 1; }
-
-EXPORT("footscan_alloc") int footscan_alloc(int size) {
-    if (size < 0) return 0;
-    if (!heap_top) heap_top = (unsigned long)&__heap_base;
-    unsigned long start = (heap_top + 15) & ~15ul;
-    unsigned long end = start + (unsigned long)size;
-    unsigned long have = __builtin_wasm_memory_size(0) * 65536ul;
-    if (end > have) {
-        unsigned long pages = (end - have + 65535) / 65536;
-        if (__builtin_wasm_memory_grow(0, pages) == (unsigned long)-1) return 0;
-    }
-    heap_top = end;
-    return (int)start;
-}
+#include "footscan_abi.h"
 
 /* Append `s` to the report at *at (bounded by cap). */
 static void put_str(char *out, int *at, int cap, const char *s) {

@@ -6,18 +6,14 @@
  *
  * Freestanding C (no wasi-libc needed: the three imports are declared here). Build:
  *
- *   clang --target=wasm32 -O2 -nostdlib -Wl,--no-entry -o plysink.wasm plysink.c
+ *   clang --target=wasm32 -O2 -nostdlib -Wl,--no-entry -I.. -o plysink.wasm plysink.c
  *
  * Input: the scan summary as JSON. Report: "points.ply <vertices> vertices, <bytes> bytes;
  * summary points <n>: agree" (or "differ"). Error codes: -1 points.ply cannot be opened,
  * -2 it has no "element vertex" line in its header.
  */
 
-typedef unsigned char u8;
-typedef unsigned int u32;
-typedef unsigned long long u64;
-#define EXPORT(name) __attribute__((export_name(name)))
-#define WASI(name) __attribute__((import_module("wasi_snapshot_preview1"), import_name(name)))
+#include "footscan_abi.h"
 
 struct iovec { u8 *buf; u32 len; };
 
@@ -28,25 +24,6 @@ WASI("fd_close") int fd_close(int fd);
 
 #define GRANTED_DIR 3 /* the one preopened directory */
 #define FD_READ_RIGHT 2ull
-
-extern u8 __heap_base;
-static unsigned long heap_top;
-
-EXPORT("footscan_abi") int footscan_abi(void) { return 1; }
-
-EXPORT("footscan_alloc") int footscan_alloc(int size) {
-    if (size < 0) return 0;
-    if (!heap_top) heap_top = (unsigned long)&__heap_base;
-    unsigned long start = (heap_top + 15) & ~15ul;
-    unsigned long end = start + (unsigned long)size;
-    unsigned long have = __builtin_wasm_memory_size(0) * 65536ul;
-    if (end > have) {
-        unsigned long pages = (end - have + 65535) / 65536;
-        if (__builtin_wasm_memory_grow(0, pages) == (unsigned long)-1) return 0;
-    }
-    heap_top = end;
-    return (int)start;
-}
 
 static int starts(const u8 *s, const u8 *end, const char *p) {
     for (; *p; p++, s++)

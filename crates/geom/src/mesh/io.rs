@@ -333,9 +333,16 @@ impl TriMesh {
                 _ => {}
             }
         }
+        // No surface has more than a few triangles per vertex (a closed one about 2, Euler;
+        // a doubled or much-cut one a few more). Capping them at 8 also caps what a file of
+        // few vertices and many dense faces costs: a nine-corner face of one-digit indices
+        // (`f 1 2 3 4 5 6 7 8 9`, 20 bytes) makes 7 triangles (84 bytes), 4.2x its text,
+        // but a vertex's 24 bytes cost at most its 8-byte line's 3x, and 8 triangles a
+        // vertex keep the whole within 4x (docs/method.md 14.2.2).
+        let cap = nv.saturating_mul(MAX_TRIANGLES_PER_VERTEX);
         let mut m = TriMesh::default();
         m.vertices.reserve_exact(nv);
-        m.triangles.reserve_exact(nt);
+        m.triangles.reserve_exact(nt.min(cap));
         for (ln, raw) in lines().enumerate() {
             let Some(w) = word(raw) else { continue };
             let bad = |what: &str| {
@@ -395,6 +402,12 @@ impl TriMesh {
             if (1..k).any(|a| idx[..a].contains(&idx[a])) {
                 return Err(bad("a face visits one vertex twice"));
             }
+            if m.triangles.len() + k - 2 > cap {
+                return Err(bad(&format!(
+                    "more than {MAX_TRIANGLES_PER_VERTEX} triangles per vertex ({nv} vertices): \
+                     not a surface"
+                )));
+            }
             if m.triangles.len() + k - 2 > m.triangles.capacity() {
                 return Err(bad("more triangles than the faces' text allows"));
             }
@@ -412,6 +425,9 @@ impl TriMesh {
         ply::parse(bytes, path)
     }
 }
+
+/// The most triangles an OBJ file may make per vertex it lists.
+const MAX_TRIANGLES_PER_VERTEX: usize = 8;
 
 fn check_finite_soup(soup: &[[P3; 3]], path: &Path) -> Result<(), MeshError> {
     if let Some(t) = soup
