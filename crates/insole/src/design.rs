@@ -175,8 +175,10 @@ impl ShoeBottom {
             }
         }
         // The bottom's edge interleaves with the last's sides in hairs a cell or two wide,
-        // which would leave the outline necks thinner than a mesh cell: opened by 1 mm.
-        for (grow, times) in [(false, 2), (true, 2)] {
+        // which would leave the outline necks thinner than a mesh cell: opened by 1 mm; then
+        // closed and opened by 2 mm, which fills the notches between hairs and takes off
+        // the spikes that the smoothing below would leave as bumps.
+        for (grow, times) in [(false, 2), (true, 2), (true, 4), (false, 8), (true, 4)] {
             for _ in 0..times {
                 let z = mask.z.clone();
                 for j in 0..ny {
@@ -1119,6 +1121,12 @@ impl Design {
 /// outline). Measured on the outline resampled every 0.5 mm, so it sees corners however the
 /// outline's vertices lie.
 pub fn outline_turning(outline: &[[f64; 2]], window: f64) -> (f64, f64) {
+    outline_turning_behind(outline, window, f64::INFINITY)
+}
+
+/// [`outline_turning`] with the largest turning taken only where x < `x_max` (behind the
+/// toes, whose lobes are the foot's own shape); the total over the whole outline.
+pub fn outline_turning_behind(outline: &[[f64; 2]], window: f64, x_max: f64) -> (f64, f64) {
     let step = 0.5;
     let q = resample_closed(outline, step);
     let n = q.len();
@@ -1136,7 +1144,9 @@ pub fn outline_turning(outline: &[[f64; 2]], window: f64) -> (f64, f64) {
     for i in 0..n {
         // The heading of the chord behind the point and of the one ahead of it.
         let turn = wrap(heading(i + n - w) - heading(i)).abs();
-        max = max.max(turn.to_degrees() / (w as f64 * step));
+        if q[i][0] < x_max {
+            max = max.max(turn.to_degrees() / (w as f64 * step));
+        }
         let one = wrap({
             let (a, b, c) = (q[(i + n - 1) % n], q[i], q[(i + 1) % n]);
             (c[1] - b[1]).atan2(c[0] - b[0]) - (b[1] - a[1]).atan2(b[0] - a[0])

@@ -40,8 +40,9 @@ pub struct Report {
     /// How far the midfoot stood off the glass (0: the foot bore weight).
     pub midfoot_off_glass_mm: f64,
     pub outline_vertices: usize,
-    /// How sharply the outline turns: the most over any 2 mm of it (deg/mm; a 10 mm
-    /// radius is 5.7) and in all (deg; 360 for a convex outline).
+    /// How sharply the outline turns: the most over any 2 mm of it behind the metatarsal
+    /// heads (deg/mm; a 10 mm radius is 5.7; in front, a shoe bottom adjusted to the foot
+    /// has the toes' lobes) and in all (deg; 360 for a convex outline).
     pub outline_max_turn_deg_per_mm: f64,
     pub outline_total_turn_deg: f64,
     /// Where the outline came from: "footprint + margin" or the shoe bottom's last.
@@ -124,7 +125,8 @@ pub fn write_insole_in(
     let (step_text, step_faces) = faceted_step(&step_solid, "footscan insole");
     let threemf = crate::threemf::to_3mf(&mesh, "footscan insole");
     let bb = mesh.bbox();
-    let turning = crate::design::outline_turning(&d.outline, 2.0);
+    let heads_x = d.marks.mt1_head[0].min(d.marks.mt5_head[0]);
+    let turning = crate::design::outline_turning_behind(&d.outline, 2.0, heads_x);
     let mut report = Report {
         scan: p.source.clone(),
         side: format!("{:?}", d.side).to_lowercase(),
