@@ -90,15 +90,11 @@ fn check_report(r: &serde_json::Value, what: &str, min_points: u64) {
     assert_eq!(r["measured"]["ok"], true, "{what}");
 }
 
-/// The mesh's top at (x, y) by a ray from above (off the grid lines).
+/// The mesh's top at (x, y) by a ray from above.
 fn top(bvh: &Bvh, x: f64, y: f64) -> f64 {
-    bvh.ray_cast(
-        &P3::new(x + 1.1e-7, y + 0.9e-7, 500.0),
-        &V3::new(0.0, 0.0, -1.0),
-        1000.0,
-    )
-    .map(|h| h.point.z)
-    .expect("a point on the insole")
+    bvh.ray_cast(&P3::new(x, y, 500.0), &V3::new(0.0, 0.0, -1.0), 1000.0)
+        .map(|h| h.point.z)
+        .expect("a point on the insole")
 }
 
 fn json_line(prog: &Path, script: &str, file: &Path) -> serde_json::Value {
@@ -377,6 +373,84 @@ fn shoe_bottom_outline_from_last_adjust() {
             "axis {k}: {a}..{b} much smaller than the last's bottom"
         );
     }
+    // The outline made fair: no kink from the last's edge behind the heads (a 10 mm radius
+    // turns 5.7 deg a millimetre). In front the adjusted bottom has the toes' lobes (seen in
+    // top.png), which turn it several times over in all.
+    let (turn, total) = (
+        r["outline_max_turn_deg_per_mm"].as_f64().unwrap(),
+        r["outline_total_turn_deg"].as_f64().unwrap(),
+    );
+    println!("outline turning: at most {turn:.2} deg/mm, {total:.1} deg in all");
+    let _ = std::fs::copy(
+        out_dir.join("top.png"),
+        repo().join("target/insole-shoe-bottom-top.png"),
+    );
+    assert!(turn < 5.7, "{turn} deg/mm");
+    assert!(total >= 350.0, "{total} deg");
+    // Bent onto the last's bottom curve: the insole's bottom (met from below on the axis)
+    // against the last's lowest bottom point per 1 mm station (rays up from below every 1 mm
+    // across it), averaged over +-5 stations, both above their lowest over the stations, from
+    // 20 % to 85 % of the insole's length.
+    let sp = &r["spring"];
+    assert!(sp.is_object(), "the insole is bent: {}", r["warnings"]);
+    let ibvh = Bvh::new(&mesh);
+    let lbvh = Bvh::new(&lastm);
+    let lbb = lastm.bbox();
+    let from = |q: [f64; 2]| {
+        [
+            o[0] + d[0] * q[0] - d[1] * q[1],
+            o[1] + d[1] * q[0] + d[0] * q[1],
+        ]
+    };
+    let last_low = |x: f64| -> Option<f64> {
+        let mut low: Option<f64> = None;
+        let mut y = lo[1];
+        while y <= hi[1] {
+            let w = from([x, y]);
+            if let Some(h) = lbvh
+                .ray_cast(&P3::new(w[0], w[1], lbb.min.z - 10.0), &V3::z(), 1000.0)
+                .filter(|h| h.normal.z < -0.5)
+            {
+                low = Some(low.map_or(h.point.z, |l: f64| l.min(h.point.z)));
+            }
+            y += 1.0;
+        }
+        low
+    };
+    let (ix0, ix1) = (bb.min.x, bb.max.x);
+    let mut rows = Vec::new();
+    let mut x = ix0 + 0.2 * (ix1 - ix0);
+    while x <= ix0 + 0.85 * (ix1 - ix0) {
+        let bottom = ibvh
+            .ray_cast(&P3::new(x, 0.0, -100.0), &V3::z(), 1000.0)
+            .map(|h| h.point.z);
+        let lows: Vec<f64> = (-5..=5).filter_map(|k| last_low(x + k as f64)).collect();
+        if let (Some(b), false) = (bottom, lows.is_empty()) {
+            rows.push((x, b, lows.iter().sum::<f64>() / lows.len() as f64));
+        }
+        x += 5.0;
+    }
+    let b0 = rows.iter().map(|r| r.1).fold(f64::MAX, f64::min);
+    let l0 = rows.iter().map(|r| r.2).fold(f64::MAX, f64::min);
+    let worst =
+        rows.iter()
+            .map(|&(x, b, l)| ((b - b0) - (l - l0), x))
+            .fold(
+                (0.0f64, 0.0),
+                |a, e| if e.0.abs() > a.0.abs() { e } else { a },
+            );
+    let rise = rows.iter().map(|r| r.1 - b0).fold(0.0f64, f64::max);
+    println!(
+        "bottom curve: heel {:.2} mm, toe {:.2} mm; over {} stations the insole's bottom \
+         rises {rise:.2} mm and differs from the last's by at most {:.3} mm (x {:.0})",
+        sp["heel_mm"],
+        sp["toe_mm"],
+        rows.len(),
+        worst.0,
+        worst.1
+    );
+    assert!(rows.len() > 20);
+    assert!(worst.0.abs() < 0.3, "{worst:?}");
     let missing = tmp.path().join("no-adjust");
     std::fs::create_dir_all(&missing).unwrap();
     let bad = tmp.path().join("bad");

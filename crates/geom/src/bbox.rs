@@ -118,10 +118,17 @@ impl Aabb {
     pub fn ray_interval(&self, o: &P3, inv_d: &V3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
         let (mut t0, mut t1) = (t_min, t_max);
         for k in 0..3 {
+            if inv_d[k].is_infinite() {
+                // Parallel to the slab: inside it (faces included) for every t, or never.
+                // The product form would give 0 x inf = NaN for an origin on a face, and
+                // the NaN ordered the bounds as (inf, NaN): a ray lying on a face missed.
+                if o[k] < self.min[k] || o[k] > self.max[k] {
+                    return None;
+                }
+                continue;
+            }
             let a = (self.min[k] - o[k]) * inv_d[k];
             let b = (self.max[k] - o[k]) * inv_d[k];
-            // NaN (0 * inf when the origin is on a slab face of a parallel ray) keeps the
-            // interval as it is: max/min ignore NaN.
             let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
             t0 = t0.max(lo);
             t1 = t1.min(hi);
@@ -153,6 +160,16 @@ mod tests {
         assert!(b
             .ray_interval(&P3::new(-1.0, 1.5, 1.0), &inv, 0.0, f64::INFINITY)
             .is_none());
+        // A ray parallel to two slabs lying on a face of each (x = 0, y = 1), both signs of
+        // zero: it runs along the box's edge and enters at z = 0.
+        for d in [V3::new(0.0, 0.0, 1.0), V3::new(-0.0, -0.0, 1.0)] {
+            let inv = d.map(|c| 1.0 / c);
+            let r = b.ray_interval(&P3::new(0.0, 1.0, -1.0), &inv, 0.0, f64::INFINITY);
+            assert_eq!(r, Some((1.0, 5.0)), "{d:?}");
+            assert!(b
+                .ray_interval(&P3::new(-1e-12, 1.0, -1.0), &inv, 0.0, f64::INFINITY)
+                .is_none());
+        }
         assert!(b.intersects(&Aabb::new(P3::new(2.0, 1.0, 4.0), P3::new(3.0, 3.0, 5.0))));
         assert_eq!(b.surface_area(), 2.0 * (2.0 + 4.0 + 8.0));
     }

@@ -7,6 +7,7 @@ use footscan::geom::HeightMap;
 use footscan::measure::{measure_grid, Measurements, Side, DEFAULT_CELL_MM};
 use footscan::scandata::ScanDir;
 use footscan::surface::solid::{outline_solid, OutlineSolid};
+use footscan_geom::mesh::TriMesh;
 use footscan_geom::polygon::Polygon;
 use footscan_geom::P2;
 use std::path::Path;
@@ -174,8 +175,10 @@ impl ShoeBottom {
             }
         }
         // The bottom's edge interleaves with the last's sides in hairs a cell or two wide,
-        // which would leave the outline necks thinner than a mesh cell: opened by 1 mm.
-        for (grow, times) in [(false, 2), (true, 2)] {
+        // which would leave the outline necks thinner than a mesh cell: opened by 1 mm; then
+        // closed and opened by 2 mm, which fills the notches between hairs and takes off
+        // the spikes that the smoothing below would leave as bumps.
+        for (grow, times) in [(false, 2), (true, 2), (true, 4), (false, 8), (true, 4)] {
             for _ in 0..times {
                 let z = mask.z.clone();
                 for j in 0..ny {
@@ -207,24 +210,229 @@ impl ShoeBottom {
                 why: "the last has no face looking down: no bottom to take the outline from".into(),
             });
         };
-        // The raster's half-cell steps smoothed out: neighbour means (1/4, 1/2, 1/4) over
-        // the 0.5 mm vertices, 8 passes (a spread of 1 mm along the outline), then simplified.
-        let mut o = r.outline.clone();
-        let k = o.len();
-        for _ in 0..8 {
-            let prev = o.clone();
-            for i in 0..k {
-                let (a, b, c) = (prev[(i + k - 1) % k], prev[i], prev[(i + 1) % k]);
-                o[i] = [
-                    0.25 * a[0] + 0.5 * b[0] + 0.25 * c[0],
-                    0.25 * a[1] + 0.5 * b[1] + 0.25 * c[1],
-                ];
-            }
-        }
-        let mut poly = Polygon::from_arrays(&o).simplify(OUTLINE_TOL_MM);
+        // The raster's half-cell steps and the hairs of the last's edge made fair: a
+        // periodic smoothing spline through the edge (see [`fair_closed`]).
+        let mut poly = Polygon::from_arrays(&fair_closed(
+            &r.outline,
+            FAIR_SPACING_MM,
+            FAIR_WAVELENGTH_MM,
+        ));
         poly.make_ccw();
         Ok(poly.to_arrays())
     }
+}
+
+/// The part of the last's bottom, from its heel end, whose sections' lowest points make its
+/// bottom curve (as crates/last's `BottomCurve::of`): behind and in front of it the lowest
+/// point is the heel's and the toe's rounding, so the curve is carried on along its end
+/// slopes (over 10 mm) there.
+const SPRING_SPAN: (f64, f64) = (0.15, 0.9);
+/// Half-window of the mean along the bottom curve (mm), as the last stage's.
+const SPRING_SMOOTH_MM: usize = 5;
+
+/// The shoe's bottom curve under the insole: how far its bottom stands above the tread (the
+/// curve's lowest point) every millimetre along x of the foot frame. The insole is bent onto
+/// it (a vertical shear: each point raised by the curve at its x), so its bottom follows the
+/// last's heel and toe spring and every height measured back is taken in the insole's own
+/// frame, the curve taken off again.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Spring {
+    /// x of the first sample (foot frame, mm); the samples are 1 mm apart.
+    pub x0: f64,
+    pub z: Vec<f64>,
+    /// The curve at the insole's rear and front ends (mm above the tread).
+    pub heel_mm: f64,
+    pub toe_mm: f64,
+}
+
+impl Spring {
+    /// The curve at x, linear between samples, its end values beyond them.
+    pub fn at(&self, x: f64) -> f64 {
+        let n = self.z.len();
+        let t = (x - self.x0).clamp(0.0, (n - 1) as f64);
+        let i = (t.floor() as usize).min(n - 2);
+        let f = t - i as f64;
+        self.z[i] * (1.0 - f) + self.z[i + 1] * f
+    }
+}
+
+impl ShoeBottom {
+    /// The last's bottom curve in the foot frame over `x_range` (the insole's), or None when
+    /// it rises less than the last stage's flat tolerance over it: the lowest point of the
+    /// last's bottom (its downward faces, met by rays cast up from below every millimetre)
+    /// in each 1 mm station, over [`SPRING_SPAN`] of the bottom's length, averaged over
+    /// +-[`SPRING_SMOOTH_MM`], carried on along its end slopes.
+    fn spring(&self, frame: &FootFrame, x_range: (f64, f64)) -> Option<Spring> {
+        use footscan_geom::{mesh::Bvh, P3, V3};
+        let m = &self.last;
+        let bvh = Bvh::new(m);
+        let bb = m.bbox();
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for t in 0..m.triangles.len() {
+            if m.face_normal(t).z < BOTTOM_NZ {
+                for p in m.corners(t) {
+                    let q = frame.to_foot([p.x, p.y]);
+                    x0 = x0.min(q[0]);
+                    x1 = x1.max(q[0]);
+                    y0 = y0.min(q[1]);
+                    y1 = y1.max(q[1]);
+                }
+            }
+        }
+        if x1 - x0 < 50.0 {
+            return None;
+        }
+        let n = (x1 - x0).floor() as usize + 1;
+        let low: Vec<Option<f64>> = (0..n)
+            .map(|i| {
+                let x = x0 + i as f64;
+                let mut lo: Option<f64> = None;
+                let mut y = y0.floor();
+                while y <= y1 {
+                    let w = frame.to_world([x, y]);
+                    let hit = bvh.ray_cast(
+                        &P3::new(w[0], w[1], bb.min.z - 10.0),
+                        &V3::z(),
+                        bb.max.z - bb.min.z + 20.0,
+                    );
+                    if let Some(h) = hit.filter(|h| h.normal.z < BOTTOM_NZ) {
+                        lo = Some(lo.map_or(h.point.z, |l: f64| l.min(h.point.z)));
+                    }
+                    y += 1.0;
+                }
+                lo
+            })
+            .collect();
+        let (a, b) = (
+            (SPRING_SPAN.0 * n as f64) as usize,
+            ((SPRING_SPAN.1 * n as f64) as usize).min(n - 1),
+        );
+        if b < a + 20 {
+            return None;
+        }
+        let mut z = vec![0.0; n];
+        for (i, zi) in z.iter_mut().enumerate().take(b + 1).skip(a) {
+            let near: Vec<f64> = (i.saturating_sub(SPRING_SMOOTH_MM).max(a)
+                ..=(i + SPRING_SMOOTH_MM).min(b))
+                .filter_map(|j| low[j])
+                .collect();
+            if near.is_empty() {
+                return None;
+            }
+            *zi = near.iter().sum::<f64>() / near.len() as f64;
+        }
+        let back = (z[a + 10] - z[a]) / 10.0;
+        let front = (z[b] - z[b - 10]) / 10.0;
+        for i in 0..a {
+            z[i] = z[a] - back * (a - i) as f64;
+        }
+        for i in b + 1..n {
+            z[i] = z[b] + front * (i - b) as f64;
+        }
+        let mut s = Spring {
+            x0,
+            z,
+            heel_mm: 0.0,
+            toe_mm: 0.0,
+        };
+        // Heights above the tread: the curve's lowest point under the insole.
+        let k = ((x_range.1 - x_range.0).ceil() as usize).max(1);
+        let under: Vec<f64> = (0..=k)
+            .map(|i| s.at(x_range.0 + (x_range.1 - x_range.0) * i as f64 / k as f64))
+            .collect();
+        let lo = under.iter().copied().fold(f64::MAX, f64::min);
+        let hi = under.iter().copied().fold(f64::MIN, f64::max);
+        if hi - lo < FLAT_TOL_MM {
+            return None;
+        }
+        for v in &mut s.z {
+            *v -= lo;
+        }
+        s.heel_mm = s.at(x_range.0);
+        s.toe_mm = s.at(x_range.1);
+        Some(s)
+    }
+}
+
+/// Spacing of the shoe bottom's fair outline (mm).
+const FAIR_SPACING_MM: f64 = 1.0;
+/// Wavelength along the shoe bottom's outline passed at half amplitude by its smoothing
+/// (mm): the raster's 0.5 mm steps and the edge's kinks (a few millimetres) go, a last's
+/// toe and heel curves (radii of 15-40 mm, bends over 25-60 mm of outline) stay.
+const FAIR_WAVELENGTH_MM: f64 = 20.0;
+
+/// A closed outline made fair: resampled every `spacing` mm of its length, then the
+/// periodic smoothing spline through those points (the closed curve p minimising
+/// sum |p_i - q_i|^2 + lambda sum |p_(i-1) - 2 p_i + p_(i+1)|^2, the discrete cubic smoothing
+/// spline). Its system is circulant, so it is solved exactly in the Fourier basis: each
+/// harmonic k is divided by 1 + lambda (2 - 2 cos(2 pi k / n))^2, with lambda set so the
+/// harmonic of wavelength `wavelength` keeps half its amplitude. A few hundred points: the
+/// direct transform is cheap and needs no crate.
+pub fn fair_closed(outline: &[[f64; 2]], spacing: f64, wavelength: f64) -> Vec<[f64; 2]> {
+    let q = resample_closed(outline, spacing);
+    let n = q.len();
+    if n < 8 {
+        return q;
+    }
+    let w = 2.0 * std::f64::consts::PI * spacing / wavelength;
+    let lambda = 1.0 / (2.0 - 2.0 * w.cos()).powi(2);
+    let mut out = vec![[0.0; 2]; n];
+    let (cos, sin): (Vec<f64>, Vec<f64>) = (0..n)
+        .map(|m| {
+            let a = 2.0 * std::f64::consts::PI * m as f64 / n as f64;
+            (a.cos(), a.sin())
+        })
+        .unzip();
+    for k in 0..n {
+        let mut c = [[0.0; 2]; 2]; // [re, im] per coordinate
+        for (i, p) in q.iter().enumerate() {
+            let m = (i * k) % n;
+            for d in 0..2 {
+                c[d][0] += p[d] * cos[m];
+                c[d][1] -= p[d] * sin[m];
+            }
+        }
+        let g = 1.0 / (1.0 + lambda * (2.0 - 2.0 * cos[k]).powi(2));
+        for (i, o) in out.iter_mut().enumerate() {
+            let m = (i * k) % n;
+            for d in 0..2 {
+                o[d] += g * (c[d][0] * cos[m] - c[d][1] * sin[m]) / n as f64;
+            }
+        }
+    }
+    out
+}
+
+/// A closed polyline resampled at equal steps of about `step` along its length.
+fn resample_closed(p: &[[f64; 2]], step: f64) -> Vec<[f64; 2]> {
+    let k = p.len();
+    if k < 3 {
+        return p.to_vec();
+    }
+    let seg = |i: usize| {
+        let (a, b) = (p[i], p[(i + 1) % k]);
+        ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt()
+    };
+    let total: f64 = (0..k).map(seg).sum();
+    let n = ((total / step).round() as usize).max(3);
+    let h = total / n as f64;
+    let mut out = Vec::with_capacity(n);
+    let (mut i, mut at) = (0usize, 0.0f64); // segment i starts `at` along the outline
+    for m in 0..n {
+        let s = m as f64 * h;
+        while i < k - 1 && at + seg(i) < s {
+            at += seg(i);
+            i += 1;
+        }
+        let (a, b) = (p[i], p[(i + 1) % k]);
+        let t = if seg(i) > 0.0 {
+            ((s - at) / seg(i)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+    }
+    out
 }
 
 /// Landmarks in the foot frame (mm).
@@ -273,6 +481,8 @@ pub struct Design {
     pub seat_mm: f64,
     /// Pad apex (foot frame) and where the 3/4 insole ends (x, mm) if it does.
     pub pad_apex: [f64; 2],
+    /// The shoe's bottom curve the insole is bent onto (None: a flat bottom).
+    pub spring: Option<Spring>,
     pub warnings: Vec<String>,
 }
 
@@ -365,14 +575,7 @@ pub fn design_in(
         .chain(sole.warnings.iter().cloned())
         .collect();
     let mut outline = match shoe {
-        Some(shoe) => {
-            warnings.push(format!(
-                "outline from the shoe's bottom ({}); the insole's bottom is flat: the last's \
-                 heel and toe spring are not bent into it",
-                shoe.source
-            ));
-            shoe.outline(&frame)?
-        }
+        Some(shoe) => shoe.outline(&frame)?,
         None => {
             let mut poly = Polygon::from_arrays(&sole.points).simplify(OUTLINE_TOL_MM);
             poly.make_ccw();
@@ -496,8 +699,29 @@ pub fn design_in(
         arch_target_mm: 0.0,
         seat_mm: 0.0,
         pad_apex: [mt3[0] - params.met_pad_behind_mm, mt3[1]],
+        spring: None,
         warnings,
     };
+    if let Some(shoe) = shoe {
+        let xs = d.outline.iter().map(|q| q[0]);
+        let range = (
+            xs.clone().fold(f64::MAX, f64::min),
+            xs.fold(f64::MIN, f64::max),
+        );
+        d.spring = shoe.spring(&d.frame, range);
+        d.warnings.push(match &d.spring {
+            Some(sp) => format!(
+                "outline from the shoe's bottom ({}); the insole bent onto its bottom curve: \
+                 heel {:.1} mm and toe {:.1} mm above the tread",
+                shoe.source, sp.heel_mm, sp.toe_mm
+            ),
+            None => format!(
+                "outline from the shoe's bottom ({}); its bottom curve rises less than {} mm \
+                 under the insole: the insole's bottom is flat",
+                shoe.source, FLAT_TOL_MM
+            ),
+        });
+    }
     d.seat_mm = d.foot_at(marks.heel_centre[0], marks.heel_centre[1]);
     d.scanned_arch_mm = d.foot_at(marks.arch_point[0], marks.arch_point[1]);
     d.arch_target_mm = params
@@ -859,5 +1083,145 @@ impl Design {
             Some(self.shell_top(x, y))
         })
         .map_err(|e| InsoleError::Solid(e.to_string()))
+    }
+
+    /// The shoe's bottom curve at x (0 when the bottom is flat).
+    pub fn spring_at(&self, x: f64) -> f64 {
+        self.spring.as_ref().map_or(0.0, |s| s.at(x))
+    }
+
+    /// [`Self::solid`] bent onto the shoe's bottom curve: every vertex raised by the curve
+    /// at its x. The walls stay vertical (each wall quad keeps two vertical edges, so it
+    /// stays planar); the top and bottom follow the curve.
+    pub fn bent_solid(&self, cell_mm: f64) -> Result<OutlineSolid, InsoleError> {
+        let mut s = self.solid(cell_mm)?;
+        if self.spring.is_some() {
+            for v in &mut s.vertices {
+                v[2] += self.spring_at(v[0]);
+            }
+        }
+        Ok(s)
+    }
+
+    /// A written (bent) mesh in the insole's own frame: the bottom curve taken off every
+    /// vertex again, exactly, so heights and angles are measured as designed.
+    pub fn unbent(&self, mesh: &TriMesh) -> TriMesh {
+        let mut m = mesh.clone();
+        if self.spring.is_some() {
+            for v in &mut m.vertices {
+                v.z -= self.spring_at(v.x);
+            }
+        }
+        m
+    }
+}
+
+/// How sharply a closed outline turns: the largest turning over any `window` mm of it, in
+/// degrees per millimetre, and its total absolute turning in degrees (360 for a convex
+/// outline). Measured on the outline resampled every 0.5 mm, so it sees corners however the
+/// outline's vertices lie.
+pub fn outline_turning(outline: &[[f64; 2]], window: f64) -> (f64, f64) {
+    outline_turning_behind(outline, window, f64::INFINITY)
+}
+
+/// [`outline_turning`] with the largest turning taken only where x < `x_max` (behind the
+/// toes, whose lobes are the foot's own shape); the total over the whole outline.
+pub fn outline_turning_behind(outline: &[[f64; 2]], window: f64, x_max: f64) -> (f64, f64) {
+    let step = 0.5;
+    let q = resample_closed(outline, step);
+    let n = q.len();
+    let w = ((window / step).round() as usize).max(1);
+    let heading = |i: usize| {
+        let (a, b) = (q[i % n], q[(i + w) % n]);
+        (b[1] - a[1]).atan2(b[0] - a[0])
+    };
+    let wrap = |a: f64| {
+        let t = std::f64::consts::TAU;
+        (a + t / 2.0).rem_euclid(t) - t / 2.0
+    };
+    let mut max = 0.0f64;
+    let mut total = 0.0;
+    for i in 0..n {
+        // The heading of the chord behind the point and of the one ahead of it.
+        let turn = wrap(heading(i + n - w) - heading(i)).abs();
+        if q[i][0] < x_max {
+            max = max.max(turn.to_degrees() / (w as f64 * step));
+        }
+        let one = wrap({
+            let (a, b, c) = (q[(i + n - 1) % n], q[i], q[(i + 1) % n]);
+            (c[1] - b[1]).atan2(c[0] - b[0]) - (b[1] - a[1]).atan2(b[0] - a[0])
+        });
+        total += one.abs();
+    }
+    (max, total.to_degrees())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An ellipse 240 x 90 mm drawn as a 0.5 mm raster's staircase, with a kink (a 2 mm
+    /// notch over 1.5 mm) as the last's edge leaves one: the fair outline turns no faster
+    /// than a 10 mm radius anywhere and about once in all, and stays within 0.6 mm of the
+    /// ellipse.
+    #[test]
+    fn fair_outline_smooths_steps_and_kinks() {
+        let (a, b) = (120.0, 45.0);
+        let mut raw = Vec::new();
+        for i in 0..2000 {
+            let t = i as f64 / 2000.0 * std::f64::consts::TAU;
+            let mut p = [a * t.cos(), b * t.sin()];
+            if (200..203).contains(&i) {
+                p[1] -= 2.0;
+            }
+            raw.push([(p[0] / 0.5).round() * 0.5, (p[1] / 0.5).round() * 0.5]);
+        }
+        raw.dedup();
+        let (max_raw, total_raw) = outline_turning(&raw, 2.0);
+        // The earlier smoothing (8 passes of neighbour means 1/4, 1/2, 1/4, simplified to
+        // 0.2 mm) left the kink: the notch is 4 raster vertices wide, the means spread 1 mm.
+        let mut old = raw.clone();
+        let k = old.len();
+        for _ in 0..8 {
+            let prev = old.clone();
+            for i in 0..k {
+                let (a, b, c) = (prev[(i + k - 1) % k], prev[i], prev[(i + 1) % k]);
+                old[i] = [
+                    0.25 * a[0] + 0.5 * b[0] + 0.25 * c[0],
+                    0.25 * a[1] + 0.5 * b[1] + 0.25 * c[1],
+                ];
+            }
+        }
+        let old = Polygon::from_arrays(&old)
+            .simplify(OUTLINE_TOL_MM)
+            .to_arrays();
+        let (max_old, _) = outline_turning(&old, 2.0);
+        assert!(max_old > 5.7, "the earlier smoothing: {max_old} deg/mm");
+        let fair = fair_closed(&raw, FAIR_SPACING_MM, FAIR_WAVELENGTH_MM);
+        let (max, total) = outline_turning(&fair, 2.0);
+        println!(
+            "turning: raw {max_raw:.1} deg/mm, {total_raw:.0} deg in all; earlier smoothing \
+             {max_old:.1} deg/mm; fair {max:.2} deg/mm, {total:.1} deg"
+        );
+        // A 10 mm radius turns 5.7 deg a millimetre; the ellipse's tightest is a = 120,
+        // b = 45: radius b^2 / a = 16.9 mm (3.4 deg/mm).
+        assert!(max_raw > 20.0, "the raw outline has its kink: {max_raw}");
+        assert!(max < 5.7, "{max} deg/mm");
+        // The notch leaves a shallow dent (two gentle inflections), not a kink.
+        assert!((total - 360.0).abs() < 30.0, "{total} deg in all");
+        let ellipse: Vec<[f64; 2]> = (0..4000)
+            .map(|i| i as f64 / 4000.0 * std::f64::consts::TAU)
+            .map(|t| [a * t.cos(), b * t.sin()])
+            .collect();
+        let off = fair
+            .iter()
+            .map(|p| {
+                ellipse
+                    .iter()
+                    .map(|e| (e[0] - p[0]).hypot(e[1] - p[1]))
+                    .fold(f64::MAX, f64::min)
+            })
+            .fold(0.0f64, f64::max);
+        assert!(off < 0.6, "{off} mm off the ellipse");
     }
 }

@@ -1,7 +1,8 @@
 //! footscan-insole: an orthotic insole from a plantar scan (issue 38).
 //!
-//! The insole is a solid over its outline (the footprint plus a margin, full length or 3/4),
-//! its bottom flat on the shoe's floor (z = 0) and its top the surface the foot stands on:
+//! The insole is a solid over its outline (the footprint plus a margin, or the shoe's
+//! bottom; full length or 3/4), its bottom on the shoe's floor (z = 0, or bent onto the
+//! shoe's heel and toe spring, [`design::Spring`]) and its top the surface the foot stands on:
 //! the scanned plantar surface where the foot bears weight (total contact), raised by the
 //! base thickness and changed by the clinician's corrections ([`Params`]): heel cup, arch
 //! support, rearfoot and forefoot posts, metatarsal pad, first ray cut-out, heel lift. The
@@ -27,7 +28,7 @@ pub mod write;
 
 pub use design::{design, design_in, Design, Plantar, ShoeBottom};
 pub use measure::{measure_back, Check, Measured};
-pub use params::{Length, Params, PostSide};
+pub use params::{Length, Params, PostSide, PRESETS};
 pub use write::{write_insole, write_insole_in, Report, Written};
 
 use std::path::PathBuf;
@@ -43,6 +44,10 @@ pub enum InsoleError {
         hi: f64,
         why: String,
     },
+    #[error("preset {name:?}: the presets are {}", params::PRESETS.join(", "))]
+    Preset { name: String },
+    #[error("the insole's parameters: {why}")]
+    ParamsJson { why: String },
     #[error("{}: not a valid parameter file: {why}", path.display())]
     ParamsFile { path: PathBuf, why: String },
     #[error("reading {}", path.display())]

@@ -67,15 +67,10 @@ pub struct Measured {
 
 /// The mesh's top at (x, y) (foot frame), or None off the insole.
 fn top(bvh: &Bvh, x: f64, y: f64) -> Option<f64> {
-    // Nudged off the grid lines: a ray exactly on a box's face meets 0 x inf in the tree's
-    // slab test and misses (the mesh's vertices lie on whole millimetres, and the heel
-    // centre on the axis, y = 0).
-    bvh.ray_cast(
-        &P3::new(x + 1.3e-7, y + 0.7e-7, 1000.0),
-        &V3::new(0.0, 0.0, -1.0),
-        2000.0,
-    )
-    .map(|h| h.point.z)
+    // Rays on the mesh's grid lines (its vertices lie on whole millimetres, the heel centre
+    // on the axis, y = 0) lie on bounding-box faces: geom's slab test takes them.
+    bvh.ray_cast(&P3::new(x, y, 1000.0), &V3::new(0.0, 0.0, -1.0), 2000.0)
+        .map(|h| h.point.z)
 }
 
 /// Measures `mesh` (the shell, foot frame) against `d` and the scan `p`.

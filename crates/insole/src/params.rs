@@ -97,6 +97,79 @@ impl Default for Params {
     }
 }
 
+/// The starting points a clinic picks from (footscand's insole card), by name. Each is the
+/// defaults with a few parameters changed; the clinician edits any of them before the job.
+pub const PRESETS: [&str; 3] = ["cushioning", "supportive", "correcting"];
+
+impl Params {
+    /// Preset `name` of [`PRESETS`]:
+    /// - cushioning: a thick soft cover over a thin shell, a shallow cup and 90 % of the
+    ///   arch, for a sore or insensitive foot (diabetic, fat pad atrophy): pressure spread,
+    ///   nothing pushed;
+    /// - supportive: total contact with a deeper cup and a firmer shell, for a tired or
+    ///   flexible flat foot that needs holding, not correcting;
+    /// - correcting: a deep cup, a 4 deg medial rearfoot post, a 2 deg medial forefoot post,
+    ///   the arch raised 10 % and a 3 mm metatarsal pad, for an over-pronating foot with
+    ///   forefoot pain.
+    ///
+    /// None for any other name.
+    pub fn preset(name: &str) -> Option<Params> {
+        let d = Params::default();
+        Some(match name {
+            "cushioning" => Params {
+                base_thickness_mm: 6.0,
+                top_cover_mm: 3.0,
+                heel_cup_depth_mm: 6.0,
+                arch_share: 0.9,
+                ..d
+            },
+            "supportive" => Params {
+                base_thickness_mm: 4.0,
+                top_cover_mm: 1.5,
+                heel_cup_depth_mm: 12.0,
+                ..d
+            },
+            "correcting" => Params {
+                base_thickness_mm: 4.0,
+                top_cover_mm: 1.0,
+                heel_cup_depth_mm: 15.0,
+                arch_share: 1.1,
+                rearfoot_post_deg: 4.0,
+                rearfoot_post_side: PostSide::Medial,
+                forefoot_post_deg: 2.0,
+                forefoot_post_side: PostSide::Medial,
+                met_pad_height_mm: 3.0,
+                ..d
+            },
+            _ => return None,
+        })
+    }
+
+    /// A preset (or the defaults) with the keys of `changes` (a JSON object of
+    /// [`Params`]' fields) put over it, then checked: the first unknown key or bad value is
+    /// named with what would be valid.
+    pub fn from_preset_json(
+        preset: Option<&str>,
+        changes: &serde_json::Map<String, serde_json::Value>,
+    ) -> Result<Params, InsoleError> {
+        let base = match preset {
+            None => Params::default(),
+            Some(n) => Params::preset(n).ok_or_else(|| InsoleError::Preset {
+                name: n.to_string(),
+            })?,
+        };
+        let mut v = serde_json::to_value(&base).expect("the parameters serialise");
+        let obj = v.as_object_mut().expect("the parameters are an object");
+        for (k, x) in changes {
+            obj.insert(k.clone(), x.clone());
+        }
+        let p: Params = serde_json::from_value(v)
+            .map_err(|e| InsoleError::ParamsJson { why: e.to_string() })?;
+        p.validate()?;
+        Ok(p)
+    }
+}
+
 /// The thinnest shell a printer or a mill leaves whole (mm): no correction may cut deeper.
 pub const MIN_SHELL_MM: f64 = 1.0;
 
@@ -206,5 +279,29 @@ mod tests {
         assert_eq!(p.length, Length::ThreeQuarter);
         assert_eq!(p.met_pad_height_mm, 4.0);
         assert_eq!(p.base_thickness_mm, 3.0);
+    }
+
+    #[test]
+    fn presets_are_valid_and_changes_are_checked_by_name() {
+        for n in PRESETS {
+            Params::preset(n).unwrap().validate().unwrap();
+        }
+        assert!(Params::preset("firm").is_none());
+        let mut ch = serde_json::Map::new();
+        ch.insert("rearfoot_post_deg".into(), 6.0.into());
+        let p = Params::from_preset_json(Some("correcting"), &ch).unwrap();
+        assert_eq!((p.rearfoot_post_deg, p.met_pad_height_mm), (6.0, 3.0));
+        ch.insert("rearfoot_post_deg".into(), 40.0.into());
+        let e = Params::from_preset_json(Some("correcting"), &ch).unwrap_err();
+        assert!(e.to_string().contains("rearfoot_post_deg = 40"), "{e}");
+        let mut ch = serde_json::Map::new();
+        ch.insert("heel_cup".into(), 6.0.into());
+        let e = Params::from_preset_json(None, &ch).unwrap_err().to_string();
+        assert!(
+            e.contains("heel_cup") && e.contains("heel_cup_depth_mm"),
+            "{e}"
+        );
+        let e = Params::from_preset_json(Some("firm"), &serde_json::Map::new()).unwrap_err();
+        assert!(e.to_string().contains("cushioning"), "{e}");
     }
 }

@@ -4,7 +4,7 @@
 
 use crate::design::Design;
 use footscan_geom::mesh::TriMesh;
-use footscan_last::draw::{sequential, Canvas, View, BLACK, BLUE, GREY, RED, WHITE};
+use footscan_last::draw::{sequential, Canvas, View, BLACK, BLUE, GREEN, GREY, RED, WHITE};
 
 /// The mesh's top seen from above on pixels of `px` mm: heights (NaN off the insole).
 struct Raster {
@@ -236,26 +236,36 @@ pub fn side_picture(d: &Design, mesh: &TriMesh) -> Canvas {
             920.0,
             200.0,
         );
-        // The floor, the scanned sole raised by the shell, the insole's top.
-        cv.line(&view, (x0, 0.0), (x1, 0.0), BLACK, 1);
+        // The floor (the shoe's bottom curve when bent onto it), the scanned sole raised by
+        // the shell, the insole's top.
+        let floor: Vec<(f64, f64)> = (0..=100)
+            .map(|k| x0 + (x1 - x0) * k as f64 / 100.0)
+            .map(|x| (x, d.spring_at(x) * ex))
+            .collect();
+        cv.polyline(&view, &floor, false, BLACK, 1);
         let sole: Vec<(f64, f64)> = (0..r.w)
             .map(|i| r.x0 + i as f64 * r.px)
             .filter(|&x| d.is_measured(x, *y))
-            .map(|x| (x, (d.params.shell_mm() + d.lift(x) + d.foot_at(x, *y)) * ex))
+            .map(|x| {
+                let z = d.params.shell_mm() + d.lift(x) + d.foot_at(x, *y) + d.spring_at(x);
+                (x, z * ex)
+            })
             .collect();
-        for p in sole.iter().step_by(6) {
-            cv.dot(&view, *p, 0, GREY);
+        // A plain line, broken where the foot was not measured (a dot every sixth sample,
+        // grey and one pixel, was barely visible next to the shell's top).
+        for run in sole.chunk_by(|a, b| b.0 - a.0 < 1.5 * r.px) {
+            cv.polyline(&view, run, false, GREEN, 1);
         }
         let pts: Vec<(f64, f64)> = profile(*y).into_iter().map(|(x, z)| (x, z * ex)).collect();
         cv.polyline(&view, &pts, false, *colour, 2);
         for (x, z) in pts.iter().step_by(40) {
-            cv.line(&view, (*x, 0.0), (*x, *z), GREY, 1);
+            cv.line(&view, (*x, d.spring_at(*x) * ex), (*x, *z), GREY, 1);
         }
         cv.text(
             40,
             top as i64 - 20,
             &format!(
-                "{name}: shell top (colour), sole + shell (grey); heel left; height x{ex}, max {:.1} mm",
+                "{name}: shell top (colour), sole + shell (green); heel left; height x{ex}, max {:.1} mm",
                 zmax
             ),
             BLACK,

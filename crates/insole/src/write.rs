@@ -40,8 +40,16 @@ pub struct Report {
     /// How far the midfoot stood off the glass (0: the foot bore weight).
     pub midfoot_off_glass_mm: f64,
     pub outline_vertices: usize,
+    /// How sharply the outline turns: the most over any 2 mm of it behind the metatarsal
+    /// heads (deg/mm; a 10 mm radius is 5.7; in front, a shoe bottom adjusted to the foot
+    /// has the toes' lobes) and in all (deg; 360 for a convex outline).
+    pub outline_max_turn_deg_per_mm: f64,
+    pub outline_total_turn_deg: f64,
     /// Where the outline came from: "footprint + margin" or the shoe bottom's last.
     pub outline_from: String,
+    /// The shoe's bottom curve the insole is bent onto (absent: its bottom is flat).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spring: Option<crate::design::Spring>,
     /// Each parameter measured back on insole.stl's mesh.
     pub measured: Measured,
     pub mesh: MeshFacts,
@@ -90,7 +98,7 @@ pub fn write_insole_in(
 ) -> Result<Written, InsoleError> {
     let t0 = Instant::now();
     let d = design_in(p, params, shoe)?;
-    let solid = d.solid(params.mesh_cell_mm)?;
+    let solid = d.bent_solid(params.mesh_cell_mm)?;
     let mesh = solid.mesh();
     let closed = mesh.check_closed();
     if let Err(e) = &closed {
@@ -107,14 +115,18 @@ pub fn write_insole_in(
     let step_solid = if params.step_cell_mm == params.mesh_cell_mm {
         solid.clone()
     } else {
-        d.solid(params.step_cell_mm)?
+        d.bent_solid(params.step_cell_mm)?
     };
     let design_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = Instant::now();
-    let measured = measure_back(&d, p, &mesh);
+    // Measured and drawn in the insole's own frame (the shoe's bottom curve taken off).
+    let local = d.unbent(&mesh);
+    let measured = measure_back(&d, p, &local);
     let (step_text, step_faces) = faceted_step(&step_solid, "footscan insole");
     let threemf = crate::threemf::to_3mf(&mesh, "footscan insole");
     let bb = mesh.bbox();
+    let heads_x = d.marks.mt1_head[0].min(d.marks.mt5_head[0]);
+    let turning = crate::design::outline_turning_behind(&d.outline, 2.0, heads_x);
     let mut report = Report {
         scan: p.source.clone(),
         side: format!("{:?}", d.side).to_lowercase(),
@@ -127,10 +139,13 @@ pub fn write_insole_in(
         pad_apex_mm: d.pad_apex,
         midfoot_off_glass_mm: d.bottom_rise_mm,
         outline_vertices: d.outline.len(),
+        outline_max_turn_deg_per_mm: turning.0,
+        outline_total_turn_deg: turning.1,
         outline_from: match shoe {
             Some(s) => format!("shoe bottom: {}", s.source),
             None => format!("footprint + {} mm margin", params.margin_mm),
         },
+        spring: d.spring.clone(),
         measured,
         mesh: MeshFacts {
             cell_mm: params.mesh_cell_mm,
@@ -163,8 +178,8 @@ pub fn write_insole_in(
         ));
     }
     let pictures = [
-        (THICKNESS_PNG, picture::thickness_map(&d, &mesh)),
-        (TOP_PNG, picture::top_picture(&d, &mesh)),
+        (THICKNESS_PNG, picture::thickness_map(&d, &local)),
+        (TOP_PNG, picture::top_picture(&d, &local)),
         (SIDE_PNG, picture::side_picture(&d, &mesh)),
     ];
     report.write_ms = t1.elapsed().as_secs_f64() * 1e3;

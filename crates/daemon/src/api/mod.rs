@@ -8,6 +8,7 @@ mod confirm;
 mod error;
 mod fleet;
 mod guard;
+mod insoles;
 mod lasts;
 mod live;
 mod report;
@@ -84,6 +85,14 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/api/scans/{id}/last/rank", post(lasts::rank))
         .route("/api/scans/{id}/last/{name}", get(lasts::download))
         .route("/api/lasts", get(lasts::stock))
+        .route(
+            "/api/scans/{id}/insole",
+            get(insoles::show).post(insoles::start),
+        )
+        .route("/api/scans/{id}/insole/{name}", get(insoles::download))
+        .route("/api/visits/{id}/insole", post(insoles::start_visit))
+        .route("/api/insole/presets", get(insoles::presets))
+        .route("/insole.js", get(dashboard_insole_js))
         .route("/api/preview.png", get(live::preview_png))
         .route("/api/preview/line", get(live::preview_line))
         .route("/api/events", get(live::events))
@@ -193,6 +202,7 @@ async fn auth(State(st): State<AppState>, req: Request, next: Next) -> Response 
                 | "/calibration.js"
                 | "/visits.js"
                 | "/last.js"
+                | "/insole.js"
                 | "/style.css"
                 | "/view.js"
         ) || path.starts_with("/vendor/three/"))
@@ -344,6 +354,13 @@ async fn dashboard_last_js() -> Response {
     static_file(
         "text/javascript; charset=utf-8",
         include_str!("dashboard/last.js"),
+    )
+}
+
+async fn dashboard_insole_js() -> Response {
+    static_file(
+        "text/javascript; charset=utf-8",
+        include_str!("dashboard/insole.js"),
     )
 }
 

@@ -802,6 +802,7 @@ pub fn content_type(name: &str) -> &'static str {
         Some("igs" | "iges") => "model/iges",
         Some("step" | "stp") => "model/step",
         Some("glb") => "model/gltf-binary",
+        Some("3mf") => "model/3mf",
         _ => "application/octet-stream",
     }
 }

@@ -412,18 +412,26 @@ impl Daemon {
     /// a scan being deleted.
     pub fn delete_visit(&self, vid: &ScanId) -> Result<Vec<String>, VisitError> {
         let running = self.last_jobs.running.lock().unwrap();
-        self.archive.delete_visit(vid, |v| {
-            let scan = running.as_deref()?;
-            [&v.left, &v.right]
-                .into_iter()
-                .flatten()
-                .any(|s| s == scan)
-                .then(|| {
+        // The insole job's slot likewise (insolejob.rs); always taken after the last's.
+        self.insole_jobs.with_running(|insoles| {
+            self.archive.delete_visit(vid, |v| {
+                let held =
+                    |scan: &str| [&v.left, &v.right].into_iter().flatten().any(|s| s == scan);
+                let last = running.as_deref().filter(|s| held(s)).map(|scan| {
                     format!(
                         "a last is being made for scan {scan} of visit {vid}: delete the \
                          visit when it has ended (GET /api/scans/{scan}/last)"
                     )
+                });
+                last.or_else(|| {
+                    insoles.iter().find(|s| held(s)).map(|scan| {
+                        format!(
+                            "an insole is being made for scan {scan} of visit {vid}: delete \
+                             the visit when it has ended (GET /api/scans/{scan}/insole)"
+                        )
+                    })
                 })
+            })
         })
     }
 

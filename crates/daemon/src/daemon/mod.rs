@@ -6,6 +6,7 @@ pub mod config;
 pub mod fitview;
 mod fleet;
 pub mod guided;
+pub mod insolejob;
 mod jobs;
 pub mod lastjob;
 pub mod preflight;
@@ -249,6 +250,7 @@ pub struct Daemon {
     /// The fleet pusher, when [fleet] is on.
     fleet: Option<fleet::Fleet>,
     last_jobs: lastjob::LastJobs,
+    insole_jobs: insolejob::InsoleJobs,
     /// The certificate in use when serving HTTPS (set once at start), for the status page.
     pub tls: std::sync::OnceLock<crate::api::tls::TlsInfo>,
 }
@@ -335,6 +337,7 @@ impl Daemon {
             })?,
             fleet,
             last_jobs: lastjob::LastJobs::default(),
+            insole_jobs: insolejob::InsoleJobs::default(),
             tls: std::sync::OnceLock::new(),
         }))
     }

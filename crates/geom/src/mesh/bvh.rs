@@ -427,6 +427,19 @@ mod tests {
             .unwrap();
         assert!((h.t - 5.0).abs() < 1e-15 && !h.front);
         assert!(b.ray_cast(&P3::new(1.0, 1.0, 1.0), &V3::z(), 4.0).is_none());
+        // Rays down the cuboid's side faces and edges (the origin on the boxes' faces, the
+        // direction's x and y zero): they meet the bottom's edge and corner. These missed
+        // while the slab test turned 0 x inf into a NaN bound.
+        for (x, y) in [(0.0, 1.0), (2.0, 1.0), (1.0, 4.0), (0.0, 0.0), (2.0, 4.0)] {
+            let h = b
+                .ray_cast(&P3::new(x, y, -5.0), &V3::z(), f64::INFINITY)
+                .unwrap_or_else(|| panic!("a ray up at ({x}, {y}) missed"));
+            assert!((h.t - 5.0).abs() < 1e-15, "({x}, {y}): t {}", h.t);
+            let h = b
+                .ray_cast(&P3::new(x, y, 50.0), &(-V3::z()), f64::INFINITY)
+                .unwrap_or_else(|| panic!("a ray down at ({x}, {y}) missed"));
+            assert!((h.t - 44.0).abs() < 1e-15, "({x}, {y}): t {}", h.t);
+        }
         assert!(b
             .ray_cast(&P3::new(5.0, 1.0, 1.0), &V3::z(), 100.0)
             .is_none());

@@ -106,7 +106,8 @@ pub(crate) struct Facet {
 }
 
 /// The faces of `solid`: the top's triangles, one quad per wall chord, and the bottom as one
-/// polygon (its triangles when the top has more than one boundary loop).
+/// polygon (its triangles when the top has more than one boundary loop or the bottom is not
+/// flat).
 pub(crate) fn facets(solid: &OutlineSolid) -> Vec<Facet> {
     let v = &solid.vertices;
     let mut out = Vec::with_capacity(solid.top.len() + solid.boundary_len() + 1);
@@ -124,7 +125,24 @@ pub(crate) fn facets(solid: &OutlineSolid) -> Vec<Facet> {
             add(vec![a, a + 1, b + 1, b]);
         }
     }
-    if solid.loops.len() == 1 {
+    // One polygon only when it is planar: a bottom bent along a curve (an insole on a
+    // shoe's heel and toe spring) is written as the top's triangulation too.
+    let bz = solid
+        .loops
+        .first()
+        .and_then(|l| l.first())
+        .map(|&k| v[k as usize + 1][2]);
+    let flat = solid
+        .loops
+        .iter()
+        .flatten()
+        .all(|&k| Some(v[k as usize + 1][2]) == bz)
+        && solid
+            .top
+            .iter()
+            .flatten()
+            .all(|&k| Some(v[k as usize + 1][2]) == bz);
+    if solid.loops.len() == 1 && flat {
         add(solid.loops[0].iter().rev().map(|&k| k + 1).collect());
     } else {
         for &[a, b, c] in &solid.top {

@@ -729,6 +729,7 @@ async function loadResult(id) {
     files.append(el('p', { class: 'small' }, el('a', { id: 'report-link', href: withToken(`/api/scans/${encodeURIComponent(rec.id)}/report.pdf`), target: '_blank', text: 'Printable report (PDF, foot at 1:1)' })));
   }
   if (typeof renderLast === 'function') await renderLast(rec);
+  if (typeof renderInsole === 'function') await renderInsole(rec);
 }
 
 /** A "side mismatch" scan: the operator confirms the side the scan shows or keeps theirs
