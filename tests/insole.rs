@@ -158,6 +158,12 @@ fn simulated_scan_insole_meets_every_target_and_reads_back() {
     let rep = mesh.check().unwrap_or_else(|e| panic!("insole.stl: {e}"));
     assert_eq!(rep.components, 1);
     assert!(rep.bbox.min.z.abs() < 1e-9, "{:?}", rep.bbox);
+    // And it does not pass through itself (the "without self-intersection").
+    let crossing = mesh.self_intersections();
+    assert!(
+        crossing.is_empty(),
+        "insole.stl crosses itself: {crossing:?}"
+    );
     // Thickness at the heel centre by a ray of our own: what insole.json reports, and more
     // than the shell (3 less the 1 mm cover) and the 3 mm heel lift.
     let bvh = Bvh::new(&mesh);
@@ -326,6 +332,10 @@ fn shoe_bottom_outline_from_last_adjust() {
         .starts_with("shoe bottom"));
     let mesh = TriMesh::read(out_dir.join("insole.stl")).unwrap();
     assert_eq!(mesh.check().unwrap().components, 1);
+    assert!(
+        mesh.self_intersections().is_empty(),
+        "bent insole.stl crosses itself"
+    );
     // The last's downward faces in the foot frame (insole.json's frame).
     let lastm = TriMesh::read(adj.join("last_adjusted.stl")).unwrap();
     let f = &r["frame"];
@@ -637,5 +647,10 @@ fn real_feet_insoles_meet_every_target() {
         );
         let mesh = TriMesh::read(tmp.path().join("out/insole.stl")).unwrap();
         assert_eq!(mesh.check().unwrap().components, 1, "{file}");
+        let crossing = mesh.self_intersections();
+        assert!(
+            crossing.is_empty(),
+            "{file}: insole.stl crosses itself: {crossing:?}"
+        );
     }
 }

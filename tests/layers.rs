@@ -56,6 +56,7 @@ const CRATE_RULES: &[(&str, &[&str])] = &[
             "footscan-sim",
             "footscan-fleet",
             "footscan-last",
+            "footscan-insole",
             "footscan-geom",
             "footscan-util",
         ],

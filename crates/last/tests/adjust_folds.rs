@@ -102,6 +102,9 @@ fn count(
     write_outputs(dir.path(), &a, &surf, Some((prep, &mesh)), &report).unwrap();
     let back = TriMesh::read(dir.path().join(LAST_STL)).unwrap();
     let f = folds(&prep.mesh, &back);
+    // Nor does it pass through itself (no triangle pair crosses).
+    let crossing = back.self_intersections();
+    assert!(crossing.is_empty(), "{name}: crossing pairs {crossing:?}");
     println!(
         "{name}: {f} folded of {} (deform reports {}, {} vertices moved by up to {:.2} mm, \
          slid on the bottom by up to {:.2} mm; bottom vs adjusted RMS {:.3} max {:.3} mm)",

@@ -11,6 +11,7 @@ pub mod cloud;
 mod error;
 mod gltf;
 mod intake;
+mod intersect;
 mod io;
 mod section;
 mod shapes;
