@@ -708,14 +708,16 @@ const UNTANGLE_STAY: f64 = 0.001;
 const UNTANGLE_ITERATIONS: usize = 1000;
 
 /// Untangling of the folds a deformation left: the vertices round them move to minimise
-/// sum over triangles of max(0, margin - n.u / |n0|)^2 (n the triangle's area normal, u the
-/// wanted unit normal, |n0| its area normal's length on the input) plus a small pull back
-/// to where they were. Bottom vertices slide on the adjusted bottom (their height above it
-/// kept), so the bottom stays the adjusted one while a rim made of bottom vertices can turn
-/// back. Gradient descent with a backtracking step over a region grown ring by ring.
+/// the sum over triangles and wanted normals u of max(0, (margin |n| - n.u) / a)^2 (n the
+/// triangle's area normal, a the smaller of its length at the start and on the input), a
+/// bending term and a small pull back to where they were (docs/method.md 9.2.1). Bottom
+/// vertices slide on the adjusted bottom (their height above it kept), so the bottom stays
+/// the adjusted one while a rim made of bottom vertices can turn back. Jacobi-scaled
+/// gradient descent with a backtracking step over a region grown ring by ring.
 struct Untangle<'a> {
     triangles: &'a [[u32; 3]],
     wants: [&'a [V3]; 2],
+    /// Each triangle's doubled area on the input.
     area2: &'a [f64],
     pinned: &'a [bool],
     off: &'a [f64],
