@@ -307,28 +307,7 @@ impl ShoeBottom {
             (SPRING_SPAN.0 * n as f64) as usize,
             ((SPRING_SPAN.1 * n as f64) as usize).min(n - 1),
         );
-        if b < a + 20 {
-            return None;
-        }
-        let mut z = vec![0.0; n];
-        for (i, zi) in z.iter_mut().enumerate().take(b + 1).skip(a) {
-            let near: Vec<f64> = (i.saturating_sub(SPRING_SMOOTH_MM).max(a)
-                ..=(i + SPRING_SMOOTH_MM).min(b))
-                .filter_map(|j| low[j])
-                .collect();
-            if near.is_empty() {
-                return None;
-            }
-            *zi = near.iter().sum::<f64>() / near.len() as f64;
-        }
-        let back = (z[a + 10] - z[a]) / 10.0;
-        let front = (z[b] - z[b - 10]) / 10.0;
-        for i in 0..a {
-            z[i] = z[a] - back * (a - i) as f64;
-        }
-        for i in b + 1..n {
-            z[i] = z[b] + front * (i - b) as f64;
-        }
+        let z = footscan_last::smoothed_lowest(&low, a, b, SPRING_SMOOTH_MM)?;
         let mut s = Spring {
             x0,
             z,

@@ -34,3 +34,5 @@ pub(crate) fn smoothstep(s: f64) -> f64 {
     let s = s.clamp(0.0, 1.0);
     s * s * (3.0 - 2.0 * s)
 }
+
+pub use customize::bottom::smoothed_lowest;

@@ -25,6 +25,36 @@ fn lowest_per_mm(m: &TriMesh) -> (f64, f64, Vec<Option<f64>>) {
     (bb.min.x, bb.max.x - bb.min.x, low)
 }
 
+/// The lowest heights `low` (one a millimetre) averaged over +-`half` mm within [a, b] and
+/// carried on beyond along the slopes of the span's last 10 mm: a last's bottom curve, and
+/// the insole's spring under it. None when the span is under 20 mm or a station in it has
+/// no height within reach.
+pub fn smoothed_lowest(low: &[Option<f64>], a: usize, b: usize, half: usize) -> Option<Vec<f64>> {
+    let n = low.len();
+    if b < a + 20 || b >= n {
+        return None;
+    }
+    let mut z = vec![0.0; n];
+    for (i, zi) in z.iter_mut().enumerate().take(b + 1).skip(a) {
+        let near: Vec<f64> = (i.saturating_sub(half).max(a)..=(i + half).min(b))
+            .filter_map(|j| low[j])
+            .collect();
+        if near.is_empty() {
+            return None;
+        }
+        *zi = near.iter().sum::<f64>() / near.len() as f64;
+    }
+    let back = (z[a + 10] - z[a]) / 10.0;
+    let front = (z[b] - z[b - 10]) / 10.0;
+    for i in 0..a {
+        z[i] = z[a] - back * (a - i) as f64;
+    }
+    for i in b + 1..n {
+        z[i] = z[b] + front * (i - b) as f64;
+    }
+    Some(z)
+}
+
 /// A last's bottom curve in its frame: the height of the lowest point of its section at
 /// every millimetre along x, smoothed over +-5 mm.
 pub(crate) struct BottomCurve {
@@ -41,28 +71,7 @@ impl BottomCurve {
             (BOTTOM_SPAN.0 * len) as usize,
             ((BOTTOM_SPAN.1 * len) as usize).min(n.saturating_sub(1)),
         );
-        if b < a + 20 {
-            return None;
-        }
-        let mut z = vec![0.0; n];
-        for (i, zi) in z.iter_mut().enumerate().take(b + 1).skip(a) {
-            let near: Vec<f64> = (i.saturating_sub(5).max(a)..=(i + 5).min(b))
-                .filter_map(|j| low[j])
-                .collect();
-            if near.is_empty() {
-                return None;
-            }
-            *zi = near.iter().sum::<f64>() / near.len() as f64;
-        }
-        // Carried on along the slopes of the span's last 10 mm.
-        let back = (z[a + 10] - z[a]) / 10.0;
-        let front = (z[b] - z[b - 10]) / 10.0;
-        for i in 0..a {
-            z[i] = z[a] - back * (a - i) as f64;
-        }
-        for i in b + 1..n {
-            z[i] = z[b] + front * (i - b) as f64;
-        }
+        let z = smoothed_lowest(&low, a, b, 5)?;
         Some(BottomCurve { x0, z })
     }
 
