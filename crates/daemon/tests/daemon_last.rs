@@ -84,6 +84,7 @@ fn a_scan_with_last_adjust_offers_the_adjusted_last() {
     customized_last(&d, &id);
     dashboard_makes_a_last(&d, &id, dir.path());
     viewer_draws_the_last(&d, &id, dir.path());
+    dashboard_marks_a_last_that_could_not_be_made(&d, &id, dir.path());
     // A job cut off by a stop reads as failed once the daemon is back.
     assert!(d.terminate(Duration::from_secs(20)).success());
     let scan_dir = archive.join(&id);
@@ -397,6 +398,88 @@ fn dashboard_makes_a_last(d: &Footscand, id: &str, dir: &std::path::Path) {
         &daemon_support::chromium::target_png("dashboard-last.png"),
         Some("last"),
     );
+}
+
+/// The ranking is a forecast from the stock's stations: with a long-heel girth 53 mm over the
+/// foot's, the 245 mm last still ranks first (eligible: its size is right) but the solve
+/// cannot meet the rule. The card then marks that row as not made, with the job's reason,
+/// takes it out of the choice, and says that no other last can be made (the other file is not
+/// a last); ranked again for the same request, the row is marked again.
+fn dashboard_marks_a_last_that_could_not_be_made(d: &Footscand, id: &str, dir: &std::path::Path) {
+    const WAIT: Duration = Duration::from_secs(90);
+    let mut b = Browser::launch(&dir.join("profile-failed"), 1280, 2400);
+    b.open(
+        &format!("{}/", d.base),
+        "typeof renderLast === 'function'",
+        WAIT,
+    );
+    b.eval(&format!("loadResult({id:?})"));
+    b.wait_for(
+        "(() => { const e = document.getElementById('last-state'); return !!e && e.dataset.state === 'done'; })()",
+        WAIT,
+    );
+    b.eval(
+        "(() => { const v = (id, x) => { document.getElementById(id).value = x; }; \
+         v('last-ball', '260'); v('last-instep', '248'); v('last-long-heel', '420'); \
+         v('last-ankle', '200.5'); v('last-shoe', 'dress'); v('last-heel', ''); })()",
+    );
+    let ranked = "(() => { const t = document.getElementById('last-ranking-table'); \
+                  return !!t && t.querySelectorAll('tbody tr').length === 2; })()";
+    b.click("last-rank");
+    b.wait_for(ranked, WAIT);
+    let first = b.eval(
+        "(() => { const r = document.querySelector('#last-ranking-table tbody tr'); \
+         return { name: r.dataset.name, usable: !r.querySelector('button').disabled, \
+         picked: document.getElementById('last-stock').value }; })()",
+    );
+    assert_eq!(first["name"], "sim-245-right.stl", "{first}");
+    assert_eq!(first["usable"], true, "ranked eligible: {first}");
+    assert_eq!(first["picked"], "sim-245-right.stl", "{first}");
+    b.click("last-make");
+    b.wait_for(
+        "(() => { const e = document.getElementById('last-state'); return !!e && e.dataset.state === 'failed'; })()",
+        WAIT,
+    );
+    let marked = "(() => { const r = document.querySelector('#last-ranking-table tbody tr'); \
+         const n = document.getElementById('last-ranking-next'); \
+         return { failed: r.dataset.failed || null, usable: !r.querySelector('button').disabled, \
+         notes: r.cells[5].textContent, next: n ? n.textContent : null }; })()";
+    let m = b.eval(marked);
+    println!("dashboard ranking after a failed job: {m}");
+    let j = d.get_json(&format!("/api/scans/{id}/last"));
+    assert_eq!(j["state"], "failed", "{j}");
+    let reason = j["reason"].as_str().unwrap();
+    assert!(reason.contains("long-heel"), "the job names the rule: {j}");
+    // Each cause once (the stock's name and the solve's message were printed twice).
+    assert_eq!(
+        reason.matches("the rules cannot all be met").count(),
+        1,
+        "{reason}"
+    );
+    assert_eq!(m["failed"], "true", "{m}");
+    assert_eq!(m["usable"], false, "{m}");
+    assert!(
+        m["notes"]
+            .as_str()
+            .unwrap()
+            .starts_with("could not be made for this foot: ")
+            && m["notes"].as_str().unwrap().contains(reason),
+        "{m}"
+    );
+    assert!(m["next"].as_str().unwrap().contains("no other last"), "{m}");
+    // Ranked again for the same request: marked again (the job's record is the memory).
+    b.click("last-rank");
+    b.wait_for(
+        "(() => { const r = document.querySelector('#last-ranking-table tbody tr'); return !!r && r.dataset.failed === 'true'; })()",
+        WAIT,
+    );
+    // Another request (the foot's own long heel): the row is the ranking's again.
+    b.eval("document.getElementById('last-long-heel').value = '367'");
+    b.click("last-rank");
+    b.wait_for(ranked, WAIT);
+    let again = b.eval(marked);
+    assert_eq!(again["failed"], Value::Null, "{again}");
+    assert_eq!(again["usable"], true, "{again}");
 }
 
 /// The extent (x, y, z in glTF metres) of node `name` of a .glb, from its POSITION

@@ -23,10 +23,12 @@ pub enum ClinicLastError {
     NoMeasurements { dir: PathBuf },
     #[error("{}", prefixed(path, why))]
     Input { path: PathBuf, why: String },
-    #[error("{}", named(stock, source))]
+    /// The message carries the customization's whole chain after the stock's name, so the
+    /// error is not a `source` (an edge printing the chain would say it twice).
+    #[error("{}", named(stock, error))]
     Customize {
         stock: PathBuf,
-        source: Box<CustomizeError>,
+        error: Box<CustomizeError>,
     },
 }
 
@@ -148,8 +150,8 @@ pub fn customize_scan(
         rules,
         inp,
     )
-    .map_err(|source| ClinicLastError::Customize {
+    .map_err(|error| ClinicLastError::Customize {
         stock: stock.into(),
-        source: Box::new(source),
+        error: Box::new(error),
     })
 }

@@ -10,6 +10,8 @@
 const LAST_POLL_MS = 500;
 let lastPoll = null; // the timer polling a running job
 let lastScan = null; // the scan the card shows
+let lastJob = null; // the job record shown (marks a ranked last that could not be made)
+let lastRanked = null; // the request the ranking shown was made for
 
 function lastFileUrl(id, name) {
   return withToken(`/api/scans/${encodeURIComponent(id)}/last/${encodeURIComponent(name)}`);
@@ -20,7 +22,10 @@ async function renderLast(rec) {
   const box = $('last');
   if (lastPoll) clearTimeout(lastPoll);
   lastPoll = null;
-  if (lastScan !== rec.id) $('last-ranking').replaceChildren();
+  if (lastScan !== rec.id) {
+    $('last-ranking').replaceChildren();
+    lastRanked = null;
+  }
   lastScan = rec.id;
   const measured = (rec.artifacts || []).some((a) => a.name === 'measurements.json');
   box.hidden = !measured || rec.status === 'running';
@@ -53,6 +58,8 @@ async function lastShowJob(id) {
     if (e.status !== 404) showError(e);
   }
   out.replaceChildren();
+  lastJob = job;
+  lastMarkFailed();
   $('last-make').disabled = job !== null && job.state === 'running';
   if (!job) {
     out.append(el('p', { class: 'small', text: 'No last made for this scan yet.' }));
@@ -109,6 +116,36 @@ async function lastShowJob(id) {
   }
 }
 
+/** Whether a job's request asked what the ranking was made for (same girths and purpose). */
+function lastSameAsk(req, ranked) {
+  const g = (x) => JSON.stringify([x.girths.ball, x.girths.instep, x.girths.long_heel, x.girths.ankle]);
+  return g(req) === g(ranked) && req.shoe === ranked.shoe && req.wearer === ranked.wearer
+    && (req.heel_mm ?? null) === (ranked.heel_mm ?? null);
+}
+
+// The ranking is a forecast from the stock's stations; the solve can still fail on a last it
+// put first. When the job shown failed on a ranked last for the same request, that row says
+// so, cannot be picked, and the form moves to the next last that can.
+function lastMarkFailed() {
+  const t = $('last-ranking-table');
+  const job = lastJob;
+  if (!t || !job || job.state !== 'failed' || !lastRanked || !lastSameAsk(job.request, lastRanked)) return;
+  const row = [...t.querySelectorAll('tbody tr')].find((r) => r.dataset.name === job.request.stock);
+  if (!row || row.dataset.failed) return;
+  row.dataset.failed = 'true';
+  row.classList.add('muted');
+  const notes = row.cells[5];
+  notes.className = 'bad';
+  notes.textContent = `could not be made for this foot: ${job.reason || 'failed'}` + (notes.textContent ? `; ${notes.textContent}` : '');
+  row.querySelector('button').disabled = true;
+  const next = [...t.querySelectorAll('tbody tr')].find((r) => !r.dataset.failed && !r.querySelector('button').disabled);
+  const say = next
+    ? `${job.request.stock} could not be made; the next last, ${next.dataset.name}, is picked.`
+    : `${job.request.stock} could not be made, and no other last in the collection can be: see the notes.`;
+  if (next && $('last-stock').value === job.request.stock) $('last-stock').value = next.dataset.name;
+  $('last-ranking').append(el('p', { class: 'warn', id: 'last-ranking-next', text: say }));
+}
+
 /** The form's girths and what the last is for (the body of both POSTs). */
 function lastBody() {
   const num = (k) => Number($(`last-${k}`).value);
@@ -130,7 +167,8 @@ $('last-rank').addEventListener('click', async () => {
   $('last-rank').disabled = true;
   out.replaceChildren(el('p', { class: 'small', text: 'Ranking the stock lasts…' }));
   try {
-    const r = await api('POST', `/api/scans/${encodeURIComponent(id)}/last/rank`, lastBody());
+    const ask = lastBody();
+    const r = await api('POST', `/api/scans/${encodeURIComponent(id)}/last/rank`, ask);
     clearError('POST /api/scans');
     const t = el('table', { class: 'data', id: 'last-ranking-table' },
       el('caption', { text: `Stock lasts for this foot, least change first (${r.lasts.length} in ${r.seconds.toFixed(2)} s)` }),
@@ -152,6 +190,8 @@ $('last-rank').addEventListener('click', async () => {
     out.replaceChildren(t);
     const best = r.lasts.find((c) => c.eligible);
     if (best) $('last-stock').value = best.name;
+    lastRanked = ask;
+    lastMarkFailed();
   } catch (e) {
     out.replaceChildren();
     showError(e);
