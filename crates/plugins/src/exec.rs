@@ -15,17 +15,21 @@
 //!   scan summary (JSON, `len` bytes) at offset 0; process: a report as above.
 //! * Closing stdin ends the process; it must exit within a second.
 //!
+//! The host maps the same memfd, so a frame is written once, straight into the memory the
+//! process reads, and the rows are read where the process wrote them; the answer is read on
+//! the calling thread with poll(2), so a frame costs one copy and two wake-ups (docs/method.md
+//! 14d.4 has the figures).
+//!
 //! Why a process and not a library: a crash, a leak or a hang of a researcher's numpy code
 //! cannot take the daemon with it; the host kills and restarts the process (a limited number
 //! of times per scan) and the scan fails only when the process keeps failing.
 
-use std::io::{BufRead, BufReader, Write};
+use std::fmt::Write as _;
+use std::io::{BufRead, BufReader, Read, Write};
 use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
-use std::os::unix::fs::FileExt;
 use std::os::unix::process::CommandExt;
-use std::process::{Child, ChildStdin, Command, Stdio};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
-use std::time::Duration;
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::time::{Duration, Instant};
 
 use crate::rows::{self, Pixels, RowOut, ROW_BYTES};
 use crate::PluginError;
@@ -68,7 +72,167 @@ enum Failure {
 struct Proc {
     child: Child,
     stdin: ChildStdin,
-    lines: Receiver<Result<String, String>>,
+    stdout: LineReader,
+}
+
+/// Longest line a process may write on stdout; a longer one is garbage, not an answer.
+const MAX_LINE: usize = 4096;
+
+/// Lines from the process's stdout, read on the caller's thread with a deadline.
+struct LineReader {
+    out: ChildStdout,
+    buf: Vec<u8>,
+}
+
+/// Why no line came.
+enum NoLine {
+    Timeout,
+    /// Closed, unreadable or not a line of text: the reason.
+    Gone(String),
+}
+
+impl LineReader {
+    /// The next line (without its newline) into `line`, waiting until `deadline` at most.
+    fn read_line(&mut self, line: &mut String, deadline: Instant) -> Result<(), NoLine> {
+        loop {
+            if let Some(i) = self.buf.iter().position(|&b| b == b'\n') {
+                let text = std::str::from_utf8(&self.buf[..i]).map_err(|_| {
+                    NoLine::Gone(format!(
+                        "wrote a line that is not text: {:?}",
+                        preview(&self.buf[..i])
+                    ))
+                })?;
+                line.clear();
+                line.push_str(text);
+                self.buf.drain(..=i);
+                return Ok(());
+            }
+            if self.buf.len() > MAX_LINE {
+                return Err(NoLine::Gone(format!(
+                    "wrote {} bytes without a newline: {:?}",
+                    self.buf.len(),
+                    preview(&self.buf)
+                )));
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Err(NoLine::Timeout);
+            }
+            let mut pfd = libc::pollfd {
+                fd: self.out.as_raw_fd(),
+                events: libc::POLLIN,
+                revents: 0,
+            };
+            let ms = left.as_millis().clamp(1, i32::MAX as u128) as i32;
+            // SAFETY: one valid pollfd for the duration of the call.
+            let r = unsafe { libc::poll(&mut pfd, 1, ms) };
+            if r < 0 {
+                let e = std::io::Error::last_os_error();
+                if e.kind() == std::io::ErrorKind::Interrupted {
+                    continue;
+                }
+                return Err(NoLine::Gone(format!("stdout could not be polled: {e}")));
+            }
+            if r == 0 {
+                continue;
+            }
+            let at = self.buf.len();
+            self.buf.resize(at + MAX_LINE, 0);
+            let got = self.out.read(&mut self.buf[at..]);
+            self.buf.truncate(at + *got.as_ref().unwrap_or(&0));
+            match got {
+                Ok(0) => return Err(NoLine::Gone("closed its stdout (exited)".into())),
+                Ok(_) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(NoLine::Gone(format!("stdout could not be read: {e}"))),
+            }
+        }
+    }
+}
+
+/// The memfd and the host's own shared mapping of it.
+struct Shm {
+    file: std::fs::File,
+    ptr: *mut u8,
+    len: usize,
+}
+
+// SAFETY: the mapping is owned by this value alone (the process maps its own view of the
+// file); moving it between threads moves that ownership.
+unsafe impl Send for Shm {}
+
+impl Shm {
+    fn new() -> std::io::Result<Self> {
+        Ok(Self {
+            file: memfd()?,
+            ptr: std::ptr::null_mut(),
+            len: 0,
+        })
+    }
+
+    /// Make the file (and the mapping) `len` bytes long.
+    fn resize(&mut self, len: usize) -> std::io::Result<()> {
+        if len == self.len {
+            return Ok(());
+        }
+        self.unmap();
+        self.file.set_len(len as u64)?;
+        // SAFETY: a fresh shared mapping of a file we own, `len` > 0 bytes long.
+        let p = unsafe {
+            libc::mmap(
+                std::ptr::null_mut(),
+                len,
+                libc::PROT_READ | libc::PROT_WRITE,
+                libc::MAP_SHARED,
+                self.file.as_raw_fd(),
+                0,
+            )
+        };
+        if p == libc::MAP_FAILED {
+            return Err(std::io::Error::last_os_error());
+        }
+        self.ptr = p.cast();
+        self.len = len;
+        Ok(())
+    }
+
+    fn unmap(&mut self) {
+        if !self.ptr.is_null() {
+            // SAFETY: `ptr`/`len` are the live mapping made in `resize`.
+            unsafe { libc::munmap(self.ptr.cast(), self.len) };
+            self.ptr = std::ptr::null_mut();
+            self.len = 0;
+        }
+    }
+
+    /// The first `n` bytes to write into. Only called while the process waits for a
+    /// request, so nothing else writes them meanwhile.
+    fn head_mut(&mut self, n: usize) -> &mut [u8] {
+        assert!(
+            n <= self.len,
+            "{n} bytes of a {}-byte shared memory",
+            self.len
+        );
+        if n == 0 {
+            return &mut [];
+        }
+        // SAFETY: in bounds of the live mapping; `&mut self` keeps the slice unique here.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr, n) }
+    }
+
+    /// Copy `dst.len()` bytes from `off` out of the mapping. A copy, not a borrow: a
+    /// misbehaving process may still be writing, and what it writes is checked after.
+    fn read_at(&self, off: usize, dst: &mut [u8]) {
+        assert!(off + dst.len() <= self.len, "read past the shared memory");
+        // SAFETY: in bounds of the live mapping; `dst` is ours and does not overlap it.
+        unsafe { std::ptr::copy_nonoverlapping(self.ptr.add(off), dst.as_mut_ptr(), dst.len()) }
+    }
+}
+
+impl Drop for Shm {
+    fn drop(&mut self) {
+        self.unmap();
+    }
 }
 
 impl Drop for Proc {
@@ -118,12 +282,14 @@ pub struct ExecDetector {
     command: Vec<String>,
     args: Vec<(String, String)>,
     limits: ExecLimits,
-    shm: std::fs::File,
-    shm_size: u64,
+    shm: Shm,
     proc: Option<Proc>,
     restarts: u32,
     scratch: Vec<u8>,
     seq: u64,
+    /// The request line and the answer, kept so a frame allocates nothing.
+    msg: String,
+    answer: String,
 }
 
 impl std::fmt::Debug for ExecDetector {
@@ -193,7 +359,8 @@ impl ExecDetector {
                 "args.{k} = {v:?}: values must be non-empty and hold no space or newline"
             )));
         }
-        let shm = memfd().map_err(|e| refuse(format!("cannot create its shared memory: {e}")))?;
+        let shm =
+            Shm::new().map_err(|e| refuse(format!("cannot create its shared memory: {e}")))?;
         let mut d = Self {
             name: name.clone(),
             role,
@@ -201,11 +368,12 @@ impl ExecDetector {
             args: args.to_vec(),
             limits,
             shm,
-            shm_size: 0,
             proc: None,
             restarts: 0,
             scratch: Vec::new(),
             seq: 0,
+            msg: String::new(),
+            answer: String::new(),
         };
         d.spawn().map_err(|e| match e {
             Failure::Died(w) | Failure::Broken(w) => refuse(w),
@@ -227,7 +395,7 @@ impl ExecDetector {
 
     fn spawn(&mut self) -> Result<(), Failure> {
         self.proc = None;
-        let shm_fd = self.shm.as_raw_fd();
+        let shm_fd = self.shm.file.as_raw_fd();
         let mut cmd = Command::new(&self.command[0]);
         cmd.args(&self.command[1..])
             .stdin(Stdio::piped())
@@ -255,27 +423,6 @@ impl ExecDetector {
         let stdin = child.stdin.take().expect("piped");
         let stdout = child.stdout.take().expect("piped");
         let stderr = child.stderr.take().expect("piped");
-        let (tx, lines) = mpsc::channel();
-        std::thread::Builder::new()
-            .name("plugin-stdout".into())
-            .spawn(move || {
-                let mut r = BufReader::new(stdout);
-                loop {
-                    let mut buf = Vec::new();
-                    let msg = match r.read_until(b'\n', &mut buf) {
-                        Ok(0) => Err("closed its stdout (exited)".to_string()),
-                        Ok(_) => String::from_utf8(buf).map_err(|e| {
-                            format!("wrote a line that is not text: {:?}", preview(e.as_bytes()))
-                        }),
-                        Err(e) => Err(format!("stdout could not be read: {e}")),
-                    };
-                    let stop = msg.is_err();
-                    if tx.send(msg).is_err() || stop {
-                        return;
-                    }
-                }
-            })
-            .expect("thread spawns");
         let who = self.name.clone();
         std::thread::Builder::new()
             .name("plugin-stderr".into())
@@ -289,13 +436,18 @@ impl ExecDetector {
         self.proc = Some(Proc {
             child,
             stdin,
-            lines,
+            stdout: LineReader {
+                out: stdout,
+                buf: Vec::with_capacity(2 * MAX_LINE),
+            },
         });
         let mut hello = format!("hello {PROTOCOL_VERSION} {}", self.role.word());
         for (k, v) in &self.args {
             hello += &format!(" {k}={v}");
         }
-        let answer = self.exchange(&hello, self.limits.start_timeout)?;
+        self.msg = hello;
+        self.exchange(self.limits.start_timeout)?;
+        let answer = self.answer.as_str();
         let words: Vec<&str> = answer.split_whitespace().collect();
         match words.as_slice() {
             ["ready", v] if *v == PROTOCOL_VERSION.to_string() => Ok(()),
@@ -310,22 +462,35 @@ impl ExecDetector {
         }
     }
 
-    /// Send one line, wait for one line.
-    fn exchange(&mut self, line: &str, timeout: Duration) -> Result<String, Failure> {
+    /// Send `self.msg` as one line, wait for one line into `self.answer`.
+    fn exchange(&mut self, timeout: Duration) -> Result<(), Failure> {
         let Some(p) = self.proc.as_mut() else {
             return Err(Failure::Died("is not running".into()));
         };
-        if let Err(e) = writeln!(p.stdin, "{line}").and_then(|()| p.stdin.flush()) {
+        self.msg.push('\n');
+        let sent = p
+            .stdin
+            .write_all(self.msg.as_bytes())
+            .and_then(|()| p.stdin.flush());
+        self.msg.pop();
+        if let Err(e) = sent {
             return Err(Failure::Died(format!("{} ({e})", exit_text(&mut p.child))));
         }
-        match p.lines.recv_timeout(timeout) {
-            Ok(Ok(answer)) => Ok(answer.trim_end().to_string()),
-            Ok(Err(why)) => {
+        match p
+            .stdout
+            .read_line(&mut self.answer, Instant::now() + timeout)
+        {
+            Ok(()) => {
+                let n = self.answer.trim_end().len();
+                self.answer.truncate(n);
+                Ok(())
+            }
+            Err(NoLine::Gone(why)) => {
                 // Wait briefly so the exit status tells how it ended.
                 let status = wait_briefly(&mut p.child);
                 Err(Failure::Died(format!("{why}: {status}")))
             }
-            Err(RecvTimeoutError::Timeout) => {
+            Err(NoLine::Timeout) => {
                 let _ = p.child.kill();
                 let _ = p.child.wait();
                 Err(Failure::Died(format!(
@@ -333,7 +498,6 @@ impl ExecDetector {
                     timeout.as_millis()
                 )))
             }
-            Err(RecvTimeoutError::Disconnected) => Err(Failure::Died("closed its stdout".into())),
         }
     }
 
@@ -349,21 +513,15 @@ impl ExecDetector {
         assert_eq!(px.len(), w * h, "pixels of a {width}x{height} frame");
         assert_eq!(out.len(), h, "one result per row");
         let out_off = (w * h * bpp).div_ceil(8) * 8;
-        let size = (out_off + h * ROW_BYTES) as u64;
-        if size != self.shm_size {
-            self.shm
-                .set_len(size)
-                .map_err(|e| self.fault(format!("could not size its shared memory: {e}")))?;
-            self.shm_size = size;
-        }
-        self.scratch.resize(w * h * bpp, 0);
-        px.write_le(&mut self.scratch);
+        let size = out_off + h * ROW_BYTES;
         self.shm
-            .write_all_at(&self.scratch, 0)
-            .map_err(|e| self.fault(format!("could not write the frame: {e}")))?;
+            .resize(size)
+            .map_err(|e| self.fault(format!("could not size its shared memory: {e}")))?;
+        px.write_le(self.shm.head_mut(w * h * bpp));
         self.seq += 1;
-        let msg = format!("frame {} {width} {height} {bpp} {size}", self.seq);
-        let n = self.request(&msg, "rows")?;
+        self.msg.clear();
+        let _ = write!(self.msg, "frame {} {width} {height} {bpp} {size}", self.seq);
+        let n = self.request("rows")?;
         if n != h {
             return Err(self.fault(format!(
                 "answered {n} rows for a frame of {h} rows (it must write one per row) on frame {}",
@@ -371,21 +529,19 @@ impl ExecDetector {
             )));
         }
         self.scratch.resize(h * ROW_BYTES, 0);
-        self.shm
-            .read_exact_at(&mut self.scratch, out_off as u64)
-            .map_err(|e| self.fault(format!("could not read its rows: {e}")))?;
+        self.shm.read_at(out_off, &mut self.scratch);
         rows::parse(&self.scratch, width, out)
             .map_err(|what| self.fault(format!("{what} on frame {}", self.seq)))
     }
 }
 
 impl ExecDetector {
-    /// Send `msg` and wait for `<word> <n>`, restarting a process that died or hung (the
-    /// shared file keeps its contents, so the request is simply sent again).
-    fn request(&mut self, msg: &str, word: &str) -> Result<usize, PluginError> {
+    /// Send `self.msg` and wait for `<word> <n>`, restarting a process that died or hung
+    /// (the shared file keeps its contents, so the request is simply sent again).
+    fn request(&mut self, word: &str) -> Result<usize, PluginError> {
         loop {
-            let failure = match self.exchange(msg, self.limits.frame_timeout) {
-                Ok(answer) => match parse_count_answer(&answer, word) {
+            let failure = match self.exchange(self.limits.frame_timeout) {
+                Ok(()) => match parse_count_answer(&self.answer, word) {
                     Ok(n) => return Ok(n),
                     Err(e) => Failure::Broken(e),
                 },
@@ -401,7 +557,10 @@ impl ExecDetector {
                         self.role.request(),
                         self.seq
                     );
-                    if let Err(Failure::Died(w) | Failure::Broken(w)) = self.spawn() {
+                    let msg = std::mem::take(&mut self.msg);
+                    let spawned = self.spawn();
+                    self.msg = msg;
+                    if let Err(Failure::Died(w) | Failure::Broken(w)) = spawned {
                         return Err(self.fault(format!("could not be restarted: {w}")));
                     }
                 }
@@ -439,35 +598,29 @@ impl ExecDetector {
             }
         };
         let out_off = input.len().div_ceil(8) * 8;
-        let size = (out_off + REPORT_CAP) as u64;
-        if size != self.shm_size {
-            self.shm
-                .set_len(size)
-                .map_err(|e| self.fault(format!("could not size its shared memory: {e}")))?;
-            self.shm_size = size;
-        }
+        let size = out_off + REPORT_CAP;
         self.shm
-            .write_all_at(input, 0)
-            .map_err(|e| self.fault(format!("could not write its input: {e}")))?;
+            .resize(size)
+            .map_err(|e| self.fault(format!("could not size its shared memory: {e}")))?;
+        self.shm.head_mut(input.len()).copy_from_slice(input);
         self.seq += 1;
-        let mut msg = format!("{word} {} {} {size}", self.seq, input.len());
+        self.msg.clear();
+        let _ = write!(self.msg, "{word} {} {} {size}", self.seq, input.len());
         if let Some(d) = dir {
             let d = d.display().to_string();
             if d.contains('\n') {
                 return Err(self.fault(format!("cannot be sent the directory {d:?} (a newline)")));
             }
-            msg += &format!(" {d}");
+            let _ = write!(self.msg, " {d}");
         }
-        let n = self.request(&msg, "report")?;
+        let n = self.request("report")?;
         if n > REPORT_CAP {
             return Err(self.fault(format!(
                 "answered a report of {n} bytes, more than the {REPORT_CAP} it has"
             )));
         }
         let mut report = vec![0; n];
-        self.shm
-            .read_exact_at(&mut report, out_off as u64)
-            .map_err(|e| self.fault(format!("could not read its report: {e}")))?;
+        self.shm.read_at(out_off, &mut report);
         Ok(report)
     }
 }

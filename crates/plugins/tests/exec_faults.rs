@@ -167,6 +167,17 @@ fn garbage_and_broken_row_contracts_are_faults() {
         t.contains("not text") || t.contains("not \"rows <n>\""),
         "{t}"
     );
+    // A stream without a newline is not read without end: a fault at 4 KiB, the process
+    // killed, its bytes shown.
+    let t = fault(
+        &script(
+            dir.path(),
+            "endless.py",
+            "sys.__stdout__.buffer.write(b'x' * 100000); sys.__stdout__.flush(); time.sleep(30)",
+        ),
+        0,
+    );
+    assert!(t.contains("bytes without a newline: \"xxxx"), "{t}");
     let t = fault(
         &script(
             dir.path(),
