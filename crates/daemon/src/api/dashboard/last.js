@@ -136,7 +136,10 @@ function lastMarkFailed() {
   row.classList.add('muted');
   const notes = row.cells[5];
   notes.className = 'bad';
-  notes.textContent = `could not be made for this foot: ${job.reason || 'failed'}` + (notes.textContent ? `; ${notes.textContent}` : '');
+  // The reason is long (every rule missed, and what would make it possible) and is shown in
+  // full under the form: the row says which and points there, the whole text on hover.
+  notes.title = job.reason || 'failed';
+  notes.textContent = 'could not be made for this foot: the reason is below the form' + (notes.textContent ? `; ${notes.textContent}` : '');
   row.querySelector('button').disabled = true;
   const next = [...t.querySelectorAll('tbody tr')].find((r) => !r.dataset.failed && !r.querySelector('button').disabled);
   const say = next
