@@ -236,6 +236,38 @@ fn main() {
         say(&format!("{what}, p50 ms"), p50, None);
         say(&format!("{what}, p99 ms"), p99, limit);
     }
+    if std::path::Path::new(chromium::CHROMIUM).is_file() {
+        // The dashboard's first view: navigation start to both tables drawn (the marks
+        // app.js and visits.js set), in headless Chromium, the worst of three loads.
+        let profile = tmp.path().join("chromium");
+        let mut b = chromium::Browser::launch(&profile, 1400, 2600);
+        let mut worst: f64 = 0.0;
+        for _ in 0..3 {
+            b.open(
+                &d.base,
+                "performance.getEntriesByName('scans-shown').length > 0 \
+                 && performance.getEntriesByName('visits-shown').length > 0",
+                std::time::Duration::from_secs(30),
+            );
+            let ms = b.eval(
+                "Math.max(performance.getEntriesByName('scans-shown')[0].startTime, \
+                 performance.getEntriesByName('visits-shown')[0].startTime)",
+            );
+            let rows = b.eval("document.querySelectorAll('#scans tbody tr[data-scan-id]').length");
+            assert_eq!(rows, 50, "the first view shows one page");
+            worst = worst.max(ms.as_f64().unwrap());
+        }
+        say(
+            "dashboard first view in headless Chromium (both tables drawn), worst of 3, ms",
+            worst,
+            Some(1000.0),
+        );
+    } else {
+        println!(
+            "archive: no {}: the dashboard's first view not timed",
+            chromium::CHROMIUM
+        );
+    }
     let (p50, _) = timed(&d, 5, |_| "/api/scans".to_string());
     say(
         "the unpaged list (every scan, the answer before pages), p50 ms",

@@ -300,3 +300,71 @@ fn archive_du_says_where_the_space_goes() {
         "{err}"
     );
 }
+
+/// The dashboard's archive table in headless Chromium: the first view shows one page of 50,
+/// "Older scans" appends the next by its cursor, and the search shows only matching scans.
+#[test]
+fn dashboard_archive_table_pages_and_searches() {
+    use daemon_support::chromium::Browser;
+    use std::time::Duration;
+    let tmp = tempfile::tempdir().unwrap();
+    let archive = tmp.path().join("archive");
+    let planted = plant_scans(&archive, 120);
+    let d = start(tmp.path(), &archive);
+    let mut b = Browser::launch(&tmp.path().join("profile"), 1400, 2600);
+    let rows = "[...document.querySelectorAll('#scans tbody tr[data-scan-id]')].map((r) => r.dataset.scanId)";
+    b.open(
+        &d.base,
+        "performance.getEntriesByName('scans-shown').length > 0",
+        Duration::from_secs(30),
+    );
+    let want: Vec<String> = planted.iter().map(|p| p.0.clone()).collect();
+    let shown = |b: &mut Browser| -> Vec<String> { serde_json::from_value(b.eval(rows)).unwrap() };
+    assert_eq!(shown(&mut b), want[..50]);
+    assert_eq!(
+        b.eval("document.getElementById('scans-more').hidden"),
+        false
+    );
+    b.click("scans-more");
+    b.wait_for(
+        "document.querySelectorAll('#scans tbody tr[data-scan-id]').length === 100",
+        Duration::from_secs(10),
+    );
+    assert_eq!(shown(&mut b), want[..100]);
+    b.click("scans-more");
+    b.wait_for(
+        "document.querySelectorAll('#scans tbody tr[data-scan-id]').length === 120",
+        Duration::from_secs(10),
+    );
+    assert_eq!(shown(&mut b), want);
+    assert_eq!(b.eval("document.getElementById('scans-more').hidden"), true);
+
+    // Search: subject "q-1" (any case, the start of the id) and the left foot.
+    b.eval(
+        "document.getElementById('scan-subject').value = 'q-1'; \
+         document.getElementById('scan-side').value = 'left'; \
+         document.getElementById('scan-search-go').click(); true",
+    );
+    let matching: Vec<String> = planted
+        .iter()
+        .filter(|p| p.1 == "Q-17" && p.2 == "left")
+        .map(|p| p.0.clone())
+        .collect();
+    assert!(!matching.is_empty());
+    b.wait_for(
+        &format!(
+            "document.querySelectorAll('#scans tbody tr[data-scan-id]').length === {}",
+            matching.len()
+        ),
+        Duration::from_secs(10),
+    );
+    assert_eq!(shown(&mut b), matching);
+    let caption = b.eval("document.getElementById('scans-caption').textContent");
+    assert!(
+        caption
+            .as_str()
+            .unwrap()
+            .starts_with(&format!("{} scan", matching.len())),
+        "{caption}"
+    );
+}

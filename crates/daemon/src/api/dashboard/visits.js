@@ -78,6 +78,7 @@ async function visitRefreshList() {
   }
   for (const v of list) tbody.append(visitRow(v));
   visitCaption(what);
+  performance.mark('visits-shown');
 }
 
 async function visitOlder() {
