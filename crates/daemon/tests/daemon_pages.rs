@@ -368,3 +368,56 @@ fn dashboard_archive_table_pages_and_searches() {
         "{caption}"
     );
 }
+
+/// Which visit holds a scan comes from the index (one query, not every visit file read), and
+/// a visit file written behind the daemon's back counts: a scan it holds is refused to
+/// another visit (409 naming it) until moved, and deleting the other visit keeps the scan.
+#[test]
+fn the_visit_holding_a_scan_is_found_by_index() {
+    let tmp = tempfile::tempdir().unwrap();
+    let archive = tmp.path().join("archive");
+    let planted = plant_scans(&archive, 30);
+    // A planted scan of "alice" (left) held by a visit written as a file.
+    let (scan, _, side, _) = planted
+        .iter()
+        .find(|p| p.1 == "alice" && p.2 == "left")
+        .unwrap()
+        .clone();
+    assert_eq!(side, "left");
+    let d = start(tmp.path(), &archive);
+    let held_by = "20260101T000000Z-0abc";
+    let v = serde_json::json!({"id": held_by, "patient": "alice", "notes": "",
+        "started": "2026-01-01T00:00:00Z", "left": scan, "right": null});
+    std::fs::write(
+        archive.join(format!("visits/{held_by}.json")),
+        v.to_string(),
+    )
+    .unwrap();
+    let (s, visit) = d.post("/api/visits", r#"{"patient": "alice"}"#);
+    assert_eq!(s, 201, "{visit}");
+    let vid = visit["id"].as_str().unwrap().to_string();
+    let body = format!(r#"{{"scan": "{scan}"}}"#);
+    let (s, err) = d.post(&format!("/api/visits/{vid}/scans"), &body);
+    assert_eq!(s, 409, "{err}");
+    assert!(err.to_string().contains(held_by), "{err}");
+    // Moved on request: the planted visit no longer holds it (its file says so).
+    let body = format!(r#"{{"scan": "{scan}", "move": true}}"#);
+    let (s, now) = d.post(&format!("/api/visits/{vid}/scans"), &body);
+    assert_eq!(s, 200, "{now}");
+    assert_eq!(now["left"], scan.as_str());
+    let old: Value = serde_json::from_slice(
+        &std::fs::read(archive.join(format!("visits/{held_by}.json"))).unwrap(),
+    )
+    .unwrap();
+    assert!(old["left"].is_null(), "{old}");
+    // Put back into the planted visit by hand (behind the daemon's back): deleting the new
+    // visit must keep the scan, which another visit holds.
+    std::fs::write(
+        archive.join(format!("visits/{held_by}.json")),
+        v.to_string(),
+    )
+    .unwrap();
+    let (s, gone) = d.delete(&format!("/api/visits/{vid}"));
+    assert_eq!(s, 200, "{gone}");
+    assert_eq!(d.get(&format!("/api/scans/{scan}")).status(), 200);
+}

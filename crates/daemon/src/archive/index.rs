@@ -40,8 +40,14 @@ const VISITS_SCHEMA: &str = "CREATE TABLE IF NOT EXISTS visits (
     id TEXT PRIMARY KEY NOT NULL,
     patient TEXT NOT NULL,
     json TEXT NOT NULL,
-    stamp TEXT NOT NULL
+    stamp TEXT NOT NULL,
+    left_scan TEXT,
+    right_scan TEXT
 )";
+
+/// The visit columns, checked at open: a visits table of another shape is only a cache,
+/// dropped and refilled from the files.
+const VISIT_COLUMNS: &str = "id, patient, json, stamp, left_scan, right_scan";
 
 const COLUMNS: &str =
     "id, subject, side, notes, status, reason, started, finished, frames, points, calibration";
@@ -118,13 +124,19 @@ impl Index {
             .map_err(|e| OpenError::Corrupt(format!("not the scan index: {e}")))?;
         conn.execute_batch(SCAN_INDEXES).map_err(classify)?;
         conn.execute(VISITS_SCHEMA, []).map_err(classify)?;
-        conn.execute(
-            "CREATE INDEX IF NOT EXISTS visits_id_patient ON visits (id, patient)",
-            [],
+        if conn
+            .prepare(&format!("SELECT {VISIT_COLUMNS} FROM visits LIMIT 0"))
+            .is_err()
+        {
+            conn.execute_batch(&format!("DROP TABLE visits; {VISITS_SCHEMA};"))
+                .map_err(classify)?;
+        }
+        conn.execute_batch(
+            "CREATE INDEX IF NOT EXISTS visits_id_patient ON visits (id, patient);
+             CREATE INDEX IF NOT EXISTS visits_left ON visits (left_scan);
+             CREATE INDEX IF NOT EXISTS visits_right ON visits (right_scan);",
         )
         .map_err(classify)?;
-        conn.prepare("SELECT id, patient, json, stamp FROM visits LIMIT 0")
-            .map_err(|e| OpenError::Corrupt(format!("not the visit index: {e}")))?;
         Ok(Index { conn })
     }
 
@@ -254,21 +266,7 @@ impl Index {
         }
         let mut st = self.conn.prepare_cached(&text)?;
         let rows = st.query_map(params_from_iter(p.iter()), |r| r.get::<_, String>(0))?;
-        let mut out = Vec::new();
-        for json in rows {
-            let json = json?;
-            match serde_json::from_str::<Visit>(&json) {
-                Ok(v) => out.push(v),
-                Err(e) => {
-                    return Err(rusqlite::Error::FromSqlConversionFailure(
-                        0,
-                        rusqlite::types::Type::Text,
-                        Box::new(e),
-                    ))
-                }
-            }
-        }
-        Ok(out)
+        rows.map(|j| visit_of(&j?)).collect()
     }
 
     /// The visits' stamps by id (what [`super::Archive::sync_visits`] compares the files to).
@@ -279,12 +277,16 @@ impl Index {
     }
 
     pub fn upsert_visit(&self, v: &Visit, stamp: &str) -> rusqlite::Result<()> {
-        let json = serde_json::to_string(v).expect("visit serialises");
-        self.conn.execute(
-            "INSERT OR REPLACE INTO visits (id, patient, json, stamp) VALUES (?1, ?2, ?3, ?4)",
-            params![v.id, v.patient, json, stamp],
+        insert_visit(&self.conn, v, stamp)
+    }
+
+    /// The visits holding scan `scan` in either slot, newest first.
+    pub fn visits_holding(&self, scan: &str) -> rusqlite::Result<Vec<Visit>> {
+        let mut st = self.conn.prepare_cached(
+            "SELECT json FROM visits WHERE left_scan = ?1 OR right_scan = ?1 ORDER BY id DESC",
         )?;
-        Ok(())
+        let rows = st.query_map([scan], |r| r.get::<_, String>(0))?;
+        rows.map(|j| visit_of(&j?)).collect()
     }
 
     pub fn delete_visit(&self, id: &str) -> rusqlite::Result<()> {
@@ -304,11 +306,7 @@ impl Index {
             tx.execute("DELETE FROM visits WHERE id = ?1", [id])?;
         }
         for (v, stamp) in upserts {
-            let json = serde_json::to_string(v).expect("visit serialises");
-            tx.execute(
-                "INSERT OR REPLACE INTO visits (id, patient, json, stamp) VALUES (?1, ?2, ?3, ?4)",
-                params![v.id, v.patient, json, stamp],
-            )?;
+            insert_visit(&tx, v, stamp)?;
         }
         tx.commit()
     }
@@ -355,6 +353,22 @@ fn insert(conn: &Connection, r: &Record, stamp: Option<&str>) -> rusqlite::Resul
         ],
     )?;
     Ok(())
+}
+
+fn insert_visit(conn: &Connection, v: &Visit, stamp: &str) -> rusqlite::Result<()> {
+    let json = serde_json::to_string(v).expect("visit serialises");
+    conn.prepare_cached(&format!(
+        "INSERT OR REPLACE INTO visits ({VISIT_COLUMNS}) VALUES (?1, ?2, ?3, ?4, ?5, ?6)"
+    ))?
+    .execute(params![v.id, v.patient, json, stamp, v.left, v.right])?;
+    Ok(())
+}
+
+/// A visit from its JSON column (written by [`insert_visit`]).
+fn visit_of(json: &str) -> rusqlite::Result<Visit> {
+    serde_json::from_str(json).map_err(|e| {
+        rusqlite::Error::FromSqlConversionFailure(0, rusqlite::types::Type::Text, Box::new(e))
+    })
 }
 
 fn row(r: &rusqlite::Row<'_>) -> rusqlite::Result<Record> {

@@ -3,8 +3,9 @@
 //!
 //! Each visit is one JSON file `<archive>/visits/<id>.json`, written atomically; the files are
 //! the truth. The index keeps a copy of each (written after the file, brought in line with the
-//! files at every start) only so the API's list pages from SQLite: reading every file per
-//! request grows with the clinic's years. What is changed here reads the files.
+//! files at every start and whenever the visits directory changed) so the API's list pages
+//! from SQLite and "which visit holds this scan" is one indexed query: reading every file
+//! per request grew with the clinic's years. A visit changed here is read from its file.
 //! A scan belongs to one visit at most (moving it is explicit). Deleting a visit deletes
 //! the scans it owns (its patient's, in no other visit) too, and is logged in
 //! `<archive>/visits/deleted.log` (one JSON line: when, which visit, whose, which scans).
@@ -233,11 +234,7 @@ impl Archive {
 
     /// One page of the visits `q` asks for, newest first, from the index.
     pub fn visit_page(&self, q: &super::VisitQuery) -> Result<super::Page<Visit>, ArchiveError> {
-        let dir = self.visits_dir()?;
-        let now = dir.metadata().and_then(|m| m.modified()).ok();
-        if now.is_none() || now != *self.visits_seen.lock().unwrap() {
-            self.sync_visits()?;
-        }
+        self.sync_visits_if_changed()?;
         let mut rows = self.with_index(|i| i.visit_page(q))?;
         let next = match q.limit {
             Some(l) if rows.len() > l => {
@@ -288,38 +285,6 @@ impl Archive {
         })
     }
 
-    /// Visits, newest first, whose patient contains `subject` (case-insensitive) and that
-    /// started on `date` in the clinic's time zone `zone` when given.
-    pub fn visits(
-        &self,
-        subject: Option<&str>,
-        date: Option<(jiff::civil::Date, &ClinicZone)>,
-    ) -> Result<Vec<Visit>, ArchiveError> {
-        let dir = self.visits_dir()?;
-        let mut out = Vec::new();
-        for e in std::fs::read_dir(&dir).map_err(io_at(&dir))? {
-            let e = e.map_err(io_at(&dir))?;
-            let name = e.file_name().to_string_lossy().into_owned();
-            let Some(id) = name.strip_suffix(".json") else {
-                continue;
-            };
-            let Ok(id) = ScanId::parse(id) else { continue };
-            match self.visit(&id) {
-                Ok(v) => out.push(v),
-                Err(err) => tracing::warn!("visits: {name} skipped: {err}"),
-            }
-        }
-        let subject = subject.map(str::to_lowercase);
-        out.retain(|v| {
-            subject
-                .as_ref()
-                .is_none_or(|s| v.patient.to_lowercase().contains(s))
-                && date.is_none_or(|(d, zone)| zone.local_date(&v.started) == Some(d))
-        });
-        out.sort_by(|a, b| b.id.cmp(&a.id));
-        Ok(out)
-    }
-
     /// Change a visit's notes.
     pub fn set_visit_notes(&self, id: &ScanId, notes: &str) -> Result<Visit, VisitError> {
         let _one = VISITS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
@@ -331,12 +296,23 @@ impl Archive {
 
     /// Every visit listing scan `scan` (in either slot). Under the visits lock, there is at
     /// most one; archives written before a scan belonged to one visit may hold more.
-    fn visits_holding(&self, scan: &str) -> Result<Vec<Visit>, ArchiveError> {
-        Ok(self
-            .visits(None, None)?
-            .into_iter()
-            .filter(|v| v.left.as_deref() == Some(scan) || v.right.as_deref() == Some(scan))
-            .collect())
+    ///
+    /// From the index's copy of the visits, brought in line with the files first if the
+    /// visits directory changed since (reading every visit file took a second at 20,000).
+    pub(super) fn visits_holding(&self, scan: &str) -> Result<Vec<Visit>, ArchiveError> {
+        self.sync_visits_if_changed()?;
+        self.with_index(|i| i.visits_holding(scan))
+    }
+
+    /// [`Self::sync_visits`] when the visits directory's modification time is not the one
+    /// the last sync saw (a visit file added, replaced or removed since).
+    fn sync_visits_if_changed(&self) -> Result<(), ArchiveError> {
+        let dir = self.visits_dir()?;
+        let now = dir.metadata().and_then(|m| m.modified()).ok();
+        if now.is_none() || now != *self.visits_seen.lock().unwrap() {
+            self.sync_visits()?;
+        }
+        Ok(())
     }
 
     /// Put finished scan `scan` into the visit as its foot (by the record's side). The scan
@@ -481,11 +457,6 @@ impl Archive {
         }
         // Only scans the visit owns are deleted: its patient's, and listed by no other visit
         // (archives from before a scan belonged to one visit may list one twice).
-        let others: Vec<Visit> = self
-            .visits(None, None)?
-            .into_iter()
-            .filter(|o| o.id != v.id)
-            .collect();
         let mut deleted = Vec::new();
         let mut kept = Vec::new();
         for sid in [&v.left, &v.right].into_iter().flatten() {
@@ -493,9 +464,7 @@ impl Archive {
                 continue;
             };
             let Ok(r) = self.get(&sid) else { continue };
-            let elsewhere = others
-                .iter()
-                .any(|o| o.left.as_deref() == Some(&r.id) || o.right.as_deref() == Some(&r.id));
+            let elsewhere = self.visits_holding(&r.id)?.iter().any(|o| o.id != v.id);
             if elsewhere || r.subject != v.patient {
                 tracing::warn!(
                     "visit {}: scan {} (subject {}) kept: not the visit's own",
