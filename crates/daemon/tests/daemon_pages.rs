@@ -103,6 +103,9 @@ fn scans_page_and_search_by_index() {
     let all = d.get_json("/api/scans");
     let want: Vec<String> = planted.iter().map(|p| p.0.clone()).collect();
     assert_eq!(ids(&all), want);
+    // The token as a query parameter (the guard's) is not an unknown parameter.
+    assert_eq!(ids(&d.get_json("/api/scans?access_token=t")), want);
+    assert_eq!(ids(&d.get_json("/api/visits?access_token=t")).len(), 0);
 
     // Pages of 50: every scan once, in order, the last page short and without a cursor.
     let (walked, pages) = walk(&d, "/api/scans?limit=50");

@@ -172,9 +172,13 @@ fn time_bound(
     Ok(id_bound(t))
 }
 
-/// Refuse a parameter not in `known`, naming the valid ones.
+/// Refuse a parameter not in `known`, naming the valid ones; `access_token` (the token as a
+/// query parameter, checked by the guard) is always allowed.
 pub(super) fn known_params(q: &HashMap<String, String>, known: &[&str]) -> Result<(), ApiError> {
-    match q.keys().find(|k| !known.contains(&k.as_str())) {
+    match q
+        .keys()
+        .find(|k| k.as_str() != "access_token" && !known.contains(&k.as_str()))
+    {
         Some(k) => Err(ApiError::invalid(format!(
             "unknown query parameter {:?}: use {}",
             k.chars().take(80).collect::<String>(),
