@@ -389,6 +389,8 @@ fn the_visit_holding_a_scan_is_found_by_index() {
     assert_eq!(side, "left");
     let d = start(tmp.path(), &archive);
     let held_by = "20260101T000000Z-0abc";
+    // The daemon makes the visits directory with its first visit; this one comes first.
+    std::fs::create_dir_all(archive.join("visits")).unwrap();
     let v = serde_json::json!({"id": held_by, "patient": "alice", "notes": "",
         "started": "2026-01-01T00:00:00Z", "left": scan, "right": null});
     std::fs::write(

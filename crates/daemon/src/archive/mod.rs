@@ -227,7 +227,11 @@ impl Archive {
         };
         archive.recover()?;
         archive.sync_scans()?;
-        archive.sync_visits()?;
+        // The visits' copies are only for listing: visits the archive cannot read (a file
+        // where the directory should be) fail their own requests, not the daemon's start.
+        if let Err(e) = archive.sync_visits() {
+            tracing::warn!("archive: visits not indexed: {}", footscan_util::Chain(&e));
+        }
         Ok(archive)
     }
 

@@ -181,7 +181,8 @@ impl Archive {
     /// reread only when its length or modification time changed, so a start with 25,000
     /// visits costs their stat calls, not their parsing.
     pub(super) fn sync_visits(&self) -> Result<(), ArchiveError> {
-        let dir = self.visits_dir()?;
+        // Not created here: an archive without visits has none to sync.
+        let dir = self.root.join(VISITS);
         // Read before the listing: a change during it is seen again next time.
         let seen = dir.metadata().and_then(|m| m.modified()).ok();
         let mut index = self.index.lock().unwrap();
@@ -210,9 +211,15 @@ impl Archive {
             .map_err(self.db_err())?
             .into_iter()
             .collect();
-        let dir = self.visits_dir()?;
+        let dir = self.root.join(VISITS);
+        let entries = match std::fs::read_dir(&dir) {
+            Ok(e) => Some(e),
+            // No visits directory: no visits (every copy goes).
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+            Err(e) => return Err(io_at(&dir)(e)),
+        };
         let mut upserts = Vec::new();
-        for e in std::fs::read_dir(&dir).map_err(io_at(&dir))? {
+        for e in entries.into_iter().flatten() {
             let e = e.map_err(io_at(&dir))?;
             let name = e.file_name().to_string_lossy().into_owned();
             let Some(id) = name.strip_suffix(".json") else {
@@ -307,7 +314,7 @@ impl Archive {
     /// [`Self::sync_visits`] when the visits directory's modification time is not the one
     /// the last sync saw (a visit file added, replaced or removed since).
     fn sync_visits_if_changed(&self) -> Result<(), ArchiveError> {
-        let dir = self.visits_dir()?;
+        let dir = self.root.join(VISITS);
         let now = dir.metadata().and_then(|m| m.modified()).ok();
         if now.is_none() || now != *self.visits_seen.lock().unwrap() {
             self.sync_visits()?;
