@@ -280,6 +280,8 @@ fn main() {
         println!("archive: every target met");
     } else {
         println!("archive: OVER: {}", verdicts.join("; "));
+        // exit() skips destructors: the 70,000 files go first.
+        drop(tmp);
         std::process::exit(1);
     }
 }
