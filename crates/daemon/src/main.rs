@@ -23,6 +23,31 @@ struct Args {
     /// Address to listen on (IP:PORT; port 0 picks a free one), overriding [daemon] bind.
     #[arg(long)]
     bind: Option<String>,
+    /// Without a command, run the daemon.
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(clap::Subcommand)]
+enum Command {
+    /// Work on a scan archive without the daemon.
+    Archive {
+        #[command(subcommand)]
+        what: ArchiveCommand,
+    },
+}
+
+#[derive(clap::Subcommand)]
+enum ArchiveCommand {
+    /// Where the archive's disk goes: by kind of file, by year, and outside the scans.
+    /// Read-only; runs beside a running daemon.
+    Du {
+        /// The archive directory (default: `archive` of [daemon] in --config).
+        archive: Option<PathBuf>,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 /// Cap glibc's malloc arenas. Without a cap, every thread that ever allocated (the scan's
@@ -85,7 +110,38 @@ fn main() {
     }
 }
 
+/// `footscand archive du`: the archive's usage, as a table or JSON.
+fn archive_du(args: &Args, archive: Option<&PathBuf>, json: bool) -> Result<()> {
+    let root = match archive {
+        Some(a) => a.clone(),
+        None => {
+            let path = footscan::startup::find_config(&args.config)?;
+            DaemonConfig::load(&path, None)?.archive
+        }
+    };
+    if !root.is_dir() {
+        anyhow::bail!(
+            "archive {}: not a directory; give the archive directory (`archive` of [daemon] in \
+             footscand.toml)",
+            root.display()
+        );
+    }
+    let u = footscan_daemon::archive::usage::usage(&root)?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&u)?);
+    } else {
+        print!("{}", u.table(&root));
+    }
+    Ok(())
+}
+
 fn run(args: Args) -> Result<()> {
+    if let Some(Command::Archive {
+        what: ArchiveCommand::Du { archive, json },
+    }) = &args.command
+    {
+        return archive_du(&args, archive.as_ref(), *json);
+    }
     let path = footscan::startup::find_config(&args.config)?;
     tracing::info!("config {}", path.display());
     let config = DaemonConfig::load(&path, args.bind.as_deref())?;

@@ -1,15 +1,16 @@
 //! Scan endpoints: start, cancel, list, show, download.
 
-use super::{ApiError, AppState};
-use crate::archive::{valid_file_name, NewScan, Record, ScanId};
+use super::{blocking, ApiError, AppState};
+use crate::archive::{id_bound, valid_file_name, NewScan, ScanId, ScanQuery, Status, MAX_LIMIT};
 use axum::body::{Body, Bytes};
 use axum::extract::rejection::JsonRejection;
-use axum::extract::{Path, State};
+use axum::extract::{Path, Query, State};
 use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use footscan::scandata::ScanDir;
 use serde::Deserialize;
+use std::collections::HashMap;
 use tokio::io::AsyncReadExt;
 
 #[derive(Deserialize)]
@@ -92,10 +93,176 @@ pub async fn cancel(
         .into_response())
 }
 
-pub async fn list(State(st): State<AppState>) -> Result<Json<Vec<Record>>, ApiError> {
+/// The query of a paged list (scans and visits): the cursor, the page size and the time
+/// bounds, checked, each error naming the parameter and what it takes.
+pub(super) struct Paging {
+    pub before: Option<String>,
+    pub limit: Option<usize>,
+    pub since: Option<String>,
+    pub until: Option<String>,
+}
+
+/// The paging parameters of `q` (the clinic's zone reads dates); the rest of `q` is the
+/// caller's.
+pub(super) fn paging(
+    q: &HashMap<String, String>,
+    zone: &crate::archive::ClinicZone,
+) -> Result<Paging, ApiError> {
+    let limit = q
+        .get("limit")
+        .map(|l| match l.parse::<usize>() {
+            Ok(n) if (1..=MAX_LIMIT).contains(&n) => Ok(n),
+            _ => Err(ApiError::invalid(format!(
+                "limit {:?}: must be a whole number from 1 to {MAX_LIMIT}",
+                l.chars().take(80).collect::<String>()
+            ))),
+        })
+        .transpose()?;
+    let before = q
+        .get("before")
+        .map(|b| {
+            ScanId::parse(b).map(|id| id.to_string()).map_err(|e| {
+                ApiError::invalid(format!("before: {e}; pass the `next` of the previous page"))
+            })
+        })
+        .transpose()?;
+    let since = q
+        .get("since")
+        .map(|s| time_bound("since", s, zone, false))
+        .transpose()?;
+    let until = q
+        .get("until")
+        .map(|s| time_bound("until", s, zone, true))
+        .transpose()?;
+    Ok(Paging {
+        before,
+        limit,
+        since,
+        until,
+    })
+}
+
+/// `since`/`until` as an id bound: an RFC 3339 instant, or a date YYYY-MM-DD in the clinic's
+/// time zone (since: from its start; until: through its end).
+fn time_bound(
+    what: &str,
+    s: &str,
+    zone: &crate::archive::ClinicZone,
+    end_of_day: bool,
+) -> Result<String, ApiError> {
+    let err = || {
+        ApiError::invalid(format!(
+            "{what} {:?}: must be an RFC 3339 time (2026-11-25T10:00:00Z, \
+             2026-11-25T11:00:00+01:00) or a date YYYY-MM-DD (the clinic's local date, {})",
+            s.chars().take(80).collect::<String>(),
+            zone.name
+        ))
+    };
+    let t = if s.len() == 10 {
+        let d: jiff::civil::Date = s.parse().map_err(|_| err())?;
+        let d = if end_of_day {
+            d.tomorrow().map_err(|_| err())?
+        } else {
+            d
+        };
+        zone.day_start(d).ok_or_else(err)?
+    } else {
+        s.parse::<jiff::Timestamp>().map_err(|_| err())?
+    };
+    Ok(id_bound(t))
+}
+
+/// Refuse a parameter not in `known`, naming the valid ones; `access_token` (the token as a
+/// query parameter, checked by the guard) is always allowed.
+pub(super) fn known_params(q: &HashMap<String, String>, known: &[&str]) -> Result<(), ApiError> {
+    match q
+        .keys()
+        .find(|k| k.as_str() != "access_token" && !known.contains(&k.as_str()))
+    {
+        Some(k) => Err(ApiError::invalid(format!(
+            "unknown query parameter {:?}: use {}",
+            k.chars().take(80).collect::<String>(),
+            known.join(", ")
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// `GET /api/scans`: newest first. With `limit` a page (`{"items": [...], "next": id|null}`,
+/// `before=<next>` for the following one); without it the old answer, every matching scan as
+/// a bare array, kept for the clients written before pages (docs/API.md).
+pub async fn list(
+    State(st): State<AppState>,
+    Query(q): Query<HashMap<String, String>>,
+) -> Result<Response, ApiError> {
+    known_params(
+        &q,
+        &[
+            "limit", "before", "subject", "status", "side", "since", "until",
+        ],
+    )?;
+    let p = paging(&q, &st.daemon.config.clinic_zone)?;
+    let subject = q
+        .get("subject")
+        .map(|s| {
+            let ok = (1..=64).contains(&s.len())
+                && s.bytes()
+                    .all(|c| c.is_ascii_alphanumeric() || matches!(c, b'.' | b'_' | b'-'));
+            if ok {
+                Ok(s.clone())
+            } else {
+                Err(ApiError::invalid(format!(
+                    "subject {:?}: must be 1-64 characters of A-Z a-z 0-9 . _ - (the start of \
+                     the subject, any case)",
+                    s.chars().take(80).collect::<String>()
+                )))
+            }
+        })
+        .transpose()?;
+    let status = q
+        .get("status")
+        .map(|s| {
+            Status::parse(s).ok_or_else(|| {
+                let all: Vec<&str> = Status::ALL.iter().map(|s| s.as_str()).collect();
+                ApiError::invalid(format!(
+                    "status {:?}: must be one of {}",
+                    s.chars().take(80).collect::<String>(),
+                    all.join(", ")
+                ))
+            })
+        })
+        .transpose()?;
+    let side = q
+        .get("side")
+        .map(|s| match s.as_str() {
+            "left" | "right" => Ok(s.clone()),
+            _ => Err(ApiError::invalid(format!(
+                "side {:?}: must be \"left\" or \"right\"",
+                s.chars().take(80).collect::<String>()
+            ))),
+        })
+        .transpose()?;
+    let query = ScanQuery {
+        subject,
+        status,
+        side,
+        since: p.since,
+        until: p.until,
+        before: p.before,
+        limit: p.limit,
+    };
     let d = st.daemon.clone();
-    let v = tokio::task::spawn_blocking(move || d.archive.list()).await??;
-    Ok(Json(v))
+    let page = blocking(move || Ok(d.archive.list_page(&query)?)).await?;
+    Ok(if query_is_paged(&q) {
+        Json(page).into_response()
+    } else {
+        Json(page.items).into_response()
+    })
+}
+
+/// Whether the client asked for a page (`limit` given): the answer is then the page object.
+pub(super) fn query_is_paged(q: &HashMap<String, String>) -> bool {
+    q.contains_key("limit")
 }
 
 fn read_json(bytes: Option<Vec<u8>>) -> serde_json::Value {

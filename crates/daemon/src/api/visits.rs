@@ -6,9 +6,9 @@
 //! Every visit in an answer carries `started_local` and `time_zone` (the clinic's, from the
 //! daemon config) beside the stored UTC `started`; `?date=` is the clinic's local date.
 
-use super::scans::{body, parse_id};
+use super::scans::{body, known_params, paging, parse_id, query_is_paged};
 use super::{blocking, ApiError, AppState};
-use crate::archive::{Record, ScanId};
+use crate::archive::{id_bound, Page, Record, ScanId, VisitQuery};
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Path, Query, State};
 use axum::http::StatusCode;
@@ -67,29 +67,63 @@ pub async fn create(
     Ok((StatusCode::CREATED, Json(zone.visit_json(&visit))).into_response())
 }
 
-/// `?subject=` (part of the patient id, any case) and `?date=YYYY-MM-DD` (the clinic's local
-/// date).
+/// `?subject=` (part of the patient id, any case), `?date=YYYY-MM-DD` (the clinic's local
+/// date), and the paging of `GET /api/scans` (`limit`, `before`, `since`, `until`): with
+/// `limit` a page `{"items": [...], "next": id|null}`, without it every match as a bare array
+/// (the answer before pages). Answered by the index.
 pub async fn list(
     State(st): State<AppState>,
     Query(q): Query<HashMap<String, String>>,
-) -> Result<Json<Vec<serde_json::Value>>, ApiError> {
-    if let Some(k) = q.keys().find(|k| !matches!(k.as_str(), "subject" | "date")) {
-        return Err(ApiError::invalid(format!(
-            "unknown query parameter {k:?}: use subject and date"
-        )));
+) -> Result<Response, ApiError> {
+    known_params(
+        &q,
+        &["subject", "date", "limit", "before", "since", "until"],
+    )?;
+    let zone = &st.daemon.config.clinic_zone;
+    let p = paging(&q, zone)?;
+    let mut query = VisitQuery {
+        subject: q.get("subject").cloned(),
+        since: p.since,
+        until: p.until,
+        before: p.before,
+        limit: p.limit,
+    };
+    if let Some(date) = q.get("date") {
+        let date = parse_date(date)?;
+        let bad = || {
+            ApiError::invalid(format!(
+                "date {date}: outside the range of the clinic's calendar ({})",
+                zone.name
+            ))
+        };
+        let start = id_bound(zone.day_start(date).ok_or_else(bad)?);
+        let end = id_bound(
+            zone.day_start(date.tomorrow().map_err(|_| bad())?)
+                .ok_or_else(bad)?,
+        );
+        // The tighter of each bound (a date and since/until together).
+        query.since = Some(query.since.map_or(start.clone(), |s| s.max(start)));
+        query.until = Some(query.until.map_or(end.clone(), |u| u.min(end)));
     }
-    let date = q.get("date").map(|d| parse_date(d)).transpose()?;
-    let subject = q.get("subject").cloned();
     let d = st.daemon.clone();
-    let v = blocking(move || {
+    let page = blocking(move || {
         let zone = &d.config.clinic_zone;
-        let v = d
-            .archive
-            .visits(subject.as_deref(), date.map(|date| (date, zone)))?;
-        Ok(v.iter().map(|v| zone.visit_json(v)).collect())
+        let page = d.archive.visit_page(&query)?;
+        Ok(Page {
+            items: page
+                .items
+                .iter()
+                .map(|v| zone.visit_json(v))
+                .collect::<Vec<_>>(),
+            next: page.next,
+        })
     })
     .await?;
-    Ok(Json(v))
+    Ok(if query_is_paged(&q) {
+        Json(page).into_response()
+    } else {
+        Json(page.items).into_response()
+    })
 }
 
 /// A calendar date written YYYY-MM-DD.

@@ -401,7 +401,7 @@ mod tests {
         let mut r = index.get("20261121T222947Z-c20b").unwrap().unwrap();
         assert_eq!(r.calibration, None);
         r.calibration = Some("cal-a".into());
-        index.upsert(&r).unwrap();
+        index.upsert(&r, None).unwrap();
         let back = index.get(&r.id).unwrap().unwrap();
         assert_eq!(back.calibration.as_deref(), Some("cal-a"));
         // An old record.json (no calibration field) still loads.

@@ -15,12 +15,15 @@ mod history;
 mod id;
 mod index;
 mod outbox;
+mod query;
 mod record;
+pub mod usage;
 mod visits;
 
 pub use history::{Change, HISTORY};
 pub use id::{valid_file_name, IdError, ScanId};
 pub use outbox::{OutboxCounts, OutboxEntry};
+pub use query::{id_bound, Page, ScanQuery, VisitQuery, MAX_LIMIT};
 pub use record::{ArchiveError, NewScan, Record, ScanEnd, Status};
 pub use visits::{ClinicZone, Visit, VisitError};
 
@@ -61,6 +64,23 @@ fn io_at(path: &Path) -> impl FnOnce(std::io::Error) -> ArchiveError + '_ {
         path: path.to_owned(),
         source,
     }
+}
+
+/// A file's length, inode, modification and change times (ns): what tells the index that a
+/// record.json or a visit file changed since it was read (an atomic write is a new inode, and
+/// an edit in place moves both times).
+pub(crate) fn file_stamp(p: &Path) -> Option<String> {
+    use std::os::unix::fs::MetadataExt;
+    let m = p.symlink_metadata().ok()?;
+    Some(format!(
+        "{} {} {}.{:09} {}.{:09}",
+        m.len(),
+        m.ino(),
+        m.mtime(),
+        m.mtime_nsec(),
+        m.ctime(),
+        m.ctime_nsec()
+    ))
 }
 
 /// `f` is the file at `path` (not unlinked, not replaced by another since it was opened).
@@ -114,6 +134,10 @@ pub struct Archive {
     /// What the archive repaired (a damaged index moved aside), for the status.
     notices: Mutex<Vec<String>>,
     last_progress: Mutex<Option<Instant>>,
+    /// The visits directory's modification time when the index's visits were last brought
+    /// in line with its files (archive/visits.rs): a file added, replaced or removed since
+    /// changes it, and the next list syncs first.
+    visits_seen: Mutex<Option<std::time::SystemTime>>,
     /// The archive lock, released when the archive is dropped (or the process dies).
     _lock: ArchiveLock,
 }
@@ -198,10 +222,16 @@ impl Archive {
             unindexed: Mutex::default(),
             notices: Mutex::new(notices),
             last_progress: Mutex::default(),
+            visits_seen: Mutex::default(),
             _lock: lock,
         };
         archive.recover()?;
-        archive.rebuild()?;
+        archive.sync_scans()?;
+        // The visits' copies are only for listing: visits the archive cannot read (a file
+        // where the directory should be) fail their own requests, not the daemon's start.
+        if let Err(e) = archive.sync_visits() {
+            tracing::warn!("archive: visits not indexed: {}", footscan_util::Chain(&e));
+        }
         Ok(archive)
     }
 
@@ -243,6 +273,8 @@ impl Archive {
         *index = Index::open(&self.root.join(INDEX)).map_err(index::OpenError::into_archive)?;
         let records = self.scan_records()?;
         index.replace_all(&records).map_err(self.db_err())?;
+        let (upserts, gone) = self.visit_changes(index)?;
+        index.sync_visits(&upserts, &gone).map_err(self.db_err())?;
         self.notices.lock().unwrap().push(note);
         Ok(())
     }
@@ -486,7 +518,16 @@ impl Archive {
 
     /// The records of the finished scan directories (real directories named by a valid id,
     /// each with its own record.json); anything else is skipped with a warning.
-    fn scan_records(&self) -> Result<Vec<Record>, ArchiveError> {
+    fn scan_records(&self) -> Result<Vec<(Record, Option<String>)>, ArchiveError> {
+        self.read_records(|_, _| true)
+    }
+
+    /// The records of the finished scan directories for which `wanted(id, stamp of its
+    /// record.json)` holds, with their stamps; the others are skipped unread.
+    fn read_records(
+        &self,
+        mut wanted: impl FnMut(&str, Option<&str>) -> bool,
+    ) -> Result<Vec<(Record, Option<String>)>, ArchiveError> {
         let mut records = Vec::new();
         for entry in std::fs::read_dir(&self.root).map_err(io_at(&self.root))? {
             let entry = entry.map_err(io_at(&self.root))?;
@@ -502,6 +543,10 @@ impl Archive {
                 continue;
             }
             let path = entry.path().join(RECORD);
+            let stamp = file_stamp(&path);
+            if !wanted(id.as_str(), stamp.as_deref()) {
+                continue;
+            }
             let text = match std::fs::read(&path) {
                 Ok(t) => t,
                 Err(e) => {
@@ -510,7 +555,7 @@ impl Archive {
                 }
             };
             match serde_json::from_slice::<Record>(&text) {
-                Ok(r) if r.id == id.as_str() => records.push(r),
+                Ok(r) if r.id == id.as_str() => records.push((r, stamp)),
                 Ok(r) => tracing::warn!(
                     "archive: {} skipped: it names scan {}",
                     path.display(),
@@ -526,17 +571,68 @@ impl Archive {
     pub fn rebuild(&self) -> Result<usize, ArchiveError> {
         let mut records = self.scan_records()?;
         // Scans running right now live only in the index: keep them.
-        let running: Vec<Record> = self
+        let running: Vec<(Record, Option<String>)> = self
             .with_index(|i| i.list())?
             .into_iter()
             .filter(|r| {
                 r.status == Status::Running
                     && self.root.join(format!("{TMP_PREFIX}{}", r.id)).is_dir()
             })
+            .map(|r| (r, None))
             .collect();
         records.extend(running);
         self.with_index(|i| i.replace_all(&records))?;
         Ok(records.len())
+    }
+
+    /// Bring the index in line with the directories, as [`Self::rebuild`] does, reading
+    /// only the record.json files changed since the index took them (their stamps differ):
+    /// what opening costs is a stat per scan, not a read and parse (docs/method.md, "The
+    /// archive at 50,000 scans"). Rows without a directory go; running scans with their
+    /// `.tmp-` directory stay.
+    fn sync_scans(&self) -> Result<(), ArchiveError> {
+        let mut known: HashMap<String, (String, Option<String>)> = self
+            .with_index(|i| i.scan_stamps())?
+            .into_iter()
+            .map(|(id, status, stamp)| (id, (status, stamp)))
+            .collect();
+        let mut present = std::collections::HashSet::new();
+        let mut asked = std::collections::HashSet::new();
+        let upserts = self.read_records(|id, stamp| {
+            present.insert(id.to_string());
+            let changed = match (known.get(id), stamp) {
+                (Some((_, Some(k))), Some(s)) => k != s,
+                _ => true,
+            };
+            if changed {
+                asked.insert(id.to_string());
+            }
+            changed
+        })?;
+        let read: std::collections::HashSet<&str> =
+            upserts.iter().map(|(r, _)| r.id.as_str()).collect();
+        // Gone: a row without its directory (but a running scan's `.tmp-`), or whose record
+        // changed and no longer reads (a rebuild leaves it out too).
+        known.retain(|id, (status, _)| {
+            let running = status == Status::Running.as_str()
+                && self.root.join(format!("{TMP_PREFIX}{id}")).is_dir();
+            !running
+                && (!present.contains(id.as_str())
+                    || asked.contains(id.as_str()) && !read.contains(id.as_str()))
+        });
+        let gone: Vec<String> = known.into_keys().collect();
+        let upserts: Vec<(Record, String)> = upserts
+            .into_iter()
+            .map(|(r, s)| (r, s.unwrap_or_default()))
+            .collect();
+        if !upserts.is_empty() || !gone.is_empty() {
+            tracing::info!(
+                "archive index: {} record(s) reread, {} gone",
+                upserts.len(),
+                gone.len()
+            );
+        }
+        self.with_index(|i| i.sync_scans(&upserts, &gone))
     }
 
     /// Every scan, newest first. A finished scan whose directory is gone (deleted behind
@@ -547,6 +643,33 @@ impl Archive {
         self.overlay(&mut out);
         out.retain(|r| self.present(r));
         Ok(out)
+    }
+
+    /// One page of the scans `q` asks for, newest first, from the index; a listed scan whose
+    /// directory is gone leaves the index (as in [`Self::list`]) and the page is asked again,
+    /// so a page is full whenever more scans match.
+    pub fn list_page(&self, q: &ScanQuery) -> Result<Page<Record>, ArchiveError> {
+        let mut attempt = 0;
+        loop {
+            attempt += 1;
+            let mut rows = self.with_index(|i| i.page(q))?;
+            self.overlay(&mut rows);
+            let n = rows.len();
+            rows.retain(|r| self.present(r));
+            if rows.len() < n && attempt <= 3 {
+                // present() dropped the gone rows from the index: the next query refills
+                // the page (a few times at most, should the index refuse the deletions).
+                continue;
+            }
+            let next = match q.limit {
+                Some(l) if rows.len() > l => {
+                    rows.truncate(l);
+                    rows.last().map(|r| r.id.clone())
+                }
+                _ => None,
+            };
+            return Ok(Page { items: rows, next });
+        }
     }
 
     pub fn get(&self, id: &ScanId) -> Result<Record, ArchiveError> {
@@ -719,7 +842,11 @@ impl Archive {
             u.values().cloned().collect()
         };
         for rec in pending.iter().chain(std::iter::once(r)) {
-            match self.with_index(|i| i.upsert(rec)) {
+            let stamp = match rec.status {
+                Status::Running => None,
+                _ => file_stamp(&self.root.join(&rec.id).join(RECORD)),
+            };
+            match self.with_index(|i| i.upsert(rec, stamp.as_deref())) {
                 Ok(()) => {
                     self.unindexed.lock().unwrap().remove(&rec.id);
                 }

@@ -2,7 +2,10 @@
 //! the clinic types in), notes, the time, and at most one scan of each foot.
 //!
 //! Each visit is one JSON file `<archive>/visits/<id>.json`, written atomically; the files are
-//! the truth (a few thousand are listed in milliseconds), so nothing here depends on the index.
+//! the truth. The index keeps a copy of each (written after the file, brought in line with the
+//! files at every start and whenever the visits directory changed) so the API's list pages
+//! from SQLite and "which visit holds this scan" is one indexed query: reading every file
+//! per request grew with the clinic's years. A visit changed here is read from its file.
 //! A scan belongs to one visit at most (moving it is explicit). Deleting a visit deletes
 //! the scans it owns (its patient's, in no other visit) too, and is logged in
 //! `<archive>/visits/deleted.log` (one JSON line: when, which visit, whose, which scans).
@@ -12,7 +15,7 @@
 //! is what `?date=` searches by (a visit at 23:30 UTC in Berlin belongs to the next day).
 
 use super::record::{ArchiveError, Record, Status};
-use super::{io_at, Archive, ScanId};
+use super::{file_stamp as stamp, io_at, Archive, ScanId};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::PathBuf;
@@ -119,6 +122,12 @@ impl ClinicZone {
         Some(self.zoned(utc)?.date())
     }
 
+    /// The instant the clinic's local date `d` begins (its first valid time, on a day whose
+    /// midnight a DST change skips).
+    pub fn day_start(&self, d: jiff::civil::Date) -> Option<jiff::Timestamp> {
+        Some(d.to_zoned_datetime(self.tz.clone()).ok()?.timestamp())
+    }
+
     /// A visit as the API answers it: its fields plus `started_local` (the local time with
     /// its offset; null when `started` is unreadable) and `time_zone`.
     pub fn visit_json(&self, v: &Visit) -> serde_json::Value {
@@ -153,7 +162,95 @@ impl Archive {
     fn write_visit(&self, v: &Visit) -> Result<(), ArchiveError> {
         let p = self.visits_dir()?.join(format!("{}.json", v.id));
         let json = serde_json::to_vec_pretty(v).expect("visit serialises");
-        footscan_util::write_atomic(&p, &json).map_err(io_at(&p))
+        footscan_util::write_atomic(&p, &json).map_err(io_at(&p))?;
+        self.index_visit(v, stamp(&p));
+        Ok(())
+    }
+
+    /// The index's copy of a visit just written; a refused write is logged, and the next
+    /// start rereads the file (its stamp differs).
+    fn index_visit(&self, v: &Visit, stamp: Option<String>) {
+        let stamp = stamp.unwrap_or_default();
+        if let Err(e) = self.with_index(|i| i.upsert_visit(v, &stamp)) {
+            tracing::error!("archive index: visit {} not indexed: {e}", v.id);
+        }
+    }
+
+    /// The visits in the index brought in line with the files: those added, changed or
+    /// removed behind the daemon's back (or while the index refused writes). A file is
+    /// reread only when its length or modification time changed, so a start with 25,000
+    /// visits costs their stat calls, not their parsing.
+    pub(super) fn sync_visits(&self) -> Result<(), ArchiveError> {
+        // Not created here: an archive without visits has none to sync.
+        let dir = self.root.join(VISITS);
+        // Read before the listing: a change during it is seen again next time.
+        let seen = dir.metadata().and_then(|m| m.modified()).ok();
+        let mut index = self.index.lock().unwrap();
+        let (upserts, gone) = self.visit_changes(&index)?;
+        *self.visits_seen.lock().unwrap() = seen;
+        if upserts.is_empty() && gone.is_empty() {
+            return Ok(());
+        }
+        tracing::info!(
+            "archive index: {} visit(s) reread, {} gone",
+            upserts.len(),
+            gone.len()
+        );
+        index.sync_visits(&upserts, &gone).map_err(self.db_err())
+    }
+
+    /// What [`Self::sync_visits`] applies: visits to (re)index with their stamps, and ids
+    /// whose file is gone.
+    #[allow(clippy::type_complexity)]
+    pub(super) fn visit_changes(
+        &self,
+        index: &super::index::Index,
+    ) -> Result<(Vec<(Visit, String)>, Vec<String>), ArchiveError> {
+        let mut known: std::collections::HashMap<String, String> = index
+            .visit_stamps()
+            .map_err(self.db_err())?
+            .into_iter()
+            .collect();
+        let dir = self.root.join(VISITS);
+        let entries = match std::fs::read_dir(&dir) {
+            Ok(e) => Some(e),
+            // No visits directory: no visits (every copy goes).
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+            Err(e) => return Err(io_at(&dir)(e)),
+        };
+        let mut upserts = Vec::new();
+        for e in entries.into_iter().flatten() {
+            let e = e.map_err(io_at(&dir))?;
+            let name = e.file_name().to_string_lossy().into_owned();
+            let Some(id) = name.strip_suffix(".json") else {
+                continue;
+            };
+            let Ok(id) = ScanId::parse(id) else { continue };
+            let st = stamp(&e.path()).unwrap_or_default();
+            if known.remove(id.as_str()).is_some_and(|k| k == st) {
+                continue;
+            }
+            match self.visit(&id) {
+                Ok(v) if v.id == id.as_str() => upserts.push((v, st)),
+                Ok(v) => tracing::warn!("visits: {name} skipped: it names visit {}", v.id),
+                Err(err) => tracing::warn!("visits: {name} skipped: {err}"),
+            }
+        }
+        Ok((upserts, known.into_keys().collect()))
+    }
+
+    /// One page of the visits `q` asks for, newest first, from the index.
+    pub fn visit_page(&self, q: &super::VisitQuery) -> Result<super::Page<Visit>, ArchiveError> {
+        self.sync_visits_if_changed()?;
+        let mut rows = self.with_index(|i| i.visit_page(q))?;
+        let next = match q.limit {
+            Some(l) if rows.len() > l => {
+                rows.truncate(l);
+                rows.last().map(|v| v.id.clone())
+            }
+            _ => None,
+        };
+        Ok(super::Page { items: rows, next })
     }
 
     /// A new visit for `patient` (validated by the caller), starting now.
@@ -195,38 +292,6 @@ impl Archive {
         })
     }
 
-    /// Visits, newest first, whose patient contains `subject` (case-insensitive) and that
-    /// started on `date` in the clinic's time zone `zone` when given.
-    pub fn visits(
-        &self,
-        subject: Option<&str>,
-        date: Option<(jiff::civil::Date, &ClinicZone)>,
-    ) -> Result<Vec<Visit>, ArchiveError> {
-        let dir = self.visits_dir()?;
-        let mut out = Vec::new();
-        for e in std::fs::read_dir(&dir).map_err(io_at(&dir))? {
-            let e = e.map_err(io_at(&dir))?;
-            let name = e.file_name().to_string_lossy().into_owned();
-            let Some(id) = name.strip_suffix(".json") else {
-                continue;
-            };
-            let Ok(id) = ScanId::parse(id) else { continue };
-            match self.visit(&id) {
-                Ok(v) => out.push(v),
-                Err(err) => tracing::warn!("visits: {name} skipped: {err}"),
-            }
-        }
-        let subject = subject.map(str::to_lowercase);
-        out.retain(|v| {
-            subject
-                .as_ref()
-                .is_none_or(|s| v.patient.to_lowercase().contains(s))
-                && date.is_none_or(|(d, zone)| zone.local_date(&v.started) == Some(d))
-        });
-        out.sort_by(|a, b| b.id.cmp(&a.id));
-        Ok(out)
-    }
-
     /// Change a visit's notes.
     pub fn set_visit_notes(&self, id: &ScanId, notes: &str) -> Result<Visit, VisitError> {
         let _one = VISITS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
@@ -238,12 +303,23 @@ impl Archive {
 
     /// Every visit listing scan `scan` (in either slot). Under the visits lock, there is at
     /// most one; archives written before a scan belonged to one visit may hold more.
-    fn visits_holding(&self, scan: &str) -> Result<Vec<Visit>, ArchiveError> {
-        Ok(self
-            .visits(None, None)?
-            .into_iter()
-            .filter(|v| v.left.as_deref() == Some(scan) || v.right.as_deref() == Some(scan))
-            .collect())
+    ///
+    /// From the index's copy of the visits, brought in line with the files first if the
+    /// visits directory changed since (reading every visit file took a second at 20,000).
+    pub(super) fn visits_holding(&self, scan: &str) -> Result<Vec<Visit>, ArchiveError> {
+        self.sync_visits_if_changed()?;
+        self.with_index(|i| i.visits_holding(scan))
+    }
+
+    /// [`Self::sync_visits`] when the visits directory's modification time is not the one
+    /// the last sync saw (a visit file added, replaced or removed since).
+    fn sync_visits_if_changed(&self) -> Result<(), ArchiveError> {
+        let dir = self.root.join(VISITS);
+        let now = dir.metadata().and_then(|m| m.modified()).ok();
+        if now.is_none() || now != *self.visits_seen.lock().unwrap() {
+            self.sync_visits()?;
+        }
+        Ok(())
     }
 
     /// Put finished scan `scan` into the visit as its foot (by the record's side). The scan
@@ -388,11 +464,6 @@ impl Archive {
         }
         // Only scans the visit owns are deleted: its patient's, and listed by no other visit
         // (archives from before a scan belonged to one visit may list one twice).
-        let others: Vec<Visit> = self
-            .visits(None, None)?
-            .into_iter()
-            .filter(|o| o.id != v.id)
-            .collect();
         let mut deleted = Vec::new();
         let mut kept = Vec::new();
         for sid in [&v.left, &v.right].into_iter().flatten() {
@@ -400,9 +471,7 @@ impl Archive {
                 continue;
             };
             let Ok(r) = self.get(&sid) else { continue };
-            let elsewhere = others
-                .iter()
-                .any(|o| o.left.as_deref() == Some(&r.id) || o.right.as_deref() == Some(&r.id));
+            let elsewhere = self.visits_holding(&r.id)?.iter().any(|o| o.id != v.id);
             if elsewhere || r.subject != v.patient {
                 tracing::warn!(
                     "visit {}: scan {} (subject {}) kept: not the visit's own",
@@ -440,6 +509,10 @@ impl Archive {
             .map_err(io_at(&log))?;
         let p = dir.join(format!("{}.json", v.id));
         std::fs::remove_file(&p).map_err(io_at(&p))?;
+        let vid = v.id.clone();
+        if let Err(e) = self.with_index(|i| i.delete_visit(&vid)) {
+            tracing::error!("archive index: deleted visit {vid} not dropped from the index: {e}");
+        }
         tracing::warn!(
             "visit {} of {} deleted on request, with scans {:?}",
             v.id,

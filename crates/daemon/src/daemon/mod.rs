@@ -291,24 +291,34 @@ impl Daemon {
             path,
         });
         // The last scan, as status shows it until the next one starts.
-        let last_scan = archive.list()?.into_iter().next().map(|r| {
-            let summary: Option<serde_json::Value> = archive
-                .artifact_bytes(&r, ScanDir::SUMMARY)
-                .and_then(|b| serde_json::from_slice(&b).ok());
-            let num = |k: &str| summary.as_ref().and_then(|s| s[k].as_f64());
-            Progress {
-                id: r.id.clone(),
-                state: r.status,
-                frames: r.frames,
-                expected_frames: footscan::scan::ScanPlan::from_config(&scanner.config)
-                    .expected_frames(),
-                points: r.points,
-                dropped: num("dropped_frames").unwrap_or(0.0) as u64,
-                elapsed_s: num("seconds").unwrap_or(0.0),
-                reason: r.reason,
-                fault: None,
-            }
-        });
+        // (One row from the index: listing 50,000 to take the first cost a second.)
+        let newest = crate::archive::ScanQuery {
+            limit: Some(1),
+            ..Default::default()
+        };
+        let last_scan = archive
+            .list_page(&newest)?
+            .items
+            .into_iter()
+            .next()
+            .map(|r| {
+                let summary: Option<serde_json::Value> = archive
+                    .artifact_bytes(&r, ScanDir::SUMMARY)
+                    .and_then(|b| serde_json::from_slice(&b).ok());
+                let num = |k: &str| summary.as_ref().and_then(|s| s[k].as_f64());
+                Progress {
+                    id: r.id.clone(),
+                    state: r.status,
+                    frames: r.frames,
+                    expected_frames: footscan::scan::ScanPlan::from_config(&scanner.config)
+                        .expected_frames(),
+                    points: r.points,
+                    dropped: num("dropped_frames").unwrap_or(0.0) as u64,
+                    elapsed_s: num("seconds").unwrap_or(0.0),
+                    reason: r.reason,
+                    fault: None,
+                }
+            });
         let fleet = config
             .fleet
             .clone()

@@ -16,44 +16,86 @@ function visitFmtLocal(s) {
   return `${s.slice(0, 10)} ${s.slice(11, 16)}` + (s.length > 19 ? ` (${s.slice(19)})` : '');
 }
 
-async function visitRefreshList() {
+// The list pages as the archive's does (GET /api/visits?limit=&before=): the newest
+// VISIT_PAGE visits matching the search, "Older visits" appends the next page.
+const VISIT_PAGE = 50;
+let visitsNext = null;
+
+function visitQuery(before) {
   const subject = $('visit-subject').value.trim();
   const date = $('visit-date').value;
-  const q = new URLSearchParams();
+  const q = new URLSearchParams({ limit: String(VISIT_PAGE) });
   if (subject) q.set('subject', subject);
   if (date) q.set('date', date);
-  const path = '/api/visits' + (q.toString() ? '?' + q : '');
-  let list;
+  if (before) q.set('before', before);
+  return { path: '/api/visits?' + q, subject, date };
+}
+
+function visitRow(v) {
+  const open = el('button', {
+    type: 'button', class: 'link-btn', 'aria-label': `Open the visit of ${v.patient}, ${visitFmtLocal(v.started_local)}`,
+    onclick: () => visitOpenId(v.id),
+  }, visitFmtLocal(v.started_local));
+  const tr = el('tr', { 'data-visit-id': v.id },
+    el('td', {}, open),
+    el('td', { text: v.patient }),
+    el('td', { class: 'foot-cell', text: v.left ? 'scanned' : '–' }),
+    el('td', { class: 'foot-cell', text: v.right ? 'scanned' : '–' }),
+    el('td', { class: 'visit-notes-cell', text: v.notes || '' }));
+  if (visitOpen && visitOpen.id === v.id) tr.className = 'selected';
+  return tr;
+}
+
+function visitCaption(what) {
+  const n = $('visit-list').querySelectorAll('tbody tr[data-visit-id]').length;
+  $('visit-list-caption').textContent = `${n} visit${n === 1 ? '' : 's'}` + (what ? ` (${what})` : '') + ', newest first' +
+    (visitsNext ? '; older ones follow' : '');
+  $('visits-more').hidden = !visitsNext;
+}
+
+function visitWhat(subject, date) {
+  return [subject && `patient containing "${subject}"`, date && `on ${date}`].filter(Boolean).join(', ');
+}
+
+async function visitRefreshList() {
+  const { path, subject, date } = visitQuery(null);
+  let page;
   try {
-    list = await api('GET', path);
+    page = await api('GET', path);
   } catch (e) {
     showError(e);
     return;
   }
   clearError('GET /api/visits');
+  const list = page.items;
+  visitsNext = page.next;
   const tbody = $('visit-list').querySelector('tbody');
   tbody.replaceChildren();
-  const what = [subject && `patient containing "${subject}"`, date && `on ${date}`].filter(Boolean).join(', ');
-  $('visit-list-caption').textContent = `${list.length} visit${list.length === 1 ? '' : 's'}` + (what ? ` (${what})` : '') + ', newest first';
+  const what = visitWhat(subject, date);
   if (list.length) $('visits-zone').textContent = `times in ${list[0].time_zone}`;
   if (!list.length) {
     tbody.append(el('tr', {}, el('td', { colspan: 5, text: what ? 'No visit found.' : 'No visits yet.' })));
+  }
+  for (const v of list) tbody.append(visitRow(v));
+  visitCaption(what);
+  performance.mark('visits-shown');
+}
+
+async function visitOlder() {
+  if (!visitsNext) return;
+  const { path, subject, date } = visitQuery(visitsNext);
+  let page;
+  try {
+    page = await api('GET', path);
+  } catch (e) {
+    showError(e);
     return;
   }
-  for (const v of list) {
-    const open = el('button', {
-      type: 'button', class: 'link-btn', 'aria-label': `Open the visit of ${v.patient}, ${visitFmtLocal(v.started_local)}`,
-      onclick: () => visitOpenId(v.id),
-    }, visitFmtLocal(v.started_local));
-    const tr = el('tr', { 'data-visit-id': v.id },
-      el('td', {}, open),
-      el('td', { text: v.patient }),
-      el('td', { class: 'foot-cell', text: v.left ? 'scanned' : '–' }),
-      el('td', { class: 'foot-cell', text: v.right ? 'scanned' : '–' }),
-      el('td', { class: 'visit-notes-cell', text: v.notes || '' }));
-    if (visitOpen && visitOpen.id === v.id) tr.className = 'selected';
-    tbody.append(tr);
-  }
+  clearError('GET /api/visits');
+  visitsNext = page.next;
+  const tbody = $('visit-list').querySelector('tbody');
+  for (const v of page.items) tbody.append(visitRow(v));
+  visitCaption(visitWhat(subject, date));
 }
 
 async function visitOpenId(id) {
@@ -208,7 +250,9 @@ async function visitFillAdd(v) {
   sel.replaceChildren();
   let scans = [];
   try {
-    scans = await api('GET', '/api/scans');
+    // The patient's scans only (subject is a prefix search: the exact ones are kept below).
+    const q = new URLSearchParams({ subject: v.patient, limit: '500' });
+    scans = (await api('GET', '/api/scans?' + q)).items;
   } catch (e) {
     showError(e);
   }
@@ -267,6 +311,7 @@ async function visitDelete() {
   await refreshScans();
 }
 
+$('visits-more').addEventListener('click', visitOlder);
 $('visit-search').addEventListener('submit', (ev) => {
   ev.preventDefault();
   visitRefreshList();
