@@ -145,20 +145,32 @@ pub fn with_isa<R>(isa: Isa, f: impl FnOnce() -> R) -> Result<R, UnsupportedIsa>
     Ok(f())
 }
 
+/// Return from the calling function with the kernel of `isa` (`[avx512, avx2, sse4.1]`
+/// functions of the x86 module, applied to the arguments); fall through on the scalar set or
+/// another architecture. The one dispatch of every per-set kernel.
+macro_rules! on_set {
+    ($isa:expr, [$k512:ident, $k2:ident, $k41:ident]($($arg:expr),*)) => {
+        #[cfg(target_arch = "x86_64")]
+        {
+            // SAFETY: an `Isa` above Scalar reaches here only from `current()`, which returns
+            // a forced set only after `with_isa` checked it, or the detected one.
+            match $isa {
+                Isa::Avx512 => return unsafe { x86::$k512($($arg),*) },
+                Isa::Avx2 => return unsafe { x86::$k2($($arg),*) },
+                Isa::Sse41 => return unsafe { x86::$k41($($arg),*) },
+                Isa::Scalar => {}
+            }
+        }
+    };
+}
+
 /// Maximum of each 64-pixel block of a Gray8 row (see [`super::coarse::block_max`]).
 #[inline]
 pub fn block_max_u8(isa: Isa, row: &[u8], blocks: &mut [u8]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        // SAFETY: an `Isa` above Scalar reaches here only from `current()`, which returns a
-        // forced set only after `with_isa` checked it, or the detected one.
-        match isa {
-            Isa::Avx512 => return unsafe { x86::block_max_u8_avx512(row, blocks) },
-            Isa::Avx2 => return unsafe { x86::block_max_u8_avx2(row, blocks) },
-            Isa::Sse41 => return unsafe { x86::block_max_u8_sse41(row, blocks) },
-            Isa::Scalar => {}
-        }
-    }
+    on_set!(
+        isa,
+        [block_max_u8_avx512, block_max_u8_avx2, block_max_u8_sse41](row, blocks)
+    );
     let _ = isa;
     super::coarse::block_max_scalar(row, blocks)
 }
@@ -166,16 +178,14 @@ pub fn block_max_u8(isa: Isa, row: &[u8], blocks: &mut [u8]) {
 /// Maximum of each 64-pixel block of a Gray16 row.
 #[inline]
 pub fn block_max_u16(isa: Isa, row: &[u16], blocks: &mut [u16]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        // SAFETY: as in `block_max_u8`.
-        match isa {
-            Isa::Avx512 => return unsafe { x86::block_max_u16_avx512(row, blocks) },
-            Isa::Avx2 => return unsafe { x86::block_max_u16_avx2(row, blocks) },
-            Isa::Sse41 => return unsafe { x86::block_max_u16_sse41(row, blocks) },
-            Isa::Scalar => {}
-        }
-    }
+    on_set!(
+        isa,
+        [
+            block_max_u16_avx512,
+            block_max_u16_avx2,
+            block_max_u16_sse41
+        ](row, blocks)
+    );
     let _ = isa;
     super::coarse::block_max_scalar(row, blocks)
 }
@@ -206,16 +216,11 @@ pub fn kth3_u8(
     kd1: usize,
     kd2: usize,
 ) -> (u8, u8, u8) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        // SAFETY: as in `block_max_u8`.
-        match isa {
-            Isa::Avx512 => return unsafe { x86::kth3_u8_avx512(s, ks, d, kd1, kd2) },
-            Isa::Avx2 => return unsafe { x86::kth3_u8_avx2(s, ks, d, kd1, kd2) },
-            Isa::Sse41 => return unsafe { x86::kth3_u8_sse41(s, ks, d, kd1, kd2) },
-            Isa::Scalar => {}
-        }
-    }
+    on_set!(
+        isa,
+        [kth3_u8_avx512, kth3_u8_avx2, kth3_u8_sse41](s, ks, d, kd1, kd2)
+    );
+    let _ = isa;
     let kth = |v: &[u8; 64], k: usize| {
         let mut v = *v;
         *v.select_nth_unstable(k).1
