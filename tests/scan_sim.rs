@@ -66,3 +66,40 @@ fn simulated_scan_meets_accuracy_bound() {
     assert_eq!(stages[1]["in"], stages[0]["out"]);
     assert!(s["truth"]["rms_mm"].as_f64().unwrap() < 0.10);
 }
+
+/// Issue 34 item 2: the results do not wait for the CAD files. scan.json says when the
+/// results and the files were ready after the last frame, the files were built on the foot
+/// measure.foot measured (the foot measured once), and every file was written.
+#[test]
+fn the_results_come_before_the_cad_files_on_one_measurement() {
+    let dir = common::default_scan();
+    let s = common::summary(dir);
+    let m = &s["model"];
+    assert_eq!(m["state"], "written", "scan.json's model: {m}");
+    assert_eq!(
+        m["measured_again"], false,
+        "the model job measured the foot again: {m}"
+    );
+    let files: Vec<&str> = m["files"]
+        .as_array()
+        .unwrap_or_else(|| panic!("model.files: {m}"))
+        .iter()
+        .filter_map(|f| f.as_str())
+        .collect();
+    for f in ["model.stl", "model.step", "model.glb"] {
+        assert!(files.contains(&f), "{f} not in {files:?}");
+        assert!(dir.join(f).metadata().is_ok_and(|m| m.len() > 100), "{f}");
+    }
+    let t = &s["timeline"];
+    let get = |k: &str| {
+        t[k].as_f64()
+            .unwrap_or_else(|| panic!("scan.json's timeline.{k}: {t}"))
+    };
+    let (last, results, model) = (
+        get("last_frame_s"),
+        get("results_after_last_frame_s"),
+        get("model_after_last_frame_s"),
+    );
+    assert!(last > 0.0 && last < s["seconds"].as_f64().unwrap(), "{t}");
+    assert!(results >= 0.0 && results <= model, "{t}");
+}

@@ -249,6 +249,8 @@ pub struct Options {
     pub detectors: Vec<String>,
     /// Slopes of the slope sweep (empty: none).
     pub slopes: Vec<f64>,
+    /// Instruction sets timed (empty: every one this CPU runs).
+    pub isas: Vec<Isa>,
 }
 
 impl Default for Options {
@@ -260,6 +262,7 @@ impl Default for Options {
             noise: NOISE_LEVELS.iter().map(|s| s.to_string()).collect(),
             detectors: NAMES.iter().map(|s| s.to_string()).collect(),
             slopes: SLOPES.to_vec(),
+            isas: Vec::new(),
         }
     }
 }
@@ -284,7 +287,12 @@ pub fn speed_by_isa(opts: &Options) -> Vec<SpeedRow> {
     super::on_one_core(|| {
         let floor_before = floor_fps(&frames, opts.seconds);
         let mut fps = Vec::new();
-        for isa in Isa::available() {
+        let isas = if opts.isas.is_empty() {
+            Isa::available()
+        } else {
+            opts.isas.clone()
+        };
+        for isa in isas {
             for name in &opts.detectors {
                 let mut det = build(name, &DetectParams::default()).expect("detector");
                 let f = with_isa(isa, || detector_fps(det.as_mut(), &frames, opts.seconds))

@@ -87,6 +87,13 @@ enum What {
         /// Only these line sigmas, px (repeatable; default 0.6 1.0 1.6 2.0 2.5 3.0).
         #[arg(long = "sigma")]
         sigmas: Vec<f64>,
+        /// Time only these instruction sets (repeatable: scalar, sse4.1, avx2, avx512;
+        /// default every one this CPU runs).
+        #[arg(long = "isa")]
+        isas: Vec<String>,
+        /// Only the speed table: no accuracy sweep.
+        #[arg(long)]
+        speed_only: bool,
     },
     /// The customized last (docs/method.md section 10) on simulated feet of 230, 260 and 290
     /// mm, both sides, and the real feet of DATA/feet: the rule table, per foot each rule's
@@ -253,6 +260,8 @@ pub fn run(args: Args) -> Result<()> {
             seconds,
             detectors,
             sigmas,
+            isas,
+            speed_only,
         } => {
             use footscan_bench::detect as bd;
             let mut opts = bd::Options {
@@ -260,6 +269,20 @@ pub fn run(args: Args) -> Result<()> {
                 seconds,
                 ..Default::default()
             };
+            for i in &isas {
+                let isa: footscan::detect::Isa = i.parse().map_err(anyhow::Error::msg)?;
+                if !isa.supported() {
+                    anyhow::bail!(
+                        "--isa {i}: this CPU does not run it (available: {})",
+                        footscan::detect::Isa::available()
+                            .iter()
+                            .map(|i| i.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    );
+                }
+                opts.isas.push(isa);
+            }
             for d in &detectors {
                 footscan::detect::build(d, &Default::default()).map_err(anyhow::Error::msg)?;
             }
@@ -268,6 +291,15 @@ pub fn run(args: Args) -> Result<()> {
             }
             if !sigmas.is_empty() {
                 opts.sigmas = sigmas;
+            }
+            if speed_only {
+                let speed = bd::speed_by_isa(&opts);
+                if json {
+                    println!("{}", serde_json::to_string_pretty(&speed)?);
+                } else {
+                    print!("{}", bd::speed_table(&speed));
+                }
+                return Ok(());
             }
             let (rows, speed) = bd::run(&opts);
             if json {

@@ -136,6 +136,16 @@ pub fn run(
             s.name, s.input, s.output, s.dropped, s.mean_latency_ms, s.max_latency_ms
         );
     }
+    if let Some(t) = &summary.timeline {
+        let model = match (&summary.model, t.model_after_last_frame_s) {
+            (Some(m), Some(s)) => format!(", CAD files {} {s:.2} s after it", m.state.as_str()),
+            _ => String::new(),
+        };
+        println!(
+            "results {:.2} s after the last frame (at {:.1} s){model}",
+            t.results_after_last_frame_s, t.last_frame_s
+        );
+    }
     // What this scan's stages wrote: --out holds this scan alone.
     let mut files: Vec<String> = std::fs::read_dir(&out)
         .map(|d| {

@@ -513,6 +513,24 @@ pub fn write_foot_model(
     }
     let t = Instant::now();
     let (map, m) = measure_grid(grid, Some(net), DEFAULT_CELL_MM)?;
+    write_measured_foot_model(grid, net, build_ms, files, names, &map, &m, t)
+}
+
+/// [`write_foot_model`] of a foot already measured: `map` and `m` are what
+/// [`measure_grid`] gives for `grid` with `net` on [`DEFAULT_CELL_MM`] cells (the scan's
+/// `measure.foot` shares them, so the foot is measured once). `t` is when the work began,
+/// for `mesh_ms`.
+#[allow(clippy::too_many_arguments)]
+pub fn write_measured_foot_model(
+    grid: &ScanGrid,
+    net: &BezierNetwork,
+    build_ms: f64,
+    files: &ModelFiles,
+    names: [&'static str; 3],
+    map: &HeightMap,
+    m: &Measurements,
+    t: Instant,
+) -> Result<ModelSummary, CadError> {
     check_cell(names[0], files.cell_mm, Some(m.ball_width_mm))?;
     if files.step.is_some() || files.iges.is_some() {
         check_cell(names[1], files.step_cell_mm, Some(m.ball_width_mm))?;
@@ -520,21 +538,21 @@ pub fn write_foot_model(
     if files.glb.is_some() {
         check_cell(names[2], files.glb_cell_mm, Some(m.ball_width_mm))?;
     }
-    let frame = FootFrame::of(&m);
-    let outline = sole_outline(&m, &frame);
+    let frame = FootFrame::of(m);
+    let outline = sole_outline(m, &frame);
     let mut warnings: Vec<String> = m
         .warnings
         .iter()
         .map(|w| format!("measurements: {w}"))
         .collect();
     warnings.extend(outline.warnings.iter().cloned());
-    let reference = foot_solid(&map, &m, &outline, FILL_CELL_MM, None, None)?;
+    let reference = foot_solid(map, m, &outline, FILL_CELL_MM, None, None)?;
     let base = Some(reference.base_z);
     let on = |cell: f64| -> Result<OutlineSolid, CadError> {
         if cell == FILL_CELL_MM {
             Ok(reference.clone())
         } else {
-            foot_solid(&map, &m, &outline, cell, base, Some(&reference))
+            foot_solid(map, m, &outline, cell, base, Some(&reference))
         }
     };
     let solid = on(files.cell_mm)?;
@@ -580,7 +598,7 @@ pub fn write_foot_model(
         let g = on(files.glb_cell_mm)?;
         glb_triangles =
             Some(
-                write_foot_glb(p, &g.mesh(), &m, &frame).map_err(|source| CadError::Glb {
+                write_foot_glb(p, &g.mesh(), m, &frame).map_err(|source| CadError::Glb {
                     path: p.clone(),
                     source,
                 })?,

@@ -145,20 +145,32 @@ pub fn with_isa<R>(isa: Isa, f: impl FnOnce() -> R) -> Result<R, UnsupportedIsa>
     Ok(f())
 }
 
+/// Return from the calling function with the kernel of `isa` (`[avx512, avx2, sse4.1]`
+/// functions of the x86 module, applied to the arguments); fall through on the scalar set or
+/// another architecture. The one dispatch of every per-set kernel.
+macro_rules! on_set {
+    ($isa:expr, [$k512:ident, $k2:ident, $k41:ident]($($arg:expr),*)) => {
+        #[cfg(target_arch = "x86_64")]
+        {
+            // SAFETY: an `Isa` above Scalar reaches here only from `current()`, which returns
+            // a forced set only after `with_isa` checked it, or the detected one.
+            match $isa {
+                Isa::Avx512 => return unsafe { x86::$k512($($arg),*) },
+                Isa::Avx2 => return unsafe { x86::$k2($($arg),*) },
+                Isa::Sse41 => return unsafe { x86::$k41($($arg),*) },
+                Isa::Scalar => {}
+            }
+        }
+    };
+}
+
 /// Maximum of each 64-pixel block of a Gray8 row (see [`super::coarse::block_max`]).
 #[inline]
 pub fn block_max_u8(isa: Isa, row: &[u8], blocks: &mut [u8]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        // SAFETY: an `Isa` above Scalar reaches here only from `current()`, which returns a
-        // forced set only after `with_isa` checked it, or the detected one.
-        match isa {
-            Isa::Avx512 => return unsafe { x86::block_max_u8_avx512(row, blocks) },
-            Isa::Avx2 => return unsafe { x86::block_max_u8_avx2(row, blocks) },
-            Isa::Sse41 => return unsafe { x86::block_max_u8_sse41(row, blocks) },
-            Isa::Scalar => {}
-        }
-    }
+    on_set!(
+        isa,
+        [block_max_u8_avx512, block_max_u8_avx2, block_max_u8_sse41](row, blocks)
+    );
     let _ = isa;
     super::coarse::block_max_scalar(row, blocks)
 }
@@ -166,16 +178,14 @@ pub fn block_max_u8(isa: Isa, row: &[u8], blocks: &mut [u8]) {
 /// Maximum of each 64-pixel block of a Gray16 row.
 #[inline]
 pub fn block_max_u16(isa: Isa, row: &[u16], blocks: &mut [u16]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        // SAFETY: as in `block_max_u8`.
-        match isa {
-            Isa::Avx512 => return unsafe { x86::block_max_u16_avx512(row, blocks) },
-            Isa::Avx2 => return unsafe { x86::block_max_u16_avx2(row, blocks) },
-            Isa::Sse41 => return unsafe { x86::block_max_u16_sse41(row, blocks) },
-            Isa::Scalar => {}
-        }
-    }
+    on_set!(
+        isa,
+        [
+            block_max_u16_avx512,
+            block_max_u16_avx2,
+            block_max_u16_sse41
+        ](row, blocks)
+    );
     let _ = isa;
     super::coarse::block_max_scalar(row, blocks)
 }
@@ -185,19 +195,12 @@ pub fn block_max_u16(isa: Isa, row: &[u16], blocks: &mut [u16]) {
 /// one packed compare and a population count.
 #[inline]
 pub fn kth_u8(isa: Isa, v: &[u8; 64], k: usize) -> u8 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        // SAFETY: as in `block_max_u8`.
-        match isa {
-            Isa::Avx512 => return unsafe { x86::kth_u8_avx512(v, k) },
-            Isa::Avx2 => return unsafe { x86::kth_u8_avx2(v, k) },
-            Isa::Sse41 => return unsafe { x86::kth_u8_sse41(v, k) },
-            Isa::Scalar => {}
-        }
+    if isa == Isa::Scalar {
+        let mut s = *v;
+        return *s.select_nth_unstable(k).1;
     }
-    let _ = isa;
-    let mut s = *v;
-    *s.select_nth_unstable(k).1
+    // The packed sets search three at once ([`kth3_u8`]); one of the three is asked for.
+    kth3_u8(isa, v, k, v, k, k).0
 }
 
 /// The three order statistics of a row's background at once: the `ks`-th smallest of `s` and
@@ -213,17 +216,16 @@ pub fn kth3_u8(
     kd1: usize,
     kd2: usize,
 ) -> (u8, u8, u8) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        // SAFETY: as in `block_max_u8`.
-        match isa {
-            Isa::Avx512 => return unsafe { x86::kth3_u8_avx512(s, ks, d, kd1, kd2) },
-            Isa::Avx2 => return unsafe { x86::kth3_u8_avx2(s, ks, d, kd1, kd2) },
-            Isa::Sse41 => return unsafe { x86::kth3_u8_sse41(s, ks, d, kd1, kd2) },
-            Isa::Scalar => {}
-        }
-    }
-    (kth_u8(isa, s, ks), kth_u8(isa, d, kd1), kth_u8(isa, d, kd2))
+    on_set!(
+        isa,
+        [kth3_u8_avx512, kth3_u8_avx2, kth3_u8_sse41](s, ks, d, kd1, kd2)
+    );
+    let _ = isa;
+    let kth = |v: &[u8; 64], k: usize| {
+        let mut v = *v;
+        *v.select_nth_unstable(k).1
+    };
+    (kth(s, ks), kth(d, kd1), kth(d, kd2))
 }
 
 /// The largest of `blocks` (block maxima of a row) and the first index holding it; (0, 0) for
@@ -233,8 +235,10 @@ pub fn kth3_u8(
 pub fn first_max_u8(isa: Isa, blocks: &[u8]) -> Option<(u8, usize)> {
     #[cfg(target_arch = "x86_64")]
     if isa != Isa::Scalar && blocks.len() >= 16 {
-        // SAFETY: as in `block_max_u8`; every set above Scalar includes SSE4.1.
-        return Some(unsafe { x86::first_max_u8_sse41(blocks) });
+        // SAFETY: SSE2 is part of the x86_64 baseline. Gray8's short scans are SSE2, not
+        // SSE4.1: a `target_feature` kernel cannot be inlined into the portable coarse search,
+        // and the calls cost more than they saved (docs/method.md 4.7.2).
+        return Some(unsafe { x86::first_max_u8_sse2(blocks) });
     }
     let _ = (isa, blocks);
     None
@@ -245,7 +249,7 @@ pub fn first_max_u8(isa: Isa, blocks: &[u8]) -> Option<(u8, usize)> {
 pub fn first_max_u16(isa: Isa, blocks: &[u16]) -> Option<(u16, usize)> {
     #[cfg(target_arch = "x86_64")]
     if isa != Isa::Scalar && blocks.len() >= 8 {
-        // SAFETY: as in `first_max_u8`.
+        // SAFETY: every set above Scalar includes SSE4.1 (see `on_set!`).
         return Some(unsafe { x86::first_max_u16_sse41(blocks) });
     }
     let _ = (isa, blocks);
@@ -258,8 +262,8 @@ pub fn first_max_u16(isa: Isa, blocks: &[u16]) -> Option<(u16, usize)> {
 pub fn max_outside_u8(isa: Isa, blocks: &[u8], lo: usize, hi: usize) -> Option<u8> {
     #[cfg(target_arch = "x86_64")]
     if isa != Isa::Scalar && blocks.len() >= 16 && blocks.len() <= 256 {
-        // SAFETY: as in `first_max_u8`.
-        return Some(unsafe { x86::max_outside_u8_sse41(blocks, lo, hi) });
+        // SAFETY: SSE2 is part of the x86_64 baseline.
+        return Some(unsafe { x86::max_outside_u8_sse2(blocks, lo, hi) });
     }
     let _ = (isa, blocks, lo, hi);
     None
@@ -270,7 +274,7 @@ pub fn max_outside_u8(isa: Isa, blocks: &[u8], lo: usize, hi: usize) -> Option<u
 pub fn max_outside_u16(isa: Isa, blocks: &[u16], lo: usize, hi: usize) -> Option<u16> {
     #[cfg(target_arch = "x86_64")]
     if isa != Isa::Scalar && blocks.len() >= 8 && blocks.len() <= 65536 {
-        // SAFETY: as in `first_max_u8`.
+        // SAFETY: every set above Scalar includes SSE4.1 (see `on_set!`).
         return Some(unsafe { x86::max_outside_u16_sse41(blocks, lo, hi) });
     }
     let _ = (isa, blocks, lo, hi);
@@ -283,8 +287,8 @@ pub fn max_outside_u16(isa: Isa, blocks: &[u16], lo: usize, hi: usize) -> Option
 pub fn position_u8(isa: Isa, s: &[u8], v: u8) -> Option<usize> {
     #[cfg(target_arch = "x86_64")]
     if isa != Isa::Scalar && s.len() >= 16 {
-        // SAFETY: as in `first_max_u8`.
-        return Some(unsafe { x86::position_u8_sse41(s, v) });
+        // SAFETY: SSE2 is part of the x86_64 baseline.
+        return Some(unsafe { x86::position_u8_sse2(s, v) });
     }
     let _ = (isa, s, v);
     None
@@ -295,7 +299,7 @@ pub fn position_u8(isa: Isa, s: &[u8], v: u8) -> Option<usize> {
 pub fn position_u16(isa: Isa, s: &[u16], v: u16) -> Option<usize> {
     #[cfg(target_arch = "x86_64")]
     if isa != Isa::Scalar && s.len() >= 8 {
-        // SAFETY: as in `first_max_u8`.
+        // SAFETY: every set above Scalar includes SSE4.1 (see `on_set!`).
         return Some(unsafe { x86::position_u16_sse41(s, v) });
     }
     let _ = (isa, s, v);
@@ -305,14 +309,13 @@ pub fn position_u16(isa: Isa, s: &[u16], v: u16) -> Option<usize> {
 /// The first index of a byte <= `c` in `s` (None if there is none): the end of a run of the
 /// line going right. The portable loop is one compare and branch per pixel, and its exit
 /// (where the run ends, a different place every row) is a mispredicted branch; here 16
-/// pixels per compare and the end from the mask. SSE4.1 on every set above scalar (runs are a
-/// few pixels long).
+/// pixels per compare and the end from the mask. SSE2 on every set above scalar (runs are a
+/// few pixels long), inlined into the coarse search.
 #[inline]
 pub fn first_at_most_u8(s: &[u8], c: u8) -> Option<usize> {
     #[cfg(target_arch = "x86_64")]
-    // SAFETY: called only for a set above Scalar (see `block_max_u8`), all of which include
-    // SSE4.1.
-    return unsafe { x86::first_at_most_u8_sse41(s, c) };
+    // SAFETY: SSE2 is part of the x86_64 baseline.
+    return unsafe { x86::first_at_most_u8_sse2(s, c) };
     #[cfg(not(target_arch = "x86_64"))]
     s.iter().position(|&v| v <= c)
 }
@@ -322,8 +325,8 @@ pub fn first_at_most_u8(s: &[u8], c: u8) -> Option<usize> {
 #[inline]
 pub fn last_at_most_u8(s: &[u8], c: u8) -> Option<usize> {
     #[cfg(target_arch = "x86_64")]
-    // SAFETY: as in `first_at_most_u8`.
-    return unsafe { x86::last_at_most_u8_sse41(s, c) };
+    // SAFETY: SSE2 is part of the x86_64 baseline.
+    return unsafe { x86::last_at_most_u8_sse2(s, c) };
     #[cfg(not(target_arch = "x86_64"))]
     s.iter().rposition(|&v| v <= c)
 }
@@ -368,6 +371,18 @@ mod x86 {
         255 - (_mm_cvtsi128_si32(_mm_minpos_epu16(folded)) & 0xff) as u8
     }
 
+    /// Maximum of the 16 bytes of `x` by SSE2 alone (shifts and `pmaxub`): four steps
+    /// instead of `phminposuw`'s one, but inlinable into the portable code (SSE2 is the
+    /// x86_64 baseline), where the short scans of the coarse search are called.
+    #[inline(always)]
+    unsafe fn hmax_u8_sse2(x: __m128i) -> u8 {
+        let x = _mm_max_epu8(x, _mm_srli_si128::<8>(x));
+        let x = _mm_max_epu8(x, _mm_srli_si128::<4>(x));
+        let x = _mm_max_epu8(x, _mm_srli_si128::<2>(x));
+        let x = _mm_max_epu8(x, _mm_srli_si128::<1>(x));
+        _mm_cvtsi128_si32(x) as u8
+    }
+
     /// Maximum of the 8 u16 lanes of `x` (inverted, `phminposuw`).
     #[target("x86_64+sse4.1")]
     #[inline]
@@ -376,7 +391,18 @@ mod x86 {
         65535 - (_mm_cvtsi128_si32(_mm_minpos_epu16(inv)) & 0xffff) as u16
     }
 
-    fn tail<T: Copy + Ord + Default>(row: &[T], blocks: &mut [T]) {
+    /// The one body of every set's block maxima: `reduce` gives the maximum of one whole
+    /// 64-pixel block (the set's own loads and packed max), the tail is folded here. Inlined
+    /// into each set's `#[target]` function, so it compiles with that set's instructions.
+    #[inline(always)]
+    fn each_block<T: Copy + Ord + Default>(
+        row: &[T],
+        blocks: &mut [T],
+        reduce: impl Fn(*const T) -> T,
+    ) {
+        for (b, ch) in blocks.iter_mut().zip(row.chunks_exact(BLOCK)) {
+            *b = reduce(ch.as_ptr());
+        }
         let full = row.len() / BLOCK;
         if !row.len().is_multiple_of(BLOCK) {
             blocks[full] = row[full * BLOCK..]
@@ -388,79 +414,80 @@ mod x86 {
 
     #[target("x86_64+sse4.1")]
     pub unsafe fn block_max_u8_sse41(row: &[u8], blocks: &mut [u8]) {
-        for (b, ch) in blocks.iter_mut().zip(row.chunks_exact(BLOCK)) {
-            let p = ch.as_ptr() as *const __m128i;
+        each_block(row, blocks, |p| {
+            let p = p as *const __m128i;
             let m = _mm_max_epu8(
                 _mm_max_epu8(_mm_loadu_si128(p), _mm_loadu_si128(p.add(1))),
                 _mm_max_epu8(_mm_loadu_si128(p.add(2)), _mm_loadu_si128(p.add(3))),
             );
-            *b = hmax_u8(m);
-        }
-        tail(row, blocks);
+            hmax_u8(m)
+        })
     }
 
     #[target("x86_64+avx2+fma+sse4.1")]
     pub unsafe fn block_max_u8_avx2(row: &[u8], blocks: &mut [u8]) {
-        for (b, ch) in blocks.iter_mut().zip(row.chunks_exact(BLOCK)) {
-            let p = ch.as_ptr() as *const __m256i;
+        each_block(row, blocks, |p| {
+            let p = p as *const __m256i;
             let m = _mm256_max_epu8(_mm256_loadu_si256(p), _mm256_loadu_si256(p.add(1)));
-            let m = _mm_max_epu8(_mm256_castsi256_si128(m), _mm256_extracti128_si256::<1>(m));
-            *b = hmax_u8(m);
-        }
-        tail(row, blocks);
+            hmax_u8(_mm_max_epu8(
+                _mm256_castsi256_si128(m),
+                _mm256_extracti128_si256::<1>(m),
+            ))
+        })
     }
 
     #[target("x86_64+avx512f+avx512bw+avx2+fma+sse4.1")]
     pub unsafe fn block_max_u8_avx512(row: &[u8], blocks: &mut [u8]) {
-        for (b, ch) in blocks.iter_mut().zip(row.chunks_exact(BLOCK)) {
-            let z = _mm512_loadu_si512(ch.as_ptr() as *const _);
+        each_block(row, blocks, |p| {
+            let z = _mm512_loadu_si512(p as *const _);
             let m = _mm256_max_epu8(_mm512_castsi512_si256(z), _mm512_extracti64x4_epi64::<1>(z));
-            let m = _mm_max_epu8(_mm256_castsi256_si128(m), _mm256_extracti128_si256::<1>(m));
-            *b = hmax_u8(m);
-        }
-        tail(row, blocks);
+            hmax_u8(_mm_max_epu8(
+                _mm256_castsi256_si128(m),
+                _mm256_extracti128_si256::<1>(m),
+            ))
+        })
     }
 
     #[target("x86_64+sse4.1")]
     pub unsafe fn block_max_u16_sse41(row: &[u16], blocks: &mut [u16]) {
-        for (b, ch) in blocks.iter_mut().zip(row.chunks_exact(BLOCK)) {
-            let p = ch.as_ptr() as *const __m128i;
+        each_block(row, blocks, |p| {
+            let p = p as *const __m128i;
             let mut m = _mm_loadu_si128(p);
             for i in 1..8 {
                 m = _mm_max_epu16(m, _mm_loadu_si128(p.add(i)));
             }
-            *b = hmax_u16(m);
-        }
-        tail(row, blocks);
+            hmax_u16(m)
+        })
     }
 
     #[target("x86_64+avx2+fma+sse4.1")]
     pub unsafe fn block_max_u16_avx2(row: &[u16], blocks: &mut [u16]) {
-        for (b, ch) in blocks.iter_mut().zip(row.chunks_exact(BLOCK)) {
-            let p = ch.as_ptr() as *const __m256i;
+        each_block(row, blocks, |p| {
+            let p = p as *const __m256i;
             let m = _mm256_max_epu16(
                 _mm256_max_epu16(_mm256_loadu_si256(p), _mm256_loadu_si256(p.add(1))),
                 _mm256_max_epu16(_mm256_loadu_si256(p.add(2)), _mm256_loadu_si256(p.add(3))),
             );
-            let m = _mm_max_epu16(_mm256_castsi256_si128(m), _mm256_extracti128_si256::<1>(m));
-            *b = hmax_u16(m);
-        }
-        tail(row, blocks);
+            hmax_u16(_mm_max_epu16(
+                _mm256_castsi256_si128(m),
+                _mm256_extracti128_si256::<1>(m),
+            ))
+        })
     }
 
     #[target("x86_64+avx512f+avx512bw+avx2+fma+sse4.1")]
     pub unsafe fn block_max_u16_avx512(row: &[u16], blocks: &mut [u16]) {
-        for (b, ch) in blocks.iter_mut().zip(row.chunks_exact(BLOCK)) {
-            let p = ch.as_ptr();
+        each_block(row, blocks, |p| {
             let z = _mm512_max_epu16(
                 _mm512_loadu_si512(p as *const _),
                 _mm512_loadu_si512(p.add(32) as *const _),
             );
             let m = _mm256_max_epu16(_mm512_castsi512_si256(z), _mm512_extracti64x4_epi64::<1>(z));
-            let m = _mm_max_epu16(_mm256_castsi256_si128(m), _mm256_extracti128_si256::<1>(m));
-            *b = hmax_u16(m);
-        }
-        tail(row, blocks);
+            hmax_u16(_mm_max_epu16(
+                _mm256_castsi256_si128(m),
+                _mm256_extracti128_si256::<1>(m),
+            ))
+        })
     }
 
     /// Bytes of `x` below `c` (unsigned), as a bit mask: signed compare after flipping the top
@@ -475,77 +502,21 @@ mod x86 {
         )) as u32
     }
 
-    #[target("x86_64+sse4.1")]
-    pub unsafe fn kth_u8_sse41(v: &[u8; 64], k: usize) -> u8 {
-        let p = v.as_ptr() as *const __m128i;
-        let x = [0, 1, 2, 3].map(|i| _mm_loadu_si128(p.add(i)));
-        let mut ans = 0u8;
-        for bit in (0..8).rev() {
-            let c = ans | (1 << bit);
-            let cv = _mm_set1_epi8(c as i8);
-            let n: u32 = x.iter().map(|&x| below_128(x, cv).count_ones()).sum();
-            if n as usize <= k {
-                ans = c;
-            }
-        }
-        ans
-    }
-
-    #[target("x86_64+avx2+fma+sse4.1")]
-    pub unsafe fn kth_u8_avx2(v: &[u8; 64], k: usize) -> u8 {
-        let p = v.as_ptr() as *const __m256i;
-        let flip = _mm256_set1_epi8(i8::MIN);
-        let a = _mm256_xor_si256(_mm256_loadu_si256(p), flip);
-        let b = _mm256_xor_si256(_mm256_loadu_si256(p.add(1)), flip);
-        let mut ans = 0u8;
-        for bit in (0..8).rev() {
-            let c = ans | (1 << bit);
-            let cv = _mm256_set1_epi8((c ^ 0x80) as i8);
-            let n = (_mm256_movemask_epi8(_mm256_cmpgt_epi8(cv, a)) as u32).count_ones()
-                + (_mm256_movemask_epi8(_mm256_cmpgt_epi8(cv, b)) as u32).count_ones();
-            if n as usize <= k {
-                ans = c;
-            }
-        }
-        ans
-    }
-
-    #[target("x86_64+avx512f+avx512bw+avx2+fma+sse4.1")]
-    pub unsafe fn kth_u8_avx512(v: &[u8; 64], k: usize) -> u8 {
-        let z = _mm512_loadu_si512(v.as_ptr() as *const _);
-        let mut ans = 0u8;
-        for bit in (0..8).rev() {
-            let c = ans | (1 << bit);
-            let n = _mm512_cmplt_epu8_mask(z, _mm512_set1_epi8(c as i8)).count_ones();
-            if n as usize <= k {
-                ans = c;
-            }
-        }
-        ans
-    }
-
-    /// Three bit-by-bit searches (see `kth_u8_sse41`) interleaved.
-    #[target("x86_64+sse4.1")]
-    pub unsafe fn kth3_u8_sse41(
-        s: &[u8; 64],
+    /// The one body of every set's three order statistics: three bit-by-bit searches from the
+    /// top, interleaved (each the largest v with at most k values below it); `below_s(c)` and
+    /// `below_d(c)` count the values of `s` and of `d` below c with the set's own compares.
+    #[inline(always)]
+    fn search3(
+        below_s: impl Fn(u8) -> usize,
+        below_d: impl Fn(u8) -> usize,
         ks: usize,
-        d: &[u8; 64],
         kd1: usize,
         kd2: usize,
     ) -> (u8, u8, u8) {
-        let (ps, pd) = (s.as_ptr() as *const __m128i, d.as_ptr() as *const __m128i);
-        let xs = [0, 1, 2, 3].map(|i| _mm_loadu_si128(ps.add(i)));
-        let xd = [0, 1, 2, 3].map(|i| _mm_loadu_si128(pd.add(i)));
-        let count = |x: &[__m128i; 4], c: u8| -> usize {
-            let cv = _mm_set1_epi8(c as i8);
-            x.iter()
-                .map(|&x| below_128(x, cv).count_ones())
-                .sum::<u32>() as usize
-        };
         let (mut a, mut b, mut c) = (0u8, 0u8, 0u8);
         for bit in (0..8).rev() {
             let (ca, cb, cc) = (a | (1 << bit), b | (1 << bit), c | (1 << bit));
-            let (na, nb, nc) = (count(&xs, ca), count(&xd, cb), count(&xd, cc));
+            let (na, nb, nc) = (below_s(ca), below_d(cb), below_d(cc));
             if na <= ks {
                 a = ca;
             }
@@ -557,6 +528,26 @@ mod x86 {
             }
         }
         (a, b, c)
+    }
+
+    #[target("x86_64+sse4.1")]
+    pub unsafe fn kth3_u8_sse41(
+        s: &[u8; 64],
+        ks: usize,
+        d: &[u8; 64],
+        kd1: usize,
+        kd2: usize,
+    ) -> (u8, u8, u8) {
+        let (ps, pd) = (s.as_ptr() as *const __m128i, d.as_ptr() as *const __m128i);
+        let xs = [0, 1, 2, 3].map(|i| _mm_loadu_si128(ps.add(i)));
+        let xd = [0, 1, 2, 3].map(|i| _mm_loadu_si128(pd.add(i)));
+        let below = |x: &[__m128i; 4], c: u8| -> usize {
+            let cv = _mm_set1_epi8(c as i8);
+            x.iter()
+                .map(|&x| below_128(x, cv).count_ones())
+                .sum::<u32>() as usize
+        };
+        search3(|c| below(&xs, c), |c| below(&xd, c), ks, kd1, kd2)
     }
 
     #[target("x86_64+avx2+fma+sse4.1")]
@@ -571,29 +562,15 @@ mod x86 {
         let load = |p: *const u8, i: usize| {
             _mm256_xor_si256(_mm256_loadu_si256((p as *const __m256i).add(i)), flip)
         };
-        let (s0, s1) = (load(s.as_ptr(), 0), load(s.as_ptr(), 1));
-        let (d0, d1) = (load(d.as_ptr(), 0), load(d.as_ptr(), 1));
-        let count = |x0: __m256i, x1: __m256i, c: u8| -> usize {
+        let xs = (load(s.as_ptr(), 0), load(s.as_ptr(), 1));
+        let xd = (load(d.as_ptr(), 0), load(d.as_ptr(), 1));
+        let below = |x: (__m256i, __m256i), c: u8| -> usize {
             let cv = _mm256_set1_epi8((c ^ 0x80) as i8);
-            ((_mm256_movemask_epi8(_mm256_cmpgt_epi8(cv, x0)) as u32).count_ones()
-                + (_mm256_movemask_epi8(_mm256_cmpgt_epi8(cv, x1)) as u32).count_ones())
+            ((_mm256_movemask_epi8(_mm256_cmpgt_epi8(cv, x.0)) as u32).count_ones()
+                + (_mm256_movemask_epi8(_mm256_cmpgt_epi8(cv, x.1)) as u32).count_ones())
                 as usize
         };
-        let (mut a, mut b, mut c) = (0u8, 0u8, 0u8);
-        for bit in (0..8).rev() {
-            let (ca, cb, cc) = (a | (1 << bit), b | (1 << bit), c | (1 << bit));
-            let (na, nb, nc) = (count(s0, s1, ca), count(d0, d1, cb), count(d0, d1, cc));
-            if na <= ks {
-                a = ca;
-            }
-            if nb <= kd1 {
-                b = cb;
-            }
-            if nc <= kd2 {
-                c = cc;
-            }
-        }
-        (a, b, c)
+        search3(|c| below(xs, c), |c| below(xd, c), ks, kd1, kd2)
     }
 
     #[target("x86_64+avx512f+avx512bw+avx2+fma+sse4.1")]
@@ -606,23 +583,10 @@ mod x86 {
     ) -> (u8, u8, u8) {
         let zs = _mm512_loadu_si512(s.as_ptr() as *const _);
         let zd = _mm512_loadu_si512(d.as_ptr() as *const _);
-        let count =
-            |z: __m512i, c: u8| _mm512_cmplt_epu8_mask(z, _mm512_set1_epi8(c as i8)).count_ones();
-        let (mut a, mut b, mut c) = (0u8, 0u8, 0u8);
-        for bit in (0..8).rev() {
-            let (ca, cb, cc) = (a | (1 << bit), b | (1 << bit), c | (1 << bit));
-            let (na, nb, nc) = (count(zs, ca), count(zd, cb), count(zd, cc));
-            if na as usize <= ks {
-                a = ca;
-            }
-            if nb as usize <= kd1 {
-                b = cb;
-            }
-            if nc as usize <= kd2 {
-                c = cc;
-            }
-        }
-        (a, b, c)
+        let below = |z: __m512i, c: u8| {
+            _mm512_cmplt_epu8_mask(z, _mm512_set1_epi8(c as i8)).count_ones() as usize
+        };
+        search3(|c| below(zs, c), |c| below(zd, c), ks, kd1, kd2)
     }
 
     /// The 16-byte pieces of a slice of at least 16: whole pieces from the start, then one
@@ -635,15 +599,15 @@ mod x86 {
         (0..whole).map(move |i| i * lanes).chain(tail)
     }
 
-    #[target("x86_64+sse4.1")]
-    pub unsafe fn first_max_u8_sse41(blocks: &[u8]) -> (u8, usize) {
+    #[inline]
+    pub unsafe fn first_max_u8_sse2(blocks: &[u8]) -> (u8, usize) {
         let p = blocks.as_ptr();
         let mut m = _mm_setzero_si128();
         for o in pieces(blocks.len(), 16) {
             m = _mm_max_epu8(m, _mm_loadu_si128(p.add(o) as *const __m128i));
         }
-        let mx = hmax_u8(m);
-        (mx, position_u8_sse41(blocks, mx))
+        let mx = hmax_u8_sse2(m);
+        (mx, position_u8_sse2(blocks, mx))
     }
 
     #[target("x86_64+sse4.1")]
@@ -657,8 +621,8 @@ mod x86 {
         (mx, position_u16_sse41(blocks, mx))
     }
 
-    #[target("x86_64+sse4.1")]
-    pub unsafe fn position_u8_sse41(s: &[u8], v: u8) -> usize {
+    #[inline]
+    pub unsafe fn position_u8_sse2(s: &[u8], v: u8) -> usize {
         let p = s.as_ptr();
         let vv = _mm_set1_epi8(v as i8);
         for o in pieces(s.len(), 16) {
@@ -690,8 +654,8 @@ mod x86 {
     }
 
     /// Block indices as packed bytes: piece offset + 0..15 (blocks.len() <= 256).
-    #[target("x86_64+sse4.1")]
-    pub unsafe fn max_outside_u8_sse41(blocks: &[u8], lo: usize, hi: usize) -> u8 {
+    #[inline]
+    pub unsafe fn max_outside_u8_sse2(blocks: &[u8], lo: usize, hi: usize) -> u8 {
         let p = blocks.as_ptr();
         let step = _mm_setr_epi8(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
         // Indices are at most 255; a range beyond it clamps without changing the test.
@@ -709,7 +673,7 @@ mod x86 {
             let v = _mm_andnot_si128(inside, _mm_loadu_si128(p.add(o) as *const __m128i));
             m = _mm_max_epu8(m, v);
         }
-        hmax_u8(m)
+        hmax_u8_sse2(m)
     }
 
     #[target("x86_64+sse4.1")]
@@ -734,15 +698,14 @@ mod x86 {
     }
 
     /// Mask of the bytes <= c among the 16 at `p`.
-    #[target("x86_64+sse4.1")]
-    #[inline]
+    #[inline(always)]
     unsafe fn at_most_mask(p: *const u8, c: __m128i) -> u32 {
         let v = _mm_loadu_si128(p as *const __m128i);
         _mm_movemask_epi8(_mm_cmpeq_epi8(_mm_min_epu8(v, c), v)) as u32
     }
 
-    #[target("x86_64+sse4.1")]
-    pub unsafe fn first_at_most_u8_sse41(s: &[u8], c: u8) -> Option<usize> {
+    #[inline]
+    pub unsafe fn first_at_most_u8_sse2(s: &[u8], c: u8) -> Option<usize> {
         let cv = _mm_set1_epi8(c as i8);
         let p = s.as_ptr();
         let mut o = 0;
@@ -756,8 +719,8 @@ mod x86 {
         s[o..].iter().position(|&v| v <= c).map(|k| o + k)
     }
 
-    #[target("x86_64+sse4.1")]
-    pub unsafe fn last_at_most_u8_sse41(s: &[u8], c: u8) -> Option<usize> {
+    #[inline]
+    pub unsafe fn last_at_most_u8_sse2(s: &[u8], c: u8) -> Option<usize> {
         let cv = _mm_set1_epi8(c as i8);
         let p = s.as_ptr();
         let mut e = s.len();

@@ -25,11 +25,22 @@ pub fn scan_heightmap(
     model: Option<&BezierNetwork>,
     cell_mm: f64,
 ) -> Result<(HeightMap, &'static str), MeasureError> {
-    let mut map = rasterize_grid(grid, cell_mm)?;
     let Some(net) = model else {
-        return Ok((map, "scan grid"));
+        return Ok((rasterize_grid(grid, cell_mm)?, "scan grid"));
     };
-    let mm = net.eval_heightmap(cell_mm);
+    // The footprint and the model's heights are independent: side by side, since the
+    // results of a scan wait on them (issue 34 item 2).
+    let (map, mm) = std::thread::scope(|s| {
+        let footprint = s.spawn(|| rasterize_grid(grid, cell_mm));
+        let mm = net.eval_heightmap(cell_mm);
+        (
+            footprint
+                .join()
+                .unwrap_or_else(|p| std::panic::resume_unwind(p)),
+            mm,
+        )
+    });
+    let mut map = map?;
     for j in 0..map.ny {
         for i in 0..map.nx {
             if !map.get(i, j).is_finite() {

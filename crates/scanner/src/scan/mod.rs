@@ -5,6 +5,7 @@ pub mod calibrate;
 pub mod config;
 mod error;
 pub mod item;
+pub mod model_job;
 pub mod quality;
 mod registry;
 mod run;
@@ -95,11 +96,20 @@ pub struct ScanCounters {
     measure_warnings: Mutex<Vec<String>>,
     /// What the per-scan and sink plugin stages did, for scan.json.
     plugins: Mutex<Vec<summary::PluginRecord>>,
+    /// When the last frame was acquired: the results are timed from it.
+    last_frame: Mutex<Option<std::time::Instant>>,
+    /// The CAD files, written after the results by `model.bezier`'s job.
+    pub model: model_job::ModelJob,
 }
 
 impl ScanCounters {
     pub fn add_frame(&self) {
         self.frames.fetch_add(1, Ordering::Relaxed);
+        *self.last_frame.lock().unwrap() = Some(std::time::Instant::now());
+    }
+    /// When the last frame was acquired (None before the first).
+    pub fn last_frame_at(&self) -> Option<std::time::Instant> {
+        *self.last_frame.lock().unwrap()
     }
     pub fn add_dropped(&self, n: u64) {
         self.dropped.fetch_add(n, Ordering::Relaxed);

@@ -276,7 +276,9 @@ pub fn registry() -> Registry<Item, ScanContext> {
         "Bezier-network plantar model from the grid; writes the foot model for CAD, one closed solid in the foot frame (stl, ply, obj, step, cell_mm, step_cell_mm)",
         |p, ctx: &ScanContext| {
             let p: ModelParams = params(p)?;
-            Ok(Node::stage(ModelStage::new(p, &ctx.out_dir)?))
+            Ok(Node::stage(
+                ModelStage::new(p, &ctx.out_dir)?.with_counters(ctx.counters.clone()),
+            ))
         },
     );
     r.register(

@@ -4,6 +4,7 @@
 use super::config::LoadedConfig;
 use super::error::ScanError;
 use super::item::Item;
+use super::model_job::ModelState;
 use super::quality::{judge, ScanStatus, SideCheck};
 use super::summary::{ScanSummary, StageReport};
 use super::{registry, ScanContext, ScanCounters, ScanPlan};
@@ -63,6 +64,8 @@ pub struct ScanProgress {
     pub expected_frames: u64,
     pub dropped: u64,
     pub stages: Vec<StageStats>,
+    /// The CAD files, once `model.bezier` has started them.
+    pub model: Option<super::model_job::ModelProgress>,
 }
 
 /// Scan with `cfg`, writing into `opts.out_dir`; `progress` is called a few times a second.
@@ -119,8 +122,13 @@ pub fn run_scan(
                 expected_frames: plan.expected_frames(),
                 dropped: counters.dropped(),
                 stages: running.stats(),
+                model: counters.model.progress(),
             });
-            std::thread::sleep(Duration::from_millis(100));
+            // Progress every 100 ms, but the end seen within 5: the results wait on it.
+            let t = Instant::now();
+            while t.elapsed() < Duration::from_millis(100) && !running.is_finished() {
+                std::thread::sleep(Duration::from_millis(5));
+            }
         }
         let report = running.wait()?;
         drop(backend);
@@ -146,6 +154,7 @@ pub fn run_scan(
             if let ScanError::Pipeline(PipelineError::Stage { stats, .. }) = &e {
                 s.stages = stats.iter().map(stage_report).collect();
             }
+            s.model = counters.model.join(true);
             finish(&mut s, &counters, started);
             write_summary(&opts.out_dir, &s)?;
             return Err(e);
@@ -154,6 +163,41 @@ pub fn run_scan(
     finish(&mut summary, &counters, started);
     if summary.status == ScanStatus::Complete {
         gate(&mut summary, &counters, &plan, opts.side);
+    }
+    // The results, with the CAD files still being written: the verdict does not wait for
+    // them (model_job.rs).
+    let cancelled = summary.status == ScanStatus::Cancelled;
+    summary.model = counters.model.progress();
+    let last_frame = counters.last_frame_at();
+    let after_last = |t: Instant| last_frame.map(|l| t.saturating_duration_since(l).as_secs_f64());
+    summary.timeline = last_frame.map(|l| super::summary::Timeline {
+        last_frame_s: l.saturating_duration_since(started).as_secs_f64(),
+        results_after_last_frame_s: after_last(Instant::now()).unwrap_or(0.0),
+        model_after_last_frame_s: None,
+    });
+    if summary.model.is_some() {
+        write_summary(&opts.out_dir, &summary)?;
+        progress(&ScanProgress {
+            frames: counters.frames(),
+            expected_frames: plan.expected_frames(),
+            dropped: counters.dropped(),
+            stages: Vec::new(),
+            model: summary.model.clone(),
+        });
+        summary.model = counters.model.join(cancelled);
+        if let Some(t) = &mut summary.timeline {
+            t.model_after_last_frame_s = after_last(Instant::now());
+        }
+        summary.seconds = started.elapsed().as_secs_f64();
+        if let Some(m) = summary
+            .model
+            .as_ref()
+            .filter(|m| m.state == ModelState::Failed)
+        {
+            // The verdict stood, but a file the scan was asked for is missing.
+            summary.status = ScanStatus::Failed;
+            summary.reason = m.reason.clone();
+        }
     }
     write_summary(&opts.out_dir, &summary)?;
     Ok(summary)

@@ -72,6 +72,26 @@ pub struct ScanSummary {
     /// skipped (docs/plugins.md).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub plugins: Vec<PluginRecord>,
+    /// The CAD files (`model.bezier`), which follow the results: "building" in the scan.json
+    /// written with the verdict, then what became of them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model: Option<super::model_job::ModelProgress>,
+    /// When the results and the CAD files were ready, after the last frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub timeline: Option<Timeline>,
+}
+
+/// When the scan's outputs were ready (seconds).
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct Timeline {
+    /// From the start of the scan to its last frame.
+    pub last_frame_s: f64,
+    /// From the last frame to the results: measurements.json, plantar.png, heightmap.png
+    /// and the verdict in scan.json.
+    pub results_after_last_frame_s: f64,
+    /// From the last frame to the CAD files (None while they are being written).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model_after_last_frame_s: Option<f64>,
 }
 
 /// One per-scan or sink plugin stage's outcome, kept in scan.json.
@@ -122,6 +142,8 @@ pub fn summarize(grid: &ScanGrid, truth: Option<&dyn TruthSource>) -> ScanSummar
         laser_off: None,
         quality: None,
         plugins: Vec::new(),
+        model: None,
+        timeline: None,
     }
 }
 
@@ -176,6 +198,8 @@ impl ScanSummary {
             laser_off: None,
             quality: None,
             plugins: Vec::new(),
+            model: None,
+            timeline: None,
         }
     }
 

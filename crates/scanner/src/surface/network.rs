@@ -247,6 +247,13 @@ impl BezierNetwork {
     /// segment's cells (those in the bounding box of its coefficients, which holds the patch)
     /// are inverted to (u, v) by Newton's method and z evaluated there.
     pub fn eval_heightmap(&self, cell_mm: f64) -> HeightMap {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        self.eval_heightmap_on(cell_mm, cores.min(4))
+    }
+
+    /// [`Self::eval_heightmap`] on up to `threads` threads (bands of rows; the same map
+    /// whatever the count).
+    pub fn eval_heightmap_on(&self, cell_mm: f64, threads: usize) -> HeightMap {
         assert!(cell_mm > 0.0, "cell size must be positive");
         let boxes: Vec<[f64; 4]> = self.segs.iter().map(Segment::bbox).collect();
         if boxes.is_empty() {
@@ -264,43 +271,67 @@ impl BezierNetwork {
         let nx = ((x1 - x0) / cell_mm).floor() as usize + 1;
         let ny = ((y1 - y0) / cell_mm).floor() as usize + 1;
         let mut map = HeightMap::new(x0, y0, cell_mm, nx, ny);
-        for (seg, b) in self.segs.iter().zip(&boxes) {
-            let i0 = ((b[0] - x0) / cell_mm).ceil().max(0.0) as usize;
-            let i1 = (((b[1] - x0) / cell_mm).floor() as usize).min(nx - 1);
-            let j0 = ((b[2] - y0) / cell_mm).ceil().max(0.0) as usize;
-            let j1 = (((b[3] - y0) / cell_mm).floor() as usize).min(ny - 1);
-            for j in j0..=j1 {
-                // Start each cell from its left neighbours' solutions (extrapolated) when
-                // they had one.
-                let mut prev: Option<(f64, f64)> = None;
-                let mut prev2: Option<(f64, f64)> = None;
-                for i in i0..=i1 {
-                    if map.get(i, j).is_finite() {
-                        (prev, prev2) = (None, None);
-                        continue;
+        // Bands of rows on threads of their own: a cell depends only on the segments before
+        // it in order and on its own row's neighbours, so every band computes exactly what
+        // one pass over the map would (the measurements wait on this map after the last
+        // frame, issue 34 item 2).
+        let threads = threads.clamp(1, ny.div_ceil(64).max(1));
+        let band = ny.div_ceil(threads);
+        let (xs, ys): (Vec<f64>, Vec<f64>) = (
+            (0..nx).map(|i| map.x(i)).collect(),
+            (0..ny).map(|j| map.y(j)).collect(),
+        );
+        let fill = |rows: std::ops::Range<usize>, z: &mut [f64]| {
+            for (seg, b) in self.segs.iter().zip(&boxes) {
+                let i0 = ((b[0] - x0) / cell_mm).ceil().max(0.0) as usize;
+                let i1 = (((b[1] - x0) / cell_mm).floor() as usize).min(nx - 1);
+                let j0 = ((b[2] - y0) / cell_mm).ceil().max(0.0) as usize;
+                let j1 = (((b[3] - y0) / cell_mm).floor() as usize).min(ny - 1);
+                for j in j0.max(rows.start)..=j1.min(rows.end.saturating_sub(1)) {
+                    let zr = &mut z[(j - rows.start) * nx..(j - rows.start + 1) * nx];
+                    // Start each cell from its left neighbours' solutions (extrapolated) when
+                    // they had one.
+                    let mut prev: Option<(f64, f64)> = None;
+                    let mut prev2: Option<(f64, f64)> = None;
+                    for i in i0..=i1 {
+                        if zr[i].is_finite() {
+                            (prev, prev2) = (None, None);
+                            continue;
+                        }
+                        let guess = match (prev, prev2) {
+                            (Some(a), Some(b)) => Some((
+                                (2.0 * a.0 - b.0).clamp(0.0, 1.0),
+                                (2.0 * a.1 - b.1).clamp(0.0, 1.0),
+                            )),
+                            (a, _) => a,
+                        };
+                        let (x, y) = (xs[i], ys[j]);
+                        // 1e-7 mm in (x, y) is far below any height the map can show.
+                        let found = match guess {
+                            Some(p) => seg
+                                .invert_tol(x, y, Some(p), 1e-7)
+                                .or_else(|| seg.invert_tol(x, y, None, 1e-7)),
+                            None => seg.invert_tol(x, y, None, 1e-7),
+                        };
+                        if let Some((u, v)) = found {
+                            zr[i] = seg.eval_coord(2, u, v);
+                        }
+                        prev2 = if found.is_some() { prev } else { None };
+                        prev = found;
                     }
-                    let guess = match (prev, prev2) {
-                        (Some(a), Some(b)) => Some((
-                            (2.0 * a.0 - b.0).clamp(0.0, 1.0),
-                            (2.0 * a.1 - b.1).clamp(0.0, 1.0),
-                        )),
-                        (a, _) => a,
-                    };
-                    let (x, y) = (map.x(i), map.y(j));
-                    // 1e-7 mm in (x, y) is far below any height the map can show.
-                    let found = match guess {
-                        Some(p) => seg
-                            .invert_tol(x, y, Some(p), 1e-7)
-                            .or_else(|| seg.invert_tol(x, y, None, 1e-7)),
-                        None => seg.invert_tol(x, y, None, 1e-7),
-                    };
-                    if let Some((u, v)) = found {
-                        map.set(i, j, seg.eval_coord(2, u, v));
-                    }
-                    prev2 = if found.is_some() { prev } else { None };
-                    prev = found;
                 }
             }
+        };
+        if threads <= 1 {
+            fill(0..ny, &mut map.z);
+        } else {
+            std::thread::scope(|s| {
+                for (k, z) in map.z.chunks_mut(band * nx).enumerate() {
+                    let rows = k * band..(k * band + z.len() / nx);
+                    let fill = &fill;
+                    s.spawn(move || fill(rows, z));
+                }
+            });
         }
         map
     }
@@ -748,6 +779,28 @@ mod tests {
         let (x, y) = (7.0, 5.0);
         let (i, j) = m.cell_of(x, y).unwrap();
         assert!(m.get(i, j).is_finite());
+    }
+
+    /// The map on bands of rows on several threads is the one-pass map, bit for bit (NaN
+    /// where it is NaN): the measurements must not change with the core count.
+    #[test]
+    fn the_height_map_is_the_same_on_any_number_of_threads() {
+        let n = BezierNetwork::build(&wavy(61, 80)).unwrap();
+        let one = n.eval_heightmap_on(0.05, 1);
+        assert!(one.ny > 3 * 64, "enough rows for several bands: {}", one.ny);
+        for threads in [2, 3, 4] {
+            let many = n.eval_heightmap_on(0.05, threads);
+            assert_eq!(
+                (many.nx, many.ny, many.x0, many.y0),
+                (one.nx, one.ny, one.x0, one.y0)
+            );
+            let same = one
+                .z
+                .iter()
+                .zip(&many.z)
+                .all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
+            assert!(same, "{threads} threads");
+        }
     }
 
     #[test]

@@ -6,6 +6,7 @@ use super::out_file;
 use crate::measure::{measure_grid, write_measurements};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::Item;
+use crate::scan::model_job::MeasuredFoot;
 use crate::scandata::{ScanDir, ScanGrid};
 use crate::surface::BezierNetwork;
 use serde::Deserialize;
@@ -73,10 +74,36 @@ impl MeasureStage {
         })
     }
 
-    /// Tell the quality gate the measured foot's side (checked against the operator's).
+    /// Tell the quality gate the measured foot's side (checked against the operator's), and
+    /// hand the measured foot to the model job when it is measured the way the model's
+    /// frame needs (with the model, on the default cell): the foot is then measured once.
     pub fn with_counters(mut self, counters: Arc<crate::scan::ScanCounters>) -> Self {
+        if self.shares() {
+            counters.model.foot.expect();
+        }
         self.counters = Some(counters);
         self
+    }
+
+    fn shares(&self) -> bool {
+        self.use_model && self.cell_mm == crate::measure::DEFAULT_CELL_MM
+    }
+
+    /// Hand the model job the measured foot (None: it measures, or says why it cannot).
+    fn publish(&self, foot: Option<Arc<MeasuredFoot>>) {
+        if let Some(c) = &self.counters {
+            if self.shares() {
+                c.model.foot.publish(foot);
+            }
+        }
+    }
+}
+
+impl Drop for MeasureStage {
+    /// A stage that ends without measuring (the scan failed or was cancelled) must not leave
+    /// the model job waiting.
+    fn drop(&mut self) {
+        self.publish(None);
     }
 }
 
@@ -95,8 +122,23 @@ impl Stage<Item> for MeasureStage {
         let Some(grid) = self.grid.take() else {
             return Err("measure.foot received no scan grid: put it after accumulate".into());
         };
-        let result = measure_grid(&grid, self.model.as_deref(), self.cell_mm)
-            .and_then(|(map, m)| write_measurements(&m, &map, &self.json, &self.png).map(|_| m));
+        let model = self.model.clone();
+        let result = measure_grid(&grid, model.as_deref(), self.cell_mm).and_then(|(map, m)| {
+            let Some(net) = model else {
+                return write_measurements(&m, &map, &self.json, &self.png).map(|_| m);
+            };
+            let foot = Arc::new(MeasuredFoot {
+                net,
+                map,
+                measurements: m.clone(),
+            });
+            // The model job starts on it while the files below are written.
+            self.publish(Some(foot.clone()));
+            write_measurements(&m, &foot.map, &self.json, &self.png).map(|_| m)
+        });
+        if result.is_err() {
+            self.publish(None);
+        }
         match result {
             Ok(m) => {
                 tracing::info!(
