@@ -10,7 +10,6 @@
 
 mod daemon_support;
 
-use daemon_support::chromium::Browser;
 use daemon_support::*;
 use footscan_geom::mesh::{Bvh, TriMesh};
 use footscan_geom::{P3, V3};
@@ -42,9 +41,7 @@ fn scan(d: &Footscand, subject: &str, side: &str) -> String {
 
 /// Wait for the scan's insole job to end; its record.
 fn wait_insole(d: &Footscand, id: &str) -> Value {
-    d.wait_json(&format!("/api/scans/{id}/insole"), JOB_LIMIT, |j| {
-        j["state"] != "running"
-    })
+    d.wait_job(id, "insole", JOB_LIMIT)
 }
 
 fn check<'a>(job: &'a Value, name: &str) -> &'a Value {
@@ -58,20 +55,14 @@ fn check<'a>(job: &'a Value, name: &str) -> &'a Value {
 
 /// File `name` of the scan's insole: its content type and bytes.
 fn insole_file(d: &Footscand, id: &str, name: &str) -> (String, Vec<u8>) {
-    let r = d.get(&format!("/api/scans/{id}/insole/{name}"));
-    assert_eq!(r.status(), 200, "{name}");
-    (
-        r.headers()["content-type"].to_str().unwrap().to_string(),
-        r.bytes().unwrap().to_vec(),
-    )
+    d.job_file(id, "insole", name)
 }
 
 /// The downloaded insole.stl read back, with insole.json.
 fn mesh_and_report(d: &Footscand, id: &str, dir: &Path) -> (TriMesh, Value) {
     let (ty, stl) = insole_file(d, id, "insole.stl");
     assert_eq!(ty, "model/stl");
-    let tris = u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize;
-    assert_eq!(stl.len(), 84 + 50 * tris);
+    let tris = stl_triangles(&stl);
     let p = dir.join(format!("{id}.stl"));
     std::fs::write(&p, &stl).unwrap();
     let mesh = TriMesh::read(&p).unwrap();
@@ -190,12 +181,7 @@ fn insole_jobs_for_a_scan_and_a_visit_with_mirrored_parameters() {
         let bound = if c["unit"] == "deg" { 0.3 } else { 0.2 };
         assert!(c["error"].as_f64().unwrap().abs() <= bound, "{c}");
     }
-    let files: Vec<&str> = j["files"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|f| f.as_str().unwrap())
-        .collect();
+    let files = strings(&j["files"]);
     assert_eq!(
         files,
         [
@@ -239,10 +225,7 @@ fn insole_jobs_for_a_scan_and_a_visit_with_mirrored_parameters() {
 
     // A job cut off by a stop reads as failed once the daemon is back; its files stay.
     assert!(d.terminate(Duration::from_secs(20)).success());
-    let job_file = archive.join(&right).join("insole-job.json");
-    let mut job: Value = serde_json::from_slice(&std::fs::read(&job_file).unwrap()).unwrap();
-    job["state"] = "running".into();
-    std::fs::write(&job_file, job.to_string()).unwrap();
+    mark_job_running(&archive, &right, "insole");
     // Back with the left foot on the glass.
     let cfg = std::fs::read_to_string(dir.path().join("footscand.toml")).unwrap();
     let (cmd, archive) = command(dir.path(), &Opts::default());
@@ -345,16 +328,7 @@ fn insole_jobs_for_a_scan_and_a_visit_with_mirrored_parameters() {
 /// cushioning preset and one parameter changed.
 fn dashboard_insole_card(d: &Footscand, id: &str, dir: &Path) {
     const WAIT: Duration = Duration::from_secs(120);
-    let mut b = Browser::launch(&dir.join("profile"), 1280, 2400);
-    b.open(
-        &format!("{}/", d.base),
-        "typeof renderInsole === 'function'",
-        WAIT,
-    );
-    b.eval(&format!("loadResult({id:?})"));
-    let done = "(() => { const e = document.getElementById('insole-state'); \
-                return !!e && e.dataset.state === 'done'; })()";
-    b.wait_for(done, WAIT);
+    let mut b = open_job_card(d, dir, id, "insole", WAIT);
     let card = r#"(() => ({
         checks: [...document.querySelectorAll('#insole-checks tbody tr')].map((r) => r.lastChild.textContent),
         files: [...document.querySelectorAll('#insole-files a')].map((a) => a.textContent),

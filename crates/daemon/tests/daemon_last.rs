@@ -88,10 +88,7 @@ fn a_scan_with_last_adjust_offers_the_adjusted_last() {
     // A job cut off by a stop reads as failed once the daemon is back.
     assert!(d.terminate(Duration::from_secs(20)).success());
     let scan_dir = archive.join(&id);
-    let job_file = scan_dir.join("last-job.json");
-    let mut job: Value = serde_json::from_slice(&std::fs::read(&job_file).unwrap()).unwrap();
-    job["state"] = "running".into();
-    std::fs::write(&job_file, job.to_string()).unwrap();
+    mark_job_running(&archive, &id, "last");
     let (cmd, archive) = command_keeping(dir.path());
     let d = Footscand::spawn(cmd, archive, None);
     let j = d.get_json(&format!("/api/scans/{id}/last"));
@@ -163,11 +160,7 @@ fn make_stock_collection(dir: &std::path::Path) {
 
 /// Wait for the scan's last job to end; its record.
 fn wait_last(d: &Footscand, id: &str) -> Value {
-    d.wait_json(
-        &format!("/api/scans/{id}/last"),
-        Duration::from_secs(120),
-        |j| j["state"] != "running",
-    )
+    d.wait_job(id, "last", Duration::from_secs(120))
 }
 
 fn customized_last(d: &Footscand, id: &str) {
@@ -263,12 +256,7 @@ fn customized_last(d: &Footscand, id: &str) {
     let rules = j["rules"].as_array().unwrap();
     assert_eq!(rules.len(), 8, "{j}");
     assert!(rules.iter().all(|r| r["met"] == true), "{j}");
-    let files: Vec<&str> = j["files"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|f| f.as_str().unwrap())
-        .collect();
+    let files = strings(&j["files"]);
     assert_eq!(
         files,
         [
@@ -281,19 +269,11 @@ fn customized_last(d: &Footscand, id: &str) {
         ]
     );
     // The files as a CAD tool gets them.
-    let get = |name: &str| {
-        let r = d.get(&format!("/api/scans/{id}/last/{name}"));
-        assert_eq!(r.status(), 200, "{name}");
-        (
-            r.headers()["content-type"].to_str().unwrap().to_string(),
-            r.bytes().unwrap().to_vec(),
-        )
-    };
+    let get = |name: &str| d.job_file(id, "last", name);
     let (ty, stl) = get("last.stl");
     assert_eq!(ty, "model/stl");
     let rep: Value = serde_json::from_slice(&get("report.json").1).unwrap();
-    let tris = u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize;
-    assert_eq!(stl.len(), 84 + 50 * tris);
+    let tris = stl_triangles(&stl);
     assert_eq!(rep["last_triangles"].as_u64().unwrap() as usize, tris);
     assert_eq!(rep["clearance"]["of"], "footprint");
     for (i, r) in rules.iter().enumerate() {
@@ -314,16 +294,7 @@ fn customized_last(d: &Footscand, id: &str) {
 /// last for a sport shoe made from the form.
 fn dashboard_makes_a_last(d: &Footscand, id: &str, dir: &std::path::Path) {
     const WAIT: Duration = Duration::from_secs(60);
-    let mut b = Browser::launch(&dir.join("profile"), 1280, 2400);
-    b.open(
-        &format!("{}/", d.base),
-        "typeof renderLast === 'function'",
-        WAIT,
-    );
-    b.eval(&format!("loadResult({id:?})"));
-    let done = "(() => { const e = document.getElementById('last-state'); \
-                return !!e && e.dataset.state === 'done'; })()";
-    b.wait_for(done, WAIT);
+    let mut b = open_job_card(d, dir, id, "last", WAIT);
     let card = r#"(() => ({
         rules: [...document.querySelectorAll('#last-rules tbody tr')].map((r) => r.lastChild.textContent),
         files: [...document.querySelectorAll('#last-files a')].map((a) => a.textContent),

@@ -12,11 +12,14 @@ mod insoles;
 mod lasts;
 mod live;
 mod report;
+mod scanjobs;
 mod scans;
 pub mod server;
 pub mod tls;
 mod visits;
 
+use crate::daemon::insolejob::InsoleJob;
+use crate::daemon::lastjob::LastJob;
 use crate::daemon::Daemon;
 use axum::extract::{Request, State};
 use axum::http::{header, Method};
@@ -81,15 +84,24 @@ pub fn router(daemon: Arc<Daemon>, shutdown: watch::Receiver<bool>) -> Router {
         .route("/api/visits/{id}/scans", post(visits::add_scan))
         .route("/api/visits/{id}/report.pdf", get(visits::report_pdf))
         .route("/api/scans/{id}/files/{name}", get(scans::download))
-        .route("/api/scans/{id}/last", get(lasts::show).post(lasts::start))
+        .route(
+            "/api/scans/{id}/last",
+            get(scanjobs::show::<LastJob>).post(scanjobs::start::<LastJob>),
+        )
         .route("/api/scans/{id}/last/rank", post(lasts::rank))
-        .route("/api/scans/{id}/last/{name}", get(lasts::download))
+        .route(
+            "/api/scans/{id}/last/{name}",
+            get(scanjobs::download::<LastJob>),
+        )
         .route("/api/lasts", get(lasts::stock))
         .route(
             "/api/scans/{id}/insole",
-            get(insoles::show).post(insoles::start),
+            get(scanjobs::show::<InsoleJob>).post(scanjobs::start::<InsoleJob>),
         )
-        .route("/api/scans/{id}/insole/{name}", get(insoles::download))
+        .route(
+            "/api/scans/{id}/insole/{name}",
+            get(scanjobs::download::<InsoleJob>),
+        )
         .route("/api/visits/{id}/insole", post(insoles::start_visit))
         .route("/api/insole/presets", get(insoles::presets))
         .route("/insole.js", get(dashboard_insole_js))

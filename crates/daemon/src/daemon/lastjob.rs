@@ -3,12 +3,13 @@
 //! become the last's files in the scan's directory (`last/`, replaced as a whole once every
 //! file is written), with the job's record beside them (`last-job.json`: the request, the
 //! state, the figures, and the reason when it failed; a failed job leaves an earlier last as
-//! it was). One job at a time, on the HTTP runtime's blocking threads: they run at its lower
-//! priority, so making a last never takes the CPU from a scan.
+//! it was). Its life cycle (one job at a time, at the HTTP runtime's lower priority, recovery
+//! after a stop, the files served) is every scan job's: scanjob.rs.
 
 use super::fitview::{write_fit_view, FitView, FIT_FILE};
+use super::scanjob::{JobLife, Kind, Planned, ScanJob};
 use super::{Daemon, DaemonError};
-use crate::archive::{ScanId, Status, VisitError};
+use crate::archive::ScanId;
 use footscan::lastcustom::{customize_scan, STOCK_EXTENSIONS};
 use footscan_last::customize::clinic::TapeGirths;
 use footscan_last::customize::rules::{RuleSet, Shoe, Wearer};
@@ -17,15 +18,18 @@ use footscan_last::customize::{
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::Arc;
 use std::time::Instant;
 
-/// The job's record in the scan's directory.
-pub const JOB_FILE: &str = "last-job.json";
 /// The directory of the last's files in the scan's directory.
 pub const LAST_DIR: &str = "last";
-/// Reason a job gets when the daemon stopped during it (found at the next look).
-pub const INTERRUPTED: &str = "footscand stopped while the last was being made; post it again";
+
+/// The files of `last/`: the customization's and the 3D view's.
+const FILES: [&str; 7] = {
+    let o = OUTPUT_FILES;
+    [o[0], o[1], o[2], o[3], o[4], o[5], FIT_FILE]
+};
+const _: () = assert!(OUTPUT_FILES.len() + 1 == FILES.len());
 
 fn default_shoe() -> Shoe {
     Inputs::default().shoe
@@ -76,14 +80,6 @@ pub struct Ranking {
     pub lasts: Vec<footscan_last::choose::Candidate>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum LastState {
-    Running,
-    Done,
-    Failed,
-}
-
 /// One rule's line as the dashboard shows it (the whole table is in last/report.json).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RuleLine {
@@ -106,14 +102,9 @@ pub struct RuleLine {
 /// A scan's last job as recorded in `last-job.json` and shown by the API.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LastJob {
-    pub scan: String,
-    pub state: LastState,
+    #[serde(flatten)]
+    pub life: JobLife,
     pub request: LastRequest,
-    pub started: String,
-    pub finished: Option<String>,
-    pub seconds: Option<f64>,
-    /// Why it failed: the input named and what would be valid.
-    pub reason: Option<String>,
     pub rules: Vec<RuleLine>,
     /// The clearance line (region by region: the scan's footprint inside the last's bottom
     /// outline) and whether it lies inside where the rules say the foot must fit.
@@ -130,10 +121,23 @@ pub struct LastJob {
     pub fit_error: Option<String>,
 }
 
-/// The scan whose last is being made (one at a time).
-#[derive(Default)]
-pub(super) struct LastJobs {
-    running: Mutex<Option<String>>,
+impl ScanJob for LastJob {
+    type Request = LastRequest;
+    const KIND: &'static Kind = &Kind {
+        noun: "last",
+        a: "a last",
+        work: "the customization",
+        record: "last-job.json",
+        dir: LAST_DIR,
+        files: &FILES,
+        post_with: "the girths and a stock last",
+    };
+    fn life(&mut self) -> &mut JobLife {
+        &mut self.life
+    }
+    fn start(d: &Arc<Daemon>, id: &ScanId, req: LastRequest) -> Result<LastJob, DaemonError> {
+        d.start_last(id, req)
+    }
 }
 
 /// A stock last of the collection.
@@ -288,37 +292,18 @@ impl Daemon {
     /// Check a request and start its job; the job's record says `running` until it ends.
     /// Everything the request names is checked here, so a bad one is a 400, not a job that
     /// fails.
-    pub fn start_last(
-        self: &std::sync::Arc<Self>,
-        id: &ScanId,
-        req: LastRequest,
-    ) -> Result<LastJob, DaemonError> {
-        let (rec, dir) = self.measured_scan(id, "a last")?;
-        if rec.status == Status::Running {
-            return Err(DaemonError::Conflict(format!(
-                "scan {id} is still running: a last is made from a finished scan"
-            )));
-        }
+    fn start_last(self: &Arc<Self>, id: &ScanId, req: LastRequest) -> Result<LastJob, DaemonError> {
+        let dir = self.finished_scan(id, LastJob::KIND)?;
         let (girths, rules) = self.checked_request(&req.girths, req.heel_mm)?;
         let stock = self.stock_path(&req.stock)?;
-        {
-            let mut running = self.last_jobs.running.lock().unwrap();
-            if let Some(other) = running.as_ref() {
-                return Err(DaemonError::Busy(format!(
-                    "a last is being made for scan {other}: one at a time, post again when \
-                     it has ended"
-                )));
-            }
-            *running = Some(id.to_string());
-        }
-        let job = LastJob {
-            scan: id.to_string(),
-            state: LastState::Running,
-            request: req.clone(),
-            started: footscan_util::now_rfc3339(),
-            finished: None,
-            seconds: None,
-            reason: None,
+        let inp = Inputs {
+            shoe: req.shoe,
+            wearer: req.wearer,
+            heel_mm: req.heel_mm,
+        };
+        let record = LastJob {
+            life: JobLife::running(id),
+            request: req,
             rules: Vec::new(),
             clearance: None,
             fits: None,
@@ -326,137 +311,15 @@ impl Daemon {
             fit: None,
             fit_error: None,
         };
-        if let Err(e) = write_job(&dir, &job) {
-            *self.last_jobs.running.lock().unwrap() = None;
-            return Err(e);
-        }
-        let inp = Inputs {
-            shoe: req.shoe,
-            wearer: req.wearer,
-            heel_mm: req.heel_mm,
-        };
-        let d = self.clone();
-        let first = job.clone();
-        let run = move || {
-            let t0 = Instant::now();
-            let mut job = job;
-            let made = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                make_last(&dir, &girths, &stock, &rules, &inp, &mut job)
-            }))
-            .unwrap_or_else(|_| {
-                Err("the customization panicked (a defect: please report it)".into())
-            });
-            job.seconds = Some(t0.elapsed().as_secs_f64());
-            job.finished = Some(footscan_util::now_rfc3339());
-            match made {
-                Ok(()) => job.state = LastState::Done,
-                Err(why) => {
-                    tracing::warn!("scan {}: last failed: {why}", job.scan);
-                    job.state = LastState::Failed;
-                    job.reason = Some(why);
-                }
-            }
-            // The record and the slot change together: a reader that sees the job ended must
-            // find the slot free (a visit deleted right after it, a next job posted).
-            let mut running = d.last_jobs.running.lock().unwrap();
-            if let Err(e) = write_job(&dir, &job) {
-                tracing::error!("scan {}: cannot record its last job: {e}", job.scan);
-            }
-            *running = None;
-        };
-        match tokio::runtime::Handle::try_current() {
-            // The runtime's blocking threads run at its lower priority (main.rs).
-            Ok(h) => drop(h.spawn_blocking(run)),
-            Err(_) => drop(std::thread::spawn(run)),
-        }
+        let first = record.clone();
+        self.run_jobs(vec![Planned {
+            dir,
+            record,
+            work: Box::new(move |dir: &Path, job: &mut LastJob| {
+                make_last(dir, &girths, &stock, &rules, &inp, job)
+            }),
+        }])?;
         Ok(first)
-    }
-
-    /// The scan's last job (None when none was posted). A job recorded as running that this
-    /// daemon is not running was cut off by a stop: it reads, and is recorded, as failed.
-    pub fn last_job(&self, id: &ScanId) -> Result<Option<LastJob>, DaemonError> {
-        let rec = self.archive.get(id)?;
-        let Some(dir) = self.archive.checked_dir(&rec) else {
-            return Err(DaemonError::NotFound(format!(
-                "scan {id}: its directory is missing"
-            )));
-        };
-        let p = dir.join(JOB_FILE);
-        // Held while the record is read: a job that ends meanwhile writes it under this lock.
-        let running = self.last_jobs.running.lock().unwrap();
-        let bytes = match self
-            .archive
-            .read_inside(&p, crate::archive::MAX_JSON_ARTIFACT)
-        {
-            Ok(b) => b,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-            Err(source) => return Err(DaemonError::JobRead { path: p, source }),
-        };
-        let mut job: LastJob =
-            serde_json::from_slice(&bytes).map_err(|source| DaemonError::JobJson {
-                path: p.clone(),
-                source,
-            })?;
-        let ours = running.as_deref() == Some(id.as_str());
-        if job.state == LastState::Running && !ours {
-            job.state = LastState::Failed;
-            job.reason = Some(INTERRUPTED.into());
-            write_job(&dir, &job)?;
-        }
-        Ok(Some(job))
-    }
-
-    /// Delete a visit with its scans, unless a last is being made for one of them: the job
-    /// writes its files into the scan's directory when it ends and would bring the deleted
-    /// scan's directory back. The running slot is held while deleting, so no job starts on
-    /// a scan being deleted.
-    pub fn delete_visit(&self, vid: &ScanId) -> Result<Vec<String>, VisitError> {
-        let running = self.last_jobs.running.lock().unwrap();
-        // The insole job's slot likewise (insolejob.rs); always taken after the last's.
-        self.insole_jobs.with_running(|insoles| {
-            self.archive.delete_visit(vid, |v| {
-                let held =
-                    |scan: &str| [&v.left, &v.right].into_iter().flatten().any(|s| s == scan);
-                let last = running.as_deref().filter(|s| held(s)).map(|scan| {
-                    format!(
-                        "a last is being made for scan {scan} of visit {vid}: delete the \
-                         visit when it has ended (GET /api/scans/{scan}/last)"
-                    )
-                });
-                last.or_else(|| {
-                    insoles.iter().find(|s| held(s)).map(|scan| {
-                        format!(
-                            "an insole is being made for scan {scan} of visit {vid}: delete \
-                             the visit when it has ended (GET /api/scans/{scan}/insole)"
-                        )
-                    })
-                })
-            })
-        })
-    }
-
-    /// The path of file `name` of the scan's last.
-    pub fn last_file(&self, id: &ScanId, name: &str) -> Result<PathBuf, DaemonError> {
-        if !OUTPUT_FILES.contains(&name) && name != FIT_FILE {
-            return Err(DaemonError::BadRequest(format!(
-                "file {:?}: a last has {} and {FIT_FILE}",
-                name.chars().take(80).collect::<String>(),
-                OUTPUT_FILES.join(", ")
-            )));
-        }
-        let rec = self.archive.get(id)?;
-        let p = self
-            .archive
-            .checked_dir(&rec)
-            .map(|d| d.join(LAST_DIR).join(name))
-            .filter(|p| p.symlink_metadata().is_ok_and(|m| m.is_file()))
-            .ok_or_else(|| {
-                DaemonError::NotFound(format!(
-                    "scan {id} has no last file {name:?}: post a last job first \
-                     (POST /api/scans/{id}/last)"
-                ))
-            })?;
-        Ok(p)
     }
 }
 
@@ -518,7 +381,7 @@ fn make_last(
         Err(why) => {
             tracing::warn!(
                 "scan {}: no 3D view of the foot in the last: {why}",
-                job.scan
+                job.life.scan
             );
             job.fit_error = Some(why);
         }
@@ -532,13 +395,4 @@ fn make_last(
         ));
     }
     Ok(())
-}
-
-fn write_job(dir: &Path, job: &LastJob) -> Result<(), DaemonError> {
-    let p = dir.join(JOB_FILE);
-    let j = serde_json::to_vec_pretty(job).expect("a job record serialises");
-    footscan_util::write_atomic(&p, &j).map_err(|source| DaemonError::JobWrite {
-        path: p.to_path_buf(),
-        source,
-    })
 }

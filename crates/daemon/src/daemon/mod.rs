@@ -11,6 +11,7 @@ mod jobs;
 pub mod lastjob;
 pub mod preflight;
 pub mod preview;
+pub mod scanjob;
 
 pub use config::{DaemonConfig, DaemonConfigError};
 pub use fleet::FleetStatus;
@@ -249,8 +250,8 @@ pub struct Daemon {
     launcher: jobs::Launcher,
     /// The fleet pusher, when [fleet] is on.
     fleet: Option<fleet::Fleet>,
-    last_jobs: lastjob::LastJobs,
-    insole_jobs: insolejob::InsoleJobs,
+    /// The scans the jobs on finished scans (a last, an insole) are making files for.
+    scan_jobs: scanjob::Running,
     /// The certificate in use when serving HTTPS (set once at start), for the status page.
     pub tls: std::sync::OnceLock<crate::api::tls::TlsInfo>,
 }
@@ -346,8 +347,7 @@ impl Daemon {
                 source,
             })?,
             fleet,
-            last_jobs: lastjob::LastJobs::default(),
-            insole_jobs: insolejob::InsoleJobs::default(),
+            scan_jobs: scanjob::Running::default(),
             tls: std::sync::OnceLock::new(),
         }))
     }

@@ -274,6 +274,23 @@ impl Footscand {
         r.bytes().unwrap().to_vec()
     }
 
+    /// Wait for the scan's job of kind `noun` ("last", "insole") to end; its record.
+    pub fn wait_job(&self, id: &str, noun: &str, limit: Duration) -> Value {
+        self.wait_json(&format!("/api/scans/{id}/{noun}"), limit, |j| {
+            j["state"] != "running"
+        })
+    }
+
+    /// File `name` made by the scan's job of kind `noun`: its content type and bytes.
+    pub fn job_file(&self, id: &str, noun: &str, name: &str) -> (String, Vec<u8>) {
+        let r = self.get(&format!("/api/scans/{id}/{noun}/{name}"));
+        assert_eq!(r.status(), 200, "{name}");
+        (
+            r.headers()["content-type"].to_str().unwrap().to_string(),
+            r.bytes().unwrap().to_vec(),
+        )
+    }
+
     pub fn stderr(&self) -> String {
         self.stderr.lock().unwrap().clone()
     }
@@ -336,4 +353,56 @@ pub fn percentile(v: &mut [f64], p: f64) -> f64 {
     }
     v.sort_by(|a, b| a.total_cmp(b));
     v[((v.len() - 1) as f64 * p / 100.0).round() as usize]
+}
+
+/// A JSON array of strings (a job's files).
+pub fn strings(v: &Value) -> Vec<&str> {
+    v.as_array()
+        .unwrap_or_else(|| panic!("not an array: {v}"))
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect()
+}
+
+/// The triangles of a binary STL, its length checked against their count.
+pub fn stl_triangles(stl: &[u8]) -> usize {
+    let tris = u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize;
+    assert_eq!(stl.len(), 84 + 50 * tris);
+    tris
+}
+
+/// Record scan `id`'s job of kind `noun` as running, as a daemon stopped during it leaves it
+/// (the daemon must be stopped).
+pub fn mark_job_running(archive: &Path, id: &str, noun: &str) {
+    let job_file = archive.join(id).join(format!("{noun}-job.json"));
+    let mut job: Value = serde_json::from_slice(&std::fs::read(&job_file).unwrap()).unwrap();
+    job["state"] = "running".into();
+    std::fs::write(&job_file, job.to_string()).unwrap();
+}
+
+/// The dashboard in Chromium (profile in `dir`) with scan `id`'s Result card showing its
+/// job of kind `noun` done (the card's `render<Noun>` and `#<noun>-state`).
+pub fn open_job_card(
+    d: &Footscand,
+    dir: &Path,
+    id: &str,
+    noun: &str,
+    limit: Duration,
+) -> chromium::Browser {
+    let mut b = chromium::Browser::launch(&dir.join("profile"), 1280, 2400);
+    let render = format!("render{}{}", noun[..1].to_uppercase(), &noun[1..]);
+    b.open(
+        &format!("{}/", d.base),
+        &format!("typeof {render} === 'function'"),
+        limit,
+    );
+    b.eval(&format!("loadResult({id:?})"));
+    b.wait_for(
+        &format!(
+            "(() => {{ const e = document.getElementById('{noun}-state'); \
+             return !!e && e.dataset.state === 'done'; }})()"
+        ),
+        limit,
+    );
+    b
 }
