@@ -50,6 +50,8 @@ fn kept_parts_follow_their_meshes_and_the_seams_the_originals() {
         let j = join::join(&b, &t, &p).unwrap();
         let q = output::quality(&j, 200).unwrap();
         let fits = j.fits.unwrap();
+        let (var, _) = footscan_last::blend::fair::surface_fairness(&j.patch, 96, 24);
+        println!("{name}: patch curvature variation {var:.3e} 1/mm^2");
         for (part, f) in ["back", "toe"].iter().zip(&fits) {
             println!(
                 "{name} {part}: {} facet points, {} fits, {} x {} spans, max {:.3} mm at \
