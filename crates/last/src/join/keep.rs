@@ -525,10 +525,19 @@ fn scaled(part: &[V3], own: &[V3]) -> Vec<V3> {
 /// Seam continuity asked of the patch against the fitted parts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 pub enum Continuity {
-    /// Position and tangent plane: the fitted part's own v tangent at the length of the
-    /// patch's (the patch keeps its own curvature across the seam).
+    /// Position and, at each control column's Greville point, the tangent plane: the patch's
+    /// own v tangent turned into the fitted part's tangent plane there. The patch stays as
+    /// fair as the section patch (curvature variation 8.3e2 on the LastScan pair), but
+    /// between the points, where the normal turns fast at the rim, the normal jumps up to
+    /// 1.3 deg (LastScan) and 7.7 deg (RoundTip).
     #[default]
     G1,
+    /// Position and tangent plane along the whole seam: the fitted part's own v tangent at
+    /// the length of the patch's. The normal jumps 0.06 deg at most, but the fitted parts'
+    /// normals wiggle along the cut and the patch carries the wiggles across the gap
+    /// (curvature variation 5.9e6 on the LastScan pair, 5.2e8 on the RoundTip pair; ripples
+    /// in the zebra pictures). docs/method.md 11.7.1.
+    G1Tangent,
     /// Position, first and second v derivatives of the fitted parts: exact G2, but the
     /// fitted parts' derivatives carry their parametrisation, and the patch bulged (8.7 mm
     /// on the LastScan pair, 64 mm on the RoundTip pair); only where asked.
@@ -599,6 +608,29 @@ pub fn meet(
             })
             .collect(),
         Continuity::G1 => {
+            // The patch's own v tangent turned into the fitted part's tangent plane at the
+            // Greville point of each control column: the fitted parts' v derivatives carry
+            // their parametrisation (short spans near the cut after refinement), and taking
+            // them whole bulged the patch by 1.5-12 mm (64 mm for G2 on the RoundTip pair).
+            let gr = |i: usize| {
+                let k = &p.knots_u;
+                (1..=p.degree_u).map(|a| k[i + a]).sum::<f64>() / p.degree_u as f64
+            };
+            let turn = |surf: &NurbsSurface, v: f64, pv: &[V3]| -> Vec<V3> {
+                (0..nu)
+                    .map(|i| {
+                        let n = surf.normal(gr(i), v);
+                        -n * n.dot(&pv[i])
+                    })
+                    .collect()
+            };
+            let t1 = turn(b, 1.0, &pd0[1]);
+            let u1 = turn(t, 0.0, &pd1[1]);
+            (0..nu)
+                .map(|i| vec![d0[i], d0[i] + t1[i] / 3.0, e0[i] - u1[i] / 3.0, e0[i]])
+                .collect()
+        }
+        Continuity::G1Tangent => {
             // The fitted part's own v derivative, scaled column by column to the length of
             // the patch's own: the direction is the fitted part's, so the patch leaves the
             // seam in its tangent plane, and the length the patch's, so it does not bulge (the
