@@ -45,11 +45,14 @@ fn kept_parts_follow_their_meshes_and_the_seams_the_originals() {
         let (b, t) = pair(name);
         let p = JoinParams {
             fit_parts: true,
+            continuity: join::keep::Continuity::G1Tangent,
             ..JoinParams::default()
         };
         let j = join::join(&b, &t, &p).unwrap();
         let q = output::quality(&j, 200).unwrap();
         let fits = j.fits.unwrap();
+        let (var, _) = footscan_last::blend::fair::surface_fairness(&j.patch, 96, 24);
+        println!("{name}: patch curvature variation {var:.3e} 1/mm^2");
         for (part, f) in ["back", "toe"].iter().zip(&fits) {
             println!(
                 "{name} {part}: {} facet points, {} fits, {} x {} spans, max {:.3} mm at \
@@ -69,15 +72,15 @@ fn kept_parts_follow_their_meshes_and_the_seams_the_originals() {
             // The goal is 0.1 mm; what the fit reaches today (docs/method.md, joins).
             assert!(f.max_mm <= 0.2 && f.rms_mm <= 0.02, "{name} {part}: {f:?}");
         }
-        // G1 by the patch's own tangent turned into the fitted part's tangent plane at the
-        // Greville points: the position is exact, the tangent plane only at those points
-        // (0.22-0.34 deg mean, 1.3 deg max on the LastScan pair and 7.7 on the RoundTip pair
-        // where the normal turns fast at the rim): not the 0.1 deg asked (docs/method.md).
+        // G1 along the whole seam (`G1Tangent`): the patch leaves each seam along the fitted
+        // part's own v tangent, scaled to the patch's length. 0.020-0.062 deg at most on the two pairs (issue 36 asks 0.1 deg);
+        // turning the patch's own tangent into the part's tangent plane at the Greville points
+        // left 1.3 deg (LastScan) and 7.7 deg (RoundTip) at the rim.
         for s in [&q.back_seam, &q.toe_seam] {
             println!("{name} seam: {s:?}");
             assert!(s.gap_max_mm <= 1e-9, "{name}: {s:?}");
             assert!(
-                s.normal_max_deg <= 8.0 && s.normal_mean_deg <= 0.4,
+                s.normal_max_deg <= 0.1 && s.normal_mean_deg <= 0.01,
                 "{name}: {s:?}"
             );
         }
@@ -108,6 +111,7 @@ fn the_patch_stays_between_the_lasts() {
             (join::keep::Continuity::G2, false),
             (join::keep::Continuity::G2, true),
             (join::keep::Continuity::G1, true),
+            (join::keep::Continuity::G1Tangent, true),
         ] {
             let p = JoinParams {
                 continuity: c,
@@ -128,11 +132,19 @@ fn the_patch_stays_between_the_lasts() {
                     worst = worst.max(d);
                 }
             }
-            println!("{name} {c:?} fit {fit}: patch at most {worst:.2} mm from the nearer last");
+            let (var, _) = footscan_last::blend::fair::surface_fairness(&j.patch, 96, 24);
+            println!(
+                "{name} {c:?} fit {fit}: patch at most {worst:.2} mm from the nearer last, \
+                 curvature variation {var:.3e} 1/mm^2"
+            );
             worsts.push(worst);
         }
         // The section patch (no fit) 1.89 / 10.37 mm; exact G2 to the fitted parts bulged to
-        // 8.70 / 63.83 mm; the G1 default stays within 1 mm of the section patch's figure.
-        assert!(worsts[2] <= worsts[0] + 1.0, "{name}: {worsts:?}");
+        // 8.70 / 63.83 mm; the G1 default (1.18 / 10.5 mm) and G1Tangent (1.25 / 10.92 mm) stay
+        // within 1 mm of the section patch's figure.
+        assert!(
+            worsts[2] <= worsts[0] + 1.0 && worsts[3] <= worsts[0] + 1.0,
+            "{name}: {worsts:?}"
+        );
     }
 }
