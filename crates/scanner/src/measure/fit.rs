@@ -1,6 +1,6 @@
 //! Small least-squares fits used to place landmarks between outline vertices.
 
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{Const, DimMin, Matrix3, SMatrix, SVector, Vector3};
 
 /// Least-squares circle through `pts`: algebraic (Kasa) start, then Gauss-Newton on the
 /// geometric distances. Returns (centre, radius), or None for fewer than 3 usable points.
@@ -55,6 +55,20 @@ pub fn fit_circle(pts: &[[f64; 2]]) -> Option<([f64; 2], f64)> {
 /// without the pull toward the flat side a single parabola has. Returns (t0, a), or None
 /// when there are too few samples.
 pub fn peak_vertex(ts: &[f64], ss: &[f64], quartic: bool) -> Option<(f64, f64)> {
+    // Fixed-size systems: a search does about 280 fits, and a heap matrix per fit was a large
+    // share of the measurement's time (docs/method.md 8.4).
+    if quartic {
+        peak_vertex_n::<5>(ts, ss)
+    } else {
+        peak_vertex_n::<3>(ts, ss)
+    }
+}
+
+/// [`peak_vertex`] with `N` = 3 (quadratic flanks) or 5 (with quartic terms) coefficients.
+fn peak_vertex_n<const N: usize>(ts: &[f64], ss: &[f64]) -> Option<(f64, f64)>
+where
+    Const<N>: DimMin<Const<N>, Output = Const<N>>,
+{
     if ts.len() < 7 {
         return None;
     }
@@ -63,32 +77,32 @@ pub fn peak_vertex(ts: &[f64], ss: &[f64], quartic: bool) -> Option<(f64, f64)> 
     if hi - lo <= 0.0 {
         return None;
     }
-    let np = if quartic { 5 } else { 3 };
-    let row = |t: f64, t0: f64| -> [f64; 5] {
+    let row = |t: f64, t0: f64| -> [f64; N] {
         let d2 = (t - t0) * (t - t0);
-        let d4 = if quartic { d2 * d2 } else { 0.0 };
-        if t < t0 {
+        let d4 = d2 * d2;
+        let full = if t < t0 {
             [1.0, -d2, 0.0, -d4, 0.0]
         } else {
             [1.0, 0.0, -d2, 0.0, -d4]
-        }
+        };
+        std::array::from_fn(|a| full[a])
     };
     // Residual and vertex height of the best linear coefficients for a given t0.
     let fit = |t0: f64| -> Option<(f64, f64)> {
-        let mut ata = DMatrix::<f64>::zeros(np, np);
-        let mut atb = DVector::<f64>::zeros(np);
+        let mut ata = SMatrix::<f64, N, N>::zeros();
+        let mut atb = SVector::<f64, N>::zeros();
         for (&t, &s) in ts.iter().zip(ss) {
             let r = row(t, t0);
-            for a in 0..np {
+            for a in 0..N {
                 atb[a] += r[a] * s;
-                for b in 0..np {
+                for b in 0..N {
                     ata[(a, b)] += r[a] * r[b];
                 }
             }
         }
         // Regularise a flank without samples (vertex at the window end).
         let scale = ata[(0, 0)].max(1.0) * 1e-12;
-        for a in 1..np {
+        for a in 1..N {
             ata[(a, a)] += scale;
         }
         let c = ata.lu().solve(&atb)?;
@@ -97,7 +111,7 @@ pub fn peak_vertex(ts: &[f64], ss: &[f64], quartic: bool) -> Option<(f64, f64)> 
             .zip(ss)
             .map(|(&t, &s)| {
                 let r = row(t, t0);
-                let m: f64 = (0..np).map(|a| r[a] * c[a]).sum();
+                let m: f64 = (0..N).map(|a| r[a] * c[a]).sum();
                 (s - m).powi(2)
             })
             .sum();
