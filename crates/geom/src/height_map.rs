@@ -33,10 +33,12 @@ impl HeightMap {
         }
     }
 
+    #[inline]
     pub fn x(&self, i: usize) -> f64 {
         self.x0 + i as f64 * self.cell_mm
     }
 
+    #[inline]
     pub fn y(&self, j: usize) -> f64 {
         self.y0 + j as f64 * self.cell_mm
     }
@@ -53,10 +55,12 @@ impl HeightMap {
         (k % self.nx, k / self.nx)
     }
 
+    #[inline]
     pub fn get(&self, i: usize, j: usize) -> f64 {
         self.z[self.index(i, j)]
     }
 
+    #[inline]
     pub fn set(&mut self, i: usize, j: usize, z: f64) {
         let k = self.index(i, j);
         self.z[k] = z;

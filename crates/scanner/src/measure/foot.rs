@@ -725,8 +725,31 @@ fn arch_height(
     let rad = (ARCH_FIT_RADIUS / cell).ceil() as isize;
     // Evaluate on cells about 0.2 mm apart.
     let stride = ((0.2 / cell).round() as usize).max(1);
+    // The disc's cells in the order the sums take them. A fit counts only with the whole disc
+    // on the sole, so the sums of 1, dx, dy, dx^2, dx dy and dy^2 are the same for every
+    // candidate: taken once here, in the same order, they are the per-candidate sums bit for
+    // bit (and so is the one factorisation), and a candidate adds only its heights
+    // (docs/method.md 8.4).
+    let mut disc = Vec::new();
+    let mut s0 = [0.0f64; 6];
+    for dj in -rad..=rad {
+        for di in -rad..=rad {
+            let (dx, dy) = (di as f64 * cell, dj as f64 * cell);
+            if dx * dx + dy * dy > ARCH_FIT_RADIUS * ARCH_FIT_RADIUS {
+                continue;
+            }
+            disc.push((di, dj, dx, dy));
+            for (v, add) in s0.iter_mut().zip([1.0, dx, dy, dx * dx, dx * dy, dy * dy]) {
+                *v += add;
+            }
+        }
+    }
+    let lu = nalgebra::Matrix3::new(
+        s0[0], s0[1], s0[2], s0[1], s0[3], s0[4], s0[2], s0[4], s0[5],
+    )
+    .lu();
     let mut best: Option<(f64, [f64; 2])> = None;
-    for &k in &body.cells {
+    'candidates: for &k in &body.cells {
         let (i, j) = map.cell(k);
         if i % stride != 0 || j % stride != 0 {
             continue;
@@ -736,39 +759,22 @@ fn arch_height(
         if x < x_front / 3.0 || x > 2.0 * x_front / 3.0 || yl(p) < y_axis {
             continue;
         }
-        // Plane z = a + b dx + c dy over the disc.
-        let (mut n, mut total) = (0usize, 0usize);
-        let mut s = [0.0f64; 9]; // sums: 1, dx, dy, dx2, dxdy, dy2, z, zdx, zdy
-        for dj in -rad..=rad {
-            for di in -rad..=rad {
-                let (dx, dy) = (di as f64 * cell, dj as f64 * cell);
-                if dx * dx + dy * dy > ARCH_FIT_RADIUS * ARCH_FIT_RADIUS {
-                    continue;
-                }
-                total += 1;
-                let (ii, jj) = (i as isize + di, j as isize + dj);
-                if ii < 0 || jj < 0 || ii >= map.nx as isize || jj >= map.ny as isize {
-                    continue;
-                }
-                let z = map.get(ii as usize, jj as usize);
-                if !z.is_finite() {
-                    continue;
-                }
-                n += 1;
-                for (v, add) in
-                    s.iter_mut()
-                        .zip([1.0, dx, dy, dx * dx, dx * dy, dy * dy, z, z * dx, z * dy])
-                {
-                    *v += add;
-                }
+        // Plane z = a + b dx + c dy over the disc; no fit across the outline.
+        let mut zs = [0.0f64; 3]; // sums: z, z dx, z dy
+        for &(di, dj, dx, dy) in &disc {
+            let (ii, jj) = (i as isize + di, j as isize + dj);
+            if ii < 0 || jj < 0 || ii >= map.nx as isize || jj >= map.ny as isize {
+                continue 'candidates;
+            }
+            let z = map.get(ii as usize, jj as usize);
+            if !z.is_finite() {
+                continue 'candidates;
+            }
+            for (v, add) in zs.iter_mut().zip([z, z * dx, z * dy]) {
+                *v += add;
             }
         }
-        // The whole disc must be on the sole: no fits across the outline.
-        if n < total {
-            continue;
-        }
-        let a = nalgebra::Matrix3::new(s[0], s[1], s[2], s[1], s[3], s[4], s[2], s[4], s[5]);
-        let Some(c) = a.lu().solve(&nalgebra::Vector3::new(s[6], s[7], s[8])) else {
+        let Some(c) = lu.solve(&nalgebra::Vector3::new(zs[0], zs[1], zs[2])) else {
             continue;
         };
         if c[1].hypot(c[2]) > max_slope {
