@@ -822,14 +822,35 @@ pub fn coarse_row_on<T: Px>(
     if hi + 2 < w {
         bg = bg.min(row[hi + 2].f());
     }
-    // Width at half height, linear interpolation at both crossings.
+    // Width at half height, linear interpolation at both crossings. Walking out from the top,
+    // a dip below half height is crossed when the profile is back at half height within the
+    // width found so far (and inside the run above the threshold): speckle of 30-50 % on a
+    // 20-40 px line dips there in most rows, and the first crossing gave a fraction of the
+    // line's width, so the saturation test below rejected a line clipped over its top and the
+    // ambiguity test took the line's other half for a second peak. A plain line has one
+    // crossing per side; a separate bump farther than the line's own width stays outside.
     let half = bg + 0.5 * (top - bg);
-    let l = T::run_back_on(isa, row, lo, m0, half, false);
+    let mut l = T::run_back_on(isa, row, lo, m0, half, false);
+    let mut r = T::run_fwd_on(isa, row, m1 + 1, hi + 1, half, false) - 1;
+    loop {
+        let reach = r + 1 - l;
+        let (l0, r0) = (l, r);
+        let stop = l.saturating_sub(reach).max(lo);
+        if let Some(j) = (stop..l).rev().find(|&j| row[j].f() >= half) {
+            l = T::run_back_on(isa, row, lo, j + 1, half, false);
+        }
+        let stop = (r + reach).min(hi);
+        if let Some(j) = (r + 1..=stop).find(|&j| row[j].f() >= half) {
+            r = T::run_fwd_on(isa, row, j, hi + 1, half, false) - 1;
+        }
+        if (l, r) == (l0, r0) {
+            break;
+        }
+    }
     let xl = {
         let (v0, v1) = (row[l - 1].f(), row[l].f());
         (l - 1) as f32 + ((half - v0) / (v1 - v0).max(1e-6)).clamp(0.0, 1.0)
     };
-    let r = T::run_fwd_on(isa, row, m1 + 1, hi + 1, half, false) - 1;
     let xr = {
         let (v0, v1) = (row[r].f(), row[r + 1].f());
         r as f32 + ((v0 - half) / (v0 - v1).max(1e-6)).clamp(0.0, 1.0)
