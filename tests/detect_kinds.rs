@@ -120,11 +120,11 @@ fn saturated_colour_line_with_a_white_centre() {
 
 #[test]
 fn wide_speckled_line_with_a_glow() {
-    // Short of the found target: 14 of 20 regions (misses: rows clipped over more than half
-    // the line's width, saturated; speckle splitting the run above the threshold, ambiguous),
-    // 20 of 20 within 5 %. Before the width at half height was taken at the outermost
-    // crossings (a speckle dip stopped the walk from the top): 10 and 16 of 20.
-    check(LineKind::WideSpeckled, 14, 19);
+    // Short of the target: 17 of 20 regions found (misses: rows clipped over more than half
+    // the line's width, saturated), 15 of 20 within 5 % of cog, which the bridged run above
+    // the threshold helps more (0.82-1.51x its RMS). Before the half-height width and the run
+    // crossed speckle dips: 10 and 16 of 20, with cog's RMS 1.5-2x today's.
+    check(LineKind::WideSpeckled, 17, 15);
 }
 
 #[test]

@@ -809,8 +809,8 @@ pub fn coarse_row_on<T: Px>(
     let saturated = if top >= full { m1 - m0 + 1 } else { 0 };
     let m = (m0 + m1) / 2;
     // Run above the threshold.
-    let lo = T::run_back_on(isa, row, 0, m0, thr, true);
-    let hi = T::run_fwd_on(isa, row, m1 + 1, w, thr, true) - 1;
+    let mut lo = T::run_back_on(isa, row, 0, m0, thr, true);
+    let mut hi = T::run_fwd_on(isa, row, m1 + 1, w, thr, true) - 1;
     if lo == 0 || hi + 1 == w {
         return Err((Reject::Border, top));
     }
@@ -856,6 +856,38 @@ pub fn coarse_row_on<T: Px>(
         r as f32 + ((v0 - half) / (v0 - v1).max(1e-6)).clamp(0.0, 1.0)
     };
     let width = (xr - xl).max(0.5);
+    // The run above the threshold crosses a dip under it when the line is back above it
+    // within the line's width: the other half of a speckled wide line is not a second peak.
+    // Not into a skipped specular spike, whose pixels are no part of the line.
+    let reach = width as usize;
+    let spike = |j: usize| ex.r[..ex.n].iter().any(|&(a, z)| a <= j && j <= z);
+    loop {
+        let (lo0, hi0) = (lo, hi);
+        let stop = lo.saturating_sub(reach).max(1);
+        if let Some(j) = (stop..lo.saturating_sub(1))
+            .rev()
+            .find(|&j| row[j].f() > thr)
+            .filter(|&j| !spike(j))
+        {
+            let nl = T::run_back_on(isa, row, 0, j + 1, thr, true);
+            if nl > 0 {
+                lo = nl;
+            }
+        }
+        let stop = (hi + reach).min(w - 2);
+        if let Some(j) = (hi + 2..=stop)
+            .find(|&j| row[j].f() > thr)
+            .filter(|&j| !spike(j))
+        {
+            let nh = T::run_fwd_on(isa, row, j, w, thr, true) - 1;
+            if nh + 1 < w {
+                hi = nh;
+            }
+        }
+        if (lo, hi) == (lo0, hi0) {
+            break;
+        }
+    }
     // Over-exposed: a clipped run longer than `max_saturated_px` that is also most of the
     // line (over half its width at half height) hides where the line's centre is. A wide line
     // (20-40 px from a poor lens) clips over more than 12 px at its top alone and keeps its
