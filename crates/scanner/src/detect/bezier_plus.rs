@@ -10,7 +10,8 @@
 //!      sigma 1.5 px), n + 1 of them spanning about +-`window_sigmas` line sigmas, so the
 //!      Bernstein curve's smoothing (a binomial kernel of variance (n - 1) / 4 control points)
 //!      grows with the line instead of staying a few pixels wide;
-//!    - re-centring: a first estimate (5-pixel centre of gravity), then the window placed so
+//!    - re-centring: a first estimate (5-pixel centre of gravity; over the whole run above the
+//!      threshold for a line of sigma 3.5 px or more), then the window placed so
 //!      its centre is as near it as the pixel grid allows (n even or odd, whichever is nearer);
 //!    - the root by bracketed Newton on the factorised Bernstein derivative ([`root_near`]);
 //!    - bias correction: the residual pull toward the window centre removed with a table built
@@ -304,6 +305,10 @@ pub(crate) fn bin_for(sigma: f64) -> usize {
     ((sigma + 0.5) as usize).clamp(1, 8)
 }
 
+/// Bins of this many pixels or more (a line sigma of 3.5 px or more) start the estimate from
+/// the centre of gravity of the whole run above the threshold ([`estimate_row`]).
+const WIDE_BIN: usize = 4;
+
 /// Steps 3 of the module doc for one row: None if no window fits.
 fn estimate_row<T: Px>(
     isa: Isa,
@@ -339,7 +344,22 @@ fn estimate_row<T: Px>(
     let bf = b as f64;
     // First estimate: centre of gravity of the 5 pixels around the maximum over the background
     // (centre of a flat top).
-    let c1 = if pk.top_hi > pk.top_lo {
+    let c1 = if b >= WIDE_BIN {
+        // A wide line (sigma 3.5 px or more): speckle moves its maximum by up to half its
+        // width, and the root of I'(t) nearest a start there can be a speckle's. The centre
+        // of gravity over the run above the threshold starts from the whole line.
+        let (mut s0, mut s1) = (0.0f64, 0.0f64);
+        for (k, v) in row[pk.lo..=pk.hi].iter().enumerate() {
+            let v = (v.f() - pk.thr).max(0.0) as f64;
+            s0 += v;
+            s1 += v * k as f64;
+        }
+        if s0 > 0.0 {
+            pk.lo as f64 + s1 / s0
+        } else {
+            pk.m as f64
+        }
+    } else if pk.top_hi > pk.top_lo {
         0.5 * (pk.top_lo + pk.top_hi) as f64
     } else {
         let m = pk.m;

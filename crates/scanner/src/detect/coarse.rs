@@ -809,8 +809,8 @@ pub fn coarse_row_on<T: Px>(
     let saturated = if top >= full { m1 - m0 + 1 } else { 0 };
     let m = (m0 + m1) / 2;
     // Run above the threshold.
-    let lo = T::run_back_on(isa, row, 0, m0, thr, true);
-    let hi = T::run_fwd_on(isa, row, m1 + 1, w, thr, true) - 1;
+    let mut lo = T::run_back_on(isa, row, 0, m0, thr, true);
+    let mut hi = T::run_fwd_on(isa, row, m1 + 1, w, thr, true) - 1;
     if lo == 0 || hi + 1 == w {
         return Err((Reject::Border, top));
     }
@@ -822,19 +822,72 @@ pub fn coarse_row_on<T: Px>(
     if hi + 2 < w {
         bg = bg.min(row[hi + 2].f());
     }
-    // Width at half height, linear interpolation at both crossings.
+    // Width at half height, linear interpolation at both crossings. Walking out from the top,
+    // a dip below half height is crossed when the profile is back at half height within the
+    // width found so far (and inside the run above the threshold): speckle of 30-50 % on a
+    // 20-40 px line dips there in most rows, and the first crossing gave a fraction of the
+    // line's width, so the saturation test below rejected a line clipped over its top and the
+    // ambiguity test took the line's other half for a second peak. A plain line has one
+    // crossing per side; a separate bump farther than the line's own width stays outside.
     let half = bg + 0.5 * (top - bg);
-    let l = T::run_back_on(isa, row, lo, m0, half, false);
+    let mut l = T::run_back_on(isa, row, lo, m0, half, false);
+    let mut r = T::run_fwd_on(isa, row, m1 + 1, hi + 1, half, false) - 1;
+    loop {
+        let reach = r + 1 - l;
+        let (l0, r0) = (l, r);
+        let stop = l.saturating_sub(reach).max(lo);
+        if let Some(j) = (stop..l).rev().find(|&j| row[j].f() >= half) {
+            l = T::run_back_on(isa, row, lo, j + 1, half, false);
+        }
+        let stop = (r + reach).min(hi);
+        if let Some(j) = (r + 1..=stop).find(|&j| row[j].f() >= half) {
+            r = T::run_fwd_on(isa, row, j, hi + 1, half, false) - 1;
+        }
+        if (l, r) == (l0, r0) {
+            break;
+        }
+    }
     let xl = {
         let (v0, v1) = (row[l - 1].f(), row[l].f());
         (l - 1) as f32 + ((half - v0) / (v1 - v0).max(1e-6)).clamp(0.0, 1.0)
     };
-    let r = T::run_fwd_on(isa, row, m1 + 1, hi + 1, half, false) - 1;
     let xr = {
         let (v0, v1) = (row[r].f(), row[r + 1].f());
         r as f32 + ((v0 - half) / (v0 - v1).max(1e-6)).clamp(0.0, 1.0)
     };
     let width = (xr - xl).max(0.5);
+    // The run above the threshold crosses a dip under it when the line is back above it
+    // within the line's width: the other half of a speckled wide line is not a second peak.
+    // Not into a skipped specular spike, whose pixels are no part of the line.
+    let reach = width as usize;
+    let spike = |j: usize| ex.r[..ex.n].iter().any(|&(a, z)| a <= j && j <= z);
+    loop {
+        let (lo0, hi0) = (lo, hi);
+        let stop = lo.saturating_sub(reach).max(1);
+        if let Some(j) = (stop..lo.saturating_sub(1))
+            .rev()
+            .find(|&j| row[j].f() > thr)
+            .filter(|&j| !spike(j))
+        {
+            let nl = T::run_back_on(isa, row, 0, j + 1, thr, true);
+            if nl > 0 {
+                lo = nl;
+            }
+        }
+        let stop = (hi + reach).min(w - 2);
+        if let Some(j) = (hi + 2..=stop)
+            .find(|&j| row[j].f() > thr)
+            .filter(|&j| !spike(j))
+        {
+            let nh = T::run_fwd_on(isa, row, j, w, thr, true) - 1;
+            if nh + 1 < w {
+                hi = nh;
+            }
+        }
+        if (lo, hi) == (lo0, hi0) {
+            break;
+        }
+    }
     // Over-exposed: a clipped run longer than `max_saturated_px` that is also most of the
     // line (over half its width at half height) hides where the line's centre is. A wide line
     // (20-40 px from a poor lens) clips over more than 12 px at its top alone and keeps its
