@@ -14,8 +14,9 @@
  * Per row it does what the built-in `detect.cog` does with a fixed threshold, the ambiguity
  * test off (ambiguity > 1) and specular spikes not skipped: the first maximum, its flat top,
  * the run above the threshold, the border test, the background beside the run, the width at
- * half height, the saturation test, the centre of gravity of (value - threshold) over the
- * run, then rows with no other line within 2 rows rejected as isolated. The arithmetic is the
+ * half height and the run, each crossing dips that the line comes back from within its width
+ * (speckle), the saturation test, the centre of gravity of (value - threshold) over the run,
+ * then rows with no other line within 2 rows rejected as isolated. The arithmetic is the
  * built-in's, in the same precision (the centre of gravity's sums in another order, but exact:
  * see cog8 below), so the columns are equal bit for bit (tests/plugin_wasm.rs checks it on
  * simulated frames, at a whole and a fractional threshold, SIMD and scalar builds).
@@ -261,7 +262,6 @@ COG(u16, 16)
         u32 a = left##SFX(row, pos, 0, v, EQ);                                                \
         u32 b = right##SFX(row, pos + 1, w, v, EQ) - 1;                                       \
         u32 saturated = top >= (float)(FULL) ? b - a + 1 : 0;                                 \
-        if (saturated > max_saturated_px) return rejected(SATURATED, top);                    \
         u32 t = (u32)thr; /* floor: thr > 0 */                                                \
         u32 lo = left##SFX(row, a, 0, t, GT);                                                 \
         u32 hi = right##SFX(row, b + 1, w, t, GT) - 1;                                        \
@@ -272,13 +272,50 @@ COG(u16, 16)
         float half = bg + 0.5f * (top - bg);                                                  \
         u32 ih = (u32)__builtin_ceilf(half);                                                  \
         u32 l = left##SFX(row, a, lo, ih, GE);                                                \
+        u32 r = right##SFX(row, b + 1, hi + 1, ih, GE) - 1;                                   \
+        /* A dip under half height is crossed when the line is back at half height within     \
+         * the width found so far, inside the run (speckle on a wide line). */                \
+        for (;;) {                                                                            \
+            u32 reach = r + 1 - l, l0 = l, r0 = r;                                            \
+            u32 stop = l > lo + reach ? l - reach : lo;                                       \
+            u32 e = left##SFX(row, l, stop, ih, LT);                                          \
+            if (e > stop) l = left##SFX(row, e, lo, ih, GE);                                  \
+            stop = r + reach < hi ? r + reach : hi;                                           \
+            u32 j = right##SFX(row, r + 1, stop + 1, ih, LT);                                 \
+            if (j <= stop) r = right##SFX(row, j, hi + 1, ih, GE) - 1;                        \
+            if (l == l0 && r == r0) break;                                                    \
+        }                                                                                     \
         float v0 = (float)row[l - 1], v1 = (float)row[l];                                     \
         float xl = (float)(l - 1) + clampf((half - v0) / maxf(v1 - v0, 1e-6f), 0.0f, 1.0f);   \
-        u32 r = right##SFX(row, b + 1, hi + 1, ih, GE) - 1;                                   \
         v0 = (float)row[r];                                                                   \
         v1 = (float)row[r + 1];                                                               \
         float xr = (float)r + clampf((v0 - half) / maxf(v0 - v1, 1e-6f), 0.0f, 1.0f);         \
         float width = maxf(xr - xl, 0.5f);                                                    \
+        /* The run crosses a dip under the threshold when the line is back above it within    \
+         * its width: the other half of a speckled wide line is not a second peak. */         \
+        for (u32 reach = (u32)width;;) {                                                      \
+            u32 lo0 = lo, hi0 = hi;                                                           \
+            u32 stop = lo > reach + 1 ? lo - reach : 1;                                       \
+            if (lo >= 2 && lo - 1 > stop) {                                                   \
+                u32 e = left##SFX(row, lo - 1, stop, t + 1, LT);                              \
+                if (e > stop) {                                                               \
+                    u32 nl = left##SFX(row, e, 0, t, GT);                                     \
+                    if (nl > 0) lo = nl;                                                      \
+                }                                                                             \
+            }                                                                                 \
+            stop = hi + reach < w - 2 ? hi + reach : w - 2;                                   \
+            if (hi + 2 <= stop) {                                                             \
+                u32 j = right##SFX(row, hi + 2, stop + 1, t + 1, LT);                         \
+                if (j <= stop) {                                                              \
+                    u32 nh = right##SFX(row, j, w, t, GT) - 1;                                \
+                    if (nh + 1 < w) hi = nh;                                                  \
+                }                                                                             \
+            }                                                                                 \
+            if (lo == lo0 && hi == hi0) break;                                                \
+        }                                                                                     \
+        /* Over-exposed: clipped over more than max_saturated_px and over half the width. */  \
+        if (saturated > max_saturated_px && (float)saturated > 0.5f * width)                  \
+            return rejected(SATURATED, top);                                                  \
         double s = 0.0, sx = 0.0;                                                             \
         cog##SFX(row, lo, hi, thr, &s, &sx);                                                  \
         if (s <= 0.0) return rejected(BELOW_THRESHOLD, top);                                  \
