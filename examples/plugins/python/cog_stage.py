@@ -74,7 +74,6 @@ def measure(frame, pos, offset, thr, full, max_sat):
 
     a, b = run_around(frame == frame[rows, pos][:, None], pos)
     saturated = np.where(top >= full, b - a + 1, 0)
-    reject = np.where((reject == 0) & (saturated > max_sat), 2, reject)
     lo, hi = run_around(f > thr, pos)
     reject = np.where((reject == 0) & ((lo == 0) | (hi + 1 == w)), 4, reject)
     ok = reject == 0
@@ -86,13 +85,34 @@ def measure(frame, pos, offset, thr, full, max_sat):
     below = f < half[:, None]
     l = np.maximum(lo_, np.where(below & (idx < a[:, None]), idx, -1).max(axis=1) + 1)
     l = np.where(ok, np.maximum(l, 1), 1)
-    v0, v1 = f[rows, l - 1], f[rows, l]
-    xl = (l - 1 + offset).astype(np.float32) + np.clip((half - v0) / np.maximum(v1 - v0, np.float32(1e-6)), 0, 1)
     r = np.minimum(hi_, np.where(below & (idx > b[:, None]), idx, w).min(axis=1) - 1)
     r = np.where(ok, np.minimum(r, w - 2), 0)
+    # Speckle on a wide line: a dip under half height is crossed when the line is back at
+    # half height within the width found so far (inside the run). Few rows have one, so
+    # those are walked one by one.
+    reach = r + 1 - l
+    back = (~below & (idx >= np.maximum(l - reach, lo_)[:, None]) & (idx < l[:, None])).any(axis=1)
+    back |= (~below & (idx > r[:, None]) & (idx <= np.minimum(r + reach, hi_)[:, None])).any(axis=1)
+    for i in np.nonzero(ok & back)[0]:
+        l[i], r[i] = cross_dips(f[i], half[i], lo_[i], hi_[i], int(l[i]), int(r[i]))
+    v0, v1 = f[rows, l - 1], f[rows, l]
+    xl = (l - 1 + offset).astype(np.float32) + np.clip((half - v0) / np.maximum(v1 - v0, np.float32(1e-6)), 0, 1)
     v0, v1 = f[rows, r], f[rows, r + 1]
     xr = (r + offset).astype(np.float32) + np.clip((v0 - half) / np.maximum(v0 - v1, np.float32(1e-6)), 0, 1)
     width = np.maximum(xr - xl, np.float32(0.5)).astype(np.float32)
+    # The run crosses a dip under the threshold when the line is back above it within its
+    # width: the other half of a speckled wide line is not a second peak.
+    reach = width.astype(np.int64)
+    above = f > thr
+    more = (above & (idx >= np.maximum(lo_ - reach, 1)[:, None]) & (idx <= (lo_ - 2)[:, None])).any(axis=1)
+    more |= (above & (idx >= (hi_ + 2)[:, None]) & (idx <= np.minimum(hi_ + reach, w - 2)[:, None])).any(axis=1)
+    lo_, hi_ = lo_.copy(), hi_.copy()
+    for i in np.nonzero(ok & more)[0]:
+        lo_[i], hi_[i] = cross_run(f[i], thr, int(lo_[i]), int(hi_[i]), int(reach[i]), w)
+    lo, hi = np.where(ok, lo_, lo), np.where(ok, hi_, hi)
+    # Over-exposed: clipped over more than max_sat pixels and over half the width.
+    reject = np.where(ok & (saturated > max_sat) & (saturated > np.float32(0.5) * width), 2, reject)
+    ok = reject == 0
     inside = (idx >= lo_[:, None]) & (idx <= hi_[:, None])
     wgt = np.where(inside, (f - thr).astype(np.float64), 0.0)
     s = wgt.sum(axis=1)
@@ -105,7 +125,53 @@ def measure(frame, pos, offset, thr, full, max_sat):
     out["width"] = np.where(ok, width, 0)
     out["quality"] = np.where(ok, quality, 0)
     out["reject"] = reject
-    return out, lo, hi
+    # How far the run's search looked beyond it: a row whose search reached the window's edge
+    # is measured again on the whole row.
+    return out, lo - reach, hi + reach
+
+
+def cross_dips(row, half, lo, hi, l, r):
+    """The half-height crossings (l, r) of one row after crossing speckle dips."""
+    while True:
+        reach, l0, r0 = r + 1 - l, l, r
+        for j in range(l - 1, max(l - reach, lo) - 1, -1):
+            if row[j] >= half:
+                l = j + 1
+                while l > lo and row[l - 1] >= half:
+                    l -= 1
+                break
+        for j in range(r + 1, min(r + reach, hi) + 1):
+            if row[j] >= half:
+                r = j
+                while r + 1 <= hi and row[r + 1] >= half:
+                    r += 1
+                break
+        if (l, r) == (l0, r0):
+            return l, r
+
+
+def cross_run(row, thr, lo, hi, reach, w):
+    """The run above the threshold (lo, hi) of one row after crossing dips under it."""
+    while True:
+        lo0, hi0 = lo, hi
+        for j in range(lo - 2, max(lo - reach, 1) - 1, -1):
+            if row[j] > thr:
+                nl = j + 1
+                while nl > 0 and row[nl - 1] > thr:
+                    nl -= 1
+                if nl > 0:
+                    lo = nl
+                break
+        for j in range(hi + 2, min(hi + reach, w - 2) + 1):
+            if row[j] > thr:
+                nh = j
+                while nh + 1 < w and row[nh + 1] > thr:
+                    nh += 1
+                if nh + 1 < w:
+                    hi = nh
+                break
+        if (lo, hi) == (lo0, hi0):
+            return lo, hi
 
 
 def isolate(out):
