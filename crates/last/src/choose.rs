@@ -175,6 +175,13 @@ pub fn judge_last(
                 notes.push(format!("rule {} (ankle girth) {why}", r.rule));
             }
         }
+        if r.quantity == "long-heel girth" {
+            let heel = Some(lm.heel_height);
+            if let Some(why) = crate::customize::clinic::long_heel_not_applicable(heel, r.foot_mm) {
+                applicable = false;
+                notes.push(format!("rule {} (long-heel girth) {why}", r.rule));
+            }
+        }
         stations.push(StationChange {
             rule: r.rule,
             quantity: r.quantity,

@@ -148,6 +148,31 @@ pub struct StockOptions {
 /// cut off by its top, and the ankle girth rule (IV) has no counterpart on it.
 pub const LEG_RISE: f64 = 0.5;
 
+/// A last whose own heel is higher than this (mm) is a high-heeled last, and a long-heel
+/// girth taped on the foot standing flat has no counterpart on it (rule II-H is reported
+/// as not applicable, with the reason). The trade takes the heel girth for high-heeled work
+/// with the foot posed as in the shoe, its heel raised to the shoe's height, because the
+/// girth round the heel and over the instep changes with that pose (F. Y. Golding, The
+/// Manufacture of Boots and Shoes, "The operation of measuring"); a heel of 1 to 1.5 in is
+/// called low and one of 2 in and more high (P. B. Roth, 1929). 2 in (50.8 mm): of the
+/// shared lasts Last_Heeled_RoundTip's heel is 114.8 mm (at 260 mm), the others' 2.5 mm
+/// (LastScan) and 28.2 mm (Last_Flat_RoundTip at a 252.8 mm stick, docs/method.md 9.3);
+/// 10.7, fifth round.
+pub const HIGH_HEEL_MM: f64 = 50.8;
+
+/// Why the flat foot's long-heel girth (rule II-H) does not apply to a last with its own
+/// heel of `heel` mm (None: not measured, the rule applies), if so. `tape`: the foot's
+/// long-heel girth as taped (mm), for the reason.
+pub fn long_heel_not_applicable(heel: Option<f64>, tape: f64) -> Option<String> {
+    let h = heel.filter(|h| h.is_finite() && *h > HIGH_HEEL_MM)?;
+    Some(format!(
+        "not applicable for this last: a high-heeled last (its heel {h:.1} mm, over \
+         {HIGH_HEEL_MM:.1} mm) holds the foot with its heel raised, and the long-heel girth \
+         taped on the foot standing flat ({tape:.1} mm) is not that foot's: the trade takes \
+         the heel girth for high-heeled work with the heel raised to the shoe's height"
+    ))
+}
+
 /// A stock last as the clinic path cuts it, and as `last choose` judges it (one cut, so the
 /// ranking's changes are the ones the customization makes).
 pub struct StockCut {
@@ -395,6 +420,13 @@ pub fn customize_stock_with(
     }
     if let Some(why) = no_leg {
         let r = &mut rows[7];
+        r.applies = false;
+        r.not_applicable = Some(why);
+    }
+    // The last keeps its own bottom curve, so its own heel decides (not one asked).
+    let own_heel = lm.as_ref().ok().map(|m| m.heel_height);
+    if let Some(why) = long_heel_not_applicable(own_heel, girths.long_heel) {
+        let r = &mut rows[6];
         r.applies = false;
         r.not_applicable = Some(why);
     }
