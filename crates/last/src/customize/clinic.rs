@@ -418,17 +418,19 @@ pub fn customize_stock_with(
             if have < need { "longer" } else { "shorter" }
         )));
     }
-    if let Some(why) = no_leg {
-        let r = &mut rows[7];
-        r.applies = false;
-        r.not_applicable = Some(why);
-    }
-    // The last keeps its own bottom curve, so its own heel decides (not one asked).
+    // Rules with no counterpart on this last: the ankle (IV, row 7) on a low-cut last, the
+    // flat long heel (II-H, row 6) on a high-heeled one, whose own heel decides (the last
+    // keeps its bottom curve, whatever heel is asked).
     let own_heel = lm.as_ref().ok().map(|m| m.heel_height);
-    if let Some(why) = long_heel_not_applicable(own_heel, girths.long_heel) {
-        let r = &mut rows[6];
-        r.applies = false;
-        r.not_applicable = Some(why);
+    let not_applicable = [
+        (7, no_leg),
+        (6, long_heel_not_applicable(own_heel, girths.long_heel)),
+    ];
+    for (k, why) in not_applicable {
+        if let Some(why) = why {
+            rows[k].applies = false;
+            rows[k].not_applicable = Some(why);
+        }
     }
     let target: [f64; 8] = std::array::from_fn(|i| {
         if rows[i].applies {
