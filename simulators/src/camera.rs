@@ -7,8 +7,10 @@
 //! numbering, so the truth log never sees a sequence number twice). `next_frame` sleeps until
 //! the next slot, asks the [`PositionSource`] for the physical x at t_k, renders frame k (noise
 //! index k) into a pooled buffer and returns it with `seq = k`, `timestamp = t_k`.
-//! - A caller late by more than one period gets the newest slot that has begun; the slots in
-//!   between are lost (sequence gap), as when a real camera's ring buffer overflows.
+//! - Captured slots wait in a ring of [`RING_BUFFERS`] frames (the V4L2 driver's default
+//!   buffer count, `[hardware.camera] buffers`), oldest first: a caller late by up to that
+//!   many periods loses nothing; a slot captured while the ring is full is lost (sequence
+//!   gap), as a V4L2 driver drops a frame that finds no free buffer.
 //! - With [`NoiseConfig::drop_rate`](crate::render::NoiseConfig) > 0 a slot is lost with that
 //!   probability, decided by a hash of (camera seed, k): deterministic. Slots whose head
 //!   position lies in one of [`NoiseConfig::drop_x_mm`]'s ranges are lost too (a gap).
@@ -123,6 +125,7 @@ impl CameraFaults {
 struct Stream {
     t0: Timestamp,
     base: u64,
+    /// The first slot not yet captured.
     next: u64,
 }
 
@@ -138,6 +141,9 @@ pub struct SimCamera {
     name: String,
     exposure_us: u32,
     stream: Option<Stream>,
+    /// Captured slots not yet delivered, oldest first (at most `buffers`).
+    ring: std::collections::VecDeque<u64>,
+    buffers: usize,
     next_seq: u64,
     truth: TruthLog,
     faults: CameraFaults,
@@ -158,6 +164,8 @@ impl std::fmt::Debug for SimCamera {
 
 /// Frame buffers kept in the pool.
 const POOL_BUFFERS: usize = 6;
+/// Captured frames the camera holds for a late caller: the V4L2 driver's default.
+pub const RING_BUFFERS: usize = 4;
 
 impl SimCamera {
     /// `fps` must be in (0, 10000]; `seed` drives the frame-drop decisions (the image noise
@@ -186,6 +194,8 @@ impl SimCamera {
             name: "sim-camera".into(),
             exposure_us: 1000,
             stream: None,
+            ring: std::collections::VecDeque::with_capacity(RING_BUFFERS),
+            buffers: RING_BUFFERS,
             next_seq: 0,
             truth: TruthLog::new(),
             faults: CameraFaults::default(),
@@ -237,6 +247,24 @@ impl SimCamera {
         self.fps
     }
 
+    /// Hold `n` (at least 1) captured frames for a late caller instead of [`RING_BUFFERS`].
+    pub fn set_ring_buffers(&mut self, n: usize) {
+        self.buffers = n.max(1);
+        self.ring.reserve(self.buffers);
+    }
+
+    /// Whether slot `k` is lost at capture (drop rate, or the head in a drop range).
+    fn lost_at_capture(&self, k: u64, tk: Timestamp) -> bool {
+        if self.slot_dropped(k) {
+            return true;
+        }
+        let drops = &self.renderer.noise().drop_x_mm;
+        !drops.is_empty() && {
+            let x = self.position.physical_x(tk);
+            drops.iter().any(|r| r[0] <= x && x <= r[1])
+        }
+    }
+
     fn disconnected(&self) -> HalError {
         HalError::Disconnected {
             device: self.name.clone(),
@@ -272,6 +300,7 @@ impl Camera for SimCamera {
             return Err(self.disconnected());
         }
         if self.stream.is_none() {
+            self.ring.clear();
             self.stream = Some(Stream {
                 t0: Timestamp::now(),
                 base: self.next_seq,
@@ -283,6 +312,7 @@ impl Camera for SimCamera {
 
     fn stop(&mut self) -> HalResult<()> {
         self.stream = None;
+        self.ring.clear();
         Ok(())
     }
 
@@ -297,38 +327,33 @@ impl Camera for SimCamera {
             });
         };
         let deadline = Timestamp::now() + timeout;
-        let period = 1.0 / self.fps;
         loop {
+            // Slots captured since the last look enter the ring while it has room.
             let now = Timestamp::now();
-            let mut k = s.next;
-            if now.secs_after(self.slot_time(&s, k)) > period {
-                // Late: the newest slot that has begun; the ones before it are lost.
-                let newest = s.base + (now.secs_after(s.t0) * self.fps).floor() as u64;
-                k = newest.max(k);
-            }
-            let tk = self.slot_time(&s, k);
-            if tk > deadline {
-                deadline.sleep_until();
-                self.stream = Some(s);
-                return Err(HalError::Timeout {
-                    device: self.name.clone(),
-                    what: "a frame".into(),
-                    after: timeout,
-                });
-            }
-            tk.sleep_until();
-            s.next = k + 1;
-            self.next_seq = k + 1;
-            if self.slot_dropped(k) {
-                continue;
-            }
-            let drops = &self.renderer.noise().drop_x_mm;
-            if !drops.is_empty() {
-                let x = self.position.physical_x(tk);
-                if drops.iter().any(|r| r[0] <= x && x <= r[1]) {
-                    continue;
+            while self.slot_time(&s, s.next) <= now {
+                let k = s.next;
+                s.next += 1;
+                if self.ring.len() < self.buffers && !self.lost_at_capture(k, self.slot_time(&s, k))
+                {
+                    self.ring.push_back(k);
                 }
             }
+            self.next_seq = s.next;
+            let Some(k) = self.ring.pop_front() else {
+                let tk = self.slot_time(&s, s.next);
+                if tk > deadline {
+                    deadline.sleep_until();
+                    self.stream = Some(s);
+                    return Err(HalError::Timeout {
+                        device: self.name.clone(),
+                        what: "a frame".into(),
+                        after: timeout,
+                    });
+                }
+                tk.sleep_until();
+                continue;
+            };
+            let tk = self.slot_time(&s, k);
             self.stream = Some(s);
             if let Some(scene) = self.scene.take() {
                 self.set_scene(scene)
@@ -490,13 +515,53 @@ mod tests {
         );
         cam.start().unwrap();
         let mut seqs = Vec::new();
-        for _ in 0..6 {
+        for _ in 0..14 {
             seqs.push(cam.next_frame(Duration::from_millis(200)).unwrap().seq);
             std::thread::sleep(Duration::from_millis(35));
         }
+        // 3.5 slots a call: the ring fills within a few calls, then slots are lost.
         let gaps = seqs.windows(2).filter(|w| w[1] > w[0] + 1).count();
-        assert!(gaps >= 4, "{seqs:?}");
+        assert!(gaps >= 5, "{seqs:?}");
         assert!(seqs.windows(2).all(|w| w[1] > w[0]));
+        // The ring delivers the oldest frame it holds, as V4L2 does: a consumer that keeps
+        // taking 35 ms a frame gets frames about four of its own calls old, never older.
+        let f = cam.next_frame(Duration::from_millis(200)).unwrap();
+        let age = Timestamp::now().secs_after(f.timestamp);
+        assert!(
+            age < (RING_BUFFERS + 1) as f64 * 0.035 + 0.02,
+            "{age} s old"
+        );
+    }
+
+    #[test]
+    fn a_caller_late_within_the_ring_loses_nothing() {
+        let mut cam = camera(
+            100.0,
+            NoiseConfig::default(),
+            Arc::new(crate::FixedPosition(0.0)),
+        );
+        cam.start().unwrap();
+        let mut seqs = vec![cam.next_frame(Duration::from_millis(200)).unwrap().seq];
+        // 3.5 periods late: slots 1-3 wait in the ring (a V4L2 driver's 4 buffers).
+        std::thread::sleep(Duration::from_millis(35));
+        for _ in 0..8 {
+            seqs.push(cam.next_frame(Duration::from_millis(200)).unwrap().seq);
+        }
+        assert_eq!(seqs, (0..9).collect::<Vec<u64>>());
+        // With one buffer, the same lateness loses slots.
+        let mut one = camera(
+            100.0,
+            NoiseConfig::default(),
+            Arc::new(crate::FixedPosition(0.0)),
+        );
+        one.set_ring_buffers(1);
+        one.start().unwrap();
+        let a = one.next_frame(Duration::from_millis(200)).unwrap().seq;
+        std::thread::sleep(Duration::from_millis(35));
+        let b = one.next_frame(Duration::from_millis(200)).unwrap().seq;
+        let c = one.next_frame(Duration::from_millis(200)).unwrap().seq;
+        assert_eq!((a, b), (0, 1));
+        assert!(c > 2, "slots 2 and 3 found the one buffer full: {c}");
     }
 
     #[test]
