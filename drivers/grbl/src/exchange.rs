@@ -308,6 +308,7 @@ impl GrblSlider {
             x_mm: x.ok_or_else(|| self.bad("status report without X"))?,
             feed_mm_min: feed,
             timestamp: midpoint(sent, at),
+            uncertainty_s: at.secs_after(sent).max(0.0) / 2.0,
         })
     }
 

@@ -52,6 +52,9 @@ pub struct SliderStatus {
     /// When the position was valid, on the monotonic clock (the driver's best estimate,
     /// e.g. the midpoint between query and answer).
     pub timestamp: Timestamp,
+    /// How far `timestamp` may be off, in seconds: half the time between query and answer
+    /// (an answer read late by a busy host widens it). 0 when the time is exact.
+    pub uncertainty_s: f64,
 }
 
 #[derive(Clone, Debug, PartialEq)]

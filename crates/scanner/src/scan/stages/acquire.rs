@@ -88,13 +88,53 @@ fn poll_slider(
 }
 
 /// Linear interpolation of X over timestamped reports.
-#[derive(Default)]
 struct Track {
     samples: VecDeque<(Timestamp, f64)>,
+    /// The windows (their halves) of the last [`RECENT`] reports seen, kept or not: the
+    /// narrowest is what an answer read at once takes now (it widens with a lasting load).
+    recent: [f64; RECENT],
+    seen: usize,
+    /// Reports passed over for a late answer.
+    skipped: u64,
 }
 
+impl Default for Track {
+    fn default() -> Self {
+        Track {
+            samples: VecDeque::new(),
+            recent: [f64::INFINITY; RECENT],
+            seen: 0,
+            skipped: 0,
+        }
+    }
+}
+
+const RECENT: usize = 16;
+/// A report whose window is this much wider than the narrowest recent one was answered late.
+const LATE_ANSWER_S: f64 = 0.002;
+/// ... but it is taken all the same when the last one kept is this old: the frame waiting
+/// for it must not wait long (the camera holds 4 frames, 80 ms at 50 fps).
+const MAX_REPORT_GAP_S: f64 = 0.03;
+
 impl Track {
+    /// Keeps a report unless its answer was read late: a busy host that reads the answer
+    /// 20 ms late puts the midpoint 10 ms late, 0.75 mm at a 75 mm/s scan. The reports on
+    /// either side interpolate across the one passed over (the head moves at a steady feed).
     fn push(&mut self, s: &SliderStatus) {
+        self.recent[self.seen % RECENT] = s.uncertainty_s;
+        self.seen += 1;
+        let narrowest = self.recent.iter().copied().fold(f64::INFINITY, f64::min);
+        if let Some(&(last, _)) = self.samples.back() {
+            if s.timestamp <= last {
+                return;
+            }
+            if s.uncertainty_s > narrowest + LATE_ANSWER_S
+                && s.timestamp.secs_after(last) < MAX_REPORT_GAP_S
+            {
+                self.skipped += 1;
+                return;
+            }
+        }
         self.samples.push_back((s.timestamp, s.x_mm));
     }
     fn last_time(&self) -> Option<Timestamp> {
@@ -310,6 +350,12 @@ impl Acquire {
                 break;
             }
         }
+        if track.skipped > 0 {
+            tracing::debug!(
+                "{} slider reports passed over: answered late",
+                track.skipped
+            );
+        }
         Ok(())
     }
 }
@@ -320,6 +366,7 @@ mod tests {
 
     fn st(t_ms: u64, x: f64) -> SliderStatus {
         SliderStatus {
+            uncertainty_s: 0.0005,
             state: SliderState::Run,
             x_mm: x,
             feed_mm_min: 0.0,
@@ -342,5 +389,47 @@ mod tests {
         assert_eq!(tr.at(t(15.0)), Some(2.0));
         assert_eq!(tr.at(t(25.0)), None);
         assert!((tr.at(t(19.0)).unwrap() - 2.8).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_report_answered_late_is_passed_over() {
+        let t = |ms: f64| Timestamp {
+            nanos: (ms * 1e6) as u64,
+        };
+        let mut tr = Track::default();
+        tr.push(&st(0, 0.0));
+        tr.push(&st(10, 1.0));
+        // Read 20 ms late: its midpoint says 15 ms for the position of 5 ms.
+        tr.push(&SliderStatus {
+            uncertainty_s: 0.0105,
+            ..st(15, 0.5)
+        });
+        tr.push(&st(20, 2.0));
+        assert_eq!(tr.skipped, 1);
+        assert!((tr.at(t(15.0)).unwrap() - 1.5).abs() < 1e-12);
+        // With no narrow answer for 30 ms, a wide one is taken.
+        tr.push(&SliderStatus {
+            uncertainty_s: 0.0105,
+            ..st(25, 2.5)
+        });
+        tr.push(&SliderStatus {
+            uncertainty_s: 0.0105,
+            ..st(55, 5.5)
+        });
+        assert_eq!(tr.skipped, 2);
+        assert!((tr.at(t(50.0)).unwrap() - 5.0).abs() < 1e-12);
+        // A lasting load widens every answer: after 16 wide ones they are the norm again.
+        for k in 0..16 {
+            tr.push(&SliderStatus {
+                uncertainty_s: 0.0105,
+                ..st(60 + k, 6.0 + 0.1 * k as f64)
+            });
+        }
+        let kept = tr.samples.len();
+        tr.push(&SliderStatus {
+            uncertainty_s: 0.0105,
+            ..st(80, 8.0)
+        });
+        assert_eq!(tr.samples.len(), kept + 1);
     }
 }
