@@ -772,6 +772,10 @@ fn shared_last(name: &str) -> PathBuf {
 }
 
 /// The tape girths of the simulator's 250 mm foot (ball, instep, long heel, ankle).
+fn heeled_last(name: &str) -> bool {
+    name.contains("Heeled")
+}
+
 const SIM_GIRTHS: &str = "ball = 260.0\ninstep = 248.0\nlong_heel = 367.0\nankle = 200.5\n";
 
 #[test]
@@ -833,6 +837,23 @@ fn clinic_shared_lasts_meet_every_applicable_rule() {
                 assert!(m + a >= -0.3, "{name}: {r}");
             }
         }
+        // A girth grown past its rule by more than a size's step (5 mm) for the footprint
+        // is said: this last is too narrow for the foot.
+        let too_narrow = rep["rules"].as_array().unwrap().iter().any(|r| {
+            r["quantity"].as_str().unwrap().ends_with("girth")
+                && r["built_up_mm"].as_f64().unwrap_or(0.0) > 5.0
+        });
+        assert_eq!(
+            out.contains("warning: this last is too narrow for the footprint"),
+            too_narrow,
+            "{name}: {out}"
+        );
+        if heeled_last(name) {
+            assert!(
+                too_narrow,
+                "{name}: the court last's forepart is a flat foot's misfit"
+            );
+        }
         let ankle = &rep["rules"][7];
         assert_eq!(ankle["rule"], "IV");
         assert_eq!(ankle["applies"], false, "{ankle}");
@@ -840,7 +861,7 @@ fn clinic_shared_lasts_meet_every_applicable_rule() {
         // last's 114.8 mm heel); on the others it applies and is met.
         let long_heel = &rep["rules"][6];
         assert_eq!(long_heel["rule"], "II-H");
-        let heeled = name.contains("Heeled");
+        let heeled = heeled_last(name);
         assert_eq!(long_heel["applies"], !heeled, "{name}: {long_heel}");
         if heeled {
             let why = long_heel["not_applicable"].as_str().unwrap();

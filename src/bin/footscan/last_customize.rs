@@ -182,7 +182,11 @@ pub fn run(a: CustomizeArgs) -> Result<()> {
         "rule", "quantity", "foot", "change", "target", "last", "error", "bound"
     );
     for n in &c.notes {
-        println!("note: {n}");
+        if n.starts_with("warning: ") {
+            println!("{n}");
+        } else {
+            println!("note: {n}");
+        }
     }
     for r in &c.rules {
         if let Some(why) = &r.not_applicable {

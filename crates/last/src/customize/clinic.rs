@@ -195,6 +195,9 @@ pub struct StockCut {
 /// A stock last's heel height differing from the one asked by more than this (mm) is said in
 /// the notes: the last keeps its own.
 const HEEL_NOTE_MM: f64 = 5.0;
+/// One size's joint girth step in the Paris system: a stock last whose build-up for the
+/// footprint grows a girth by more is a size too narrow for the foot, and is told so.
+pub const GIRTH_SIZE_STEP_MM: f64 = 5.0;
 
 /// The inputs the rules use for a stock last whose own heel height is `own` (measured as a
 /// last maker does, None when it could not be): the heel asked, else the last's own, for
@@ -494,6 +497,20 @@ pub fn customize_stock_with(
                     r.built_up_mm = r.last_mm - b;
                     r.met = m;
                 }
+            }
+            let grown: Vec<String> = rows
+                .iter()
+                .filter(|r| r.quantity.ends_with("girth") && r.built_up_mm > GIRTH_SIZE_STEP_MM)
+                .map(|r| format!("{} {} by {:.1} mm", r.rule, r.quantity, r.built_up_mm))
+                .collect();
+            if !grown.is_empty() {
+                notes.push(format!(
+                    "warning: this last is too narrow for the footprint: its build-up grows {} \
+                     past the rule, more than a size's girth step ({GIRTH_SIZE_STEP_MM} mm, \
+                     Paris): a wider last fits this foot better (`footscan last choose` ranks \
+                     the shelf by the change each needs)",
+                    grown.join(", ")
+                ));
             }
             for u in &ups {
                 notes.push(format!(
