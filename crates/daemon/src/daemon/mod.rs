@@ -329,6 +329,12 @@ impl Daemon {
                 what: "the fleet pusher".into(),
                 source,
             })?;
+        if config.archive_policy.retains() {
+            start_retention(&archive, &config).map_err(|source| DaemonError::Thread {
+                what: "the archive's retention".into(),
+                source,
+            })?;
+        }
         let (events, _) = broadcast::channel(256);
         Ok(Arc::new(Daemon {
             config,
@@ -350,6 +356,40 @@ impl Daemon {
             scan_jobs: scanjob::Running::default(),
             tls: std::sync::OnceLock::new(),
         }))
+    }
+
+    /// Put a scan that just ended into compact form (`[archive] compact`, on by default), on
+    /// a thread of its own at a lower priority: the scan is already listed and served from
+    /// its original files meanwhile, and a reader takes either form (docs/method.md 14h.2).
+    pub(crate) fn compact_new_scan(&self, id: &str) {
+        if !self.config.archive_policy.compact {
+            return;
+        }
+        let dir = self.archive.root().join(id);
+        let id = id.to_string();
+        let spawned = std::thread::Builder::new()
+            .name("compact".into())
+            .spawn(move || {
+                let _ = crate::priority::lower_this_thread(10);
+                let opts = footscan::scandata::compact::CompactOptions::default();
+                match footscan::scandata::compact::compact_dir(&dir, &opts) {
+                    Ok(r) => tracing::info!(
+                        "archive: scan {id} compacted: {:.1} MB -> {:.1} MB in {:.2} s",
+                        r.bytes_before as f64 / 1e6,
+                        r.bytes_after as f64 / 1e6,
+                        r.seconds
+                    ),
+                    Err(e) => tracing::error!(
+                        "archive: scan {id} not compacted (its files stay as they are): {e}"
+                    ),
+                }
+            });
+        if let Err(e) = spawned {
+            tracing::error!(
+                "archive: scan {} not compacted: no thread: {e}",
+                self.archive.root().display()
+            );
+        }
     }
 
     /// A scan's record and directory, refused (409) unless it has measurements.json: what
@@ -450,4 +490,30 @@ impl Daemon {
             let _ = t.join();
         }
     }
+}
+
+/// Run the archive's retention at start and then every `retention_interval_h`, on a thread
+/// at a lower priority (archive/retention.rs).
+fn start_retention(archive: &Arc<Archive>, config: &DaemonConfig) -> std::io::Result<()> {
+    let p = &config.archive_policy;
+    let rules = crate::archive::retention::Rules {
+        keep_raw_days: p.keep_raw_days,
+        keep_days: p.keep_days,
+        max_gb: p.max_gb,
+        fleet: config.fleet.is_some(),
+    };
+    let every = std::time::Duration::from_secs_f64(p.retention_interval_h * 3600.0);
+    let archive = Arc::downgrade(archive);
+    std::thread::Builder::new()
+        .name("retention".into())
+        .spawn(move || {
+            let _ = crate::priority::lower_this_thread(10);
+            loop {
+                let Some(a) = archive.upgrade() else { return };
+                a.retain(&rules, crate::archive::retention::now_secs());
+                drop(a);
+                std::thread::sleep(every);
+            }
+        })
+        .map(|_| ())
 }
