@@ -356,6 +356,10 @@ impl Archive {
                 let rule = format!("max_gb = {gb}");
                 let p = protection(id, dir);
                 if !p.is_empty() {
+                    // Said once a run: a scan kept against keep_days is not listed again.
+                    if run.kept.iter().any(|k| k.id == *id && k.what == "scan") {
+                        continue;
+                    }
                     run.kept.push(Kept {
                         id: id.clone(),
                         what: "scan",

@@ -386,6 +386,23 @@ pub fn compact_dir(dir: &Path, opts: &CompactOptions) -> std::io::Result<Compact
         files: BTreeMap::new(),
     });
     let mut man = old.clone();
+    // What an earlier compaction killed mid-write left: its own temporary files only (the
+    // stored forms' and the manifest's, by write_atomic's `.NAME.tmpPID`, and rebuilds'), never
+    // another writer's.
+    if !opts.dry_run {
+        let ours: Vec<String> = CANDIDATES
+            .iter()
+            .flat_map(|(n, c)| [stored_name(n, *c), stored_name(n, Codec::Gzip)])
+            .chain([MANIFEST.to_string()])
+            .map(|n| format!(".{n}.tmp"))
+            .collect();
+        for e in std::fs::read_dir(dir)?.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            if name.starts_with(".rebuild-") || ours.iter().any(|o| name.starts_with(o.as_str())) {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
+    }
     // The originals present, read once.
     let mut originals: Vec<(&str, Codec, Vec<u8>, String)> = Vec::new();
     for (name, codec) in CANDIDATES {
@@ -489,6 +506,7 @@ pub fn compact_dir(dir: &Path, opts: &CompactOptions) -> std::io::Result<Compact
     }
     if opts.dry_run {
         rep.bytes_after = rep.bytes_before + stored_bytes - moved_bytes;
+        rep.changed = man != old;
         rep.seconds = t0.elapsed().as_secs_f64();
         return Ok(rep);
     }
