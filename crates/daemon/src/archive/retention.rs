@@ -169,6 +169,7 @@ impl Archive {
     /// stored first. Returns whether anything went.
     fn drop_raw(&self, id: &str, dir: &Path) -> std::io::Result<bool> {
         let mut man = Manifest::load(dir)?;
+        let mut any = false;
         if let Some(m) = man.as_mut() {
             let mut changed = false;
             for (name, e) in m.files.iter_mut() {
@@ -199,11 +200,11 @@ impl Archive {
                 let json = serde_json::to_vec_pretty(&m).expect("manifest serialises");
                 footscan_util::write_atomic(&dir.join(compact::MANIFEST), &json)?;
             }
+            any |= m.files.len() != before;
             for s in stored {
                 let _ = std::fs::remove_file(dir.join(s));
             }
         }
-        let mut any = false;
         for name in RAW {
             for f in [
                 name.to_string(),
@@ -289,12 +290,14 @@ impl Archive {
                 let rule = format!("keep_days = {k}");
                 let p = protection(id, dir);
                 if !p.is_empty() {
+                    // Kept whole: its raw data too (the same protection), said once.
                     run.kept.push(Kept {
                         id: id.clone(),
                         what: "scan",
                         rule,
                         protected_by: p,
                     });
+                    continue;
                 } else {
                     match self.drop_scan(id) {
                         Ok(()) => {

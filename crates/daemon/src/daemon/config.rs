@@ -96,10 +96,10 @@ impl ArchivePolicy {
         let max_gb = match a.max_gb {
             None => None,
             Some(0.0) => None,
-            Some(g) if g.is_finite() && (0.01..=1.0e6).contains(&g) => Some(g),
+            Some(g) if g.is_finite() && (0.001..=1.0e6).contains(&g) => Some(g),
             Some(g) => {
                 return Err(format!(
-                    "[archive] max_gb = {g}: must be 0 (no limit) or 0.01 to 1000000 GB"
+                    "[archive] max_gb = {g}: must be 0 (no limit) or 0.001 to 1000000 GB"
                 ))
             }
         };
