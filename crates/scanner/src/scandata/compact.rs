@@ -543,7 +543,10 @@ pub fn listing(dir: &Path) -> std::io::Result<Vec<(String, u64, Option<PathBuf>)
     for e in std::fs::read_dir(dir)? {
         let e = e?;
         let name = e.file_name().to_string_lossy().into_owned();
-        if !e.file_type()?.is_file() || (man.is_some() && is_compact_file(&name)) {
+        // The compact form's own files are never listed, with a manifest or without (a
+        // stored form written by a compaction killed before its manifest); nor are hidden
+        // (temporary) files.
+        if !e.file_type()?.is_file() || is_compact_file(&name) || name.starts_with('.') {
             continue;
         }
         out.insert(name, (e.metadata()?.len(), Some(e.path())));
