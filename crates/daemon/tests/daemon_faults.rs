@@ -148,8 +148,7 @@ fn client_disconnecting_mid_download_harms_nothing() {
         d.wait_scan_end(Duration::from_secs(120))["state"],
         "complete"
     );
-    let path = d.archive.join(&id).join("model.stl");
-    let want = std::fs::read(&path).unwrap();
+    let want = daemon_support::archived_file(&d.archive, &id, "model.stl");
     assert!(
         want.len() > 1 << 20,
         "a large artifact: {} bytes",
