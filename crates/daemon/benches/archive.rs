@@ -188,7 +188,11 @@ fn compact_part() {
             "status": "complete", "reason": null, "frames": 642, "points": 253220,
             "started": "2026-11-28T12:00:00Z", "finished": "2026-11-28T12:00:20Z",
         });
-        std::fs::write(dir.join("record.json"), serde_json::to_vec_pretty(&rec).unwrap()).unwrap();
+        std::fs::write(
+            dir.join("record.json"),
+            serde_json::to_vec_pretty(&rec).unwrap(),
+        )
+        .unwrap();
         let (b0, d0) = sizes(&dir);
         let t = Instant::now();
         let r = compact::compact_dir(&dir, &Default::default()).unwrap();
@@ -224,7 +228,9 @@ fn compact_part() {
     let rec = a
         .get(&footscan_daemon::archive::ScanId::parse(&last_id).unwrap())
         .unwrap();
-    let man = compact::Manifest::load(&root.join(&last_id)).unwrap().unwrap();
+    let man = compact::Manifest::load(&root.join(&last_id))
+        .unwrap()
+        .unwrap();
     for (name, e) in &man.files {
         let t = Instant::now();
         let p = a.artifact_path(&rec, name).unwrap();

@@ -1,7 +1,8 @@
 //! Compact scans (docs/method.md 14h.2): a real simulated scan compacted by
 //! `footscand archive compact` serves every file it served before byte for byte, measures
 //! the same, and a migration of 100 scans killed half-way (twice) and run again loses
-//! nothing. One real (short) scan, reused for everything.
+//! nothing. Two real (short) scans: one compacted by the command and reused for the rest, one
+//! compacted by the daemon when it ends.
 
 mod daemon_support;
 
@@ -228,6 +229,39 @@ fn compacted_scans_serve_the_same_bytes_and_migration_survives_kills() {
         .unwrap();
     assert_eq!(r.status(), 206);
     assert_eq!(r.bytes().unwrap().as_ref(), &before["model.stl"][100..200]);
+    drop(d);
+
+    // With the default `[archive] compact = true`, the daemon compacts a scan when it ends,
+    // and serves it as it would the original files.
+    let d = Footscand::start(tmp.path(), Opts::default());
+    let id2 = d.start_scan("p-compact-2");
+    let end = d.wait_scan_end(Duration::from_secs(240));
+    assert_eq!(end["state"], "complete", "{end}");
+    let dir2 = archive.join(&id2);
+    let t = std::time::Instant::now();
+    while !dir2.join(MANIFEST).exists() || dir2.join("grid.bin").exists() {
+        assert!(
+            t.elapsed() < Duration::from_secs(120),
+            "scan {id2} not compacted"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let got = served(&d, &id2);
+    for f in [
+        "grid.bin",
+        "points.ply",
+        "model.stl",
+        "model.glb",
+        "model.step",
+    ] {
+        assert!(got.contains_key(f), "{f} served: {:?}", got.keys());
+    }
+    for (name, b) in &got {
+        assert!(
+            ScanDir::new(&dir2).read_file(name).unwrap() == *b,
+            "{name} of the scan compacted at its end"
+        );
+    }
     drop(d);
 
     // Migration of 100 scans (98 generated, 2 copies of the real one, old form), killed
