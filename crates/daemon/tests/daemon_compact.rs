@@ -320,17 +320,30 @@ fn compacted_scans_serve_the_same_bytes_and_migration_survives_kills() {
     std::thread::sleep(Duration::from_millis(200 + (nanos % 600) as u64));
     child.kill().unwrap();
     child.wait().unwrap();
+    eprintln!(
+        "migration: {n1} scans compact after the abort, {} after SIGKILL",
+        compacted(&big)
+    );
     assert_eq!(
         differ(&read_all(&big), &all),
         Vec::<String>::new(),
         "after SIGKILL"
     );
 
+    let t = std::time::Instant::now();
     let out = compact_cmd(&big).output().unwrap();
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
+    );
+    eprintln!(
+        "migration: the rest in {:.1} s: {}",
+        t.elapsed().as_secs_f64(),
+        String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .last()
+            .unwrap_or("")
     );
     assert_eq!(compacted(&big), 100);
     assert_eq!(
