@@ -195,6 +195,7 @@ fn retention_drops_old_scans_keeps_protected_ones_and_honours_max_gb() {
     let r = &st["archive"]["retention"];
     assert_eq!(r["rules"]["keep_days"], 365.0);
     assert_eq!(r["kept"].as_array().unwrap().len(), 3, "{r}");
+    assert_eq!(r["kept_total"], 3, "{r}");
     assert!(!r["over_max_gb"].as_bool().unwrap(), "{r}");
     assert!(r["dropped"].as_array().unwrap().is_empty(), "{r}");
     assert!(d

@@ -22,6 +22,10 @@ use serde::Serialize;
 use std::collections::{BTreeMap, HashSet};
 use std::path::Path;
 
+/// Protected scans kept listed in a run's report (and logged one by one); the rest are
+/// counted. A clinic keeping every visit's scans would otherwise log thousands every hour.
+pub const KEPT_LISTED: usize = 100;
+
 /// The rules of one run.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Rules {
@@ -66,8 +70,9 @@ pub struct RetentionRun {
     pub bytes_before: u64,
     pub bytes_after: u64,
     pub dropped: Vec<Dropped>,
-    /// Protected scans a rule would have dropped.
+    /// Protected scans a rule would have dropped: the first [`KEPT_LISTED`], and how many.
     pub kept: Vec<Kept>,
+    pub kept_total: usize,
     /// Over max_gb after the run (only protected scans were left to drop).
     pub over_max_gb: bool,
     pub errors: Vec<String>,
@@ -403,13 +408,22 @@ impl Archive {
                 d.bytes as f64 / 1e6
             );
         }
-        for k in &run.kept {
+        run.kept_total = run.kept.len();
+        run.kept.truncate(KEPT_LISTED);
+        for k in run.kept.iter().take(20) {
             tracing::warn!(
                 "archive retention: scan {} {} kept against {}: {}",
                 k.id,
                 k.what,
                 k.rule,
                 k.protected_by.join(", ")
+            );
+        }
+        if run.kept_total > 20 {
+            tracing::warn!(
+                "archive retention: {} more protected scans kept against a rule (the first \
+                 {KEPT_LISTED} are listed on /api/status)",
+                run.kept_total - 20
             );
         }
         if run.over_max_gb {

@@ -245,9 +245,9 @@ function renderRetention(r) {
     `${fmtTime(r.at)}: ${fmtInt(whole)} scans and the raw data of ${fmtInt(raw)} dropped (${mb(freed)}); ` +
       `${fmtInt(r.scans - whole)} scans, ${mb(r.bytes_after)}`,
   );
-  if (r.kept.length) {
+  if (r.kept_total) {
     const list = r.kept.slice(0, 20).map((k) => `${k.id} (${k.protected_by.join(', ')}; due by ${k.rule})`);
-    dd.append(el('br'), el('span', { title: list.join('\n') }, `${fmtInt(r.kept.length)} protected scans kept against a rule`));
+    dd.append(el('br'), el('span', { title: list.join('\n') }, `${fmtInt(r.kept_total)} protected scans kept against a rule`));
   }
   for (const e of (r.errors || []).slice(0, 3)) dd.append(el('br'), `error: ${e}`);
 }
