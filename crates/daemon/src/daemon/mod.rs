@@ -359,18 +359,40 @@ impl Daemon {
     }
 
     /// Put a scan that just ended into compact form (`[archive] compact`, on by default), on
-    /// a thread of its own at a lower priority: the scan is already listed and served from
-    /// its original files meanwhile, and a reader takes either form (docs/method.md 14h.2).
-    pub(crate) fn compact_new_scan(&self, id: &str) {
+    /// a thread of its own at a lower priority, once no job runs (the scan's own job ends
+    /// first; a scan started meanwhile is not competed with): the scan is already listed and
+    /// served from its original files until then, and a reader takes either form
+    /// (docs/method.md 14h.2).
+    pub(crate) fn compact_new_scan(self: &Arc<Self>, id: &str) {
         if !self.config.archive_policy.compact {
             return;
         }
         let dir = self.archive.root().join(id);
         let id = id.to_string();
+        let me = Arc::downgrade(self);
         let spawned = std::thread::Builder::new()
             .name("compact".into())
             .spawn(move || {
                 let _ = crate::priority::lower_this_thread(10);
+                let t = Instant::now();
+                // Wait for the scanner to be idle (at most 30 minutes; a daemon shutting down
+                // leaves the scan as it is: the reader takes either form, a later run of
+                // `footscand archive compact` finishes it).
+                loop {
+                    let Some(d) = me.upgrade() else { return };
+                    let busy = {
+                        let st = d.state.lock().unwrap();
+                        if st.shutting_down {
+                            return;
+                        }
+                        st.job.is_some()
+                    };
+                    if !busy || t.elapsed() > std::time::Duration::from_secs(1800) {
+                        break;
+                    }
+                    drop(d);
+                    std::thread::sleep(std::time::Duration::from_millis(250));
+                }
                 let opts = footscan::scandata::compact::CompactOptions::default();
                 match footscan::scandata::compact::compact_dir(&dir, &opts) {
                     Ok(r) => tracing::info!(
@@ -386,7 +408,7 @@ impl Daemon {
             });
         if let Err(e) = spawned {
             tracing::error!(
-                "archive: scan {} not compacted: no thread: {e}",
+                "archive: a scan in {} not compacted: no thread: {e}",
                 self.archive.root().display()
             );
         }
