@@ -13,6 +13,9 @@
 //! real scan's files would only cost disk). ARCHIVE_DIR puts the archive elsewhere than the
 //! system's temporary directory (the disk the numbers are for: tmpfs flatters them); it is
 //! deleted at the end.
+//!
+//! `ARCHIVE_PART=compact ARCHIVE_SCAN_DIR=DIR` measures the compact form on one scan instead
+//! ([`compact_part`]).
 
 #[path = "../tests/daemon_support/mod.rs"]
 mod daemon_support;
@@ -116,9 +119,144 @@ fn timed(d: &Footscand, n: usize, path: impl Fn(usize) -> String) -> (f64, f64) 
     (percentile(&mut ms.clone(), 50.0), percentile(&mut ms, 99.0))
 }
 
+/// `ARCHIVE_PART=compact`: one scan directory (ARCHIVE_SCAN_DIR, a default simulated scan)
+/// before and after compaction (docs/method.md 14h.2): sizes, the codecs' figures on its
+/// grid.bin, the compaction's time, and the time to serve each compacted file (decoded or
+/// rebuilt into the cache, then from the cache).
+fn compact_part() {
+    use footscan::scandata::compact;
+    let src = std::path::PathBuf::from(
+        std::env::var_os("ARCHIVE_SCAN_DIR")
+            .expect("ARCHIVE_SCAN_DIR: a scan directory (e.g. target/tmp/shared-sim-scan)"),
+    );
+    let runs: usize = env("ARCHIVE_RUNS", 3);
+    let tmp = match std::env::var_os("ARCHIVE_DIR") {
+        Some(d) => tempfile::tempdir_in(d).unwrap(),
+        None => tempfile::tempdir().unwrap(),
+    };
+    let sizes = |dir: &Path| -> (u64, u64) {
+        use std::os::unix::fs::MetadataExt;
+        std::fs::read_dir(dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.metadata().unwrap())
+            .filter(|m| m.is_file())
+            .fold((0, 0), |(b, d), m| (b + m.len(), d + m.blocks() * 512))
+    };
+    let mb = |b: u64| b as f64 / 1e6;
+    println!("compact: scan {}", src.display());
+    for e in std::fs::read_dir(&src).unwrap().flatten() {
+        println!(
+            "  {:<20} {:>10} bytes",
+            e.file_name().to_string_lossy(),
+            e.metadata().unwrap().len()
+        );
+    }
+    // The codecs on grid.bin: plain and shuffled, gzip levels 1, 6, 9.
+    let grid = std::fs::read(src.join("grid.bin")).unwrap();
+    let shuffled = compact::shuffle_grid(&grid).expect("a whole grid.bin");
+    for (what, bytes) in [("plain", &grid), ("shuffled", &shuffled)] {
+        for level in [1, 6, 9] {
+            let t = Instant::now();
+            let z = compact::gzip(bytes, level);
+            let ct = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let back = compact::gunzip(&z, bytes.len() as u64).unwrap();
+            let dt = t.elapsed().as_secs_f64();
+            assert!(back == *bytes);
+            println!(
+                "  grid.bin {what:<8} gzip -{level}: {:.2} MB ({:.1} %), compress {:.0} ms, decompress {:.0} ms",
+                mb(z.len() as u64),
+                100.0 * z.len() as f64 / grid.len() as f64,
+                ct * 1e3,
+                dt * 1e3
+            );
+        }
+    }
+    let root = tmp.path().join("archive");
+    let mut times = Vec::new();
+    let mut last_id = String::new();
+    for k in 0..runs {
+        let id = format!("20261128T1200{k:02}Z-00{k:02}");
+        let dir = root.join(&id);
+        std::fs::create_dir_all(&dir).unwrap();
+        for e in std::fs::read_dir(&src).unwrap().flatten() {
+            std::fs::copy(e.path(), dir.join(e.file_name())).unwrap();
+        }
+        let rec = serde_json::json!({
+            "id": id, "subject": "P-bench", "side": "right", "notes": "",
+            "status": "complete", "reason": null, "frames": 642, "points": 253220,
+            "started": "2026-11-28T12:00:00Z", "finished": "2026-11-28T12:00:20Z",
+        });
+        std::fs::write(
+            dir.join("record.json"),
+            serde_json::to_vec_pretty(&rec).unwrap(),
+        )
+        .unwrap();
+        let (b0, d0) = sizes(&dir);
+        let t = Instant::now();
+        let r = compact::compact_dir(&dir, &Default::default()).unwrap();
+        let s = t.elapsed().as_secs_f64();
+        times.push(s);
+        let (b1, d1) = sizes(&dir);
+        if k == 0 {
+            println!(
+                "  scan: {:.1} MB in files ({:.1} MB on disk) -> {:.1} MB ({:.1} MB on disk)",
+                mb(b0),
+                mb(d0),
+                mb(b1),
+                mb(d1)
+            );
+            for (name, codec) in &r.files {
+                println!("    {name:<14} {codec:?}");
+            }
+        }
+        last_id = id;
+    }
+    println!(
+        "  compaction: {} runs, {:.2} s median ({})",
+        runs,
+        percentile(&mut times.clone(), 50.0),
+        times
+            .iter()
+            .map(|t| format!("{t:.2}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    // Serving: the daemon's cache path, cold (decode or rebuild) then warm.
+    let a = footscan_daemon::archive::Archive::open(&root).unwrap();
+    let rec = a
+        .get(&footscan_daemon::archive::ScanId::parse(&last_id).unwrap())
+        .unwrap();
+    let man = compact::Manifest::load(&root.join(&last_id))
+        .unwrap()
+        .unwrap();
+    for (name, e) in &man.files {
+        let t = Instant::now();
+        let p = a.artifact_path(&rec, name).unwrap();
+        let cold = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let p2 = a.artifact_path(&rec, name).unwrap();
+        let warm = t.elapsed().as_secs_f64();
+        assert_eq!(p, p2);
+        let b = std::fs::read(&p).unwrap();
+        assert_eq!(compact::sha256_hex(&b), e.sha256, "{name}");
+        println!(
+            "  serve {name:<14} ({:?}): first request {:.0} ms, then {:.1} ms",
+            e.codec,
+            cold * 1e3,
+            warm * 1e3
+        );
+    }
+}
+
 fn main() {
     if !std::env::args().any(|a| a == "--bench") {
         println!("archive: a benchmark; run it with `cargo bench -p footscand --bench archive`");
+        return;
+    }
+    if std::env::var("ARCHIVE_PART").as_deref() == Ok("compact") {
+        compact_part();
         return;
     }
     let scans: usize = env("ARCHIVE_SCANS", 50_000);

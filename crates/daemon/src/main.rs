@@ -48,6 +48,17 @@ enum ArchiveCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Put every scan into compact form in place (docs/method.md 14h.2): grid.bin and the
+    /// large files compressed or rebuilt on request, every file the API serves still served
+    /// byte for byte. Scan by scan and resumable: killed at any point and run again, it loses
+    /// nothing. Takes the archive lock, so it refuses to run beside the daemon.
+    Compact {
+        /// The archive directory (default: `archive` of [daemon] in --config).
+        archive: Option<PathBuf>,
+        /// Say what would be saved, change nothing.
+        #[arg(long)]
+        dry_run: bool,
+    },
 }
 
 /// Cap glibc's malloc arenas. Without a cap, every thread that ever allocated (the scan's
@@ -110,8 +121,8 @@ fn main() {
     }
 }
 
-/// `footscand archive du`: the archive's usage, as a table or JSON.
-fn archive_du(args: &Args, archive: Option<&PathBuf>, json: bool) -> Result<()> {
+/// The archive directory given, else the config's.
+fn archive_root(args: &Args, archive: Option<&PathBuf>) -> Result<PathBuf> {
     let root = match archive {
         Some(a) => a.clone(),
         None => {
@@ -126,6 +137,12 @@ fn archive_du(args: &Args, archive: Option<&PathBuf>, json: bool) -> Result<()> 
             root.display()
         );
     }
+    Ok(root)
+}
+
+/// `footscand archive du`: the archive's usage, as a table or JSON.
+fn archive_du(args: &Args, archive: Option<&PathBuf>, json: bool) -> Result<()> {
+    let root = archive_root(args, archive)?;
     let u = footscan_daemon::archive::usage::usage(&root)?;
     if json {
         println!("{}", serde_json::to_string_pretty(&u)?);
@@ -135,12 +152,68 @@ fn archive_du(args: &Args, archive: Option<&PathBuf>, json: bool) -> Result<()> 
     Ok(())
 }
 
+/// `footscand archive compact`: every scan into compact form, one line a scan.
+fn archive_compact(args: &Args, archive: Option<&PathBuf>, dry_run: bool) -> Result<()> {
+    use footscan::scandata::compact::CompactOptions;
+    let root = archive_root(args, archive)?;
+    let opts = CompactOptions {
+        dry_run,
+        ..Default::default()
+    };
+    // The kill test's hook (crates/daemon/tests/daemon_compact.rs): abort in that scan.
+    let abort_at = std::env::var("FOOTSCAND_TEST_ABORT_AT_SCAN")
+        .ok()
+        .and_then(|v| v.parse().ok());
+    let run = footscan_daemon::archive::compact::compact_archive(
+        &root,
+        &opts,
+        abort_at,
+        |id, r| match r {
+            Ok(rep) if rep.changed || dry_run => println!(
+                "{id}: {:.1} MB -> {:.1} MB in {:.2} s",
+                rep.bytes_before as f64 / 1e6,
+                rep.bytes_after as f64 / 1e6,
+                rep.seconds
+            ),
+            Ok(_) => {}
+            Err(e) => eprintln!("{id}: not compacted: {e}"),
+        },
+    )
+    .map_err(|e| match e {
+        footscan_daemon::archive::ArchiveError::Locked { .. } => anyhow::anyhow!(
+            "{e}: stop the daemon (systemctl stop footscand) before compacting; new scans are \
+             compacted by the daemon itself when [archive] compact is on"
+        ),
+        e => e.into(),
+    })?;
+    println!(
+        "{} scans, {} {}compacted, {} failed; {:.1} MB -> {:.1} MB in {:.1} s",
+        run.scans,
+        run.changed,
+        if dry_run { "would be " } else { "" },
+        run.failed.len(),
+        run.bytes_before as f64 / 1e6,
+        run.bytes_after as f64 / 1e6,
+        run.seconds
+    );
+    if !run.failed.is_empty() {
+        anyhow::bail!(
+            "{} scans could not be compacted (listed above)",
+            run.failed.len()
+        );
+    }
+    Ok(())
+}
+
 fn run(args: Args) -> Result<()> {
-    if let Some(Command::Archive {
-        what: ArchiveCommand::Du { archive, json },
-    }) = &args.command
-    {
-        return archive_du(&args, archive.as_ref(), *json);
+    match &args.command {
+        Some(Command::Archive {
+            what: ArchiveCommand::Du { archive, json },
+        }) => return archive_du(&args, archive.as_ref(), *json),
+        Some(Command::Archive {
+            what: ArchiveCommand::Compact { archive, dry_run },
+        }) => return archive_compact(&args, archive.as_ref(), *dry_run),
+        None => {}
     }
     let path = footscan::startup::find_config(&args.config)?;
     tracing::info!("config {}", path.display());

@@ -89,7 +89,7 @@ fn scan_over_http_end_to_end() {
         assert!(cd.starts_with("attachment;") && cd.contains(name), "{cd}");
         let bytes = r.bytes().unwrap();
         assert_eq!(bytes.len() as u64, a["bytes"].as_u64().unwrap(), "{name}");
-        let on_disk = std::fs::read(d.archive.join(&id).join(name)).unwrap();
+        let on_disk = daemon_support::archived_file(&d.archive, &id, name);
         assert!(
             bytes[..] == on_disk[..],
             "{name} differs from the archived file"

@@ -87,7 +87,7 @@ fn make_scans(root: &Path, n: usize, kib: usize, tag: &str) -> Vec<String> {
     ids
 }
 
-/// Every file under the archive's scan directories with its sha256 (the index and lock
+/// Every file of the archive's scan directories with its sha256 (the index and lock
 /// excluded: they are the daemon's to change).
 fn manifest(root: &Path) -> BTreeMap<String, String> {
     let mut m = BTreeMap::new();
@@ -96,12 +96,12 @@ fn manifest(root: &Path) -> BTreeMap<String, String> {
         if !e.path().is_dir() || name.starts_with('.') || name == "calibrations" {
             continue;
         }
-        for f in std::fs::read_dir(e.path()).unwrap().flatten() {
-            let b = std::fs::read(f.path()).unwrap();
-            m.insert(
-                format!("{name}/{}", f.file_name().to_string_lossy()),
-                footscan_fleet::sha256_hex(&b),
-            );
+        // The scan's files as served: a scan the daemon compacted when it ended lists and
+        // reads its original files (docs/method.md 14h.2).
+        let dir = footscan::scandata::ScanDir::new(e.path());
+        for (f, _, _) in footscan::scandata::compact::listing(&e.path()).unwrap() {
+            let b = dir.read_file(&f).unwrap();
+            m.insert(format!("{name}/{f}"), footscan_fleet::sha256_hex(&b));
         }
     }
     m

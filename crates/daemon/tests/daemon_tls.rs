@@ -174,7 +174,7 @@ fn https_self_signed_and_given_certificates_with_curl() {
     assert_eq!(body, "200 model/gltf-binary");
     assert_eq!(
         std::fs::read(&glb).unwrap(),
-        std::fs::read(d.archive.join(&id).join("model.glb")).unwrap()
+        daemon_support::archived_file(&d.archive, &id, "model.glb")
     );
     let stream = events.join().unwrap();
     assert!(

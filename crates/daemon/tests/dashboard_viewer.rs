@@ -138,7 +138,7 @@ fn the_foot_in_3d_from_the_top_and_the_side() {
         );
         assert_eq!(*plan, planned, "the page's plan is the daemon's");
     }
-    let glb = std::fs::read(d.archive.join(&id).join("model.glb")).expect("the scan's model.glb");
+    let glb = daemon_support::archived_file(&d.archive, &id, "model.glb");
     let ext = glb_extent(&glb);
     println!(
         "model.glb: {} bytes, extent {:.1} x {:.1} x {:.1} mm",
@@ -246,7 +246,7 @@ fn the_default_scan_in_3d_timed() {
     let id = d.start_scan("default");
     let end = d.wait_scan_end(Duration::from_secs(600));
     println!("scan: {} frames, {}", end["frames"], end["state"]);
-    let glb = std::fs::read(d.archive.join(&id).join("model.glb")).expect("model.glb");
+    let glb = daemon_support::archived_file(&d.archive, &id, "model.glb");
     println!("default scan model.glb: {} bytes", glb.len());
     let mut b = Browser::launch_with(&tmp.path().join("profile"), 1280, 1800, &WEBGL);
     for run in 0..3 {

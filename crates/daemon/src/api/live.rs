@@ -96,7 +96,11 @@ pub async fn status(State(st): State<AppState>) -> Json<Value> {
             .check_status(cfg.calibration.verify_max_age_h),
         "scan": scan,
         "calibrating": d.calibrating(),
-        "archive": { "notices": d.archive.notices() },
+        "archive": {
+            "notices": d.archive.notices(),
+            "compact": d.config.archive_policy.compact,
+            "retention": d.archive.last_retention(),
+        },
         "fleet": d.fleet_status(),
     }))
 }

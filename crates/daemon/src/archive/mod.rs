@@ -11,12 +11,14 @@
 //! record is written, so a scan that filled the disk can still be closed with its reason.
 
 pub mod calibrations;
+pub mod compact;
 mod history;
 mod id;
 mod index;
 mod outbox;
 mod query;
 mod record;
+pub mod retention;
 pub mod usage;
 mod visits;
 
@@ -138,6 +140,10 @@ pub struct Archive {
     /// in line with its files (archive/visits.rs): a file added, replaced or removed since
     /// changes it, and the next list syncs first.
     visits_seen: Mutex<Option<std::time::SystemTime>>,
+    /// Held while a compacted scan's file is decoded into the cache (archive/compact.rs).
+    cache_lock: Mutex<()>,
+    /// The last retention run's report (archive/retention.rs), for the status.
+    retention: Mutex<Option<retention::RetentionRun>>,
     /// The archive lock, released when the archive is dropped (or the process dies).
     _lock: ArchiveLock,
 }
@@ -223,6 +229,8 @@ impl Archive {
             notices: Mutex::new(notices),
             last_progress: Mutex::default(),
             visits_seen: Mutex::default(),
+            cache_lock: Mutex::default(),
+            retention: Mutex::default(),
             _lock: lock,
         };
         archive.recover()?;
@@ -736,7 +744,8 @@ impl Archive {
         (real.parent() == Some(self.real_root.as_path())).then_some(dir)
     }
 
-    /// The downloadable files of a scan, by name.
+    /// The downloadable files of a scan, by name. A compacted scan lists its original files
+    /// with their original lengths (its manifest and stored forms are not listed).
     pub fn artifacts(&self, record: &Record) -> Result<Vec<Artifact>, ArchiveError> {
         let dir = self.checked_dir(record).ok_or_else(|| ArchiveError::Io {
             path: self.dir(record),
@@ -744,31 +753,33 @@ impl Archive {
                 "missing, or not a directory inside the archive (symlinks are refused)",
             ),
         })?;
-        let mut out = Vec::new();
-        for entry in std::fs::read_dir(&dir).map_err(io_at(&dir))? {
-            let entry = entry.map_err(io_at(&dir))?;
-            let name = entry.file_name().to_string_lossy().into_owned();
-            let meta = entry.metadata().map_err(io_at(&dir))?;
-            if entry.file_type().is_ok_and(|t| t.is_file()) && valid_file_name(&name) {
-                out.push(Artifact {
-                    content_type: content_type(&name),
-                    name,
-                    bytes: meta.len(),
-                });
-            }
-        }
+        let mut out: Vec<Artifact> = footscan::scandata::compact::listing(&dir)
+            .map_err(io_at(&dir))?
+            .into_iter()
+            .filter(|(name, _, _)| valid_file_name(name))
+            .map(|(name, bytes, _)| Artifact {
+                content_type: content_type(&name),
+                name,
+                bytes,
+            })
+            .collect();
         out.sort_by(|a, b| a.name.cmp(&b.name));
         Ok(out)
     }
 
     /// The path of artifact `name` of a scan, if it exists as a regular file (not a
-    /// symlink) in the scan's checked directory (name validated here too).
+    /// symlink) in the scan's checked directory (name validated here too); for a file a
+    /// compacted scan keeps in compact form, the original decoded into the archive's cache
+    /// (archive/compact.rs), byte for byte the file it was.
     pub fn artifact_path(&self, record: &Record, name: &str) -> Option<PathBuf> {
         if !valid_file_name(name) {
             return None;
         }
         let p = self.checked_dir(record)?.join(name);
-        p.symlink_metadata().ok().filter(|m| m.is_file()).map(|_| p)
+        match p.symlink_metadata() {
+            Ok(m) => m.is_file().then_some(p),
+            Err(_) => self.cached_original(record, name),
+        }
     }
 
     /// The bytes of a scan's JSON artifact `name` (summary, measurements, history), read

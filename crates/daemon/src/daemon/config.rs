@@ -20,6 +20,105 @@ struct File {
     clinic: Option<ClinicSection>,
     /// Optional: the clinic's customized lasts (the stock collection, the comfort rules).
     lasts: Option<LastsSection>,
+    /// Optional: compact scans and retention (docs/method.md 14h.2).
+    archive: Option<ArchiveSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ArchiveSection {
+    compact: Option<bool>,
+    keep_raw_days: Option<f64>,
+    keep_days: Option<f64>,
+    max_gb: Option<f64>,
+    retention_interval_h: Option<f64>,
+}
+
+/// `[archive]`: how scans are kept (docs/method.md 14h.2).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ArchivePolicy {
+    /// New scans are put into compact form when they end (default on).
+    pub compact: bool,
+    /// After this many days a scan's raw data goes (grid.bin, points.ply, model.stl,
+    /// truth.json; the record, measurements, pictures, model.step and model.glb stay).
+    /// None: kept.
+    pub keep_raw_days: Option<f64>,
+    /// After this many days a whole scan goes. None: kept.
+    pub keep_days: Option<f64>,
+    /// The archive's scans are kept under this many GB (10^9 bytes on disk), oldest
+    /// dropped first. None: no limit.
+    pub max_gb: Option<f64>,
+    /// Hours between two retention runs (the first at start).
+    pub retention_interval_h: f64,
+}
+
+impl Default for ArchivePolicy {
+    fn default() -> Self {
+        ArchivePolicy {
+            compact: true,
+            keep_raw_days: None,
+            keep_days: None,
+            max_gb: None,
+            retention_interval_h: 1.0,
+        }
+    }
+}
+
+impl ArchivePolicy {
+    /// Whether any retention rule is set.
+    pub fn retains(&self) -> bool {
+        self.keep_raw_days.is_some() || self.keep_days.is_some() || self.max_gb.is_some()
+    }
+
+    fn parse(a: Option<ArchiveSection>) -> Result<ArchivePolicy, String> {
+        let Some(a) = a else {
+            return Ok(ArchivePolicy::default());
+        };
+        // 0 (or absent) means "no limit"; else within the range, named with the key.
+        let days = |key: &str, v: Option<f64>| match v {
+            None => Ok(None),
+            Some(0.0) => Ok(None),
+            Some(d) if d.is_finite() && (1.0..=36500.0).contains(&d) => Ok(Some(d)),
+            Some(d) => Err(format!(
+                "[archive] {key} = {d}: must be 0 (keep for ever) or 1 to 36500 days"
+            )),
+        };
+        let keep_raw_days = days("keep_raw_days", a.keep_raw_days)?;
+        let keep_days = days("keep_days", a.keep_days)?;
+        if let (Some(r), Some(k)) = (keep_raw_days, keep_days) {
+            if r > k {
+                return Err(format!(
+                    "[archive] keep_raw_days = {r} is more than keep_days = {k}: a scan's raw \
+                     data cannot outlive the scan"
+                ));
+            }
+        }
+        let max_gb = match a.max_gb {
+            None => None,
+            Some(0.0) => None,
+            Some(g) if g.is_finite() && (0.001..=1.0e6).contains(&g) => Some(g),
+            Some(g) => {
+                return Err(format!(
+                    "[archive] max_gb = {g}: must be 0 (no limit) or 0.001 to 1000000 GB"
+                ))
+            }
+        };
+        let retention_interval_h = match a.retention_interval_h.unwrap_or(1.0) {
+            h if h.is_finite() && (0.001..=168.0).contains(&h) => h,
+            h => {
+                return Err(format!(
+                    "[archive] retention_interval_h = {h}: must be 0.001 to 168 hours"
+                ))
+            }
+        };
+        Ok(ArchivePolicy {
+            compact: a.compact.unwrap_or(true),
+            keep_raw_days,
+            keep_days,
+            max_gb,
+            retention_interval_h,
+        })
+    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -101,6 +200,8 @@ pub struct DaemonConfig {
     pub tls: Option<crate::api::tls::TlsSetting>,
     /// `[daemon] allow_plain_http`: plain HTTP with a token on the network is intended.
     pub allow_plain_http: bool,
+    /// `[archive]`: compact scans, retention.
+    pub archive_policy: ArchivePolicy,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -191,7 +292,9 @@ impl DaemonConfig {
             fleet: fleet_section,
             clinic,
             lasts,
+            archive,
         } = f;
+        let archive_policy = ArchivePolicy::parse(archive).map_err(&invalid)?;
         let clinic_zone = match clinic.and_then(|c| c.time_zone) {
             Some(name) => crate::archive::ClinicZone::named(&name)
                 .map_err(|e| invalid(format!("[clinic] time_zone = {name:?}: {e}")))?,
@@ -325,6 +428,7 @@ impl DaemonConfig {
             last_rules,
             tls,
             allow_plain_http,
+            archive_policy,
         })
     }
 }
@@ -382,6 +486,39 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("at least 16"), "{e}");
+    }
+
+    #[test]
+    fn archive_policy_keys_and_ranges() {
+        let c = DaemonConfig::parse(Path::new("d.toml"), OK, None, None).unwrap();
+        assert_eq!(c.archive_policy, ArchivePolicy::default());
+        assert!(c.archive_policy.compact && !c.archive_policy.retains());
+        let text = format!("{OK}[archive]\nkeep_raw_days = 30\nkeep_days = 3650\nmax_gb = 200\n");
+        let c = DaemonConfig::parse(Path::new("d.toml"), &text, None, None).unwrap();
+        assert_eq!(c.archive_policy.keep_raw_days, Some(30.0));
+        assert_eq!(c.archive_policy.max_gb, Some(200.0));
+        for (bad, words) in [
+            (
+                "keep_days = -1",
+                "keep_days = -1: must be 0 (keep for ever) or 1 to 36500",
+            ),
+            ("max_gb = 1e9", "max_gb = 1000000000: must be 0 (no limit)"),
+            (
+                "keep_raw_days = 40\nkeep_days = 30",
+                "keep_raw_days = 40 is more than keep_days",
+            ),
+            (
+                "retention_interval_h = 0",
+                "retention_interval_h = 0: must be",
+            ),
+            ("keep = 3", "unknown field `keep`"),
+        ] {
+            let text = format!("{OK}[archive]\n{bad}\n");
+            let e = DaemonConfig::parse(Path::new("d.toml"), &text, None, None)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("d.toml") && e.contains(words), "{bad}: {e}");
+        }
     }
 
     #[test]

@@ -231,12 +231,15 @@ pub fn write_fit_view(
     c: &footscan_last::customize::Customized,
 ) -> Result<FitView, String> {
     let model = dir.join("model.glb");
-    let bytes = std::fs::read(&model).map_err(|e| {
-        format!(
-            "{}: {e} (the scan's 3D model: a scan whose pipeline ran model.bezier)",
-            model.display()
-        )
-    })?;
+    // Through the scan directory: a compacted scan rebuilds its model.glb from the grid.
+    let bytes = footscan::scandata::ScanDir::new(dir)
+        .read_file("model.glb")
+        .map_err(|e| {
+            format!(
+                "{}: {e} (the scan's 3D model: a scan whose pipeline ran model.bezier)",
+                model.display()
+            )
+        })?;
     let foot = glb_node_mesh(&bytes, "foot").map_err(|e| format!("{}: {e}", model.display()))?;
     let ours = footprint_in_foot_frame(m);
     let shape = |v: &[Vec<[f64; 2]>]| v.iter().map(Vec::len).collect::<Vec<_>>();

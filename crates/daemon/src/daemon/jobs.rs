@@ -223,6 +223,7 @@ impl Daemon {
         let (status, reason) = match self.archive.finish(active, outcome.clone()) {
             Ok(r) => {
                 self.fleet_enqueue(&r.id);
+                self.compact_new_scan(&r.id);
                 (r.status, r.reason)
             }
             Err(e) => {

@@ -329,6 +329,12 @@ impl Daemon {
                 what: "the fleet pusher".into(),
                 source,
             })?;
+        if config.archive_policy.retains() {
+            start_retention(&archive, &config).map_err(|source| DaemonError::Thread {
+                what: "the archive's retention".into(),
+                source,
+            })?;
+        }
         let (events, _) = broadcast::channel(256);
         Ok(Arc::new(Daemon {
             config,
@@ -350,6 +356,62 @@ impl Daemon {
             scan_jobs: scanjob::Running::default(),
             tls: std::sync::OnceLock::new(),
         }))
+    }
+
+    /// Put a scan that just ended into compact form (`[archive] compact`, on by default), on
+    /// a thread of its own at a lower priority, once no job runs (the scan's own job ends
+    /// first; a scan started meanwhile is not competed with): the scan is already listed and
+    /// served from its original files until then, and a reader takes either form
+    /// (docs/method.md 14h.2).
+    pub(crate) fn compact_new_scan(self: &Arc<Self>, id: &str) {
+        if !self.config.archive_policy.compact {
+            return;
+        }
+        let dir = self.archive.root().join(id);
+        let id = id.to_string();
+        let me = Arc::downgrade(self);
+        let spawned = std::thread::Builder::new()
+            .name("compact".into())
+            .spawn(move || {
+                let _ = crate::priority::lower_this_thread(10);
+                let t = Instant::now();
+                // Wait for the scanner to be idle (at most 30 minutes; a daemon shutting down
+                // leaves the scan as it is: the reader takes either form, a later run of
+                // `footscand archive compact` finishes it).
+                loop {
+                    let Some(d) = me.upgrade() else { return };
+                    let busy = {
+                        let st = d.state.lock().unwrap();
+                        if st.shutting_down {
+                            return;
+                        }
+                        st.job.is_some()
+                    };
+                    if !busy || t.elapsed() > std::time::Duration::from_secs(1800) {
+                        break;
+                    }
+                    drop(d);
+                    std::thread::sleep(std::time::Duration::from_millis(250));
+                }
+                let opts = footscan::scandata::compact::CompactOptions::default();
+                match footscan::scandata::compact::compact_dir(&dir, &opts) {
+                    Ok(r) => tracing::info!(
+                        "archive: scan {id} compacted: {:.1} MB -> {:.1} MB in {:.2} s",
+                        r.bytes_before as f64 / 1e6,
+                        r.bytes_after as f64 / 1e6,
+                        r.seconds
+                    ),
+                    Err(e) => tracing::error!(
+                        "archive: scan {id} not compacted (its files stay as they are): {e}"
+                    ),
+                }
+            });
+        if let Err(e) = spawned {
+            tracing::error!(
+                "archive: a scan in {} not compacted: no thread: {e}",
+                self.archive.root().display()
+            );
+        }
     }
 
     /// A scan's record and directory, refused (409) unless it has measurements.json: what
@@ -450,4 +512,30 @@ impl Daemon {
             let _ = t.join();
         }
     }
+}
+
+/// Run the archive's retention at start and then every `retention_interval_h`, on a thread
+/// at a lower priority (archive/retention.rs).
+fn start_retention(archive: &Arc<Archive>, config: &DaemonConfig) -> std::io::Result<()> {
+    let p = &config.archive_policy;
+    let rules = crate::archive::retention::Rules {
+        keep_raw_days: p.keep_raw_days,
+        keep_days: p.keep_days,
+        max_gb: p.max_gb,
+        fleet: config.fleet.is_some(),
+    };
+    let every = std::time::Duration::from_secs_f64(p.retention_interval_h * 3600.0);
+    let archive = Arc::downgrade(archive);
+    std::thread::Builder::new()
+        .name("retention".into())
+        .spawn(move || {
+            let _ = crate::priority::lower_this_thread(10);
+            loop {
+                let Some(a) = archive.upgrade() else { return };
+                a.retain(&rules, crate::archive::retention::now_secs());
+                drop(a);
+                std::thread::sleep(every);
+            }
+        })
+        .map(|_| ())
 }

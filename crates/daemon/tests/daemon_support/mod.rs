@@ -347,6 +347,15 @@ pub fn raw_get(base: &str, target: &str) -> (u16, String) {
 }
 
 /// Percentile of `v` (sorted in place), p in 0..=100.
+/// The bytes of file `name` of scan `id` in `archive` as archived: the file itself, or, once
+/// the daemon has put the scan into compact form (`[archive] compact`, on by default), its
+/// compact form decoded and checked (footscan::scandata::ScanDir::read_file).
+pub fn archived_file(archive: &Path, id: &str, name: &str) -> Vec<u8> {
+    footscan::scandata::ScanDir::new(archive.join(id))
+        .read_file(name)
+        .unwrap_or_else(|e| panic!("{id}/{name}: {e}"))
+}
+
 pub fn percentile(v: &mut [f64], p: f64) -> f64 {
     if v.is_empty() {
         return f64::NAN;

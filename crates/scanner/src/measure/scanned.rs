@@ -131,7 +131,11 @@ pub fn measure_scan_dir(
     let png = png.map_or_else(|| scan.plantar_path(), Path::to_path_buf);
     write_measurements(&m, &map, &json, &png)?;
     let truth_path = scan.truth_path();
-    let comparison = match std::fs::read_to_string(&truth_path) {
+    // Through the scan directory, so a compacted scan's truth.json.gz is read too.
+    let truth = scan.read_file(ScanDir::TRUTH).and_then(|b| {
+        String::from_utf8(b).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))
+    });
+    let comparison = match truth {
         Ok(t) => Some(compare_with_truth(&m, &t).map_err(|e| MeasureError::Io {
             path: truth_path.clone(),
             source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),

@@ -91,15 +91,39 @@ impl ScanDir {
         self.file(Self::RECORD)
     }
 
-    /// The scan grid (grid.bin); its absence is an error, as every reader needs it.
+    /// The scan grid (grid.bin, or its compact form); its absence is an error, as every
+    /// reader needs it.
     pub fn load_grid(&self) -> std::io::Result<ScanGrid> {
-        ScanGrid::load(&self.grid_path())
+        let path = self.grid_path();
+        ScanGrid::parse(&self.read_file(Self::GRID)?, &path)
     }
 
-    /// The bytes of `name`, or None when the file is not there.
-    pub fn read_optional(&self, name: &str) -> Result<Option<Vec<u8>>, ScanDirError> {
+    /// The original bytes of the file `name`: the file itself when it is there, else, in a
+    /// compacted scan (`compact.json`, [`super::compact`]), its stored form decoded or the
+    /// file rebuilt from the grid, checked against the manifest's length and SHA-256.
+    /// NotFound when neither is there.
+    pub fn read_file(&self, name: &str) -> std::io::Result<Vec<u8>> {
         let path = self.file(name);
         match std::fs::read(&path) {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                let entry = super::compact::Manifest::load(&self.path)?
+                    .and_then(|m| m.files.get(name).cloned());
+                match entry {
+                    Some(entry) => {
+                        super::compact::restore(&self.path, name, &entry, &std::env::temp_dir())
+                    }
+                    None => Err(e),
+                }
+            }
+            r => r,
+        }
+    }
+
+    /// The bytes of `name` (or of its compact form, as [`Self::read_file`]), or None when
+    /// the file is not there.
+    pub fn read_optional(&self, name: &str) -> Result<Option<Vec<u8>>, ScanDirError> {
+        let path = self.file(name);
+        match self.read_file(name) {
             Ok(b) => Ok(Some(b)),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
             Err(source) => Err(ScanDirError::Read { path, source }),

@@ -186,6 +186,7 @@ async function refreshStatus() {
   renderDevices(s.devices || {});
   renderCalibration(s.calibration, s.calibrating);
   renderFleet(s.fleet);
+  renderRetention(s.archive && s.archive.retention);
   if (s.scan) onProgress(s.scan);
   else {
     $('st-scan').textContent = 'none';
@@ -226,6 +227,29 @@ function renderFleet(f) {
   if (f.last_error && (f.state === 'retrying' || f.rejected)) {
     dd.append(el('br'), `last error ${fmtTime(f.last_error_at)}: ${f.last_error}`);
   }
+}
+
+/** The archive's last retention run ([archive] keep_raw_days, keep_days, max_gb): what it
+ * dropped, and the protected scans it kept against a rule (shown only once a run was made). */
+function renderRetention(r) {
+  const dd = $('st-retention');
+  $('st-retention-dt').hidden = dd.hidden = !r;
+  if (!r) return;
+  const mb = (b) => (b / 1e6).toFixed(1) + ' MB';
+  const freed = r.dropped.reduce((a, d) => a + d.bytes, 0);
+  const whole = r.dropped.filter((d) => d.what === 'scan').length;
+  const raw = r.dropped.length - whole;
+  const problem = r.over_max_gb || (r.errors && r.errors.length > 0);
+  dd.replaceChildren(
+    badge(!problem, 'ok', r.over_max_gb ? 'over max_gb' : 'errors'), ' ',
+    `${fmtTime(r.at)}: ${fmtInt(whole)} scans and the raw data of ${fmtInt(raw)} dropped (${mb(freed)}); ` +
+      `${fmtInt(r.scans - whole)} scans, ${mb(r.bytes_after)}`,
+  );
+  if (r.kept_total) {
+    const list = r.kept.slice(0, 20).map((k) => `${k.id} (${k.protected_by.join(', ')}; due by ${k.rule})`);
+    dd.append(el('br'), el('span', { title: list.join('\n') }, `${fmtInt(r.kept_total)} protected scans kept against a rule`));
+  }
+  for (const e of (r.errors || []).slice(0, 3)) dd.append(el('br'), `error: ${e}`);
 }
 
 function renderCalibration(cal, calib) {

@@ -1,0 +1,159 @@
+//! Compact scans in the archive (docs/method.md 14h.2): serving a compacted scan's files
+//! through a bounded cache of decoded originals, and `footscand archive compact`, which puts
+//! every scan of an archive into compact form in place, scan by scan.
+//!
+//! The form itself, its manifest and its reader are footscan's (`footscan::scandata::compact`),
+//! so the `footscan` CLI reads a compacted scan as the daemon does.
+
+use super::{Archive, ArchiveError, ArchiveLock, Record, ScanId, TMP_PREFIX};
+use footscan::scandata::compact::{self, CompactOptions, CompactReport, Manifest};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// The cache of decoded originals, under the archive root: `.cache/<id>/<name>`.
+pub const CACHE: &str = ".cache";
+/// The most the cache holds; the files used longest ago go first.
+pub const CACHE_MAX_BYTES: u64 = 512 << 20;
+
+impl Archive {
+    /// The path of a compacted scan's original `name`, decoded (or rebuilt) into the cache
+    /// and checked against the manifest: None when the scan's manifest does not list it.
+    pub(crate) fn cached_original(&self, record: &Record, name: &str) -> Option<PathBuf> {
+        let dir = self.checked_dir(record)?;
+        let entry = Manifest::load(&dir).ok()??.files.get(name).cloned()?;
+        let cdir = self.root.join(CACHE).join(&record.id);
+        let path = cdir.join(name);
+        // One decoder at a time: two requests for the same file would write the same
+        // temporary file, and a rebuild is CPU-bound anyway.
+        let _one = self.cache_lock.lock().unwrap();
+        if let Ok(m) = path.symlink_metadata() {
+            if m.is_file() && m.len() == entry.bytes {
+                // Used now: the last to be pruned.
+                let _ = std::fs::File::open(&path)
+                    .and_then(|f| f.set_modified(std::time::SystemTime::now()));
+                return Some(path);
+            }
+        }
+        let t = std::time::Instant::now();
+        let made = std::fs::create_dir_all(&cdir)
+            .and_then(|()| compact::restore(&dir, name, &entry, &cdir))
+            .and_then(|bytes| footscan_util::write_atomic(&path, &bytes));
+        match made {
+            Ok(()) => {
+                tracing::info!(
+                    "archive: scan {} {name} restored from its compact form ({:?}) in {:.0} ms",
+                    record.id,
+                    entry.codec,
+                    t.elapsed().as_secs_f64() * 1e3
+                );
+                prune_cache(&self.root.join(CACHE), CACHE_MAX_BYTES, &path);
+                Some(path)
+            }
+            Err(e) => {
+                tracing::error!(
+                    "archive: scan {} {name}: its compact form does not give the file back: {e}",
+                    record.id
+                );
+                None
+            }
+        }
+    }
+}
+
+/// Remove the cache's least recently used files until it holds at most `max` bytes, never
+/// `keep` (the file just made).
+pub fn prune_cache(cache: &Path, max: u64, keep: &Path) {
+    let mut files: Vec<(std::time::SystemTime, u64, PathBuf)> = Vec::new();
+    for d in std::fs::read_dir(cache).into_iter().flatten().flatten() {
+        for f in std::fs::read_dir(d.path()).into_iter().flatten().flatten() {
+            if let Ok(m) = f.metadata() {
+                if m.is_file() {
+                    files.push((
+                        m.modified().unwrap_or(std::time::UNIX_EPOCH),
+                        m.len(),
+                        f.path(),
+                    ));
+                }
+            }
+        }
+    }
+    let mut total: u64 = files.iter().map(|f| f.1).sum();
+    files.sort();
+    for (_, len, p) in files {
+        if total <= max {
+            break;
+        }
+        if p != keep && std::fs::remove_file(&p).is_ok() {
+            total -= len;
+            if let Some(parent) = p.parent() {
+                let _ = std::fs::remove_dir(parent);
+            }
+        }
+    }
+}
+
+/// The finished scan directories of the archive at `root`, oldest first.
+pub fn scan_dirs(root: &Path) -> Result<Vec<(String, PathBuf)>, ArchiveError> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(root).map_err(super::io_at(root))? {
+        let e = e.map_err(super::io_at(root))?;
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.starts_with(TMP_PREFIX) || ScanId::parse(&name).is_err() {
+            continue;
+        }
+        if e.file_type().is_ok_and(|t| t.is_dir()) {
+            out.push((name, e.path()));
+        }
+    }
+    out.sort();
+    Ok(out)
+}
+
+/// What `footscand archive compact` did.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct CompactRun {
+    pub scans: usize,
+    pub changed: usize,
+    pub failed: Vec<(String, String)>,
+    pub bytes_before: u64,
+    pub bytes_after: u64,
+    pub seconds: f64,
+}
+
+/// Compact every finished scan of the archive at `root` in place, oldest first, holding the
+/// archive lock (a running daemon holds it: refused, naming it). `abort_at_scan` is the test
+/// hook of the kill test: the process aborts, as a kill would, in the middle of that scan
+/// (counted from 0), after its first stored file is written. `each` is told of every scan.
+pub fn compact_archive(
+    root: &Path,
+    opts: &CompactOptions,
+    abort_at_scan: Option<usize>,
+    mut each: impl FnMut(&str, &Result<CompactReport, std::io::Error>),
+) -> Result<CompactRun, ArchiveError> {
+    let _lock = ArchiveLock::acquire(root, "footscand archive compact")?;
+    let t = std::time::Instant::now();
+    let mut run = CompactRun::default();
+    for (k, (id, dir)) in scan_dirs(root)?.into_iter().enumerate() {
+        let mut o = opts.clone();
+        if abort_at_scan == Some(k) {
+            o.stop_after_writes = Some(1);
+        }
+        let r = compact::compact_dir(&dir, &o);
+        if abort_at_scan == Some(k) {
+            eprintln!("footscand: test hook: aborting during scan {id}");
+            std::process::abort();
+        }
+        each(&id, &r);
+        run.scans += 1;
+        match r {
+            Ok(rep) => {
+                run.changed += rep.changed as usize;
+                run.bytes_before += rep.bytes_before;
+                run.bytes_after += rep.bytes_after;
+            }
+            Err(e) => run.failed.push((id, e.to_string())),
+        }
+    }
+    run.seconds = t.elapsed().as_secs_f64();
+    Ok(run)
+}
