@@ -102,6 +102,7 @@ const MODULE_ORDER: &[&str] = &[
     "io",
     "measure",
     "cad",
+    "compact",
     "lastfit",
     "lastcustom",
     "report",

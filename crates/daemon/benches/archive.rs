@@ -124,7 +124,7 @@ fn timed(d: &Footscand, n: usize, path: impl Fn(usize) -> String) -> (f64, f64) 
 /// grid.bin, the compaction's time, and the time to serve each compacted file (decoded or
 /// rebuilt into the cache, then from the cache).
 fn compact_part() {
-    use footscan::scandata::compact;
+    use footscan::compact;
     let src = std::path::PathBuf::from(
         std::env::var_os("ARCHIVE_SCAN_DIR")
             .expect("ARCHIVE_SCAN_DIR: a scan directory (e.g. target/tmp/shared-sim-scan)"),

@@ -154,7 +154,7 @@ fn archive_du(args: &Args, archive: Option<&PathBuf>, json: bool) -> Result<()> 
 
 /// `footscand archive compact`: every scan into compact form, one line a scan.
 fn archive_compact(args: &Args, archive: Option<&PathBuf>, dry_run: bool) -> Result<()> {
-    use footscan::scandata::compact::CompactOptions;
+    use footscan::compact::CompactOptions;
     let root = archive_root(args, archive)?;
     let opts = CompactOptions {
         dry_run,

@@ -7,7 +7,7 @@
 mod daemon_support;
 
 use daemon_support::{Footscand, Opts};
-use footscan::scandata::compact::{self, MANIFEST};
+use footscan::compact::{self, MANIFEST};
 use footscan::scandata::ScanDir;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -99,7 +99,7 @@ fn manifest(root: &Path) -> BTreeMap<String, String> {
         // The scan's files as served: a scan the daemon compacted when it ended lists and
         // reads its original files (docs/method.md 14h.2).
         let dir = footscan::scandata::ScanDir::new(e.path());
-        for (f, _, _) in footscan::scandata::compact::listing(&e.path()).unwrap() {
+        for (f, _, _) in footscan::compact::listing(&e.path()).unwrap() {
             let b = dir.read_file(&f).unwrap();
             m.insert(format!("{name}/{f}"), footscan_fleet::sha256_hex(&b));
         }

@@ -6,7 +6,7 @@
 mod daemon_support;
 
 use daemon_support::{Footscand, Opts};
-use footscan::scandata::compact;
+use footscan::compact;
 use footscan_daemon::archive::retention::{now_secs, Rules};
 use footscan_daemon::archive::{Archive, ScanId};
 use std::path::Path;

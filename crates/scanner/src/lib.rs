@@ -7,6 +7,7 @@
 
 pub mod cad;
 pub mod calib;
+pub mod compact;
 pub mod detect;
 pub mod geom;
 pub mod io;

@@ -2,11 +2,11 @@
 //! through a bounded cache of decoded originals, and `footscand archive compact`, which puts
 //! every scan of an archive into compact form in place, scan by scan.
 //!
-//! The form itself, its manifest and its reader are footscan's (`footscan::scandata::compact`),
+//! The form itself, its manifest and its reader are footscan's (`footscan::compact`),
 //! so the `footscan` CLI reads a compacted scan as the daemon does.
 
 use super::{Archive, ArchiveError, ArchiveLock, Record, ScanId, TMP_PREFIX};
-use footscan::scandata::compact::{self, CompactOptions, CompactReport, Manifest};
+use footscan::compact::{self, CompactOptions, CompactReport, Manifest};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 

@@ -753,7 +753,7 @@ impl Archive {
                 "missing, or not a directory inside the archive (symlinks are refused)",
             ),
         })?;
-        let mut out: Vec<Artifact> = footscan::scandata::compact::listing(&dir)
+        let mut out: Vec<Artifact> = footscan::compact::listing(&dir)
             .map_err(io_at(&dir))?
             .into_iter()
             .filter(|(name, _, _)| valid_file_name(name))

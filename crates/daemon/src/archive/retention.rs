@@ -16,7 +16,7 @@
 
 use super::compact::{scan_dirs, CACHE};
 use super::{io_at, Archive, ArchiveError};
-use footscan::scandata::compact::{self, Codec, Manifest};
+use footscan::compact::{self, Codec, Manifest};
 use footscan::scandata::ScanDir;
 use serde::Serialize;
 use std::collections::{BTreeMap, HashSet};

@@ -393,8 +393,8 @@ impl Daemon {
                     drop(d);
                     std::thread::sleep(std::time::Duration::from_millis(250));
                 }
-                let opts = footscan::scandata::compact::CompactOptions::default();
-                match footscan::scandata::compact::compact_dir(&dir, &opts) {
+                let opts = footscan::compact::CompactOptions::default();
+                match footscan::compact::compact_dir(&dir, &opts) {
                     Ok(r) => tracing::info!(
                         "archive: scan {id} compacted: {:.1} MB -> {:.1} MB in {:.2} s",
                         r.bytes_before as f64 / 1e6,

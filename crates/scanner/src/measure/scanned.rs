@@ -132,7 +132,7 @@ pub fn measure_scan_dir(
     write_measurements(&m, &map, &json, &png)?;
     let truth_path = scan.truth_path();
     // Through the scan directory, so a compacted scan's truth.json.gz is read too.
-    let truth = scan.read_file(ScanDir::TRUTH).and_then(|b| {
+    let truth = scan.read_stored(ScanDir::TRUTH).and_then(|b| {
         String::from_utf8(b).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))
     });
     let comparison = match truth {

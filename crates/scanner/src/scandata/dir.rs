@@ -95,22 +95,32 @@ impl ScanDir {
     /// reader needs it.
     pub fn load_grid(&self) -> std::io::Result<ScanGrid> {
         let path = self.grid_path();
-        ScanGrid::parse(&self.read_file(Self::GRID)?, &path)
+        ScanGrid::parse(&self.read_stored(Self::GRID)?, &path)
     }
 
     /// The original bytes of the file `name`: the file itself when it is there, else, in a
-    /// compacted scan (`compact.json`, [`super::compact`]), its stored form decoded or the
-    /// file rebuilt from the grid, checked against the manifest's length and SHA-256.
-    /// NotFound when neither is there.
-    pub fn read_file(&self, name: &str) -> std::io::Result<Vec<u8>> {
+    /// compacted scan (`compact.json`, [`super::stored`]), its stored form decoded and
+    /// checked against the manifest's length and SHA-256. NotFound when neither is there;
+    /// Unsupported for a file the compaction left to be rebuilt from the grid (points.ply,
+    /// model.stl, model.glb), which `crate::compact`'s `ScanDir::read_file` rebuilds.
+    pub fn read_stored(&self, name: &str) -> std::io::Result<Vec<u8>> {
         let path = self.file(name);
         match std::fs::read(&path) {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                let entry = super::compact::Manifest::load(&self.path)?
+                let entry = super::stored::Manifest::load(&self.path)?
                     .and_then(|m| m.files.get(name).cloned());
                 match entry {
                     Some(entry) => {
-                        super::compact::restore(&self.path, name, &entry, &std::env::temp_dir())
+                        super::stored::decode(&self.path, name, &entry)?.ok_or_else(|| {
+                            std::io::Error::new(
+                                std::io::ErrorKind::Unsupported,
+                                format!(
+                                    "{}: kept to be rebuilt from the grid; read it with \
+                                     ScanDir::read_file",
+                                    path.display()
+                                ),
+                            )
+                        })
                     }
                     None => Err(e),
                 }
@@ -119,11 +129,11 @@ impl ScanDir {
         }
     }
 
-    /// The bytes of `name` (or of its compact form, as [`Self::read_file`]), or None when
+    /// The bytes of `name` (or of its stored form, as [`Self::read_stored`]), or None when
     /// the file is not there.
     pub fn read_optional(&self, name: &str) -> Result<Option<Vec<u8>>, ScanDirError> {
         let path = self.file(name);
-        match self.read_file(name) {
+        match self.read_stored(name) {
             Ok(b) => Ok(Some(b)),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
             Err(source) => Err(ScanDirError::Read { path, source }),

@@ -2,9 +2,9 @@
 //! the line found in each of its rows, the 3D points, and the grid (frame x row) they fill,
 //! saved as `grid.bin`. The scan orchestrator produces it; the models and measurements read it.
 
-pub mod compact;
 mod dir;
 mod scan_grid;
+pub mod stored;
 
 pub use dir::{ScanDir, ScanDirError};
 pub use scan_grid::ScanGrid;
