@@ -383,19 +383,23 @@ fn shoe_bottom_outline_from_last_adjust() {
             "axis {k}: {a}..{b} much smaller than the last's bottom"
         );
     }
-    // The outline made fair: no kink from the last's edge behind the heads (a 10 mm radius
-    // turns 5.7 deg a millimetre). In front the adjusted bottom has the toes' lobes (seen in
-    // top.png), which turn it several times over in all.
+    // The outline made fair: no kink from the last's edge behind the heads. The kinks the
+    // first smoothing left turned 12.6 deg a millimetre (design.rs unit test); the adjusted
+    // bottom's own tightest bend is the foot's, concave on the medial side where the waist
+    // meets the ball (x 133-139 mm), 4.2-6.1 deg/mm (radius 9-14 mm) over five scans whose
+    // noise differed, so the bound is 8 (a 7 mm radius). In front the adjusted bottom has the
+    // toes' lobes (seen in top.png), which turn it several times over in all.
     let (turn, total) = (
         r["outline_max_turn_deg_per_mm"].as_f64().unwrap(),
         r["outline_total_turn_deg"].as_f64().unwrap(),
     );
-    println!("outline turning: at most {turn:.2} deg/mm, {total:.1} deg in all");
+    let at = &r["outline_max_turn_at"];
+    println!("outline turning: at most {turn:.2} deg/mm at {at}, {total:.1} deg in all");
     let _ = std::fs::copy(
         out_dir.join("top.png"),
         repo().join("target/insole-shoe-bottom-top.png"),
     );
-    assert!(turn < 5.7, "{turn} deg/mm");
+    assert!(turn < 8.0, "{turn} deg/mm at {at}");
     assert!(total >= 350.0, "{total} deg");
     // Bent onto the last's bottom curve: the insole's bottom (met from below on the axis)
     // against the last's lowest bottom point per 1 mm station (rays up from below every 1 mm

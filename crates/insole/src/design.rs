@@ -1100,12 +1100,25 @@ impl Design {
 /// outline). Measured on the outline resampled every 0.5 mm, so it sees corners however the
 /// outline's vertices lie.
 pub fn outline_turning(outline: &[[f64; 2]], window: f64) -> (f64, f64) {
-    outline_turning_behind(outline, window, f64::INFINITY)
+    let t = outline_turning_behind(outline, window, f64::INFINITY);
+    (t.max, t.total)
+}
+
+/// How an outline turns (see [`outline_turning_behind`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Turning {
+    /// The largest turning over the window (deg/mm).
+    pub max: f64,
+    /// Where it is (mm, the outline's frame).
+    pub at: [f64; 2],
+    /// The total absolute turning (deg).
+    pub total: f64,
 }
 
 /// [`outline_turning`] with the largest turning taken only where x < `x_max` (behind the
-/// toes, whose lobes are the foot's own shape); the total over the whole outline.
-pub fn outline_turning_behind(outline: &[[f64; 2]], window: f64, x_max: f64) -> (f64, f64) {
+/// toes, whose lobes are the foot's own shape), with where it is; the total over the whole
+/// outline.
+pub fn outline_turning_behind(outline: &[[f64; 2]], window: f64, x_max: f64) -> Turning {
     let step = 0.5;
     let q = resample_closed(outline, step);
     let n = q.len();
@@ -1119,12 +1132,14 @@ pub fn outline_turning_behind(outline: &[[f64; 2]], window: f64, x_max: f64) -> 
         (a + t / 2.0).rem_euclid(t) - t / 2.0
     };
     let mut max = 0.0f64;
+    let mut at = [f64::NAN; 2];
     let mut total = 0.0;
     for i in 0..n {
         // The heading of the chord behind the point and of the one ahead of it.
         let turn = wrap(heading(i + n - w) - heading(i)).abs();
-        if q[i][0] < x_max {
-            max = max.max(turn.to_degrees() / (w as f64 * step));
+        let rate = turn.to_degrees() / (w as f64 * step);
+        if q[i][0] < x_max && rate > max {
+            (max, at) = (rate, q[i]);
         }
         let one = wrap({
             let (a, b, c) = (q[(i + n - 1) % n], q[i], q[(i + 1) % n]);
@@ -1132,7 +1147,11 @@ pub fn outline_turning_behind(outline: &[[f64; 2]], window: f64, x_max: f64) -> 
         });
         total += one.abs();
     }
-    (max, total.to_degrees())
+    Turning {
+        max,
+        at,
+        total: total.to_degrees(),
+    }
 }
 
 #[cfg(test)]

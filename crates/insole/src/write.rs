@@ -44,6 +44,8 @@ pub struct Report {
     /// heads (deg/mm; a 10 mm radius is 5.7; in front, a shoe bottom adjusted to the foot
     /// has the toes' lobes) and in all (deg; 360 for a convex outline).
     pub outline_max_turn_deg_per_mm: f64,
+    /// Where that most is (foot frame, mm).
+    pub outline_max_turn_at: [f64; 2],
     pub outline_total_turn_deg: f64,
     /// Where the outline came from: "footprint + margin" or the shoe bottom's last.
     pub outline_from: String,
@@ -139,8 +141,9 @@ pub fn write_insole_in(
         pad_apex_mm: d.pad_apex,
         midfoot_off_glass_mm: d.bottom_rise_mm,
         outline_vertices: d.outline.len(),
-        outline_max_turn_deg_per_mm: turning.0,
-        outline_total_turn_deg: turning.1,
+        outline_max_turn_deg_per_mm: turning.max,
+        outline_max_turn_at: turning.at,
+        outline_total_turn_deg: turning.total,
         outline_from: match shoe {
             Some(s) => format!("shoe bottom: {}", s.source),
             None => format!("footprint + {} mm margin", params.margin_mm),
