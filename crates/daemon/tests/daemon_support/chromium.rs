@@ -135,12 +135,48 @@ impl Browser {
         Browser::launch_with(profile, width, height, &[])
     }
 
-    /// [`Browser::launch`] with `extra` flags, e.g. [`WEBGL`].
+    /// [`Browser::launch`] with `extra` flags, e.g. [`WEBGL`]. A Chromium that dies before
+    /// its first answer (seen once in CI on a loaded machine: the pipe broken at the first
+    /// command, its stderr not kept) is started again on a fresh profile, at most three
+    /// times; then the panic carries each try's exit status and stderr.
     pub fn launch_with(profile: &Path, width: u32, height: u32, extra: &[&str]) -> Browser {
+        require();
+        let mut tries = Vec::new();
+        for attempt in 0..3 {
+            let dir = match attempt {
+                0 => profile.to_path_buf(),
+                n => profile.join(format!("retry{n}")),
+            };
+            match Browser::try_launch(&dir, width, height, extra) {
+                Ok(b) => {
+                    if attempt > 0 {
+                        println!(
+                            "chromium started on try {}: {}",
+                            attempt + 1,
+                            tries.join("; ")
+                        );
+                    }
+                    return b;
+                }
+                Err(e) => tries.push(format!("try {}: {e}", attempt + 1)),
+            }
+        }
+        panic!("chromium did not start:\n{}", tries.join("\n"));
+    }
+
+    fn try_launch(
+        profile: &Path,
+        width: u32,
+        height: u32,
+        extra: &[&str],
+    ) -> Result<Browser, String> {
         use serde_json::json;
         use std::os::fd::IntoRawFd;
         use std::os::unix::process::CommandExt;
-        require();
+        std::fs::create_dir_all(profile).map_err(|e| format!("{}: {e}", profile.display()))?;
+        let err_path = profile.join("chromium-stderr.log");
+        let err_file =
+            std::fs::File::create(&err_path).map_err(|e| format!("{}: {e}", err_path.display()))?;
         let (cmd_r, cmd_w) = pipe(); // we write commands, Chromium reads fd 3
         let (ev_r, ev_w) = pipe(); // Chromium writes fd 4, we read
         let (a, b) = (cmd_r.into_raw_fd(), ev_w.into_raw_fd());
@@ -151,7 +187,7 @@ impl Browser {
             .arg(format!("--user-data-dir={}", profile.display()))
             .arg(format!("--window-size={width},{height}"))
             .stdout(Stdio::null())
-            .stderr(Stdio::null());
+            .stderr(err_file);
         // SAFETY: only async-signal-safe dup2 calls between fork and exec.
         unsafe {
             cmd.pre_exec(move || {
@@ -176,7 +212,20 @@ impl Browser {
             next_id: 0,
             session: String::new(),
         };
-        let t = br.call(None, "Target.createTarget", json!({"url": "about:blank"}));
+        let first = br.try_call(None, "Target.createTarget", json!({"url": "about:blank"}));
+        let t = match first {
+            Ok(t) => t,
+            Err(e) => {
+                let _ = br.child.kill();
+                let status = br.child.wait().map(|s| s.to_string()).unwrap_or_default();
+                let stderr = std::fs::read_to_string(&err_path).unwrap_or_default();
+                let tail: Vec<&str> = stderr.lines().rev().take(20).collect();
+                return Err(format!(
+                    "{e} ({status}); stderr's last lines:\n{}",
+                    tail.into_iter().rev().collect::<Vec<_>>().join("\n")
+                ));
+            }
+        };
         let target = t["targetId"].as_str().unwrap().to_string();
         let s = br.call(
             None,
@@ -188,7 +237,7 @@ impl Browser {
             "Emulation.setDeviceMetricsOverride",
             json!({"width": width, "height": height, "deviceScaleFactor": 1, "mobile": false}),
         );
-        br
+        Ok(br)
     }
 
     /// One DevTools command (on the page's session when `session` is given); its result.
@@ -198,6 +247,17 @@ impl Browser {
         method: &str,
         params: serde_json::Value,
     ) -> serde_json::Value {
+        self.try_call(session, method, params)
+            .unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`Browser::call`], its failures returned.
+    fn try_call(
+        &mut self,
+        session: Option<&str>,
+        method: &str,
+        params: serde_json::Value,
+    ) -> Result<serde_json::Value, String> {
         use std::io::{BufRead, Write};
         self.next_id += 1;
         let id = self.next_id;
@@ -207,16 +267,26 @@ impl Browser {
         }
         let mut bytes = serde_json::to_vec(&msg).unwrap();
         bytes.push(0);
-        self.tx.write_all(&bytes).unwrap();
+        self.tx
+            .write_all(&bytes)
+            .map_err(|e| format!("sending {method} to chromium: {e}"))?;
         loop {
             let mut buf = Vec::new();
-            let n = self.rx.read_until(0, &mut buf).unwrap();
-            assert!(n > 0, "chromium closed the DevTools pipe during {method}");
+            let n = self
+                .rx
+                .read_until(0, &mut buf)
+                .map_err(|e| format!("reading chromium's answer to {method}: {e}"))?;
+            if n == 0 {
+                return Err(format!("chromium closed the DevTools pipe during {method}"));
+            }
             buf.pop();
-            let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
+            let v: serde_json::Value = serde_json::from_slice(&buf)
+                .map_err(|e| format!("chromium's answer to {method}: {e}"))?;
             if v["id"] == id {
-                assert!(v["error"].is_null(), "{method}: {}", v["error"]);
-                return v["result"].clone();
+                if !v["error"].is_null() {
+                    return Err(format!("{method}: {}", v["error"]));
+                }
+                return Ok(v["result"].clone());
             }
         }
     }
