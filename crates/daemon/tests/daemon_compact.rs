@@ -231,6 +231,62 @@ fn compacted_scans_serve_the_same_bytes_and_migration_survives_kills() {
     assert_eq!(r.bytes().unwrap().as_ref(), &before["model.stl"][100..200]);
     drop(d);
 
+    // As after an upgrade whose point writer changed: the manifest's points.ply says other
+    // bytes, written by another footscan. The strict reader refuses it, naming why; the
+    // daemon serves the rebuild (not its stale cache) with the header that says so; a file
+    // that still matches has no such header.
+    let man_path = dir.join(MANIFEST);
+    let saved = std::fs::read(&man_path).unwrap();
+    let mut m: compact::Manifest = serde_json::from_slice(&saved).unwrap();
+    let e = m.files.get_mut("points.ply").unwrap();
+    e.sha256 = "0".repeat(64);
+    e.made_by = Some("footscan 0.0.1".into());
+    std::fs::write(&man_path, serde_json::to_vec(&m).unwrap()).unwrap();
+    let err = ScanDir::new(&dir).read_file("points.ply").unwrap_err();
+    assert!(
+        err.to_string().contains("footscan 0.0.1") && err.to_string().contains("rebuilt"),
+        "{err}"
+    );
+    let d = Footscand::start(
+        tmp.path(),
+        Opts {
+            daemon_extra: "\n[archive]\ncompact = false\n",
+            ..Default::default()
+        },
+    );
+    for round in ["rebuilt", "from the cache"] {
+        let r = d
+            .client
+            .get(d.url(&format!("/api/scans/{id}/files/points.ply")))
+            .send()
+            .unwrap();
+        assert_eq!(r.status(), 200, "{round}");
+        let note = r
+            .headers()
+            .get("x-footscan-rebuilt")
+            .unwrap_or_else(|| panic!("{round}: no x-footscan-rebuilt header"))
+            .to_str()
+            .unwrap()
+            .to_string();
+        assert!(
+            note.contains("footscan 0.0.1") && note.contains(&"0".repeat(64)),
+            "{round}: {note}"
+        );
+        assert!(
+            r.bytes().unwrap().as_ref() == before["points.ply"],
+            "{round}"
+        );
+    }
+    let r = d
+        .client
+        .get(d.url(&format!("/api/scans/{id}/files/model.stl")))
+        .send()
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    assert!(r.headers().get("x-footscan-rebuilt").is_none());
+    drop(d);
+    std::fs::write(&man_path, &saved).unwrap();
+
     // With the default `[archive] compact = true`, the daemon compacts a scan when it ends,
     // and serves it as it would the original files.
     let d = Footscand::start(tmp.path(), Opts::default());

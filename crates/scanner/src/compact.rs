@@ -34,17 +34,62 @@ impl ScanDir {
     }
 }
 
+/// Which footscan compacts (recorded per file in the manifest).
+pub const MADE_BY: &str = concat!("footscan ", env!("CARGO_PKG_VERSION"));
+
+/// A compacted file given back: its bytes, and why they are not the original's when a
+/// rebuild no longer gives the original byte for byte.
+#[derive(Clone, Debug)]
+pub struct Restored {
+    pub bytes: Vec<u8>,
+    pub differs: Option<String>,
+}
+
 /// The original bytes of `name` from its entry in the compacted scan at `dir`: the stored
 /// form decoded, or the file rebuilt from the grid (scratch files in `scratch`), checked
-/// against the manifest.
+/// against the manifest. A rebuild that does not match is an error here; see
+/// [`restore_rebuilt`].
 pub fn restore(dir: &Path, name: &str, entry: &Entry, scratch: &Path) -> std::io::Result<Vec<u8>> {
-    if let Some(b) = decode(dir, name, entry)? {
-        return Ok(b);
+    let r = restore_rebuilt(dir, name, entry, scratch)?;
+    match r.differs {
+        None => Ok(r.bytes),
+        Some(why) => Err(invalid(format!("{}: {why}", dir.join(name).display()))),
+    }
+}
+
+/// [`restore`], but a rebuild that no longer matches the manifest (the model or point
+/// writers changed since the scan was compacted) is given back with the reason. Its data are
+/// the scan's: the grid it is rebuilt from is itself checked against the manifest, and a
+/// stored form that does not match is an error as in [`restore`].
+pub fn restore_rebuilt(
+    dir: &Path,
+    name: &str,
+    entry: &Entry,
+    scratch: &Path,
+) -> std::io::Result<Restored> {
+    if let Some(bytes) = decode(dir, name, entry)? {
+        return Ok(Restored {
+            bytes,
+            differs: None,
+        });
     }
     let grid = ScanDir::new(dir).load_grid()?;
     let mut out = rebuild(&grid, &[(name, entry.codec, entry.cell_mm)], scratch)?;
     let bytes = out.pop().map(|(_, b)| b).unwrap_or_default();
-    verified(bytes, entry, &dir.join(name))
+    let sha = sha256_hex(&bytes);
+    let same = bytes.len() as u64 == entry.bytes && sha == entry.sha256;
+    let differs = (!same).then(|| {
+        format!(
+            "rebuilt from the scan's grid by {MADE_BY}: {} bytes, SHA-256 {sha}, not the \
+             original's {} bytes, SHA-256 {}, written by {}; the writer has changed since, \
+             the data are the scan's",
+            bytes.len(),
+            entry.bytes,
+            entry.sha256,
+            entry.made_by.as_deref().unwrap_or("an earlier footscan"),
+        )
+    });
+    Ok(Restored { bytes, differs })
 }
 
 /// Rebuild `wanted` (name, codec, model cell) from `grid`, writing scratch files into
@@ -290,6 +335,8 @@ pub fn compact_dir(dir: &Path, opts: &CompactOptions) -> std::io::Result<Compact
                 codec,
                 stored,
                 cell_mm,
+                made_by: Some(MADE_BY.to_string()),
+                note: None,
             },
         );
     }

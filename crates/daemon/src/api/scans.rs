@@ -326,16 +326,39 @@ pub async fn download(
             .archive
             .open_inside(&p)
             .map_err(|e| ApiError::missing(format!("scan {} file {name:?}: {e}", r.id)))?;
-        Ok::<_, ApiError>((p, f, r))
+        let rebuilt = d.archive.rebuilt_note(&p);
+        Ok::<_, ApiError>((p, f, r, rebuilt))
     })
     .await??;
-    let (path, file, rec) = path;
+    let (path, file, rec, rebuilt) = path;
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    send_file(file, &format!("{}-{name}", rec.id), &headers).await
+    let mut resp = send_file(file, &format!("{}-{name}", rec.id), &headers).await?;
+    // A compacted scan's file rebuilt by a later footscan: served, and said so.
+    if let Some(why) = rebuilt {
+        let text: String = why
+            .chars()
+            .map(|c| {
+                if c.is_ascii_graphic() || c == ' ' {
+                    c
+                } else {
+                    '?'
+                }
+            })
+            .collect();
+        if let Ok(v) = header::HeaderValue::from_str(&text) {
+            resp.headers_mut().insert(REBUILT_HEADER, v);
+        }
+    }
+    Ok(resp)
 }
+
+/// The header on a download that is not byte for byte the scan's original file: a compacted
+/// scan's model or cloud rebuilt from its grid by a footscan whose writers have changed
+/// since; its value says so with both lengths and the original's SHA-256.
+pub const REBUILT_HEADER: &str = "x-footscan-rebuilt";
 
 /// A file as a download named `save_as`, whole or the one byte range asked for (a
 /// resumed download of a large cloud).

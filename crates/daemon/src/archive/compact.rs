@@ -15,9 +15,30 @@ pub const CACHE: &str = ".cache";
 /// The most the cache holds; the files used longest ago go first.
 pub const CACHE_MAX_BYTES: u64 = 512 << 20;
 
+/// What the cache knows of a file it holds, beside it as `NAME.meta.json`: the manifest's
+/// SHA-256 it was made for (a scan compacted again gets new entries, and a stale file is
+/// never served for them), and why the bytes are not the original's, if they are not.
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
+struct CacheMeta {
+    sha256: String,
+    bytes: u64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    differs: Option<String>,
+}
+
+fn meta_path(cached: &Path) -> PathBuf {
+    let mut s = cached.as_os_str().to_owned();
+    s.push(".meta.json");
+    PathBuf::from(s)
+}
+
 impl Archive {
     /// The path of a compacted scan's original `name`, decoded (or rebuilt) into the cache
-    /// and checked against the manifest: None when the scan's manifest does not list it.
+    /// and checked against the manifest: None when the scan's manifest does not list it or
+    /// its stored form does not give it back. A rebuild that no longer matches (the writers
+    /// changed since the scan was compacted) is served all the same, its reason kept beside
+    /// it ([`Self::rebuilt_note`]) and logged: the data are the scan's, and refusing the file
+    /// would lose every compacted scan's model at each change of the model writer.
     pub(crate) fn cached_original(&self, record: &Record, name: &str) -> Option<PathBuf> {
         let dir = self.checked_dir(record)?;
         let entry = Manifest::load(&dir).ok()??.files.get(name).cloned()?;
@@ -26,8 +47,11 @@ impl Archive {
         // One decoder at a time: two requests for the same file would write the same
         // temporary file, and a rebuild is CPU-bound anyway.
         let _one = self.cache_lock.lock().unwrap();
-        if let Ok(m) = path.symlink_metadata() {
-            if m.is_file() && m.len() == entry.bytes {
+        let meta: Option<CacheMeta> = std::fs::read(meta_path(&path))
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok());
+        if let (Ok(m), Some(meta)) = (path.symlink_metadata(), &meta) {
+            if m.is_file() && m.len() == meta.bytes && meta.sha256 == entry.sha256 {
                 // Used now: the last to be pruned.
                 let _ = std::fs::File::open(&path)
                     .and_then(|f| f.set_modified(std::time::SystemTime::now()));
@@ -36,16 +60,29 @@ impl Archive {
         }
         let t = std::time::Instant::now();
         let made = std::fs::create_dir_all(&cdir)
-            .and_then(|()| compact::restore(&dir, name, &entry, &cdir))
-            .and_then(|bytes| footscan_util::write_atomic(&path, &bytes));
+            .and_then(|()| compact::restore_rebuilt(&dir, name, &entry, &cdir))
+            .and_then(|r| {
+                footscan_util::write_atomic(&path, &r.bytes)?;
+                let meta = CacheMeta {
+                    sha256: entry.sha256.clone(),
+                    bytes: r.bytes.len() as u64,
+                    differs: r.differs.clone(),
+                };
+                let json = serde_json::to_vec(&meta).expect("cache meta serialises");
+                footscan_util::write_atomic(&meta_path(&path), &json)?;
+                Ok(r.differs)
+            });
         match made {
-            Ok(()) => {
+            Ok(differs) => {
                 tracing::info!(
                     "archive: scan {} {name} restored from its compact form ({:?}) in {:.0} ms",
                     record.id,
                     entry.codec,
                     t.elapsed().as_secs_f64() * 1e3
                 );
+                if let Some(why) = differs {
+                    tracing::warn!("archive: scan {} {name}: {why}", record.id);
+                }
                 prune_cache(&self.root.join(CACHE), CACHE_MAX_BYTES, &path);
                 Some(path)
             }
@@ -57,6 +94,16 @@ impl Archive {
                 None
             }
         }
+    }
+
+    /// Why a file served from `path` is not byte for byte the scan's original: Some only for
+    /// a rebuild in the cache that no longer matches its manifest.
+    pub fn rebuilt_note(&self, path: &Path) -> Option<String> {
+        if !path.starts_with(self.root.join(CACHE)) {
+            return None;
+        }
+        let b = std::fs::read(meta_path(path)).ok()?;
+        serde_json::from_slice::<CacheMeta>(&b).ok()?.differs
     }
 }
 
@@ -83,7 +130,7 @@ pub fn prune_cache(cache: &Path, max: u64, keep: &Path) {
         if total <= max {
             break;
         }
-        if p != keep && std::fs::remove_file(&p).is_ok() {
+        if p != keep && p != meta_path(keep) && std::fs::remove_file(&p).is_ok() {
             total -= len;
             if let Some(parent) = p.parent() {
                 let _ = std::fs::remove_dir(parent);

@@ -179,8 +179,17 @@ impl Archive {
             let mut changed = false;
             for (name, e) in m.files.iter_mut() {
                 if e.stored.is_none() && !RAW.contains(&name.as_str()) {
-                    // Rebuilt from the grid, which goes: stored as gzip now.
-                    let bytes = compact::restore(dir, name, e, dir)?;
+                    // Rebuilt from the grid, which goes: stored as gzip now. A rebuild
+                    // that no longer matches (the writers changed since compaction) is the
+                    // best that will ever be had once the grid is gone: kept, with why.
+                    let r = compact::restore_rebuilt(dir, name, e, dir)?;
+                    let bytes = r.bytes;
+                    if let Some(why) = r.differs {
+                        tracing::warn!("retention: scan {id} {name}: {why}; stored as rebuilt");
+                        e.bytes = bytes.len() as u64;
+                        e.sha256 = compact::sha256_hex(&bytes);
+                        e.note = Some(why);
+                    }
                     let s = compact::stored_name(name, Codec::Gzip);
                     footscan_util::write_atomic(
                         &dir.join(&s),

@@ -58,6 +58,14 @@ pub struct Entry {
     /// The model's cell (mm) of a [`Codec::RebuildModel`] file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cell_mm: Option<f64>,
+    /// The footscan that compacted the file: a rebuild is byte for byte the original only
+    /// while the writers are that version's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub made_by: Option<String>,
+    /// Why the bytes kept are not the original's as first written (a rebuild by a later
+    /// footscan, stored when the grid it came from went).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
 }
 
 /// `compact.json`: original name to entry.
