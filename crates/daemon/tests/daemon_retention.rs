@@ -54,6 +54,7 @@ fn retention_drops_old_scans_keeps_protected_ones_and_honours_max_gb() {
     let in_visit = scan(&root, 401.0, 2, "p-visit", 1000);
     let with_last = scan(&root, 402.0, 3, "p-last", 1000);
     let unpushed = scan(&root, 403.0, 4, "p-fleet", 1000);
+    let with_insole = scan(&root, 404.0, 7, "p-insole", 1000);
     let raw_due = scan(&root, 40.0, 5, "p-raw", 1000);
     // A raw-due scan in compact form (no real grid here: its files are stored as gzip).
     let raw_compact = scan(&root, 41.0, 6, "p-rawc", 1000);
@@ -63,6 +64,7 @@ fn retention_drops_old_scans_keeps_protected_ones_and_honours_max_gb() {
         .map(|k| scan(&root, 10.0 - k as f64, 10 + k, "p-big", 400_000))
         .collect();
     std::fs::create_dir_all(root.join(&with_last).join("last")).unwrap();
+    std::fs::create_dir_all(root.join(&with_insole).join("insole")).unwrap();
 
     let a = Archive::open(&root).unwrap();
     let v = a.new_visit("p-visit", "").unwrap();
@@ -108,7 +110,8 @@ fn retention_drops_old_scans_keeps_protected_ones_and_honours_max_gb() {
     assert_eq!(kept(&run, &in_visit), [format!("in visit {}", v.id)]);
     assert_eq!(kept(&run, &with_last), ["has a last"]);
     assert_eq!(kept(&run, &unpushed), ["not yet pushed to the fleet"]);
-    for id in [&in_visit, &with_last, &unpushed] {
+    assert_eq!(kept(&run, &with_insole), ["has an insole"]);
+    for id in [&in_visit, &with_last, &unpushed, &with_insole] {
         assert!(root.join(id).join("grid.bin").is_file(), "{id} kept whole");
     }
     // Raw data gone, the rest served as before.
@@ -139,7 +142,7 @@ fn retention_drops_old_scans_keeps_protected_ones_and_honours_max_gb() {
     assert!(a.get(&ScanId::parse(&old).unwrap()).is_err());
     assert!(run.bytes_after < run.bytes_before);
 
-    // Then max_gb: 1 MB holds the three protected scans and two of the four 0.4 MB ones;
+    // Then max_gb: 1 MB holds the four protected scans and two of the four 0.4 MB ones;
     // the oldest unprotected scans go first (the two raw-less ones, then big 0 and 1).
     let rules = Rules {
         max_gb: Some(0.001),
@@ -158,7 +161,7 @@ fn retention_drops_old_scans_keeps_protected_ones_and_honours_max_gb() {
         "{run:?}"
     );
     assert!(!run.over_max_gb && run.bytes_after <= 1_000_000, "{run:?}");
-    assert_eq!(run.kept.len(), 3, "{:?}", run.kept);
+    assert_eq!(run.kept.len(), 4, "{:?}", run.kept);
     assert!(root.join(&big[2]).is_dir() && root.join(&big[3]).is_dir());
     // A second run drops nothing more and still reports the protected ones.
     let again = a.retain(&rules, now_secs());
@@ -194,8 +197,8 @@ fn retention_drops_old_scans_keeps_protected_ones_and_honours_max_gb() {
     });
     let r = &st["archive"]["retention"];
     assert_eq!(r["rules"]["keep_days"], 365.0);
-    assert_eq!(r["kept"].as_array().unwrap().len(), 3, "{r}");
-    assert_eq!(r["kept_total"], 3, "{r}");
+    assert_eq!(r["kept"].as_array().unwrap().len(), 4, "{r}");
+    assert_eq!(r["kept_total"], 4, "{r}");
     assert!(!r["over_max_gb"].as_bool().unwrap(), "{r}");
     assert!(r["dropped"].as_array().unwrap().is_empty(), "{r}");
     assert!(d

@@ -3,8 +3,8 @@
 //! low priority. Every drop is logged and listed in the run's report (`GET /api/status`,
 //! `archive.retention`).
 //!
-//! A scan is protected when it is in a visit, has a last (`last/`), or is not yet pushed to
-//! the fleet (its outbox entry pending, or, with [fleet] on, none at all): a protected scan a
+//! A scan is protected when it is in a visit, has a last (`last/`) or an insole (`insole/`),
+//! or is not yet pushed to the fleet (its outbox entry pending, or, with [fleet] on, none at all): a protected scan a
 //! rule would drop is kept and listed as kept, with the rule and what protects it.
 //!
 //! After `keep_raw_days` a scan loses its raw data: grid.bin, points.ply, model.stl and
@@ -55,7 +55,8 @@ pub struct Kept {
     pub id: String,
     pub what: &'static str,
     pub rule: String,
-    /// What protects it: "in visit <id>", "has a last", "not yet pushed to the fleet".
+    /// What protects it: "in visit <id>", "has a last", "has an insole", "not yet pushed to
+    /// the fleet".
     pub protected_by: Vec<String>,
 }
 
@@ -281,6 +282,10 @@ impl Archive {
             }
             if dir.join(crate::daemon::lastjob::LAST_DIR).exists() {
                 p.push("has a last".to_string());
+            }
+            // An insole was made for a patient from this scan, as a last is for a shoe.
+            if dir.join(crate::daemon::insolejob::INSOLE_DIR).exists() {
+                p.push("has an insole".to_string());
             }
             if pending.contains(id) || (rules.fleet && !done.contains(id)) {
                 p.push("not yet pushed to the fleet".to_string());
