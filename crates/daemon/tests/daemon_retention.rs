@@ -204,4 +204,32 @@ fn retention_drops_old_scans_keeps_protected_ones_and_honours_max_gb() {
     assert!(d
         .stderr()
         .contains("kept against keep_days = 365: in visit"));
+
+    // The dashboard's Retention line, as a browser shows it: visible, no problem badge, the
+    // protected scans counted, each with what protects it in its tooltip.
+    let dom = daemon_support::chromium::run(
+        &format!("{}/", d.base),
+        &tmp.path().join("profile"),
+        (1280, 900),
+        &["--virtual-time-budget=5000", "--dump-dom"],
+        Duration::from_secs(120),
+    );
+    let dom = String::from_utf8(dom).unwrap();
+    let at = dom
+        .find("id=\"st-retention\"")
+        .unwrap_or_else(|| panic!("no retention line in the page"));
+    let tag_end = at + dom[at..].find('>').unwrap();
+    assert!(
+        !dom[at..tag_end].contains("hidden"),
+        "retention line hidden: {}",
+        &dom[at..tag_end]
+    );
+    let line = &dom[tag_end..tag_end + dom[tag_end..].find("</dd>").unwrap()];
+    assert!(
+        line.contains("4 protected scans kept against a rule")
+            && line.contains("has an insole")
+            && line.contains("0 scans and the raw data of 0 dropped"),
+        "{line}"
+    );
+    assert!(!line.contains("over max_gb"), "{line}");
 }
