@@ -12,7 +12,8 @@ use std::path::{Path, PathBuf};
 
 /// The cache of decoded originals, under the archive root: `.cache/<id>/<name>`.
 pub const CACHE: &str = ".cache";
-/// The most the cache holds; the files used longest ago go first.
+/// The most the cache holds unless told ([`Archive::set_cache_max_bytes`]); the files used
+/// longest ago go first.
 pub const CACHE_MAX_BYTES: u64 = 512 << 20;
 
 /// What the cache knows of a file it holds, beside it as `NAME.meta.json`: the manifest's
@@ -83,7 +84,10 @@ impl Archive {
                 if let Some(why) = differs {
                     tracing::warn!("archive: scan {} {name}: {why}", record.id);
                 }
-                prune_cache(&self.root.join(CACHE), CACHE_MAX_BYTES, &path);
+                let max = self
+                    .cache_max_bytes
+                    .load(std::sync::atomic::Ordering::Relaxed);
+                prune_cache(&self.root.join(CACHE), max, &path);
                 Some(path)
             }
             Err(e) => {
@@ -94,6 +98,12 @@ impl Archive {
                 None
             }
         }
+    }
+
+    /// The most the cache of decoded files holds (`[archive] cache_mb`).
+    pub fn set_cache_max_bytes(&self, bytes: u64) {
+        self.cache_max_bytes
+            .store(bytes, std::sync::atomic::Ordering::Relaxed);
     }
 
     /// Why a file served from `path` is not byte for byte the scan's original: Some only for
@@ -203,4 +213,44 @@ pub fn compact_archive(
     }
     run.seconds = t.elapsed().as_secs_f64();
     Ok(run)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Over its limit the cache loses the files used longest ago, never the one just made
+    /// nor what is kept beside it.
+    #[test]
+    fn the_cache_drops_the_least_recently_used_first() {
+        let d = tempfile::tempdir().unwrap();
+        let cache = d.path();
+        let t0 = std::time::SystemTime::now() - std::time::Duration::from_secs(1000);
+        let mut made = Vec::new();
+        for (k, (scan, name)) in [("a", "grid.bin"), ("b", "model.stl"), ("c", "points.ply")]
+            .iter()
+            .enumerate()
+        {
+            std::fs::create_dir_all(cache.join(scan)).unwrap();
+            let p = cache.join(scan).join(name);
+            std::fs::write(&p, vec![0u8; 1000]).unwrap();
+            // "a" used longest ago; the meta of "a" newer than every file.
+            let f = std::fs::File::options().write(true).open(&p).unwrap();
+            f.set_modified(t0 + std::time::Duration::from_secs(10 * k as u64))
+                .unwrap();
+            made.push(p);
+        }
+        let keep = made[0].clone();
+        std::fs::write(meta_path(&keep), b"{}").unwrap();
+        // 2000 bytes hold two files: b (the older of the others) goes, a is kept as the one
+        // just made, and its meta with it.
+        prune_cache(cache, 2100, &keep);
+        assert!(keep.is_file() && meta_path(&keep).is_file());
+        assert!(!made[1].exists() && !cache.join("b").exists());
+        assert!(made[2].is_file());
+        // Without a file to keep, the least recently used go until it fits.
+        prune_cache(cache, 1100, &cache.join("none"));
+        let left: Vec<bool> = made.iter().map(|p| p.exists()).collect();
+        assert_eq!(left, [false, false, true], "{left:?}");
+    }
 }

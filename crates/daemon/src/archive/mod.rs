@@ -142,6 +142,8 @@ pub struct Archive {
     visits_seen: Mutex<Option<std::time::SystemTime>>,
     /// Held while a compacted scan's file is decoded into the cache (archive/compact.rs).
     cache_lock: Mutex<()>,
+    /// The most that cache holds (`[archive] cache_mb`).
+    cache_max_bytes: std::sync::atomic::AtomicU64,
     /// The last retention run's report (archive/retention.rs), for the status.
     retention: Mutex<Option<retention::RetentionRun>>,
     /// The archive lock, released when the archive is dropped (or the process dies).
@@ -230,6 +232,7 @@ impl Archive {
             last_progress: Mutex::default(),
             visits_seen: Mutex::default(),
             cache_lock: Mutex::default(),
+            cache_max_bytes: std::sync::atomic::AtomicU64::new(compact::CACHE_MAX_BYTES),
             retention: Mutex::default(),
             _lock: lock,
         };

@@ -32,6 +32,7 @@ struct ArchiveSection {
     keep_days: Option<f64>,
     max_gb: Option<f64>,
     retention_interval_h: Option<f64>,
+    cache_mb: Option<f64>,
 }
 
 /// `[archive]`: how scans are kept (docs/method.md 14h.2).
@@ -50,6 +51,8 @@ pub struct ArchivePolicy {
     pub max_gb: Option<f64>,
     /// Hours between two retention runs (the first at start).
     pub retention_interval_h: f64,
+    /// The most the cache of compacted scans' decoded files holds (bytes).
+    pub cache_bytes: u64,
 }
 
 impl Default for ArchivePolicy {
@@ -60,9 +63,13 @@ impl Default for ArchivePolicy {
             keep_days: None,
             max_gb: None,
             retention_interval_h: 1.0,
+            cache_bytes: DEFAULT_CACHE_MB << 20,
         }
     }
 }
+
+/// The default `[archive] cache_mb`: a few dozen decoded scans' models and grids.
+pub const DEFAULT_CACHE_MB: u64 = 512;
 
 impl ArchivePolicy {
     /// Whether any retention rule is set.
@@ -111,12 +118,23 @@ impl ArchivePolicy {
                 ))
             }
         };
+        let cache_bytes = match a.cache_mb {
+            None => DEFAULT_CACHE_MB << 20,
+            Some(m) if m.is_finite() && (16.0..=1.0e6).contains(&m) => (m * 1048576.0) as u64,
+            Some(m) => {
+                return Err(format!(
+                    "[archive] cache_mb = {m}: must be 16 to 1000000 MB (the cache of \
+                     compacted scans' files; default {DEFAULT_CACHE_MB})"
+                ))
+            }
+        };
         Ok(ArchivePolicy {
             compact: a.compact.unwrap_or(true),
             keep_raw_days,
             keep_days,
             max_gb,
             retention_interval_h,
+            cache_bytes,
         })
     }
 }
@@ -493,10 +511,13 @@ mod tests {
         let c = DaemonConfig::parse(Path::new("d.toml"), OK, None, None).unwrap();
         assert_eq!(c.archive_policy, ArchivePolicy::default());
         assert!(c.archive_policy.compact && !c.archive_policy.retains());
-        let text = format!("{OK}[archive]\nkeep_raw_days = 30\nkeep_days = 3650\nmax_gb = 200\n");
+        let text = format!(
+            "{OK}[archive]\nkeep_raw_days = 30\nkeep_days = 3650\nmax_gb = 200\ncache_mb = 64\n"
+        );
         let c = DaemonConfig::parse(Path::new("d.toml"), &text, None, None).unwrap();
         assert_eq!(c.archive_policy.keep_raw_days, Some(30.0));
         assert_eq!(c.archive_policy.max_gb, Some(200.0));
+        assert_eq!(c.archive_policy.cache_bytes, 64 << 20);
         for (bad, words) in [
             (
                 "keep_days = -1",
@@ -511,6 +532,7 @@ mod tests {
                 "retention_interval_h = 0",
                 "retention_interval_h = 0: must be",
             ),
+            ("cache_mb = 1", "cache_mb = 1: must be 16 to 1000000 MB"),
             ("keep = 3", "unknown field `keep`"),
         ] {
             let text = format!("{OK}[archive]\n{bad}\n");

@@ -285,6 +285,7 @@ impl Daemon {
             tracing::warn!("{why}; scans are refused until it is present");
         }
         let archive = Arc::new(Archive::open(&config.archive)?);
+        archive.set_cache_max_bytes(config.archive_policy.cache_bytes);
         let calibration = daemon_cal.map(|(path, _)| CalibrationInfo {
             id: cal_id,
             method: cal.method,
