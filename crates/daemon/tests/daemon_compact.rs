@@ -284,6 +284,15 @@ fn compacted_scans_serve_the_same_bytes_and_migration_survives_kills() {
         .unwrap();
     assert_eq!(r.status(), 200);
     assert!(r.headers().get("x-footscan-rebuilt").is_none());
+    // The compact form's own files are not the scan's: not served by name.
+    for own in [MANIFEST, "grid.bin.shuf.gz"] {
+        let r = d
+            .client
+            .get(d.url(&format!("/api/scans/{id}/files/{own}")))
+            .send()
+            .unwrap();
+        assert_eq!(r.status(), 404, "{own}");
+    }
     drop(d);
     std::fs::write(&man_path, &saved).unwrap();
 

@@ -775,7 +775,9 @@ impl Archive {
     /// compacted scan keeps in compact form, the original decoded into the archive's cache
     /// (archive/compact.rs), byte for byte the file it was.
     pub fn artifact_path(&self, record: &Record, name: &str) -> Option<PathBuf> {
-        if !valid_file_name(name) {
+        // The compact form's own files (its manifest, the stored forms) are not the scan's:
+        // not listed, and not served by name either.
+        if !valid_file_name(name) || footscan::compact::is_compact_file(name) {
             return None;
         }
         let p = self.checked_dir(record)?.join(name);
