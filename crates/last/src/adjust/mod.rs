@@ -42,7 +42,7 @@ pub use footscan_geom::HeightMap;
 pub use outline::{outline_landmarks, OutlineLandmarks, Pt};
 pub use side::Side;
 
-use outline::{add, dist, dot, perp, scale, sub};
+use outline::{add, dist, dot, scale, sub};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -347,212 +347,403 @@ pub fn adjust(
     opts: &AdjustOptions,
 ) -> Result<Adjustment, AdjustError> {
     check_foot(foot)?;
-    let last_err = |why: String| AdjustError::Last {
+    if bottom.outline.len() < 8 || bottom.heights.valid_count() == 0 {
+        return Err(last_err(
+            bottom,
+            format!(
+                "the bottom has {} outline points and {} height cells; no bottom to adjust",
+                bottom.outline.len(),
+                bottom.heights.valid_count()
+            ),
+        ));
+    }
+    let mut notes = Vec::new();
+    let sole = Sole::of(foot, &mut notes);
+    let plan = BottomPlan::of(bottom, foot, sole.length, opts, &mut notes)?;
+    // Steps 2 and 3 on the foot outline resampled (also the working grid's extent).
+    let f_rs = outline::resample_closed(&sole.outline, 512);
+    let placed = Placement::of(&plan, &sole, &f_rs);
+    let to_plan = placed.scale_m.after(&placed.rigid_m);
+    let scaled: Vec<Pt> = plan.outline.iter().map(|&p| to_plan.apply(p)).collect();
+    let scaled_lm: Vec<Pt> = plan.landmarks.iter().map(|&p| to_plan.apply(p)).collect();
+    let warp = Warp::fit(&scaled, &scaled_lm, &sole, opts, bottom)?;
+    let grid = Grid::sample(foot, bottom, &f_rs, opts, &placed, &scaled, &warp);
+    let (zeta, zeta_at, heights) =
+        fit_heights(&grid, foot, &sole, opts, placed.centre, bottom, &mut notes)?;
+    let dev = Deviations::of(&grid, &heights, &sole, &plan, &placed, &warp, &scaled_lm);
+    let rigid_m = placed.rigid_m;
+    Ok(Adjustment {
+        eps: placed.eps,
+        zeta,
+        eps_at: placed.eps_at,
+        zeta_at,
+        mirrored: plan.mirrored,
+        bottom_side: plan.side_before,
+        rotation_deg: rigid_m.a[1][0].atan2(rigid_m.a[0][0]).to_degrees(),
+        shift: rigid_m.t,
+        centre: placed.centre,
+        rigid: placed.rigid,
+        to_foot: placed.to_foot,
+        forward: warp.fwd,
+        heights,
+        inside: grid.inside,
+        outline: grid.adj_outline,
+        foot_outline: sole.outline,
+        bottom_outline_before: placed.aligned,
+        landmarks: dev.landmarks,
+        before: dev.before,
+        after: dev.after,
+        before_map: dev.before_map,
+        after_map: dev.after_map,
+        correspondences: warp.correspondences,
+        notes,
+    })
+}
+
+fn last_err(bottom: &LastBottom, why: String) -> AdjustError {
+    AdjustError::Last {
         input: bottom.source.clone(),
         why,
-    };
-    if bottom.outline.len() < 8 || bottom.heights.valid_count() == 0 {
-        return Err(last_err(format!(
-            "the bottom has {} outline points and {} height cells; no bottom to adjust",
-            bottom.outline.len(),
-            bottom.heights.valid_count()
-        )));
     }
-    let fl = &foot.landmarks;
-    let mut notes = Vec::new();
+}
 
-    // The foot's sole outline and its landmarks on it.
-    let forward_f = outline::scale(sub(fl.toe_tip, fl.heel_point), 1.0);
-    let axis_f = scale(forward_f, 1.0 / dist(fl.toe_tip, fl.heel_point));
-    let cut = if dot(fl.mt1_head, axis_f) < dot(fl.mt5_head, axis_f) {
-        fl.mt1_head
-    } else {
-        fl.mt5_head
-    };
-    let foot_outline = outline::sole_envelope(&foot.outline, &foot.toe_outlines, axis_f, cut);
-    let foot_raw = [
-        fl.heel_point,
-        fl.toe_tip,
-        fl.mt1_head,
-        fl.mt5_head,
-        fl.waist_inner,
-        fl.waist_outer,
-    ];
-    let foot_on: Vec<Pt> = foot_raw
-        .iter()
-        .map(|&q| outline::closest_on(&foot_outline, q).0)
-        .collect();
-    let off = foot_raw
-        .iter()
-        .zip(&foot_on)
-        .map(|(a, b)| dist(*a, *b))
-        .fold(0.0, f64::max);
-    if off > 0.05 {
-        notes.push(format!(
-            "foot landmarks moved up to {off:.2} mm onto the sole outline (toe pads included)"
-        ));
-    }
-    let foot_len = dot(sub(fl.toe_tip, fl.heel_point), axis_f);
+/// The foot's side of the fit: its sole outline (body and toe pads) and six landmarks
+/// (heel point, toe tip, MT1 and MT5 heads, inner and outer waist) as measured and moved
+/// onto that outline.
+struct Sole {
+    outline: Vec<Pt>,
+    raw: [Pt; 6],
+    on: Vec<Pt>,
+    /// Heel point to toe tip along the foot's axis (mm).
+    length: f64,
+}
 
-    // The bottom's landmarks; mirrored when it is a last of the other foot.
-    let mut b_out = bottom.outline.clone();
-    outline::make_ccw(&mut b_out);
-    let lm0 = outline_landmarks(&b_out, [1.0, 0.0], None)
-        .map_err(|e| last_err(format!("bottom landmarks: {e}")))?;
-    let mirrored = lm0.side != foot.side;
-    let mirror = if mirrored {
-        Affine2 {
-            a: [[1.0, 0.0], [0.0, -1.0]],
-            t: [0.0, 0.0],
+impl Sole {
+    fn of(foot: &FootPlantar, notes: &mut Vec<String>) -> Sole {
+        let fl = &foot.landmarks;
+        let forward_f = outline::scale(sub(fl.toe_tip, fl.heel_point), 1.0);
+        let axis_f = scale(forward_f, 1.0 / dist(fl.toe_tip, fl.heel_point));
+        let cut = if dot(fl.mt1_head, axis_f) < dot(fl.mt5_head, axis_f) {
+            fl.mt1_head
+        } else {
+            fl.mt5_head
+        };
+        let outline = outline::sole_envelope(&foot.outline, &foot.toe_outlines, axis_f, cut);
+        let raw = [
+            fl.heel_point,
+            fl.toe_tip,
+            fl.mt1_head,
+            fl.mt5_head,
+            fl.waist_inner,
+            fl.waist_outer,
+        ];
+        let on: Vec<Pt> = raw
+            .iter()
+            .map(|&q| outline::closest_on(&outline, q).0)
+            .collect();
+        let off = raw
+            .iter()
+            .zip(&on)
+            .map(|(a, b)| dist(*a, *b))
+            .fold(0.0, f64::max);
+        if off > 0.05 {
+            notes.push(format!(
+                "foot landmarks moved up to {off:.2} mm onto the sole outline (toe pads included)"
+            ));
         }
-    } else {
-        Affine2::identity()
-    };
-    if mirrored {
-        b_out = b_out.iter().map(|&p| mirror.apply(p)).collect();
+        Sole {
+            outline,
+            raw,
+            on,
+            length: dot(sub(fl.toe_tip, fl.heel_point), axis_f),
+        }
+    }
+}
+
+/// Step 1: the bottom's outline (counterclockwise) and landmarks, mirrored when it is a
+/// last of the other foot.
+struct BottomPlan {
+    outline: Vec<Pt>,
+    landmarks: Vec<Pt>,
+    /// The side the bottom was before any mirroring.
+    side_before: Side,
+    mirrored: bool,
+    mirror: Affine2,
+}
+
+impl BottomPlan {
+    fn of(
+        bottom: &LastBottom,
+        foot: &FootPlantar,
+        foot_len: f64,
+        opts: &AdjustOptions,
+        notes: &mut Vec<String>,
+    ) -> Result<BottomPlan, AdjustError> {
+        let mut b_out = bottom.outline.clone();
         outline::make_ccw(&mut b_out);
-        notes.push(format!(
-            "the last is a {:?} last and the foot a {:?} foot: the last was mirrored",
-            lm0.side, foot.side
-        ));
-    }
-    let lb = outline_landmarks(&b_out, [1.0, 0.0], Some(foot.side))
-        .map_err(|e| last_err(format!("bottom landmarks: {e}")))?;
-    if lb.length < opts.min_length_ratio * foot_len {
-        return Err(AdjustError::TooShort {
-            input: bottom.source.clone(),
-            last_mm: lb.length,
-            foot_mm: foot_len,
-        });
-    }
-    let b_lm: Vec<Pt> = lb.named().iter().map(|x| x.1).collect();
-
-    // 2. Rigid fit on heel, toe and ball points.
-    let rigid_m = rigid_fit(&b_lm[..4], &foot_raw[..4]);
-    let rigid = rigid_m.after(&mirror);
-    let centre = scale(
-        foot_raw[..4].iter().fold([0.0, 0.0], |a, &b| add(a, b)),
-        0.25,
-    );
-    let aligned: Vec<Pt> = b_out.iter().map(|&p| rigid_m.apply(p)).collect();
-
-    // 3. eps from the largest excursion of the foot outline outside the bottom.
-    let f_rs = outline::resample_closed(&foot_outline, 512);
-    let a_rs = outline::resample_closed(&aligned, 512);
-    let (mut best_d, mut eps, mut eps_at) = (f64::NEG_INFINITY, 1.0, centre);
-    for &q in &f_rs {
-        let d = sub(q, centre);
-        let rf = d[0].hypot(d[1]);
-        if rf < 1e-9 {
-            continue;
+        let lm0 = outline_landmarks(&b_out, [1.0, 0.0], None)
+            .map_err(|e| last_err(bottom, format!("bottom landmarks: {e}")))?;
+        let mirrored = lm0.side != foot.side;
+        let mirror = if mirrored {
+            Affine2 {
+                a: [[1.0, 0.0], [0.0, -1.0]],
+                t: [0.0, 0.0],
+            }
+        } else {
+            Affine2::identity()
+        };
+        if mirrored {
+            b_out = b_out.iter().map(|&p| mirror.apply(p)).collect();
+            outline::make_ccw(&mut b_out);
+            notes.push(format!(
+                "the last is a {:?} last and the foot a {:?} foot: the last was mirrored",
+                lm0.side, foot.side
+            ));
         }
-        if let Some(t) = outline::ray_exit(&a_rs, centre, scale(d, 1.0 / rf)) {
-            if rf - t > best_d {
-                (best_d, eps, eps_at) = (rf - t, rf / t, q);
+        let lb = outline_landmarks(&b_out, [1.0, 0.0], Some(foot.side))
+            .map_err(|e| last_err(bottom, format!("bottom landmarks: {e}")))?;
+        if lb.length < opts.min_length_ratio * foot_len {
+            return Err(AdjustError::TooShort {
+                input: bottom.source.clone(),
+                last_mm: lb.length,
+                foot_mm: foot_len,
+            });
+        }
+        Ok(BottomPlan {
+            outline: b_out,
+            landmarks: lb.named().iter().map(|x| x.1).collect(),
+            side_before: lm0.side,
+            mirrored,
+            mirror,
+        })
+    }
+}
+
+/// Steps 2 and 3: the rigid fit of the bottom's heel, toe and ball points to the foot's,
+/// and eps from the largest excursion of the foot outline outside the fitted bottom.
+struct Placement {
+    /// The rigid fit of the (mirrored) plan, and of the bottom's own frame.
+    rigid_m: Affine2,
+    rigid: Affine2,
+    /// The landmarks' centroid, the centre of the eps scaling.
+    centre: Pt,
+    /// The plan's outline after the rigid fit.
+    aligned: Vec<Pt>,
+    eps: f64,
+    eps_at: Pt,
+    scale_m: Affine2,
+    /// Bottom frame -> foot frame: the rigid fit, then eps.
+    to_foot: Affine2,
+}
+
+impl Placement {
+    fn of(plan: &BottomPlan, sole: &Sole, f_rs: &[Pt]) -> Placement {
+        let rigid_m = rigid_fit(&plan.landmarks[..4], &sole.raw[..4]);
+        let rigid = rigid_m.after(&plan.mirror);
+        let centre = scale(
+            sole.raw[..4].iter().fold([0.0, 0.0], |a, &b| add(a, b)),
+            0.25,
+        );
+        let aligned: Vec<Pt> = plan.outline.iter().map(|&p| rigid_m.apply(p)).collect();
+        let a_rs = outline::resample_closed(&aligned, 512);
+        let (mut best_d, mut eps, mut eps_at) = (f64::NEG_INFINITY, 1.0, centre);
+        for &q in f_rs {
+            let d = sub(q, centre);
+            let rf = d[0].hypot(d[1]);
+            if rf < 1e-9 {
+                continue;
+            }
+            if let Some(t) = outline::ray_exit(&a_rs, centre, scale(d, 1.0 / rf)) {
+                if rf - t > best_d {
+                    (best_d, eps, eps_at) = (rf - t, rf / t, q);
+                }
             }
         }
-    }
-    let scale_m = Affine2 {
-        a: [[eps, 0.0], [0.0, eps]],
-        t: sub(centre, scale(centre, eps)),
-    };
-    let to_foot = scale_m.after(&rigid);
-    let scaled: Vec<Pt> = b_out
-        .iter()
-        .map(|&p| scale_m.after(&rigid_m).apply(p))
-        .collect();
-    let scaled_lm: Vec<Pt> = b_lm
-        .iter()
-        .map(|&p| scale_m.after(&rigid_m).apply(p))
-        .collect();
-
-    // 4. Landmarks and outline onto the foot's, targets smoothed with landmarks pinned.
-    let (src, mut tgt, idx) = outline::correspond(
-        &scaled,
-        &scaled_lm,
-        &foot_outline,
-        &foot_on,
-        opts.contour_spacing_mm,
-    )
-    .map_err(|e| last_err(format!("outline correspondence with the foot: {e}")))?;
-    let mut pinned = vec![false; tgt.len()];
-    for &i in &idx {
-        pinned[i] = true;
-    }
-    // Smooth the displacements (not the positions): a contour that already fits is left
-    // alone, and the smoothing cannot shrink the outline.
-    let (it, lam, mu) = opts.taubin;
-    let mut disp: Vec<Pt> = tgt.iter().zip(&src).map(|(t, s)| sub(*t, *s)).collect();
-    outline::taubin(&mut disp, &pinned, it, lam, mu);
-    for k in 0..tgt.len() {
-        tgt[k] = add(src[k], disp[k]);
-    }
-    let fwd = tps::Tps::fit(&src, &tgt)
-        .ok_or_else(|| last_err("the outline correspondences are degenerate".into()))?;
-    let inv = tps::Tps::fit(&tgt, &src)
-        .ok_or_else(|| last_err("the outline correspondences are degenerate".into()))?;
-
-    // Working grid over the foot outline.
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in &f_rs {
-        for d in 0..2 {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
+        let scale_m = Affine2 {
+            a: [[eps, 0.0], [0.0, eps]],
+            t: sub(centre, scale(centre, eps)),
+        };
+        Placement {
+            rigid_m,
+            rigid,
+            centre,
+            aligned,
+            eps,
+            eps_at,
+            scale_m,
+            to_foot: scale_m.after(&rigid),
         }
     }
-    let margin = 4.0;
-    let c = opts.cell_mm;
-    let (x0, y0) = (lo[0] - margin, lo[1] - margin);
-    let nx = ((hi[0] - lo[0] + 2.0 * margin) / c).ceil() as usize + 1;
-    let ny = ((hi[1] - lo[1] + 2.0 * margin) / c).ceil() as usize + 1;
+}
+
+/// Step 4: landmarks and outline onto the foot's, the targets smoothed with the landmarks
+/// pinned, and the thin-plate splines through them both ways.
+struct Warp {
+    fwd: tps::Tps,
+    inv: tps::Tps,
+    correspondences: usize,
+}
+
+impl Warp {
+    fn fit(
+        scaled: &[Pt],
+        scaled_lm: &[Pt],
+        sole: &Sole,
+        opts: &AdjustOptions,
+        bottom: &LastBottom,
+    ) -> Result<Warp, AdjustError> {
+        let (src, mut tgt, idx) = outline::correspond(
+            scaled,
+            scaled_lm,
+            &sole.outline,
+            &sole.on,
+            opts.contour_spacing_mm,
+        )
+        .map_err(|e| last_err(bottom, format!("outline correspondence with the foot: {e}")))?;
+        let mut pinned = vec![false; tgt.len()];
+        for &i in &idx {
+            pinned[i] = true;
+        }
+        // Smooth the displacements (not the positions): a contour that already fits is left
+        // alone, and the smoothing cannot shrink the outline.
+        let (it, lam, mu) = opts.taubin;
+        let mut disp: Vec<Pt> = tgt.iter().zip(&src).map(|(t, s)| sub(*t, *s)).collect();
+        outline::taubin(&mut disp, &pinned, it, lam, mu);
+        for k in 0..tgt.len() {
+            tgt[k] = add(src[k], disp[k]);
+        }
+        let degenerate = || last_err(bottom, "the outline correspondences are degenerate".into());
+        Ok(Warp {
+            fwd: tps::Tps::fit(&src, &tgt).ok_or_else(degenerate)?,
+            inv: tps::Tps::fit(&tgt, &src).ok_or_else(degenerate)?,
+            correspondences: src.len(),
+        })
+    }
+}
+
+/// The working grid over the foot outline: the foot's heights, the bottom's carried onto
+/// it by the adjustment's plan map, and the bottom's after the rigid fit alone.
+struct Grid {
+    x0: f64,
+    y0: f64,
+    c: f64,
+    nx: usize,
+    ny: usize,
+    /// Cells inside the adjusted outline.
+    inside: Vec<bool>,
+    adj_outline: Vec<Pt>,
+    /// Foot heights, and the bottom's heights carried along.
+    hf: HeightMap,
+    hs: HeightMap,
+    h_before: Vec<f64>,
+    /// Cells where both heights come from four finite corners (no blending at an edge).
+    full: Vec<bool>,
+}
+
+impl Grid {
+    fn sample(
+        foot: &FootPlantar,
+        bottom: &LastBottom,
+        f_rs: &[Pt],
+        opts: &AdjustOptions,
+        placed: &Placement,
+        scaled: &[Pt],
+        warp: &Warp,
+    ) -> Grid {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in f_rs {
+            for d in 0..2 {
+                lo[d] = lo[d].min(p[d]);
+                hi[d] = hi[d].max(p[d]);
+            }
+        }
+        let margin = 4.0;
+        let c = opts.cell_mm;
+        let (x0, y0) = (lo[0] - margin, lo[1] - margin);
+        let nx = ((hi[0] - lo[0] + 2.0 * margin) / c).ceil() as usize + 1;
+        let ny = ((hi[1] - lo[1] + 2.0 * margin) / c).ceil() as usize + 1;
+        let n = nx * ny;
+        let inv_tab = tps::Tabulated::new(
+            &warp.inv,
+            [x0, y0],
+            [x0 + nx as f64 * c, y0 + ny as f64 * c],
+            opts.table_step_mm,
+        );
+        let back = placed.to_foot.inverse();
+        let rigid_back = placed.rigid.inverse();
+        let adj_outline: Vec<Pt> = outline::resample_closed(scaled, 1024)
+            .iter()
+            .map(|&p| warp.fwd.apply(p))
+            .collect();
+        let inside = outline::inside_mask(&adj_outline, x0, y0, c, nx, ny);
+        let mut hf = HeightMap::new(x0, y0, c, nx, ny);
+        let mut hs = HeightMap::new(x0, y0, c, nx, ny);
+        let mut h_before = vec![f64::NAN; n];
+        let mut full = vec![false; n];
+        let fg = &foot.heights;
+        for j in 0..ny {
+            for i in 0..nx {
+                let p = [x0 + i as f64 * c, y0 + j as f64 * c];
+                let k = j * nx + i;
+                if let Some((a, b)) = fg.cell_of(p[0], p[1]) {
+                    if fg.get(a, b).is_finite() {
+                        match fg.sample_full(p[0], p[1]) {
+                            Some(z) => (hf.z[k], full[k]) = (z, true),
+                            None => hf.z[k] = fg.sample(p[0], p[1]),
+                        }
+                        let pb = rigid_back.apply(p);
+                        h_before[k] = bottom.heights.sample(pb[0], pb[1]);
+                    }
+                }
+                if inside[k] || hf.z[k].is_finite() {
+                    let pb = back.apply(inv_tab.apply(p));
+                    match bottom.heights.sample_full(pb[0], pb[1]) {
+                        Some(z) => hs.z[k] = z,
+                        None => {
+                            hs.z[k] = bottom.heights.sample(pb[0], pb[1]);
+                            full[k] = false;
+                        }
+                    }
+                }
+            }
+        }
+        Grid {
+            x0,
+            y0,
+            c,
+            nx,
+            ny,
+            inside,
+            adj_outline,
+            hf,
+            hs,
+            h_before,
+            full,
+        }
+    }
+
+    fn map(&self) -> HeightMap {
+        HeightMap::new(self.x0, self.y0, self.c, self.nx, self.ny)
+    }
+}
+
+/// Step 5: zeta at the largest excursion of the plantar surface beyond the bottom, the
+/// heights scaled by it and corrected to the plantar surface (exact at the arch point),
+/// then smoothed with the landmark cells pinned. Returns zeta, where it was found and the
+/// adjusted heights.
+fn fit_heights(
+    g: &Grid,
+    foot: &FootPlantar,
+    sole: &Sole,
+    opts: &AdjustOptions,
+    centre: Pt,
+    bottom: &LastBottom,
+    notes: &mut Vec<String>,
+) -> Result<(f64, Pt, HeightMap), AdjustError> {
+    let fl = &foot.landmarks;
+    let (nx, ny, c) = (g.nx, g.ny, g.c);
     let n = nx * ny;
-    let inv_tab = tps::Tabulated::new(
-        &inv,
-        [x0, y0],
-        [x0 + nx as f64 * c, y0 + ny as f64 * c],
-        opts.table_step_mm,
-    );
-    let back = to_foot.inverse();
-    let rigid_back = rigid.inverse();
-    let adj_outline: Vec<Pt> = outline::resample_closed(&scaled, 1024)
-        .iter()
-        .map(|&p| fwd.apply(p))
-        .collect();
-    let inside = outline::inside_mask(&adj_outline, x0, y0, c, nx, ny);
-    let mut hf = HeightMap::new(x0, y0, c, nx, ny);
-    let mut hs = HeightMap::new(x0, y0, c, nx, ny);
-    let mut h_before = vec![f64::NAN; n];
-    // Cells where both heights come from four finite corners (no blending at an edge).
-    let mut full = vec![false; n];
-    let fg = &foot.heights;
-    for j in 0..ny {
-        for i in 0..nx {
-            let p = [x0 + i as f64 * c, y0 + j as f64 * c];
-            let k = j * nx + i;
-            if let Some((a, b)) = fg.cell_of(p[0], p[1]) {
-                if fg.get(a, b).is_finite() {
-                    match fg.sample_full(p[0], p[1]) {
-                        Some(z) => (hf.z[k], full[k]) = (z, true),
-                        None => hf.z[k] = fg.sample(p[0], p[1]),
-                    }
-                    let pb = rigid_back.apply(p);
-                    h_before[k] = bottom.heights.sample(pb[0], pb[1]);
-                }
-            }
-            if inside[k] || hf.z[k].is_finite() {
-                let pb = back.apply(inv_tab.apply(p));
-                match bottom.heights.sample_full(pb[0], pb[1]) {
-                    Some(z) => hs.z[k] = z,
-                    None => {
-                        hs.z[k] = bottom.heights.sample(pb[0], pb[1]);
-                        full[k] = false;
-                    }
-                }
-            }
-        }
-    }
-
-    // 5. zeta at the largest excursion of the plantar surface beyond the bottom.
+    let (hf, hs, full, inside) = (&g.hf, &g.hs, &g.full, &g.inside);
     // Only cells `zeta_edge_mm` inside the outline: the sole turns up steeply at its edge,
     // where a hundredth of a millimetre in plan is a large change in height.
     let e = (opts.zeta_edge_mm / c).ceil() as usize;
@@ -571,7 +762,7 @@ pub fn adjust(
             }
             if zf - zs > best_dz {
                 (best_dz, zeta, zeta_at) =
-                    (zf - zs, zf / zs, [x0 + i as f64 * c, y0 + j as f64 * c]);
+                    (zf - zs, zf / zs, [g.x0 + i as f64 * c, g.y0 + j as f64 * c]);
             }
         }
     }
@@ -579,8 +770,7 @@ pub fn adjust(
         notes.push(format!("zeta {zeta:.3} clamped to [0.25, 4]"));
         zeta = zeta.clamp(0.25, 4.0);
     }
-    // Heights scaled, then the correction to the plantar surface (exact at the arch point).
-    let mut corr = HeightMap::new(x0, y0, c, nx, ny);
+    let mut corr = g.map();
     let mut pin = vec![false; n];
     for k in 0..n {
         if hf.z[k].is_finite() && hs.z[k].is_finite() {
@@ -588,7 +778,7 @@ pub fn adjust(
         }
     }
     let mut pin_cells = Vec::new();
-    for p in foot_raw.iter().chain(std::iter::once(&fl.arch_point)) {
+    for p in sole.raw.iter().chain(std::iter::once(&fl.arch_point)) {
         if let Some((i, j)) = corr.cell_of(p[0], p[1]) {
             pin_cells.push(j * nx + i);
         }
@@ -601,11 +791,12 @@ pub fn adjust(
     }
     if corr.valid_count() == 0 {
         return Err(last_err(
+            bottom,
             "the bottom and the footprint do not overlap after alignment".into(),
         ));
     }
     corr.fill();
-    let mut heights = HeightMap::new(x0, y0, c, nx, ny);
+    let mut heights = g.map();
     for k in 0..n {
         heights.z[k] = if hs.z[k].is_finite() {
             zeta * hs.z[k] + corr.z[k]
@@ -620,86 +811,84 @@ pub fn adjust(
     for &k in &pin_cells {
         pin[k] = true;
     }
-    heights.smooth4(&inside, &pin, opts.smooth_passes);
+    heights.smooth4(inside, &pin, opts.smooth_passes);
+    Ok((zeta, zeta_at, heights))
+}
 
-    // 6. Deviation before and after.
-    let mut before_map = HeightMap::new(x0, y0, c, nx, ny);
-    let mut after_map = HeightMap::new(x0, y0, c, nx, ny);
-    let (mut sb, mut sa) = (Stats::default(), Stats::default());
-    for k in 0..n {
-        if !hf.z[k].is_finite() {
-            continue;
+/// Step 6: the deviation (bottom minus foot) before (rigid fit only) and after: heights
+/// over the footprint, outline, landmarks.
+struct Deviations {
+    before: Deviation,
+    after: Deviation,
+    before_map: HeightMap,
+    after_map: HeightMap,
+    landmarks: Vec<LandmarkPair>,
+}
+
+impl Deviations {
+    fn of(
+        g: &Grid,
+        heights: &HeightMap,
+        sole: &Sole,
+        plan: &BottomPlan,
+        placed: &Placement,
+        warp: &Warp,
+        scaled_lm: &[Pt],
+    ) -> Deviations {
+        let mut before_map = g.map();
+        let mut after_map = g.map();
+        let (mut sb, mut sa) = (Stats::default(), Stats::default());
+        for k in 0..g.nx * g.ny {
+            if !g.hf.z[k].is_finite() {
+                continue;
+            }
+            let b = g.h_before[k] - g.hf.z[k];
+            before_map.z[k] = b;
+            sb.add(b);
+            let a = heights.z[k] - g.hf.z[k];
+            after_map.z[k] = a;
+            sa.add(a);
         }
-        let b = h_before[k] - hf.z[k];
-        before_map.z[k] = b;
-        sb.add(b);
-        let a = heights.z[k] - hf.z[k];
-        after_map.z[k] = a;
-        sa.add(a);
-    }
-    let foot_small = outline::resample_closed(&foot_outline, 512);
-    let outline_dev = |o: &[Pt]| {
-        let mut s = Stats::default();
-        for q in outline::resample_closed(o, 512) {
-            s.add(outline::distance_to(&foot_small, q));
+        let foot_small = outline::resample_closed(&sole.outline, 512);
+        let outline_dev = |o: &[Pt]| {
+            let mut s = Stats::default();
+            for q in outline::resample_closed(o, 512) {
+                s.add(outline::distance_to(&foot_small, q));
+            }
+            (s.rms(), s.max)
+        };
+        let names = [
+            "heel point",
+            "toe tip",
+            "MT1 head",
+            "MT5 head",
+            "inner waist",
+            "outer waist",
+        ];
+        let landmarks: Vec<LandmarkPair> = (0..6)
+            .map(|k| LandmarkPair {
+                name: names[k].into(),
+                foot: sole.raw[k],
+                before: placed.rigid_m.apply(plan.landmarks[k]),
+                after: warp.fwd.apply(scaled_lm[k]),
+            })
+            .collect();
+        let lmax = |f: &dyn Fn(&LandmarkPair) -> Pt| {
+            landmarks
+                .iter()
+                .map(|l| dist(l.foot, f(l)))
+                .fold(0.0, f64::max)
+        };
+        let (ob_rms, ob_max) = outline_dev(&placed.aligned);
+        let (oa_rms, oa_max) = outline_dev(&g.adj_outline);
+        Deviations {
+            before: sb.deviation(ob_rms, ob_max, lmax(&|l| l.before)),
+            after: sa.deviation(oa_rms, oa_max, lmax(&|l| l.after)),
+            before_map,
+            after_map,
+            landmarks,
         }
-        (s.rms(), s.max)
-    };
-    let mut landmarks = Vec::new();
-    let names = [
-        "heel point",
-        "toe tip",
-        "MT1 head",
-        "MT5 head",
-        "inner waist",
-        "outer waist",
-    ];
-    for k in 0..6 {
-        landmarks.push(LandmarkPair {
-            name: names[k].into(),
-            foot: foot_raw[k],
-            before: rigid_m.apply(b_lm[k]),
-            after: fwd.apply(scaled_lm[k]),
-        });
     }
-    let lmax = |f: &dyn Fn(&LandmarkPair) -> Pt| {
-        landmarks
-            .iter()
-            .map(|l| dist(l.foot, f(l)))
-            .fold(0.0, f64::max)
-    };
-    let (ob_rms, ob_max) = outline_dev(&aligned);
-    let (oa_rms, oa_max) = outline_dev(&adj_outline);
-    let before = sb.deviation(ob_rms, ob_max, lmax(&|l| l.before));
-    let after = sa.deviation(oa_rms, oa_max, lmax(&|l| l.after));
-    let rotation_deg = rigid_m.a[1][0].atan2(rigid_m.a[0][0]).to_degrees();
-    let _ = perp;
-    Ok(Adjustment {
-        eps,
-        zeta,
-        eps_at,
-        zeta_at,
-        mirrored,
-        bottom_side: lm0.side,
-        rotation_deg,
-        shift: rigid_m.t,
-        centre,
-        rigid,
-        to_foot,
-        forward: fwd,
-        heights,
-        inside,
-        outline: adj_outline,
-        foot_outline,
-        bottom_outline_before: aligned,
-        landmarks,
-        before,
-        after,
-        before_map,
-        after_map,
-        correspondences: src.len(),
-        notes,
-    })
 }
 
 /// Running statistics of signed deviations; NaN counts as an uncovered cell.
