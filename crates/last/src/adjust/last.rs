@@ -461,177 +461,18 @@ pub fn deform_last(
     fade_mm: f64,
 ) -> Result<(TriMesh, DeformReport), AdjustError> {
     let mut mesh = prep.mesh.clone();
-    // The adjusted bottom continued beyond its outline the way the last's own bottom is
-    // (`prep.lowest`), so the rim and sides, which fall outside both outlines, change by
-    // the difference of two smooth continuations (the adjusted grid's own values out there
-    // follow the foot's sides up and then drop, which turned the last's rim over).
-    let mut new_bottom = adj.heights.clone();
-    for (z, &inside) in new_bottom.z.iter_mut().zip(&adj.inside) {
-        if !inside {
-            *z = f64::NAN;
-        }
-    }
-    new_bottom.fill();
-    let change = |x: f64, y: f64| -> V3 {
-        let p = [x, y];
-        let q = adj.rigid.apply(p);
-        let t = adj.forward.apply(adj.to_foot.apply(p));
-        let zb = prep.lowest.sample_clamped(x, y);
-        let nb = new_bottom.sample_clamped(t[0], t[1]);
-        V3::new(t[0] - q[0], t[1] - q[1], nb - zb)
-    };
-    // Above the bottom the change is taken from a box average of the bottom's change whose
-    // half-width grows with the height: a wall leaning over the rim, where the plan map
-    // stretches most, is moved by a smooth field instead of being folded by the rim's.
-    let blurred = BoxField::new(&prep.lowest, BLUR_CELL_MM, change);
-    let moves: Vec<(P3, V3, f64)> = mesh
-        .vertices
-        .iter()
-        .map(|v| {
-            let q = adj.rigid.apply([v.x, v.y]);
-            let hb = v.z - prep.lowest.sample_clamped(v.x, v.y);
-            let exact = change(v.x, v.y);
-            let s = smoothstep(hb / BLUR_RAMP_MM);
-            let d = if s > 0.0 {
-                let r = (hb * BLUR_PER_MM).max(BLUR_MIN_MM);
-                exact + s * (blurred.mean(v.x, v.y, r) - exact)
-            } else {
-                exact
-            };
-            (P3::new(q[0], q[1], v.z), d, hb)
-        })
-        .collect();
-    // Long enough that the shear the fade makes stays small: the fade's steepest slope is
-    // 15/8 per fade length, so with four times the largest change within reach no slope
-    // exceeds 0.47 (twice that folded a steep side wall of a real last).
-    let mut fade_len = fade_mm;
-    for _ in 0..5 {
-        let near = moves
-            .iter()
-            .filter(|m| m.2 < fade_len)
-            .map(|m| m.1.norm())
-            .fold(0.0, f64::max);
-        fade_len = fade_len.max(4.0 * near);
-    }
+    let new_bottom = continued_bottom(adj);
+    let moves = planned_moves(prep, adj, &new_bottom);
+    let fade_len = fade_length(&moves, fade_mm);
     let mut disp: Vec<V3> = moves
         .iter()
         .map(|(_, d, hb)| fade(hb / fade_len) * d)
         .collect();
     let faded = disp.clone();
-    // Orientation each triangle should keep: its original normal under the rigid fit (a
-    // mirrored last's triangles are turned round below, which restores the sign).
-    let a = adj.rigid.a;
     let mirrored = adj.to_foot.det() < 0.0;
-    let want: Vec<V3> = (0..mesh.triangles.len())
-        .map(|t| {
-            let n = prep.mesh.face_normal(t);
-            let n = V3::new(
-                a[0][0] * n.x + a[0][1] * n.y,
-                a[1][0] * n.x + a[1][1] * n.y,
-                n.z,
-            );
-            if mirrored {
-                -n
-            } else {
-                n
-            }
-        })
-        .collect();
-    // And under the orthogonal map that best carries the whole last's triangle centroids
-    // to where the faded field puts them: a last whose heel comes down is pitched as a
-    // whole, and a rim triangle turned past the vertical against that is as folded to
-    // whoever compares the files, though not against the plan's rigid fit alone.
-    let whole = best_orthogonal(&prep.mesh, |i| moves[i].0 + faded[i]);
-    let want_whole: Vec<V3> = (0..mesh.triangles.len())
-        .map(|t| {
-            let n = whole * prep.mesh.face_normal(t);
-            if mirrored {
-                -n
-            } else {
-                n
-            }
-        })
-        .collect();
-    let flipped_now = |disp: &[V3]| -> Vec<usize> {
-        (0..mesh.triangles.len())
-            .filter(|&t| {
-                let [i, j, k] = mesh.triangles[t].map(|i| i as usize);
-                let (pi, pj, pk) = (
-                    moves[i].0 + disp[i],
-                    moves[j].0 + disp[j],
-                    moves[k].0 + disp[k],
-                );
-                let n = (pj - pi).cross(&(pk - pi));
-                n.dot(&want[t]) < 0.0 || n.dot(&want_whole[t]) < 0.0
-            })
-            .collect()
-    };
-    // Where the faded field still folds a triangle (the rim where the bottom turns up into
-    // the side, thin in plan, under a plan map that moves it much; the slivers of a narrow
-    // end), the vertices round the fold are untangled: a small optimisation that moves
-    // them as little as it can, with bottom vertices sliding on the adjusted bottom so the
-    // bottom stays the adjusted one (docs/method.md 9.2.1). Folds it cannot undo are
-    // reported.
-    let mut bad = flipped_now(&disp);
-    let mut relaxed = vec![false; disp.len()];
-    // Bottom vertices: on the lowest surface and corners of a triangle facing down. Height
-    // alone also took the steep walls' vertices where a wall overhangs its own footprint (a
-    // pointed toe's tip, a heel's back).
-    let mut faces_down = vec![false; disp.len()];
-    for (t, tri) in prep.mesh.triangles.iter().enumerate() {
-        if prep.mesh.face_normal(t).z < -0.5 {
-            for &i in tri {
-                faces_down[i as usize] = true;
-            }
-        }
-    }
-    let pinned: Vec<bool> = moves
-        .iter()
-        .zip(&faces_down)
-        .map(|(m, &down)| down && m.2.abs() <= BOTTOM_VERTEX_MM)
-        .collect();
-    if !bad.is_empty() {
-        let mut nbrs: Vec<Vec<u32>> = vec![Vec::new(); disp.len()];
-        for tri in &mesh.triangles {
-            for e in 0..3 {
-                let (u, w) = (tri[e], tri[(e + 1) % 3]);
-                nbrs[u as usize].push(w);
-                nbrs[w as usize].push(u);
-            }
-        }
-        for n in &mut nbrs {
-            n.sort_unstable();
-            n.dedup();
-        }
-        let mut pos: Vec<P3> = (0..disp.len()).map(|i| moves[i].0 + disp[i]).collect();
-        let area2: Vec<f64> = (0..mesh.triangles.len())
-            .map(|t| prep.mesh.face_normal_raw(t).norm())
-            .collect();
-        let off: Vec<f64> = pos
-            .iter()
-            .map(|p| p.z - new_bottom.sample_clamped(p.x, p.y))
-            .collect();
-        let task = Untangle {
-            triangles: &mesh.triangles,
-            wants: [&want, &want_whole],
-            area2: &area2,
-            pinned: &pinned,
-            off: &off,
-            bottom: &new_bottom,
-            nbrs: &nbrs,
-        };
-        let left = task.run(&mut pos, &bad);
-        if left.len() < bad.len() {
-            for (i, p) in pos.iter().enumerate() {
-                let d = p - moves[i].0;
-                if (d - disp[i]).norm() > 1e-9 {
-                    relaxed[i] = true;
-                }
-                disp[i] = d;
-            }
-            bad = flipped_now(&disp);
-        }
-    }
+    let wants = wanted_normals(prep, adj, &moves, &faded, mirrored);
+    let pinned = bottom_vertices(prep, &moves);
+    let (bad, relaxed) = unfold(prep, &moves, &mut disp, &wants, &pinned, &new_bottom);
     let mut max_d: f64 = 0.0;
     let (mut relax_max, mut slid_max) = (0.0f64, 0.0f64);
     for (i, v) in mesh.vertices.iter_mut().enumerate() {
@@ -648,11 +489,244 @@ pub fn deform_last(
             relax_max = relax_max.max((disp[i] - faded[i]).norm());
         }
     }
-    // The deformed last's bottom against the adjusted bottom: bottom vertices (on the
-    // original bottom) that land inside the adjusted outline.
+    let (bottom_max, bottom_rms, bottom_n) = bottom_fit(&mesh, &pinned, adj);
+    if mirrored {
+        mesh.flip();
+    }
+    let input = prep.path.display().to_string();
+    let report = mesh.check().map_err(|defect| AdjustError::Last {
+        input: input.clone(),
+        why: format!("the deformed last is not a valid solid: {defect}"),
+    })?;
+    Ok((
+        mesh,
+        DeformReport {
+            fade_mm: fade_len,
+            max_displacement_mm: max_d,
+            flipped_triangles: bad,
+            relaxed_vertices: relaxed,
+            relaxed_max_mm: relax_max,
+            slid_max_mm: slid_max,
+            bottom_vertices: bottom_n,
+            bottom_rms_mm: bottom_rms,
+            bottom_max_mm: bottom_max,
+            volume_before_mm3: prep.mesh.volume(),
+            volume_after_mm3: report.volume,
+        },
+    ))
+}
+
+/// The adjusted bottom continued beyond its outline the way the last's own bottom is
+/// (`prep.lowest`), so the rim and sides, which fall outside both outlines, change by the
+/// difference of two smooth continuations (the adjusted grid's own values out there follow
+/// the foot's sides up and then drop, which turned the last's rim over).
+fn continued_bottom(adj: &Adjustment) -> HeightMap {
+    let mut new_bottom = adj.heights.clone();
+    for (z, &inside) in new_bottom.z.iter_mut().zip(&adj.inside) {
+        if !inside {
+            *z = f64::NAN;
+        }
+    }
+    new_bottom.fill();
+    new_bottom
+}
+
+/// Each vertex under the rigid fit, its whole change (exact on the bottom, box-averaged
+/// above it) and its height above the last's original bottom.
+fn planned_moves(
+    prep: &PreparedLast,
+    adj: &Adjustment,
+    new_bottom: &HeightMap,
+) -> Vec<(P3, V3, f64)> {
+    let change = |x: f64, y: f64| -> V3 {
+        let p = [x, y];
+        let q = adj.rigid.apply(p);
+        let t = adj.forward.apply(adj.to_foot.apply(p));
+        let zb = prep.lowest.sample_clamped(x, y);
+        let nb = new_bottom.sample_clamped(t[0], t[1]);
+        V3::new(t[0] - q[0], t[1] - q[1], nb - zb)
+    };
+    // Above the bottom the change is taken from a box average of the bottom's change whose
+    // half-width grows with the height: a wall leaning over the rim, where the plan map
+    // stretches most, is moved by a smooth field instead of being folded by the rim's.
+    let blurred = BoxField::new(&prep.lowest, BLUR_CELL_MM, change);
+    prep.mesh
+        .vertices
+        .iter()
+        .map(|v| {
+            let q = adj.rigid.apply([v.x, v.y]);
+            let hb = v.z - prep.lowest.sample_clamped(v.x, v.y);
+            let exact = change(v.x, v.y);
+            let s = smoothstep(hb / BLUR_RAMP_MM);
+            let d = if s > 0.0 {
+                let r = (hb * BLUR_PER_MM).max(BLUR_MIN_MM);
+                exact + s * (blurred.mean(v.x, v.y, r) - exact)
+            } else {
+                exact
+            };
+            (P3::new(q[0], q[1], v.z), d, hb)
+        })
+        .collect()
+}
+
+/// The fade's length: long enough that the shear the fade makes stays small. Its steepest
+/// slope is 15/8 per fade length, so with four times the largest change within reach no
+/// slope exceeds 0.47 (twice that folded a steep side wall of a real last).
+fn fade_length(moves: &[(P3, V3, f64)], fade_mm: f64) -> f64 {
+    let mut fade_len = fade_mm;
+    for _ in 0..5 {
+        let near = moves
+            .iter()
+            .filter(|m| m.2 < fade_len)
+            .map(|m| m.1.norm())
+            .fold(0.0, f64::max);
+        fade_len = fade_len.max(4.0 * near);
+    }
+    fade_len
+}
+
+/// The orientations each triangle should keep: its original normal under the rigid fit (a
+/// mirrored last's triangles are turned round at the end, which restores the sign), and
+/// under the orthogonal map that best carries the whole last's triangle centroids to where
+/// the faded field puts them: a last whose heel comes down is pitched as a whole, and a rim
+/// triangle turned past the vertical against that is as folded to whoever compares the
+/// files, though not against the plan's rigid fit alone.
+fn wanted_normals(
+    prep: &PreparedLast,
+    adj: &Adjustment,
+    moves: &[(P3, V3, f64)],
+    faded: &[V3],
+    mirrored: bool,
+) -> [Vec<V3>; 2] {
+    let a = adj.rigid.a;
+    let sign = |n: V3| if mirrored { -n } else { n };
+    let want: Vec<V3> = (0..prep.mesh.triangles.len())
+        .map(|t| {
+            let n = prep.mesh.face_normal(t);
+            sign(V3::new(
+                a[0][0] * n.x + a[0][1] * n.y,
+                a[1][0] * n.x + a[1][1] * n.y,
+                n.z,
+            ))
+        })
+        .collect();
+    let whole = best_orthogonal(&prep.mesh, |i| moves[i].0 + faded[i]);
+    let want_whole: Vec<V3> = (0..prep.mesh.triangles.len())
+        .map(|t| sign(whole * prep.mesh.face_normal(t)))
+        .collect();
+    [want, want_whole]
+}
+
+/// Bottom vertices: on the lowest surface and corners of a triangle facing down. Height
+/// alone also took the steep walls' vertices where a wall overhangs its own footprint (a
+/// pointed toe's tip, a heel's back).
+fn bottom_vertices(prep: &PreparedLast, moves: &[(P3, V3, f64)]) -> Vec<bool> {
+    let mut faces_down = vec![false; moves.len()];
+    for (t, tri) in prep.mesh.triangles.iter().enumerate() {
+        if prep.mesh.face_normal(t).z < -0.5 {
+            for &i in tri {
+                faces_down[i as usize] = true;
+            }
+        }
+    }
+    moves
+        .iter()
+        .zip(&faces_down)
+        .map(|(m, &down)| down && m.2.abs() <= BOTTOM_VERTEX_MM)
+        .collect()
+}
+
+/// The triangles `disp` folds against either wanted orientation.
+fn folded(
+    triangles: &[[u32; 3]],
+    moves: &[(P3, V3, f64)],
+    disp: &[V3],
+    wants: &[Vec<V3>; 2],
+) -> Vec<usize> {
+    (0..triangles.len())
+        .filter(|&t| {
+            let [i, j, k] = triangles[t].map(|i| i as usize);
+            let (pi, pj, pk) = (
+                moves[i].0 + disp[i],
+                moves[j].0 + disp[j],
+                moves[k].0 + disp[k],
+            );
+            let n = (pj - pi).cross(&(pk - pi));
+            n.dot(&wants[0][t]) < 0.0 || n.dot(&wants[1][t]) < 0.0
+        })
+        .collect()
+}
+
+/// Where the faded field still folds a triangle (the rim where the bottom turns up into the
+/// side, thin in plan, under a plan map that moves it much; the slivers of a narrow end),
+/// the vertices round the fold are untangled: a small optimisation that moves them as
+/// little as it can, with bottom vertices sliding on the adjusted bottom so the bottom stays
+/// the adjusted one (docs/method.md 9.2.1). Returns the folds left and how many vertices
+/// moved.
+fn unfold(
+    prep: &PreparedLast,
+    moves: &[(P3, V3, f64)],
+    disp: &mut [V3],
+    wants: &[Vec<V3>; 2],
+    pinned: &[bool],
+    new_bottom: &HeightMap,
+) -> (usize, usize) {
+    let triangles = &prep.mesh.triangles;
+    let bad = folded(triangles, moves, disp, wants);
+    if bad.is_empty() {
+        return (0, 0);
+    }
+    let mut nbrs: Vec<Vec<u32>> = vec![Vec::new(); disp.len()];
+    for tri in triangles {
+        for e in 0..3 {
+            let (u, w) = (tri[e], tri[(e + 1) % 3]);
+            nbrs[u as usize].push(w);
+            nbrs[w as usize].push(u);
+        }
+    }
+    for n in &mut nbrs {
+        n.sort_unstable();
+        n.dedup();
+    }
+    let mut pos: Vec<P3> = (0..disp.len()).map(|i| moves[i].0 + disp[i]).collect();
+    let area2: Vec<f64> = (0..triangles.len())
+        .map(|t| prep.mesh.face_normal_raw(t).norm())
+        .collect();
+    let off: Vec<f64> = pos
+        .iter()
+        .map(|p| p.z - new_bottom.sample_clamped(p.x, p.y))
+        .collect();
+    let task = Untangle {
+        triangles,
+        wants: [&wants[0], &wants[1]],
+        area2: &area2,
+        pinned,
+        off: &off,
+        bottom: new_bottom,
+        nbrs: &nbrs,
+    };
+    let left = task.run(&mut pos, &bad);
+    if left.len() >= bad.len() {
+        return (bad.len(), 0);
+    }
+    let mut relaxed = 0;
+    for (i, p) in pos.iter().enumerate() {
+        let d = p - moves[i].0;
+        if (d - disp[i]).norm() > 1e-9 {
+            relaxed += 1;
+        }
+        disp[i] = d;
+    }
+    (folded(triangles, moves, disp, wants).len(), relaxed)
+}
+
+/// The deformed last's bottom against the adjusted bottom: bottom vertices (on the original
+/// bottom) that land inside the adjusted outline; the largest and RMS height difference and
+/// how many.
+fn bottom_fit(mesh: &TriMesh, pinned: &[bool], adj: &Adjustment) -> (f64, f64, usize) {
     let (mut bottom_max, mut bottom_ss, mut bottom_n) = (0.0f64, 0.0, 0usize);
     let h = &adj.heights;
-    for (v, &bottom) in mesh.vertices.iter().zip(&pinned) {
+    for (v, &bottom) in mesh.vertices.iter().zip(pinned) {
         if !bottom {
             continue;
         }
@@ -667,31 +741,11 @@ pub fn deform_last(
             bottom_n += 1;
         }
     }
-    if mirrored {
-        mesh.flip();
-    }
-    let input = prep.path.display().to_string();
-    let report = mesh.check().map_err(|defect| AdjustError::Last {
-        input: input.clone(),
-        why: format!("the deformed last is not a valid solid: {defect}"),
-    })?;
-    let flipped = bad.len();
-    Ok((
-        mesh,
-        DeformReport {
-            fade_mm: fade_len,
-            max_displacement_mm: max_d,
-            flipped_triangles: flipped,
-            relaxed_vertices: relaxed.iter().filter(|&&r| r).count(),
-            relaxed_max_mm: relax_max,
-            slid_max_mm: slid_max,
-            bottom_vertices: bottom_n,
-            bottom_rms_mm: (bottom_ss / bottom_n.max(1) as f64).sqrt(),
-            bottom_max_mm: bottom_max,
-            volume_before_mm3: prep.mesh.volume(),
-            volume_after_mm3: report.volume,
-        },
-    ))
+    (
+        bottom_max,
+        (bottom_ss / bottom_n.max(1) as f64).sqrt(),
+        bottom_n,
+    )
 }
 
 /// Least cosine between an untangled triangle's normal and its wanted one (84 deg): a
