@@ -1025,6 +1025,56 @@ pub fn neutral(foot: &Measures, target: &[f64; 4], nd: &Nodes) -> Params {
     ]
 }
 
+/// The rules' values against the field's parameters.
+type Jac = nalgebra::SMatrix<f64, 8, NPARAM>;
+
+/// The Jacobian of the rule values `r` at `p` by forward differences of `steps`. The columns
+/// are independent: evaluated on every core at once (the clinic path spent most of its time
+/// here: 9 mesh evaluations per fresh Jacobian).
+fn fd_jacobian(
+    sec: &Sections,
+    nd: &Nodes,
+    medial: f64,
+    target: &[f64; 8],
+    p: &Params,
+    r: &[f64; 8],
+    steps: &Params,
+) -> Result<Jac, CustomizeError> {
+    let cols = fd_columns(sec, nd, medial, target, p, steps)?;
+    let mut j = Jac::zeros();
+    for (c, rq) in cols.iter().enumerate() {
+        for i in 0..8 {
+            j[(i, c)] = (rq[i] - r[i]) / steps[c];
+        }
+    }
+    Ok(j)
+}
+
+/// Broyden's update of the Jacobian `a` (in millimetres of surface, `scale` per parameter)
+/// by the step `dp` (field units) that changed the values by `dr`.
+fn broyden(a: &mut Jac, scale: &Params, dp: &Params, dr: &[f64; 8]) {
+    let s = nalgebra::SVector::<f64, NPARAM>::from_fn(|j, _| dp[j] * scale[j]);
+    let ss = s.norm_squared();
+    if ss > 1e-18 {
+        let y = nalgebra::SVector::<f64, 8>::from(*dr);
+        *a += (y - *a * s) * s.transpose() / ss;
+    }
+}
+
+/// The weighted misfit of the rule values: each over its tolerance.
+fn misfit(r: &[f64; 8]) -> f64 {
+    r.iter()
+        .zip(TOL)
+        .map(|(a, t)| (a / t).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// The field that meets the rules: Newton steps of least weighted change from the neutral
+/// field (see [`neutral`]), in a trust region, with finite-difference Jacobians carried on
+/// by Broyden's update, a one-evaluation correction when only widths are left, and the heel
+/// offset held at zero while the foot must fit. Returns the last, its measures, the field
+/// and the evaluations it took.
 pub fn solve(
     sec: &Sections,
     nd: &Nodes,
@@ -1050,15 +1100,8 @@ pub fn solve(
             foot.d, foot.e, me.d, me.e
         );
     }
-    let norm = |r: &[f64; 8]| -> f64 {
-        r.iter()
-            .zip(TOL)
-            .map(|(a, t)| (a / t).powi(2))
-            .sum::<f64>()
-            .sqrt()
-    };
+    let norm = misfit;
     let within = |r: &[f64; 8], i: usize| r[i].abs() <= TOL[i];
-    type Jac = nalgebra::SMatrix<f64, 8, NPARAM>;
     let sinv = nalgebra::SVector::<f64, NPARAM>::from_fn(|j, _| 1.0 / scale[j]);
     // The Jacobian in millimetres of surface (A = J S^-1): by finite differences when there
     // is none or the last step did poorly, else carried on by Broyden's update from the step
@@ -1066,15 +1109,6 @@ pub fn solve(
     let mut jac: Option<Jac> = None;
     let mut fresh = false;
     let mut bounded = nd.holds_foot;
-    // Broyden's update of A by the step `dp` (field units) that changed the values by `dr`.
-    let broyden = |a: &mut Jac, dp: &Params, dr: &[f64; 8]| {
-        let s = nalgebra::SVector::<f64, NPARAM>::from_fn(|j, _| dp[j] * scale[j]);
-        let ss = s.norm_squared();
-        if ss > 1e-18 {
-            let y = nalgebra::SVector::<f64, 8>::from(*dr);
-            *a += (y - *a * s) * s.transpose() / ss;
-        }
-    };
     for _it in 0..MAX_STEPS {
         if (0..8).all(|i| within(&r, i)) {
             return Ok((mesh, me, p, evals.get()));
@@ -1098,6 +1132,7 @@ pub fn solve(
                 if let Some(a) = &mut jac {
                     broyden(
                         a,
+                        &scale,
                         &std::array::from_fn(|j| q[j] - p[j]),
                         &std::array::from_fn(|i| rq[i] - r[i]),
                     );
@@ -1109,18 +1144,10 @@ pub fn solve(
         let a = match jac {
             Some(a) => a,
             None => {
-                // The columns are independent: evaluated on every core at once (the clinic
-                // path spent most of its time here: 9 mesh evaluations per fresh Jacobian).
-                let cols = fd_columns(sec, nd, medial, target, &p, &steps)?;
                 evals.set(evals.get() + NPARAM);
-                let mut j = Jac::zeros();
-                for (c, rq) in cols.iter().enumerate() {
-                    for i in 0..8 {
-                        j[(i, c)] = (rq[i] - r[i]) / steps[c];
-                    }
-                }
                 fresh = true;
-                j * nalgebra::SMatrix::<f64, NPARAM, NPARAM>::from_diagonal(&sinv)
+                fd_jacobian(sec, nd, medial, target, &p, &r, &steps)?
+                    * nalgebra::SMatrix::<f64, NPARAM, NPARAM>::from_diagonal(&sinv)
             }
         };
         // Least weighted change from the neutral field that meets the linearised rules:
@@ -1194,6 +1221,7 @@ pub fn solve(
         let mut a = a;
         broyden(
             &mut a,
+            &scale,
             &std::array::from_fn(|j| q[j] - p[j]),
             &std::array::from_fn(|i| rq[i] - r[i]),
         );
@@ -1214,6 +1242,14 @@ pub fn solve(
     if r.iter().zip(TOL).all(|(a, t)| a.abs() <= t) {
         return Ok((mesh, me, p, evals.get()));
     }
+    if debug {
+        eprintln!("solve: failed with field {p:?}");
+    }
+    Err(unmet(&r))
+}
+
+/// The rules the solve left unmet, each by how much.
+fn unmet(r: &[f64; 8]) -> CustomizeError {
     let names = [
         "bottom length",
         "ball width",
@@ -1228,10 +1264,7 @@ pub fn solve(
         .filter(|&i| r[i].abs() > TOL[i])
         .map(|i| format!("{} off by {:+.2} mm", names[i], r[i]))
         .collect();
-    if debug {
-        eprintln!("solve: failed with field {p:?}");
-    }
-    Err(CustomizeError::Unmet {
+    CustomizeError::Unmet {
         why: format!(
             "the rules cannot be met together on this foot ({})",
             miss.join(", ")
@@ -1240,5 +1273,5 @@ pub fn solve(
             .filter(|&i| r[i].abs() > TOL[i])
             .map(|i| (i, r[i]))
             .collect(),
-    })
+    }
 }
