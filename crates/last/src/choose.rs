@@ -303,7 +303,8 @@ pub fn mirrored(mut m: TriMesh) -> TriMesh {
 /// the order given; a file that cannot be read or measured is a candidate that cannot meet
 /// any rule, saying why. Returns the candidates and the meshes (None where unreadable).
 /// The rule targets differ from last to last only by the heel height (rule II-F's ball girth
-/// follows it), which is the last's own unless `inp` gives one.
+/// follows it), which is the last's own unless `inp` gives one. `units` and `length_mm` read
+/// the files that the collection's `lasts.toml` ([`crate::collection`]) does not list.
 pub fn judge_files(
     files: &[std::path::PathBuf],
     units: footscan_geom::mesh::Units,
@@ -315,8 +316,12 @@ pub fn judge_files(
     let heel_allowance = heel_allowance(want.rules, want.inp);
     let one = |p: &std::path::PathBuf| -> Judged {
         let name = p.display().to_string();
-        let got = TriMesh::load_solid(p, units, length_mm)
-            .map_err(|e| footscan_util::chain(&e))
+        let default = crate::collection::ReadAs { units, length_mm };
+        let got = crate::collection::Collection::for_file(p, default)
+            .map_err(|e| e.to_string())
+            .and_then(|r| {
+                TriMesh::load_solid(p, r.units, r.length_mm).map_err(|e| footscan_util::chain(&e))
+            })
             .and_then(|(m, _)| {
                 crate::size::check_last_size(p, &m).map_err(|e| footscan_util::chain(&e))?;
                 let lm = crate::measure_last::measure_last(m.clone(), &name)

@@ -19,6 +19,7 @@
 pub mod adjust;
 pub mod blend;
 pub mod choose;
+pub mod collection;
 pub mod customize;
 pub mod draw;
 pub mod grade;

@@ -106,12 +106,27 @@ pub fn load_stock(path: &Path) -> Result<TriMesh, ClinicLastError> {
 }
 
 /// [`load_stock`] with the file's units given, or its length (mm) for a last in model
-/// units (`--units`, `--length`, as every last command takes them).
+/// units (`--units`, `--length`, as every last command takes them). Given neither (units
+/// auto, no length), the entry of the `lasts.toml` beside the file says
+/// (`footscan_last::collection`), as for the daemon's stock collection.
 pub fn load_stock_as(
     path: &Path,
     units: Units,
     length_mm: Option<f64>,
 ) -> Result<TriMesh, ClinicLastError> {
+    let (units, length_mm) = if units == Units::Auto && length_mm.is_none() {
+        let r = footscan_last::collection::Collection::for_file(
+            path,
+            footscan_last::collection::ReadAs { units, length_mm },
+        )
+        .map_err(|e| ClinicLastError::Input {
+            path: path.into(),
+            why: e.to_string(),
+        })?;
+        (r.units, r.length_mm)
+    } else {
+        (units, length_mm)
+    };
     let (m, _) =
         TriMesh::load_solid(path, units, length_mm).map_err(|e| ClinicLastError::Input {
             path: path.into(),
@@ -119,8 +134,9 @@ pub fn load_stock_as(
             why: e
                 .retold(
                     "a stock last is read in millimetres or metres; save it in one of them",
-                    "a stock last is read in millimetres or metres (no length can be given \
-                     for it); save it scaled to its real size",
+                    "a stock last is read in millimetres or metres; for one in a modelling \
+                     tool's units give the length of its longest side in the lasts.toml \
+                     beside it (`[\"NAME\"] length_mm = 265`)",
                 )
                 .to_string(),
         })?;

@@ -23,10 +23,13 @@ pub struct ChooseArgs {
     /// The shop's collection: every STL, OBJ and PLY file in this directory is a last.
     #[arg(long)]
     stock_dir: PathBuf,
-    /// Units of the last files: mm, m, or auto (decided from the size).
+    /// Units of the last files: mm, m, or auto (decided from the size). A file listed in the
+    /// collection's lasts.toml is read as that says.
     #[arg(long, default_value = "auto")]
     units: Units,
-    /// Scale every last so its longest side is this many mm (a collection of model-unit files).
+    /// Scale every last so its longest side is this many mm (a collection of model-unit
+    /// files). A collection mixing units gives each model-unit file's length in a lasts.toml
+    /// beside them instead (`["NAME.stl"] length_mm = 265`).
     #[arg(long)]
     length: Option<f64>,
     /// Comfort rule file (default: $FOOTSCAN_LAST_RULES, else the shipped rules).
@@ -75,6 +78,8 @@ pub fn run(a: ChooseArgs) -> Result<()> {
             a.stock_dir.display()
         );
     }
+    // The collection's own file, checked before any last is read.
+    footscan_last::collection::Collection::load(&a.stock_dir).map_err(|e| anyhow!(e))?;
     let rows = foot_targets(&plantar, &g, &rules, &inp);
     let t0 = Instant::now();
     let want = Wanted {
