@@ -69,8 +69,9 @@ fn kept_parts_follow_their_meshes_and_the_seams_the_originals() {
                 f.rms_mm,
                 f.ms
             );
-            // The goal is 0.1 mm; what the fit reaches today (docs/method.md, joins).
-            assert!(f.max_mm <= 0.2 && f.rms_mm <= 0.02, "{name} {part}: {f:?}");
+            // Issue 36 asks 0.1 mm everywhere (0.077-0.089 mm on the four parts; 0.15-0.18 mm
+            // on 500 spans around without halving them at the rim).
+            assert!(f.max_mm <= 0.1 && f.rms_mm <= 0.02, "{name} {part}: {f:?}");
         }
         // G1 along the whole seam (`G1Tangent`): the patch leaves each seam along the fitted
         // part's own v tangent, scaled to the patch's length. 0.020-0.062 deg at most on the two pairs (issue 36 asks 0.1 deg);
