@@ -129,10 +129,12 @@ fn wide_speckled_line_with_a_glow() {
 
 #[test]
 fn line_along_chessboard_edges_through_jpeg_colour_blocks() {
-    // Short of the target: 13 of 20 regions found (the line on a black square under the row
-    // level the white squares set: below threshold), none within 5 % of the best baseline
-    // (the +-6 sigma window reaches the squares' edges). Asserted as it stands.
-    check(LineKind::Chessboard, 12, 0);
+    // Short of the target: 14 of 20 regions found (13 before a row under the threshold was
+    // read on its local background near the line above; the misses: a line on a black square
+    // under the row level the white squares set, in rows with no line just above), 5 within
+    // 5 % of the best baseline (1.00-3.40x; none, 1.06-3.67x, before the window was clipped
+    // at a textured board's level, method.md 4.11). Asserted as it stands.
+    check(LineKind::Chessboard, 13, 5);
 }
 
 #[test]

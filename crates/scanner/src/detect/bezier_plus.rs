@@ -309,7 +309,42 @@ pub(crate) fn bin_for(sigma: f64) -> usize {
 /// the centre of gravity of the whole run above the threshold ([`estimate_row`]).
 const WIDE_BIN: usize = 4;
 
-/// Steps 3 of the module doc for one row: None if no window fits.
+/// Flanks of the window for [`textured`]: beyond this many line sigmas of the first estimate
+/// (the line's own tails are under 1 % of its peak there).
+const FLANK_SIGMAS: f64 = 3.0;
+/// A textured flank varies by more than this fraction of the line's height over its lowest
+/// pixel ([`textured`]).
+const TEXTURE_FRAC: f32 = 0.1;
+/// ... and by more than this, 8-bit DN (x257 for Gray16): a dim line's JPEG ripple or a noisy
+/// row's spread is not texture.
+const TEXTURE_MIN_DN: f32 = 20.0;
+
+/// The level to clip the window at when the board beside the line is textured, or None: the
+/// highest pixel of the window's flanks (beyond [`FLANK_SIGMAS`] of `c1` and outside the run
+/// above the threshold), at most the row's threshold, when the flanks vary by more than
+/// [`TEXTURE_FRAC`] of the line's height and [`TEXTURE_MIN_DN`]. Across a chessboard's edges
+/// (Ciclop, the `chessboard-jpeg` kind) the Bernstein curve over +-6 sigmas is pulled toward
+/// the brighter square and the overshoot of the squares' edges; clipped at the flanks'
+/// highest pixel, only the line above the board is left.
+fn textured<T: Px>(row: &[T], pk: &Peak, c1: f64, sigma: f64, x0: usize, x1: usize) -> Option<f32> {
+    let cl = (c1 - FLANK_SIGMAS * sigma).max(0.0) as usize;
+    let cr = (c1 + FLANK_SIGMAS * sigma) as usize;
+    let (a, z) = (pk.lo.min(cl), pk.hi.max(cr));
+    let (mut lo, mut hi) = (f32::MAX, f32::MIN);
+    for (c, v) in row.iter().enumerate().take(x1).skip(x0) {
+        if c < a || c > z {
+            lo = lo.min(v.f());
+            hi = hi.max(v.f());
+        }
+    }
+    let var = hi - lo;
+    (hi >= lo && var > TEXTURE_FRAC * (pk.peak - lo).max(1.0) && var > TEXTURE_MIN_DN * T::SCALE)
+        .then_some(hi.min(pk.thr))
+}
+
+/// Steps 3 of the module doc for one row: None if no window fits. Where the board beside the
+/// line is textured ([`textured`]) the window's samples are clipped at the flanks' level and
+/// the bias table (built for a whole Gaussian over a flat background) is not applied.
 fn estimate_row<T: Px>(
     isa: Isa,
     row: &[T],
@@ -423,14 +458,34 @@ fn estimate_row<T: Px>(
             *d = bin.iter().map(|v| v.f()).sum();
         }
     }
+    // A wide line (bins of WIDE_BIN or more) is left as it is: speckle on its flanks would
+    // read as texture (wide-speckled: 15 -> 12 regions of 20 within 5 % of cog).
+    let clip = if b < WIDE_BIN {
+        textured(row, pk, c1, sigma, x0, x0 + (n + 1) * b)
+    } else {
+        None
+    };
+    let mut raw = [0.0f32; MAX_N];
+    if let Some(level) = clip {
+        raw[..=n].copy_from_slice(&smp[..=n]);
+        let floor = level * bf as f32;
+        for v in &mut smp[..=n] {
+            *v = (*v - floor).max(0.0);
+        }
+    }
     // Bin i's centre is at pixel x0 + (b - 1) / 2 + b i; x(t) = that at i = n t.
     let first = x0 as f64 + (bf - 1.0) / 2.0;
     let t0 = ((c1 - first) / (bf * n as f64)).clamp(0.0, 1.0);
-    let t = root_near_on(isa, &smp[..=n], binom, t0)?;
+    // A clipped window without a root near the start (a flat zero stretch) is read unclipped.
+    let (t, clipped) = match root_near_on(isa, &smp[..=n], binom, t0) {
+        Some(t) => (t, clip.is_some()),
+        None if clip.is_some() => (root_near_on(isa, &raw[..=n], binom, t0)?, false),
+        None => return None,
+    };
     let c2 = first + bf * n as f64 * t;
     let delta = (c2 - centre) / bf;
     let corr = match bias {
-        Some(tb) if pk.saturated == 0 => bf * tb.bias(sb, n_even, parity, delta),
+        Some(tb) if pk.saturated == 0 && !clipped => bf * tb.bias(sb, n_even, parity, delta),
         _ => 0.0,
     };
     Some(c2 - corr)

@@ -356,6 +356,9 @@ pub struct CoarseScratch<T> {
     /// Block maxima of a window of the row ([`coarse_row_near`]).
     window_blocks: Vec<T>,
     auto_thr: f32,
+    /// The automatic threshold over the band's level: the least contrast a line must have
+    /// ([`coarse_row_local`]).
+    auto_margin: f32,
 }
 
 /// Robust level and noise of a row from [`AUTO_SAMPLES`] evenly spaced pixels (frame units):
@@ -453,6 +456,7 @@ impl<T: Px> CoarseScratch<T> {
                 if r.is_multiple_of(AUTO_BAND_ROWS) || self.auto_thr <= 0.0 {
                     let (level, spread, tail) = T::background_on(isa, row);
                     self.auto_thr = auto_threshold::<T>(level, spread, tail);
+                    self.auto_margin = self.auto_thr - level;
                 }
                 self.auto_thr
             }
@@ -500,13 +504,23 @@ impl<T: Px> CoarseScratch<T> {
             // rows above may be one of them: a saturated line a few pixels wide whose flanks
             // fall steeply (a colour difference clipped at full scale) looks like a specular
             // spike in one row. A spike is a disc of a few rows; a line continues.
-            (Err((Reject::BelowThreshold, v)), Some(n)) if cfg.skip_spikes => {
-                let kept = CoarseConfig {
-                    skip_spikes: false,
-                    ..*cfg
-                };
-                coarse_row_near_on(isa, row, &mut self.window_blocks, &kept, thr, n)
-                    .filter(|pk| pk.saturated > 0)
+            (Err((Reject::BelowThreshold, v)), Some(n)) => {
+                if cfg.skip_spikes {
+                    let kept = CoarseConfig {
+                        skip_spikes: false,
+                        ..*cfg
+                    };
+                    let pk = coarse_row_near_on(isa, row, &mut self.window_blocks, &kept, thr, n)
+                        .filter(|pk| pk.saturated > 0);
+                    if let Some(pk) = pk {
+                        return Ok(pk);
+                    }
+                }
+                if cfg.threshold != Threshold::Auto || self.auto_margin <= 0.0 {
+                    return Err((Reject::BelowThreshold, v));
+                }
+                let margin = self.auto_margin;
+                coarse_row_local_on(isa, row, &mut self.window_blocks, cfg, thr, margin, n)
                     .ok_or((Reject::BelowThreshold, v))
             }
             (r, _) => r,
@@ -950,6 +964,68 @@ pub fn coarse_row_on<T: Px>(
         saturated: saturated as u16,
         second,
     })
+}
+
+/// A row under the threshold read again on its local background, next to the line of the rows
+/// above: on a chessboard the row's level is the white squares', and the line crossing a black
+/// square is a local peak under it (63-86 DN beside 85-96 DN in the `chessboard-jpeg` kind).
+/// The peak is the highest pixel within max(width / 2, 2 px) of `near.col`; the background is
+/// the higher of the lowest pixels within max(3 widths, 8 px) on each side (the valleys
+/// between the line and the squares' edges), and the line must stand `margin` (the automatic
+/// threshold over its level) above it. The coarse search then runs between the two valleys at
+/// that level. None when the local level is not under `thr` or the line does not clear it.
+pub fn coarse_row_local_on<T: Px>(
+    isa: Isa,
+    row: &[T],
+    blocks: &mut [T],
+    cfg: &CoarseConfig,
+    thr: f32,
+    margin: f32,
+    near: Near,
+) -> Option<Peak> {
+    let w = row.len();
+    if !near.col.is_finite() || near.col < 0.0 || near.col >= w as f64 || w < 3 {
+        return None;
+    }
+    let width = near.width.max(1.0) as f64;
+    let reach = (0.5 * width).max(2.0);
+    let a = (near.col - reach).floor().max(0.0) as usize;
+    let z = ((near.col + reach).ceil() as usize).min(w - 1);
+    let pm = (a..=z).fold(a, |m, c| if row[c] > row[m] { c } else { m });
+    let span = (3.0 * width).max(8.0) as usize;
+    let lowest = |r: std::ops::RangeInclusive<usize>| {
+        r.fold(None, |m: Option<usize>, c| match m {
+            Some(k) if row[k] <= row[c] => Some(k),
+            _ => Some(c),
+        })
+    };
+    let lv = lowest(pm.saturating_sub(span)..=pm.checked_sub(1)?)?;
+    let rv = lowest(pm + 1..=(pm + span).min(w - 1))?;
+    let local = row[lv].f().max(row[rv].f()) + margin;
+    if local >= thr || row[pm].f() <= local {
+        return None;
+    }
+    let sub = &row[lv..=rv];
+    let nb = sub.len().div_ceil(BLOCK);
+    T::block_max_on(isa, sub, &mut blocks[..nb]);
+    let single = CoarseConfig {
+        ambiguity: 2.0,
+        ..*cfg
+    };
+    let mut pk = coarse_row_on(isa, sub, &blocks[..nb], &single, local).ok()?;
+    if ((lv + pk.m) as f64 - near.col).abs() > width.max(3.0) {
+        return None;
+    }
+    pk.m += lv;
+    pk.top_lo += lv;
+    pk.top_hi += lv;
+    pk.lo += lv;
+    pk.hi += lv;
+    for s in &mut pk.spikes[..pk.spike_count as usize] {
+        s.0 += lv as u32;
+        s.1 += lv as u32;
+    }
+    Some(pk)
 }
 
 /// Where the line was in the rows just before: the tie-breaker of an ambiguous row.
