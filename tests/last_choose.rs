@@ -26,6 +26,86 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// A collection that mixes a last in metres with one in a modelling tool's units is ranked in
+/// one run once its `lasts.toml` gives the second one's length; without the entry that last is
+/// read at its file's scale and cannot be used; an entry naming no file is refused, naming it.
+fn mixed_units_collection(last: &TriMesh, shop: &Path, args: &[&str]) {
+    std::fs::create_dir(shop).unwrap();
+    let mut metres = copy(last, 0.97, false, 0.0);
+    metres.scale(1e-3);
+    metres
+        .write(shop.join("in_metres.stl"), Format::StlBinary)
+        .unwrap();
+    let model = copy(last, 1.00, false, 0.0);
+    let longest = model.bbox().longest_extent();
+    let mut model_units = model;
+    model_units.scale(1.0 / 131.0);
+    model_units
+        .write(shop.join("model_units.stl"), Format::StlBinary)
+        .unwrap();
+    let dir_arg = |a: &[&str]| -> Vec<String> {
+        let mut v: Vec<String> = a.iter().map(|s| s.to_string()).collect();
+        let i = v.iter().position(|s| s == "--stock-dir").unwrap();
+        v[i + 1] = s(shop).to_string();
+        v.push("--json".into());
+        v
+    };
+    let run = || {
+        let a = dir_arg(args);
+        footscan(&a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let rank = |out: &str| -> Vec<serde_json::Value> { serde_json::from_str(out).unwrap() };
+    let eligible = |r: &[serde_json::Value], n: &str| {
+        r.iter()
+            .find(|c| c["name"].as_str().unwrap().ends_with(n))
+            .unwrap_or_else(|| panic!("{n} not ranked: {r:?}"))["eligible"]
+            .as_bool()
+            .unwrap()
+    };
+    // Without lasts.toml the model-unit file (longest side 2 units) is not a last's size.
+    let (ok, out, err) = run();
+    assert!(ok, "{out}{err}");
+    let r = rank(&out);
+    assert!(eligible(&r, "in_metres.stl"), "{r:?}");
+    assert!(!eligible(&r, "model_units.stl"), "{r:?}");
+    let why = r
+        .iter()
+        .find(|c| c["name"].as_str().unwrap().ends_with("model_units.stl"))
+        .unwrap()["cannot"][0]
+        .to_string();
+    assert!(
+        why.contains("model units") && why.contains("length_mm") && why.contains("lasts.toml"),
+        "{why}"
+    );
+    // With its length, both are ranked and the model-unit copy (the foot's own size) leads.
+    std::fs::write(
+        shop.join("lasts.toml"),
+        format!("[\"model_units.stl\"]\nlength_mm = {longest:.3}\n"),
+    )
+    .unwrap();
+    let (ok, out, err) = run();
+    assert!(ok, "{out}{err}");
+    let r = rank(&out);
+    assert!(
+        r[0]["name"].as_str().unwrap().ends_with("model_units.stl"),
+        "{r:?}"
+    );
+    assert!(eligible(&r, "in_metres.stl"), "{r:?}");
+    assert!(
+        r[0]["largest_change_mm"].as_f64().unwrap() < 2.0,
+        "{}",
+        r[0]
+    );
+    // An entry for a file that is not there: refused, naming the file and the entry.
+    std::fs::write(shop.join("lasts.toml"), "[\"gone.stl\"]\nunits = \"mm\"\n").unwrap();
+    let (ok, out, err) = run();
+    assert!(!ok, "{out}{err}");
+    assert!(
+        err.contains("lasts.toml") && err.contains("gone.stl"),
+        "{err}"
+    );
+}
+
 /// A copy of `m` scaled by `k` about the origin, mirrored in y if asked, turned about z.
 fn copy(m: &TriMesh, k: f64, mirror: bool, turn_deg: f64) -> TriMesh {
     let mut c = m.clone();
@@ -140,6 +220,7 @@ fn ranking_puts_the_nearest_copy_first_and_customizes_it() {
         "{err}"
     );
     assert!(p("chosen").join("last.stl").exists() && p("chosen").join("report.json").exists());
+    mixed_units_collection(&last, &p("mixed"), &args);
     // A shop of lasts all too short: nothing to customize, non-zero, nothing written.
     std::fs::remove_dir_all(p("shop")).unwrap();
     std::fs::create_dir(p("shop")).unwrap();

@@ -320,7 +320,22 @@ pub fn judge_files(
         let got = crate::collection::Collection::for_file(p, default)
             .map_err(|e| e.to_string())
             .and_then(|r| {
-                TriMesh::load_solid(p, r.units, r.length_mm).map_err(|e| footscan_util::chain(&e))
+                TriMesh::load_solid(p, r.units, r.length_mm).map_err(|e| {
+                    // A collection may mix units: name the per-file way as well.
+                    let file = p.file_name().unwrap_or_default().to_string_lossy();
+                    footscan_util::chain(&e.retold(
+                        &format!(
+                            "pass --units m, or for this file alone `[\"{file}\"] units = \"m\"` \
+                             in the {} beside it",
+                            crate::collection::COLLECTION_FILE
+                        ),
+                        &format!(
+                            "give the length of its longest side with --length MM, or for this \
+                             file alone `[\"{file}\"] length_mm = ...` in the {} beside it",
+                            crate::collection::COLLECTION_FILE
+                        ),
+                    ))
+                })
             })
             .and_then(|(m, _)| {
                 crate::size::check_last_size(p, &m).map_err(|e| footscan_util::chain(&e))?;
