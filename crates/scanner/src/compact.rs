@@ -271,7 +271,7 @@ pub fn compact_dir(dir: &Path, opts: &CompactOptions) -> std::io::Result<Compact
         .filter(|(_, c, _, _)| opts.rebuild && matches!(c, Codec::RebuildPly | Codec::RebuildModel))
         .map(|(n, c, _, _)| {
             let cell = match (*n, c) {
-                ("model.glb", _) => Some(crate::cad::DEFAULT_GLB_CELL_MM),
+                (ScanDir::MODEL_GLB, _) => Some(crate::cad::DEFAULT_GLB_CELL_MM),
                 (_, Codec::RebuildModel) => Some(0.5),
                 _ => None,
             };
@@ -323,7 +323,7 @@ pub fn compact_dir(dir: &Path, opts: &CompactOptions) -> std::io::Result<Compact
             }
         }
         let cell_mm = match (*name, codec) {
-            ("model.glb", Codec::RebuildModel) => Some(crate::cad::DEFAULT_GLB_CELL_MM),
+            (ScanDir::MODEL_GLB, Codec::RebuildModel) => Some(crate::cad::DEFAULT_GLB_CELL_MM),
             (_, Codec::RebuildModel) => Some(0.5),
             _ => None,
         };

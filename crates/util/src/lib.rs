@@ -71,6 +71,17 @@ pub mod scan_files {
     pub const RECORD: &str = "record.json";
     /// The calibration the scan was made with, copied beside it.
     pub const CALIBRATION: &str = "calibration.toml";
+    /// The plantar model as a closed mesh (STL), from the `model.bezier` stage.
+    pub const MODEL_STL: &str = "model.stl";
+    /// The plantar model as a B-spline solid (STEP AP214).
+    pub const MODEL_STEP: &str = "model.step";
+    /// The plantar model as a B-spline solid (IGES 5.3), `footscan model --format iges`.
+    pub const MODEL_IGES: &str = "model.igs";
+    /// The plantar model for the 3D view (glTF binary).
+    pub const MODEL_GLB: &str = "model.glb";
+    /// The plantar model as PLY and OBJ meshes, `footscan model --format ply|obj`.
+    pub const MODEL_PLY: &str = "model.ply";
+    pub const MODEL_OBJ: &str = "model.obj";
 }
 
 /// An error and its causes on one line, `outer: cause: root`, for the edges that turn an

@@ -64,12 +64,12 @@ pub fn run(a: Args) -> Result<()> {
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let want = |f: Format, name: &str| a.formats.contains(&f).then(|| out.join(name));
     let files = ModelFiles {
-        stl: want(Format::Stl, "model.stl"),
-        ply: want(Format::Ply, "model.ply"),
-        obj: want(Format::Obj, "model.obj"),
-        step: want(Format::Step, "model.step"),
-        iges: want(Format::Iges, "model.igs"),
-        glb: want(Format::Glb, "model.glb"),
+        stl: want(Format::Stl, ScanDir::MODEL_STL),
+        ply: want(Format::Ply, ScanDir::MODEL_PLY),
+        obj: want(Format::Obj, ScanDir::MODEL_OBJ),
+        step: want(Format::Step, ScanDir::MODEL_STEP),
+        iges: want(Format::Iges, ScanDir::MODEL_IGES),
+        glb: want(Format::Glb, ScanDir::MODEL_GLB),
         cell_mm: a.cell_mm,
         step_cell_mm: a.step_cell_mm,
         glb_cell_mm,

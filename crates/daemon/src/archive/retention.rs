@@ -37,7 +37,12 @@ pub struct Rules {
 }
 
 /// The files a scan loses after keep_raw_days (their compact forms with them).
-pub const RAW: [&str; 4] = [ScanDir::GRID, ScanDir::POINTS, "model.stl", ScanDir::TRUTH];
+pub const RAW: [&str; 4] = [
+    ScanDir::GRID,
+    ScanDir::POINTS,
+    ScanDir::MODEL_STL,
+    ScanDir::TRUTH,
+];
 
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Dropped {

@@ -10,6 +10,7 @@
 
 use footscan::cad::FootFrame;
 use footscan::measure::Measurements;
+use footscan::scandata::ScanDir;
 use footscan_geom::mesh::{GlbPart, TriMesh};
 use footscan_geom::P3;
 use serde::{Deserialize, Serialize};
@@ -230,10 +231,10 @@ pub fn write_fit_view(
     m: &Measurements,
     c: &footscan_last::customize::Customized,
 ) -> Result<FitView, String> {
-    let model = dir.join("model.glb");
+    let model = dir.join(ScanDir::MODEL_GLB);
     // Through the scan directory: a compacted scan rebuilds its model.glb from the grid.
-    let bytes = footscan::scandata::ScanDir::new(dir)
-        .read_file("model.glb")
+    let bytes = ScanDir::new(dir)
+        .read_file(ScanDir::MODEL_GLB)
         .map_err(|e| {
             format!(
                 "{}: {e} (the scan's 3D model: a scan whose pipeline ran model.bezier)",

@@ -53,6 +53,13 @@ impl ScanDir {
     pub const RECORD: &'static str = scan_files::RECORD;
     /// The calibration the scan was made with, copied beside it.
     pub const CALIBRATION: &'static str = scan_files::CALIBRATION;
+    /// The plantar model's files (`model.bezier`, `footscan model`).
+    pub const MODEL_STL: &'static str = scan_files::MODEL_STL;
+    pub const MODEL_STEP: &'static str = scan_files::MODEL_STEP;
+    pub const MODEL_IGES: &'static str = scan_files::MODEL_IGES;
+    pub const MODEL_GLB: &'static str = scan_files::MODEL_GLB;
+    pub const MODEL_PLY: &'static str = scan_files::MODEL_PLY;
+    pub const MODEL_OBJ: &'static str = scan_files::MODEL_OBJ;
 
     pub fn new(path: impl Into<PathBuf>) -> ScanDir {
         ScanDir { path: path.into() }

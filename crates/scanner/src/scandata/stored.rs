@@ -80,12 +80,12 @@ pub struct Manifest {
 pub const CANDIDATES: [(&str, Codec); 9] = [
     (ScanDir::GRID, Codec::GridShuffleGzip),
     (ScanDir::POINTS, Codec::RebuildPly),
-    ("model.stl", Codec::RebuildModel),
-    ("model.glb", Codec::RebuildModel),
-    ("model.step", Codec::Gzip),
-    ("model.ply", Codec::Gzip),
-    ("model.obj", Codec::Gzip),
-    ("model.igs", Codec::Gzip),
+    (ScanDir::MODEL_STL, Codec::RebuildModel),
+    (ScanDir::MODEL_GLB, Codec::RebuildModel),
+    (ScanDir::MODEL_STEP, Codec::Gzip),
+    (ScanDir::MODEL_PLY, Codec::Gzip),
+    (ScanDir::MODEL_OBJ, Codec::Gzip),
+    (ScanDir::MODEL_IGES, Codec::Gzip),
     (ScanDir::TRUTH, Codec::Gzip),
 ];
 

@@ -13,7 +13,7 @@ use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::Item;
 use crate::scan::model_job::{ModelProgress, ModelState};
 use crate::scan::ScanCounters;
-use crate::scandata::ScanGrid;
+use crate::scandata::{ScanDir, ScanGrid};
 use crate::surface::build_scan_model;
 use crate::surface::BezierNetwork;
 use serde::Deserialize;
@@ -51,11 +51,11 @@ pub struct ModelParams {
 }
 
 fn default_step() -> String {
-    "model.step".into()
+    ScanDir::MODEL_STEP.into()
 }
 
 fn default_glb() -> String {
-    "model.glb".into()
+    ScanDir::MODEL_GLB.into()
 }
 
 fn default_glb_cell() -> f64 {
@@ -67,7 +67,7 @@ fn default_step_cell() -> f64 {
 }
 
 fn default_stl() -> String {
-    "model.stl".into()
+    ScanDir::MODEL_STL.into()
 }
 
 fn default_cell() -> f64 {
