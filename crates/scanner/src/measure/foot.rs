@@ -809,3 +809,300 @@ fn contact_thirds(
     }
     t
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A point or direction of any type made from `[x, y]`: the sample below is built the
+    /// same whatever type the fields have.
+    fn p<T: From<[f64; 2]>>(x: f64, y: f64) -> T {
+        [x, y].into()
+    }
+
+    /// A measurements value with awkward numbers: thirds, negative zero, tiny and huge
+    /// magnitudes, integers, and outlines of several lengths.
+    fn sample() -> Measurements {
+        Measurements {
+            side: Side::Left,
+            heel_point: p(1.0 / 3.0, -0.0),
+            toe_tip: p(251.25, 1e-300),
+            heel_centre: p(31.000000000000004, -12.5),
+            mt2_head: p(180.0, 2.0f64.sqrt()),
+            axis_dir: p(0.9999999999999999, -1.2246467991473532e-16),
+            axis_angle_deg: -7.016709298534876e-15,
+            foot_length_mm: 250.91666666666666,
+            mt1_head: p(177.3, 48.7),
+            mt5_head: p(160.1, -45.9),
+            ball_width_mm: 94.6,
+            waist_inner: p(1e21, -1e-7),
+            waist_outer: p(90.0, -30.000000000000004),
+            midfoot_width_mm: 80.5,
+            midfoot_inner: p(125.0, 40.25),
+            midfoot_outer: p(125.0, -40.25),
+            heel_width_mm: 62.0,
+            heel_width_inner: p(40.0, 31.0),
+            heel_width_outer: p(40.0, -31.0),
+            hallux_point: p(240.0, 30.0),
+            arch_height_mm: 12.345678901234567,
+            arch_point: p(100.0, 25.0),
+            arch_index: 0.2345,
+            contact_area_mm2: 9876.5,
+            contact_thirds_mm2: [3000.0, 2345.5, 4531.0],
+            body_front: p(230.0, 0.0),
+            outline: vec![p(0.0, 0.0), p(1.5, -2.25), p(f64::MIN_POSITIVE, f64::MAX)],
+            toe_outlines: vec![vec![p(240.0, 30.0), p(241.0, 31.0)], vec![]],
+            cell_mm: 0.2,
+            heights_from: "scan grid".into(),
+            warnings: vec!["a warning".into()],
+        }
+    }
+
+    /// measurements.json as written before the points became footscan-geom's `P2`: each point
+    /// an `[x, y]` array, every number in the same digits.
+    const SAMPLE_JSON: &str = r#"{
+  "side": "left",
+  "heel_point": [
+    0.3333333333333333,
+    -0.0
+  ],
+  "toe_tip": [
+    251.25,
+    1e-300
+  ],
+  "heel_centre": [
+    31.000000000000004,
+    -12.5
+  ],
+  "mt2_head": [
+    180.0,
+    1.4142135623730951
+  ],
+  "axis_dir": [
+    0.9999999999999999,
+    -1.2246467991473532e-16
+  ],
+  "axis_angle_deg": -7.016709298534876e-15,
+  "foot_length_mm": 250.91666666666666,
+  "mt1_head": [
+    177.3,
+    48.7
+  ],
+  "mt5_head": [
+    160.1,
+    -45.9
+  ],
+  "ball_width_mm": 94.6,
+  "waist_inner": [
+    1e+21,
+    -1e-7
+  ],
+  "waist_outer": [
+    90.0,
+    -30.000000000000004
+  ],
+  "midfoot_width_mm": 80.5,
+  "midfoot_inner": [
+    125.0,
+    40.25
+  ],
+  "midfoot_outer": [
+    125.0,
+    -40.25
+  ],
+  "heel_width_mm": 62.0,
+  "heel_width_inner": [
+    40.0,
+    31.0
+  ],
+  "heel_width_outer": [
+    40.0,
+    -31.0
+  ],
+  "hallux_point": [
+    240.0,
+    30.0
+  ],
+  "arch_height_mm": 12.345678901234567,
+  "arch_point": [
+    100.0,
+    25.0
+  ],
+  "arch_index": 0.2345,
+  "contact_area_mm2": 9876.5,
+  "contact_thirds_mm2": [
+    3000.0,
+    2345.5,
+    4531.0
+  ],
+  "body_front": [
+    230.0,
+    0.0
+  ],
+  "outline": [
+    [
+      0.0,
+      0.0
+    ],
+    [
+      1.5,
+      -2.25
+    ],
+    [
+      2.2250738585072014e-308,
+      1.7976931348623157e+308
+    ]
+  ],
+  "toe_outlines": [
+    [
+      [
+        240.0,
+        30.0
+      ],
+      [
+        241.0,
+        31.0
+      ]
+    ],
+    []
+  ],
+  "cell_mm": 0.2,
+  "heights_from": "scan grid",
+  "warnings": [
+    "a warning"
+  ]
+}"#;
+
+    /// [`SAMPLE_JSON`] read back and written again by the same code: serde_json's default
+    /// float parser may miss the last bit (0.9999999999999999 reads as 1.0), and the reading
+    /// must miss it the same way.
+    const REREAD_JSON: &str = r#"{
+  "side": "left",
+  "heel_point": [
+    0.3333333333333333,
+    -0.0
+  ],
+  "toe_tip": [
+    251.25,
+    1e-300
+  ],
+  "heel_centre": [
+    31.000000000000004,
+    -12.5
+  ],
+  "mt2_head": [
+    180.0,
+    1.4142135623730951
+  ],
+  "axis_dir": [
+    1.0,
+    -1.2246467991473532e-16
+  ],
+  "axis_angle_deg": -7.016709298534876e-15,
+  "foot_length_mm": 250.91666666666663,
+  "mt1_head": [
+    177.3,
+    48.7
+  ],
+  "mt5_head": [
+    160.1,
+    -45.9
+  ],
+  "ball_width_mm": 94.6,
+  "waist_inner": [
+    1e+21,
+    -1e-7
+  ],
+  "waist_outer": [
+    90.0,
+    -30.000000000000004
+  ],
+  "midfoot_width_mm": 80.5,
+  "midfoot_inner": [
+    125.0,
+    40.25
+  ],
+  "midfoot_outer": [
+    125.0,
+    -40.25
+  ],
+  "heel_width_mm": 62.0,
+  "heel_width_inner": [
+    40.0,
+    31.0
+  ],
+  "heel_width_outer": [
+    40.0,
+    -31.0
+  ],
+  "hallux_point": [
+    240.0,
+    30.0
+  ],
+  "arch_height_mm": 12.345678901234567,
+  "arch_point": [
+    100.0,
+    25.0
+  ],
+  "arch_index": 0.2345,
+  "contact_area_mm2": 9876.5,
+  "contact_thirds_mm2": [
+    3000.0,
+    2345.5,
+    4531.0
+  ],
+  "body_front": [
+    230.0,
+    0.0
+  ],
+  "outline": [
+    [
+      0.0,
+      0.0
+    ],
+    [
+      1.5,
+      -2.25
+    ],
+    [
+      2.2250738585072014e-308,
+      1.7976931348623157e+308
+    ]
+  ],
+  "toe_outlines": [
+    [
+      [
+        240.0,
+        30.0
+      ],
+      [
+        241.0,
+        31.0
+      ]
+    ],
+    []
+  ],
+  "cell_mm": 0.2,
+  "heights_from": "scan grid",
+  "warnings": [
+    "a warning"
+  ]
+}"#;
+
+    /// The compact form (the daemon's messages).
+    const COMPACT_JSON: &str = r#"{"side":"left","heel_point":[0.3333333333333333,-0.0],"toe_tip":[251.25,1e-300],"heel_centre":[31.000000000000004,-12.5],"mt2_head":[180.0,1.4142135623730951],"axis_dir":[0.9999999999999999,-1.2246467991473532e-16],"axis_angle_deg":-7.016709298534876e-15,"foot_length_mm":250.91666666666666,"mt1_head":[177.3,48.7],"mt5_head":[160.1,-45.9],"ball_width_mm":94.6,"waist_inner":[1e+21,-1e-7],"waist_outer":[90.0,-30.000000000000004],"midfoot_width_mm":80.5,"midfoot_inner":[125.0,40.25],"midfoot_outer":[125.0,-40.25],"heel_width_mm":62.0,"heel_width_inner":[40.0,31.0],"heel_width_outer":[40.0,-31.0],"hallux_point":[240.0,30.0],"arch_height_mm":12.345678901234567,"arch_point":[100.0,25.0],"arch_index":0.2345,"contact_area_mm2":9876.5,"contact_thirds_mm2":[3000.0,2345.5,4531.0],"body_front":[230.0,0.0],"outline":[[0.0,0.0],[1.5,-2.25],[2.2250738585072014e-308,1.7976931348623157e+308]],"toe_outlines":[[[240.0,30.0],[241.0,31.0]],[]],"cell_mm":0.2,"heights_from":"scan grid","warnings":["a warning"]}"#;
+
+    #[test]
+    fn measurements_json_is_unchanged() {
+        let m = sample();
+        assert_eq!(serde_json::to_string_pretty(&m).unwrap(), SAMPLE_JSON);
+        assert_eq!(serde_json::to_string(&m).unwrap(), COMPACT_JSON);
+        let back: Measurements = serde_json::from_str(SAMPLE_JSON).unwrap();
+        assert_eq!(serde_json::to_string_pretty(&back).unwrap(), REREAD_JSON);
+        let back: Measurements = serde_json::from_str(COMPACT_JSON).unwrap();
+        assert_eq!(serde_json::to_string_pretty(&back).unwrap(), REREAD_JSON);
+        // A point of the wrong length is refused.
+        let bad = COMPACT_JSON.replace("[251.25,1e-300]", "[251.25]");
+        assert!(serde_json::from_str::<Measurements>(&bad).is_err());
+    }
+}
