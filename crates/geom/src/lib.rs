@@ -53,3 +53,9 @@ pub type V3 = nalgebra::Vector3<f64>;
 pub type P2 = nalgebra::Point2<f64>;
 /// A vector in a plane, millimetres.
 pub type V2 = nalgebra::Vector2<f64>;
+
+/// `v` turned a quarter turn counterclockwise, `(-y, x)`: the left normal of a direction in
+/// the plane (not nalgebra's `perp`, which is the scalar cross product of two vectors).
+pub fn quarter_turn(v: &V2) -> V2 {
+    V2::new(-v.y, v.x)
+}

@@ -180,7 +180,7 @@ mod tests {
 
     #[test]
     fn a_box_has_six_kinds_of_faces_and_every_point_once() {
-        let poly = vec![[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]];
+        let poly = [[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]].map(footscan_geom::P2::from);
         let s = outline_solid(&poly, 0.5, Some(-1.0), |_, _| Some(1.0)).unwrap();
         let (text, faces) = faceted_step(&s, "box");
         // 2 x 4 cells (16 triangles) at the top plus walls and the bottom.
