@@ -27,7 +27,7 @@ use crate::surface::solid::{outline_solid, OutlineSolid};
 use crate::surface::{build_scan_model, BezierNetwork, Continuity, SurfaceError};
 use footscan_geom::mesh::{Format, GlbError, MeshError, TriMesh};
 use footscan_geom::polygon::convex_hull;
-use footscan_geom::{P2, P3, V2};
+use footscan_geom::{unit_by_hypot, P2, P3, V2};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -113,10 +113,9 @@ pub struct FootFrame {
 
 impl FootFrame {
     pub fn of(m: &Measurements) -> FootFrame {
-        let d = m.axis_dir;
         FootFrame {
             origin: m.heel_point,
-            x_axis: d / d.x.hypot(d.y),
+            x_axis: unit_by_hypot(&m.axis_dir),
         }
     }
 

@@ -6,7 +6,7 @@ use super::outline::{line_crossings, regions, simplify, Region};
 use super::profile::{peaks, pick, valleys, Profiles};
 use super::MeasureError;
 use crate::geom::HeightMap;
-use footscan_geom::{quarter_turn, P2, V2};
+use footscan_geom::{quarter_turn, unit_by_hypot, P2, V2};
 use serde::{Deserialize, Serialize};
 
 /// Which foot (one type for every crate, in footscan-geom).
@@ -261,12 +261,6 @@ impl Heads {
     }
 }
 
-/// `d` scaled to unit length by its `hypot` (not nalgebra's `normalize`, whose square root of
-/// the sum of squares can differ in the last bit).
-fn unit(d: V2) -> V2 {
-    d / d.x.hypot(d.y)
-}
-
 /// Extreme point of a closed outline in direction `dir`, among vertices passing `keep`: the
 /// best vertex, then a two-sided parabola over the contiguous run of kept vertices within
 /// `depth` mm of it. None when no vertex is kept.
@@ -390,7 +384,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         if joined {
             break;
         }
-        let nu = unit(front - centre);
+        let nu = unit_by_hypot(&(front - centre));
         let change = nu.perp(&u).abs();
         u = nu;
         if it > 2 && change < 1e-9 {
@@ -413,7 +407,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
             let Some(h) = &heads else { break };
             let (c, r) = heel_circle(u, band)?;
             (centre, radius, band) = (c, r, r.min(0.3 * extent));
-            let nu = unit(h.mt2_on_ball_line() - centre);
+            let nu = unit_by_hypot(&(h.mt2_on_ball_line() - centre));
             let change = nu.perp(&u).abs();
             u = nu;
             heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut Vec::new());
