@@ -13,6 +13,7 @@
 use super::ops::{dot, OpCount, Scalar};
 use super::point_grid::PointGrid;
 use super::SurfaceError;
+use footscan_geom::P3;
 use nalgebra::DMatrix;
 
 /// Uniform cubic B-spline basis on a span at local t in [0, 1].
@@ -116,8 +117,8 @@ impl BSplineSurface {
         }
     }
 
-    pub fn eval(&self, s: f64, t: f64) -> [f64; 3] {
-        [0, 1, 2].map(|k| self.eval_coord_generic::<f64>(k, s, t))
+    pub fn eval(&self, s: f64, t: f64) -> P3 {
+        P3::from([0, 1, 2].map(|k| self.eval_coord_generic::<f64>(k, s, t)))
     }
 
     /// Value and derivatives along s and t: [p, p_s, p_t].
