@@ -183,8 +183,8 @@ pub fn run(cfg: &ScanConfig, grid: &ScanGrid) -> Result<SurfaceBench, BoxError> 
             g.points
                 .iter()
                 .map(|p| match truth(p[0], p[1]) {
-                    Some(h) if p[0].is_finite() => [p[0], p[1], h],
-                    _ => [f64::NAN; 3],
+                    Some(h) if p.x.is_finite() => P3::new(p.x, p.y, h),
+                    _ => P3::from([f64::NAN; 3]),
                 })
                 .collect(),
         );

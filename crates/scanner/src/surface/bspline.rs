@@ -327,7 +327,7 @@ pub fn interpolate(g: &PointGrid) -> Result<BSplineSurface, SurfaceError> {
     let mut out = vec![[0.0; 3]; mu];
     for j in 0..nv {
         for (i, c) in col.iter_mut().enumerate() {
-            *c = g.get(i, j);
+            *c = g.get(i, j).into();
         }
         interp_1d(&col, &mut out);
         for a in 0..mu {
@@ -414,7 +414,7 @@ mod tests {
                 pts.push([x, y, (x * 0.15).sin() * (y * 0.2).cos() * 4.0]);
             }
         }
-        PointGrid::new(nu, nv, pts)
+        PointGrid::new(nu, nv, pts.into_iter().map(P3::from).collect())
     }
 
     #[test]

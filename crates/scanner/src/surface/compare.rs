@@ -311,7 +311,7 @@ mod tests {
                 });
             }
         }
-        let full = PointGrid::new(nu, nv, pts);
+        let full = PointGrid::new(nu, nv, pts.into_iter().map(P3::from).collect());
         let sub = full.even_subsample(41, 33).unwrap();
         let g = full.subsample(&sub);
         let net = BezierNetwork::build(&g).unwrap();

@@ -698,7 +698,7 @@ mod tests {
                 pts.push([x, y0 * (1.0 + z / 250.0), z]);
             }
         }
-        PointGrid::new(nu, nv, pts)
+        PointGrid::new(nu, nv, pts.into_iter().map(P3::from).collect())
     }
 
     #[test]
@@ -725,8 +725,8 @@ mod tests {
     #[test]
     fn missing_points_drop_their_segments() {
         let mut g = wavy(10, 10);
-        g.set(4, 4, [f64::NAN; 3]); // inside segment (1, 1) only
-        g.set(3, 5, [f64::NAN; 3]); // on the shared edge of (0, 1) and (1, 1)
+        g.set(4, 4, P3::from([f64::NAN; 3])); // inside segment (1, 1) only
+        g.set(3, 5, P3::from([f64::NAN; 3])); // on the shared edge of (0, 1) and (1, 1)
         let n = BezierNetwork::build(&g).unwrap();
         assert_eq!(n.lattice(), (3, 3));
         assert_eq!(n.skipped(), 2);
@@ -814,7 +814,12 @@ mod tests {
                 pts.push([x, y, 0.1 * x + 0.2 * y]);
             }
         }
-        let p = BezierNetwork::build(&PointGrid::new(10, 10, pts)).unwrap();
+        let p = BezierNetwork::build(&PointGrid::new(
+            10,
+            10,
+            pts.into_iter().map(P3::from).collect(),
+        ))
+        .unwrap();
         let c = p.continuity(8);
         assert!(c.max_deg < 1e-5, "{c:?}"); // acos near 1 resolves ~1e-6 deg
     }

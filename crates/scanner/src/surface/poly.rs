@@ -191,7 +191,7 @@ mod tests {
                 });
             }
         }
-        let g = PointGrid::new(15, 12, pts);
+        let g = PointGrid::new(15, 12, pts.into_iter().map(P3::from).collect());
         let p = PolySurface::fit(&g, 4).unwrap();
         let (s, t) = (3.7, 8.2);
         let z = 1.0 + 0.3 * s - 0.02 * s * t + 0.001 * s * s * s;
