@@ -37,15 +37,12 @@ pub fn faceted_step(solid: &OutlineSolid, name: &str) -> (String, usize) {
     }
     for (k, p) in v.iter().enumerate() {
         if used[k] {
-            point[k] = w.point(P3::new(p[0], p[1], p[2]));
+            point[k] = w.point(*p);
         }
     }
     let mut faces = Vec::new();
     for f in facets(solid) {
-        let (p0, p1) = (
-            P3::from(v[f.ids[0] as usize]),
-            P3::from(v[f.ids[1] as usize]),
-        );
+        let (p0, p1) = (v[f.ids[0] as usize], v[f.ids[1] as usize]);
         let n = f.normal;
         let loop_ = w.add(format!(
             "POLY_LOOP('',({}))",
@@ -112,7 +109,7 @@ pub(crate) fn facets(solid: &OutlineSolid) -> Vec<Facet> {
     let v = &solid.vertices;
     let mut out = Vec::with_capacity(solid.top.len() + solid.boundary_len() + 1);
     let mut add = |ids: Vec<u32>| {
-        let pts: Vec<P3> = ids.iter().map(|&k| P3::from(v[k as usize])).collect();
+        let pts: Vec<P3> = ids.iter().map(|&k| v[k as usize]).collect();
         let normal = newell(&pts);
         out.push(Facet { ids, normal });
     };

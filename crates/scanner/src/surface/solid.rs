@@ -32,7 +32,7 @@ pub const MAX_NODES: usize = 40_000_000;
 /// The solid over a polygon: vertices are (top, bottom) pairs, bottom = top + 1.
 #[derive(Clone, Debug, Default)]
 pub struct OutlineSolid {
-    pub vertices: Vec<[f64; 3]>,
+    pub vertices: Vec<P3>,
     /// Top triangles, counterclockwise seen from above (top vertex indices, even).
     pub top: Vec<[u32; 3]>,
     /// Boundary loops of the top, counterclockwise seen from above (top vertex indices).
@@ -158,8 +158,8 @@ pub fn outline_solid(
     let mut node_v = vec![u32::MAX; nx * ny];
     let push = |s: &mut OutlineSolid, x: f64, y: f64| -> u32 {
         let v = s.vertices.len() as u32;
-        s.vertices.push([x, y, f64::NAN]);
-        s.vertices.push([x, y, f64::NAN]);
+        s.vertices.push(P3::new(x, y, f64::NAN));
+        s.vertices.push(P3::new(x, y, f64::NAN));
         v
     };
     for j in 0..ny {
@@ -267,7 +267,7 @@ pub fn outline_solid(
     zs.resize(s.vertices.len() / 2, f64::NAN);
     for (k, z) in zs.iter_mut().enumerate() {
         let p = s.vertices[2 * k];
-        if let Some(h) = height(p[0], p[1]).filter(|h| h.is_finite()) {
+        if let Some(h) = height(p.x, p.y).filter(|h| h.is_finite()) {
             *z = h;
         }
     }
@@ -291,8 +291,8 @@ pub fn outline_solid(
     let zmin = zs.iter().copied().fold(0.0f64, f64::min);
     s.base_z = base_z.unwrap_or((zmin - 1.0).min(DEFAULT_BASE_Z));
     for (k, z) in zs.iter().enumerate() {
-        s.vertices[2 * k][2] = *z;
-        s.vertices[2 * k + 1][2] = s.base_z;
+        s.vertices[2 * k].z = *z;
+        s.vertices[2 * k + 1].z = s.base_z;
     }
 
     // Boundary loops from the chords.
@@ -330,7 +330,7 @@ impl OutlineSolid {
     /// top's triangulation at `base_z`, reversed).
     pub fn mesh(&self) -> TriMesh {
         let mut m = TriMesh::new(
-            self.vertices.iter().map(|&v| P3::from(v)).collect(),
+            self.vertices.clone(),
             Vec::with_capacity(2 * self.top.len() + 2 * self.boundary_len()),
         );
         for &[a, b, c] in &self.top {
@@ -370,7 +370,7 @@ impl OutlineSolid {
         ];
         let z = |a: usize, b: usize| {
             let k = g.node_v[b * g.nx + a];
-            (k != u32::MAX).then(|| self.vertices[k as usize][2])
+            (k != u32::MAX).then(|| self.vertices[k as usize].z)
         };
         if corners.iter().all(|&(a, b, _)| z(a, b).is_some()) {
             return Some(corners.iter().map(|&(a, b, w)| w * z(a, b).unwrap()).sum());
@@ -393,7 +393,7 @@ impl OutlineSolid {
             .iter()
             .map(|t| {
                 let [a, b, c] = t.map(|k| self.vertices[k as usize]);
-                0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]))
+                0.5 * ((b.x - a.x) * (c.y - a.y) - (c.x - a.x) * (b.y - a.y))
             })
             .sum()
     }
