@@ -98,7 +98,7 @@ fn a_grid() -> Vec<u8> {
         });
         for _ in 0..4 {
             g.lines.push(footscan::detect::LinePeak::NONE);
-            g.points.push([1.0, 2.0, 3.0]);
+            g.points.push(footscan_geom::P3::new(1.0, 2.0, 3.0));
         }
     }
     let p = dir.path().join("grid.bin");

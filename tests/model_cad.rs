@@ -479,7 +479,9 @@ fn check_grid_bin(path: &Path) {
         let (i, j) = (k / rows, k % rows);
         let q = grid.point(i, j);
         assert!(
-            p.iter().zip(&q).all(|(a, b)| a.to_bits() == b.to_bits()),
+            p.iter()
+                .zip(q.iter())
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
             "cell {i},{j}"
         );
         if reject == 0 {

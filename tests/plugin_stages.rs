@@ -162,7 +162,7 @@ fn per_scan_and_sink_stages_of_both_kinds_in_one_simulated_scan() {
 
     // The extent against the grid the scan saved, computed here.
     let grid = footscan::scan::ScanGrid::load(&out.join("grid.bin")).unwrap();
-    let pts: Vec<[f64; 3]> = grid.valid().map(|(_, _, p, _)| *p).collect();
+    let pts: Vec<footscan_geom::P3> = grid.valid().map(|(_, _, p, _)| *p).collect();
     assert_eq!(pts.len(), s.points);
     let fold = |k: usize, f: fn(f64, f64) -> f64, z: f64| pts.iter().map(|p| p[k]).fold(z, f);
     let (x0, x1) = (

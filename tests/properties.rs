@@ -110,7 +110,7 @@ proptest! {
                     quality: *quality,
                     reject,
                 });
-                points.push(if col.is_some() { *p } else { [f64::NAN; 3] });
+                points.push(footscan_geom::P3::from(if col.is_some() { *p } else { [f64::NAN; 3] }));
             }
             g.push(FramePoints {
                 meta: FrameMeta {

@@ -45,7 +45,11 @@ fn scan_like(foot: &Foot, frame_step: f64, row_step: f64) -> PointGrid {
             if p[0].is_finite() {
                 p[2] = foot.height(x, p[1]).unwrap_or(f64::NAN);
             }
-            pts.push(if p[2].is_finite() { p } else { [f64::NAN; 3] });
+            pts.push(footscan_geom::P3::from(if p[2].is_finite() {
+                p
+            } else {
+                [f64::NAN; 3]
+            }));
         }
     }
     PointGrid::new(xs.len(), nr, pts)

@@ -140,10 +140,7 @@ pub struct RealRow {
 
 impl RealRow {
     pub fn of(name: &str, m: &Measurements, ms: f64) -> RealRow {
-        let along = |p: [f64; 2]| {
-            ((p[0] - m.heel_point[0]) * m.axis_dir[0] + (p[1] - m.heel_point[1]) * m.axis_dir[1])
-                / m.foot_length_mm
-        };
+        let along = |p: footscan_geom::P2| (p - m.heel_point).dot(&m.axis_dir) / m.foot_length_mm;
         RealRow {
             name: name.into(),
             side: format!("{:?}", m.side).to_lowercase(),

@@ -13,6 +13,7 @@ use footscan::surface::compare::{
     eval_params, held_out, model_errors, representation_errors, rms, Fitted, Method,
 };
 use footscan::surface::{BezierNetwork, Continuity, PointGrid, Subsample};
+use footscan_geom::P3;
 use footscan_sim::foot::Foot;
 use serde::Serialize;
 use std::path::Path;
@@ -182,8 +183,8 @@ pub fn run(cfg: &ScanConfig, grid: &ScanGrid) -> Result<SurfaceBench, BoxError> 
             g.points
                 .iter()
                 .map(|p| match truth(p[0], p[1]) {
-                    Some(h) if p[0].is_finite() => [p[0], p[1], h],
-                    _ => [f64::NAN; 3],
+                    Some(h) if p.x.is_finite() => P3::new(p.x, p.y, h),
+                    _ => P3::from([f64::NAN; 3]),
                 })
                 .collect(),
         );
@@ -236,7 +237,7 @@ pub fn run(cfg: &ScanConfig, grid: &ScanGrid) -> Result<SurfaceBench, BoxError> 
 
 /// (x, y, z) at every evaluated point. The network evaluates its segments with one (u, v)
 /// pattern (the basis computed once, the paper's Fig. 11); the others point by point.
-fn evaluate(fit: &Fitted, params: &[(f64, f64)], pattern: (usize, usize)) -> Vec<[f64; 3]> {
+fn evaluate(fit: &Fitted, params: &[(f64, f64)], pattern: (usize, usize)) -> Vec<P3> {
     match fit {
         Fitted::Network(n) => {
             let us: Vec<f64> = (0..pattern.0)
@@ -251,7 +252,7 @@ fn evaluate(fit: &Fitted, params: &[(f64, f64)], pattern: (usize, usize)) -> Vec
         }
         _ => params
             .iter()
-            .map(|&(s, t)| fit.eval(s, t).unwrap_or([f64::NAN; 3]))
+            .map(|&(s, t)| fit.eval(s, t).unwrap_or(P3::from([f64::NAN; 3])))
             .collect(),
     }
 }

@@ -128,7 +128,7 @@ fn the_fuzz_seeds_are_current() {
         });
         for _ in 0..4 {
             g.lines.push(footscan::detect::LinePeak::NONE);
-            g.points.push([1.0, 2.0, 3.0]);
+            g.points.push(footscan_geom::P3::new(1.0, 2.0, 3.0));
         }
     }
     g.save(&tmp.path().join("grid.bin")).unwrap();

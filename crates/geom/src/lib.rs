@@ -49,7 +49,21 @@ pub use side::Side;
 pub type P3 = nalgebra::Point3<f64>;
 /// A vector in millimetres.
 pub type V3 = nalgebra::Vector3<f64>;
-/// A point in a plane, millimetres.
+/// A point in a plane, millimetres. Points and vectors serialise as `[x, y]` (`[x, y, z]`),
+/// as the arrays they replaced did.
 pub type P2 = nalgebra::Point2<f64>;
 /// A vector in a plane, millimetres.
 pub type V2 = nalgebra::Vector2<f64>;
+
+/// `v` over its length as `hypot` gives it: the unit directions of the scanner's measurements
+/// (hypot rounds differently from nalgebra's `normalize`, a square root of the sum of squares,
+/// and the measurements' numbers are kept as they were).
+pub fn unit_by_hypot(v: &V2) -> V2 {
+    v / v.x.hypot(v.y)
+}
+
+/// `v` turned a quarter turn counterclockwise, `(-y, x)`: the left normal of a direction in
+/// the plane (not nalgebra's `perp`, which is the scalar cross product of two vectors).
+pub fn quarter_turn(v: &V2) -> V2 {
+    V2::new(-v.y, v.x)
+}

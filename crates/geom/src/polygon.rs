@@ -236,7 +236,7 @@ impl Polygon {
     /// where the boundary crosses it counts once, and one touching a vertex counts twice (at
     /// the same t) or not at all.
     pub fn line_crossings(&self, o: &P2, dir: &V2) -> Vec<f64> {
-        let n = V2::new(-dir.y, dir.x);
+        let n = crate::quarter_turn(dir);
         let mut ts = Vec::new();
         for i in 0..self.points.len() {
             let (a, b) = self.edge(i);

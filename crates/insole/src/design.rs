@@ -124,7 +124,7 @@ impl ShoeBottom {
         let pts: Vec<[f64; 2]> = m
             .vertices
             .iter()
-            .map(|v| frame.to_foot([v.x, v.y]))
+            .map(|v| frame.to_foot(P2::new(v.x, v.y)).into())
             .collect();
         let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
         for q in &pts {
@@ -212,11 +212,9 @@ impl ShoeBottom {
         };
         // The raster's half-cell steps and the hairs of the last's edge made fair: a
         // periodic smoothing spline through the edge (see [`fair_closed`]).
-        let mut poly = Polygon::from_arrays(&fair_closed(
-            &r.outline,
-            FAIR_SPACING_MM,
-            FAIR_WAVELENGTH_MM,
-        ));
+        let edge: Vec<[f64; 2]> = r.outline.iter().map(|&p| p.into()).collect();
+        let mut poly =
+            Polygon::from_arrays(&fair_closed(&edge, FAIR_SPACING_MM, FAIR_WAVELENGTH_MM));
         poly.make_ccw();
         Ok(poly.to_arrays())
     }
@@ -271,7 +269,7 @@ impl ShoeBottom {
         for t in 0..m.triangles.len() {
             if m.face_normal(t).z < BOTTOM_NZ {
                 for p in m.corners(t) {
-                    let q = frame.to_foot([p.x, p.y]);
+                    let q = frame.to_foot(P2::new(p.x, p.y));
                     x0 = x0.min(q[0]);
                     x1 = x1.max(q[0]);
                     y0 = y0.min(q[1]);
@@ -289,7 +287,7 @@ impl ShoeBottom {
                 let mut lo: Option<f64> = None;
                 let mut y = y0.floor();
                 while y <= y1 {
-                    let w = frame.to_world([x, y]);
+                    let w = frame.to_world(P2::new(x, y));
                     let hit = bvh.ray_cast(
                         &P3::new(w[0], w[1], bb.min.z - 10.0),
                         &V3::z(),
@@ -496,7 +494,7 @@ pub fn design_in(
     params.validate()?;
     let m = &p.m;
     let frame = FootFrame::of(m);
-    let to = |q: [f64; 2]| frame.to_foot(q);
+    let to = |q: P2| -> [f64; 2] { frame.to_foot(q).into() };
     let medial = if m.side == Side::Right { 1.0 } else { -1.0 };
     let (mt1, mt2, mt5) = (to(m.mt1_head), to(m.mt2_head), to(m.mt5_head));
     let mt3 = [
@@ -556,7 +554,7 @@ pub fn design_in(
     let mut outline = match shoe {
         Some(shoe) => shoe.outline(&frame)?,
         None => {
-            let mut poly = Polygon::from_arrays(&sole.points).simplify(OUTLINE_TOL_MM);
+            let mut poly = Polygon::new(sole.points.clone()).simplify(OUTLINE_TOL_MM);
             poly.make_ccw();
             if params.margin_mm > 0.0 {
                 poly = poly.offset(params.margin_mm);
@@ -615,7 +613,7 @@ pub fn design_in(
     let mut measured = vec![false; nx * ny];
     for j in 0..ny {
         for i in 0..nx {
-            let w = frame.to_world([foot.x(i), foot.y(j)]);
+            let w = frame.to_world(P2::new(foot.x(i), foot.y(j)));
             let cell = p.map.cell_of(w[0], w[1]);
             let inside = cell.is_some_and(|(a, b)| p.map.get(a, b).is_finite());
             if inside {
@@ -1058,9 +1056,12 @@ impl Design {
 
     /// The solid on cells of `cell_mm`, bottom at z = 0.
     pub fn solid(&self, cell_mm: f64) -> Result<OutlineSolid, InsoleError> {
-        outline_solid(&self.outline, cell_mm, Some(0.0), |x, y| {
-            Some(self.shell_top(x, y))
-        })
+        outline_solid(
+            &Polygon::from_arrays(&self.outline).points,
+            cell_mm,
+            Some(0.0),
+            |x, y| Some(self.shell_top(x, y)),
+        )
         .map_err(|e| InsoleError::Solid(e.to_string()))
     }
 

@@ -81,7 +81,7 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
     // The scanned plantar surface at a foot-frame point, laid flat as the design lays it,
     // straight from the scan's height map.
     let plantar = |x: f64, y: f64| -> Option<f64> {
-        let w = d.frame.to_world([x, y]);
+        let w = d.frame.to_world(footscan_geom::P2::new(x, y));
         let (i, j) = p.map.cell_of(w[0], w[1])?;
         if !p.map.get(i, j).is_finite() {
             return None;

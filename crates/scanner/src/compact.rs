@@ -108,7 +108,7 @@ pub fn rebuild(
     for (name, codec, cell) in wanted {
         match codec {
             Codec::RebuildPly => {
-                let (pts, q): (Vec<[f64; 3]>, Vec<f32>) =
+                let (pts, q): (Vec<footscan_geom::P3>, Vec<f32>) =
                     grid.valid().map(|(_, _, p, l)| (*p, l.quality)).unzip();
                 let p = tmp(name);
                 crate::io::write_ply_points(&p, &pts, &q)?;

@@ -7,6 +7,7 @@
 use crate::measure::Measurements;
 use crate::scandata::{ScanDir, ScanDirError};
 use footscan_geom::mesh::{TriMesh, Units};
+use footscan_geom::{quarter_turn, P2};
 use footscan_last::customize::clinic::{customize_stock, Plantar, TapeGirths};
 use footscan_last::customize::rules::RuleSet;
 use footscan_last::customize::{CustomizeError, Customized, Inputs};
@@ -49,19 +50,15 @@ fn named(stock: &Path, e: &CustomizeError) -> String {
 /// The plantar figures the rules need from a scan's measurements (docs/method.md section 8).
 pub fn plantar_of(m: &Measurements) -> Plantar {
     // Waist width across the axis, between the waist points.
-    let (d, wi, wo) = (m.axis_dir, m.waist_inner, m.waist_outer);
-    let waist = ((wi[0] - wo[0]) * -d[1] + (wi[1] - wo[1]) * d[0]).abs();
+    let (d, left) = (m.axis_dir, quarter_turn(&m.axis_dir));
+    let waist = (m.waist_inner - m.waist_outer).dot(&left).abs();
     // The footprint in the foot's frame: x along the axis from the heel point, y across it,
-    // positive on the side of the first metatarsal head (medial).
+    // positive on the side of the first metatarsal head (medial); as the `[x, y]` pairs of
+    // footscan-last's `Plantar`.
     let h = m.heel_point;
-    let across = |p: [f64; 2]| (p[0] - h[0]) * -d[1] + (p[1] - h[1]) * d[0];
+    let across = |p: P2| (p - h).dot(&left);
     let medial = if across(m.mt1_head) >= 0.0 { 1.0 } else { -1.0 };
-    let frame = |p: &[f64; 2]| {
-        [
-            (p[0] - h[0]) * d[0] + (p[1] - h[1]) * d[1],
-            medial * across(*p),
-        ]
-    };
+    let frame = |p: &P2| [(p - h).dot(&d), medial * across(*p)];
     let footprint = std::iter::once(&m.outline)
         .chain(&m.toe_outlines)
         .map(|l| l.iter().map(frame).collect())

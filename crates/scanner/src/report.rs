@@ -9,6 +9,7 @@
 
 use crate::scandata::ScanDir;
 use anyhow::{bail, Context, Result};
+use footscan_geom::{quarter_turn, P2};
 use pdf_writer::{Content, Finish, Name, Pdf, Rect, Ref, Str};
 use serde_json::Value;
 use std::path::Path;
@@ -90,8 +91,8 @@ impl ReportInput {
     }
 }
 
-fn point(v: &Value) -> Option<[f64; 2]> {
-    Some([v.get(0)?.as_f64()?, v.get(1)?.as_f64()?])
+fn point(v: &Value) -> Option<P2> {
+    Some(P2::new(v.get(0)?.as_f64()?, v.get(1)?.as_f64()?))
 }
 
 /// Text in the standard fonts' WinAnsi encoding (the few non-ASCII signs the report uses).
@@ -125,11 +126,11 @@ impl Page {
         self.c.show(Str(&winansi(s)));
         self.c.end_text();
     }
-    fn line(&mut self, a: [f64; 2], b: [f64; 2], width_mm: f64, rgb: [f32; 3]) {
+    fn line(&mut self, a: P2, b: P2, width_mm: f64, rgb: [f32; 3]) {
         self.c.set_stroke_rgb(rgb[0], rgb[1], rgb[2]);
         self.c.set_line_width(pt(width_mm));
-        self.c.move_to(pt(a[0]), pt(a[1]));
-        self.c.line_to(pt(b[0]), pt(b[1]));
+        self.c.move_to(pt(a.x), pt(a.y));
+        self.c.line_to(pt(b.x), pt(b.y));
         self.c.stroke();
     }
     fn rect(&mut self, x: f64, y: f64, w: f64, h: f64, rgb: [f32; 3]) {
@@ -137,8 +138,8 @@ impl Page {
         self.c.rect(pt(x), pt(y), pt(w), pt(h));
         self.c.fill_nonzero();
     }
-    fn dot(&mut self, p: [f64; 2], r_mm: f64, rgb: [f32; 3]) {
-        self.rect(p[0] - r_mm, p[1] - r_mm, 2.0 * r_mm, 2.0 * r_mm, rgb);
+    fn dot(&mut self, p: P2, r_mm: f64, rgb: [f32; 3]) {
+        self.rect(p.x - r_mm, p.y - r_mm, 2.0 * r_mm, 2.0 * r_mm, rgb);
     }
 }
 
@@ -149,22 +150,23 @@ fn pt(mm: f64) -> f32 {
 /// Where things are on the page (mm), for the tests.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Layout {
+    /// Width and height (mm).
     pub page_mm: [f64; 2],
     /// The calibration bar (upright): x, y of its lower end, then its length (mm).
     pub ruler: [f64; 3],
     /// Heel point and toe tip on the page.
-    pub heel: [f64; 2],
-    pub toe: [f64; 2],
+    pub heel: P2,
+    pub toe: P2,
 }
 
 /// A measured foot in its own frame (mm): `a` along the axis from the heel point, `c` across
 /// (+y of the scanner).
 struct Foot {
-    outlines: Vec<Vec<[f64; 2]>>,
+    outlines: Vec<Vec<P2>>,
     length: f64,
-    toe: [f64; 2],
+    toe: P2,
     /// MT1 and MT5 heads.
-    mt: Option<([f64; 2], [f64; 2])>,
+    mt: Option<(P2, P2)>,
     a_min: f64,
     a_max: f64,
     c_min: f64,
@@ -179,23 +181,23 @@ impl Foot {
         let heel = need("heel_point")?;
         let toe = need("toe_tip")?;
         let axis = need("axis_dir")?;
-        let n = (axis[0] * axis[0] + axis[1] * axis[1]).sqrt();
+        let n = axis.coords.norm();
         if n.is_nan() || n <= 0.5 {
-            bail!("measurements.json: axis_dir {axis:?} is not a direction");
+            bail!(
+                "measurements.json: axis_dir {:?} is not a direction",
+                [axis.x, axis.y]
+            );
         }
-        let axis = [axis[0] / n, axis[1] / n];
+        let axis = axis.coords / n;
         let length = m["foot_length_mm"]
             .as_f64()
             .context("measurements.json has no foot_length_mm")?;
-        let local = |p: [f64; 2]| {
-            let d = [p[0] - heel[0], p[1] - heel[1]];
-            [
-                d[0] * axis[0] + d[1] * axis[1],
-                -d[0] * axis[1] + d[1] * axis[0],
-            ]
+        let local = |p: P2| {
+            let d = p - heel;
+            P2::new(d.dot(&axis), d.dot(&quarter_turn(&axis)))
         };
         // The sole's outline (a polygon) and the toe pads' (a list of polygons).
-        let poly = |v: &Value| -> Vec<[f64; 2]> {
+        let poly = |v: &Value| -> Vec<P2> {
             v.as_array()
                 .map(|pts| pts.iter().filter_map(point).map(local).collect())
                 .unwrap_or_default()
@@ -210,10 +212,10 @@ impl Foot {
         }
         let (mut a_min, mut a_max, mut c_min, mut c_max) = (0.0f64, length, 0.0f64, 0.0f64);
         for p in outlines.iter().flatten() {
-            a_min = a_min.min(p[0]);
-            a_max = a_max.max(p[0]);
-            c_min = c_min.min(p[1]);
-            c_max = c_max.max(p[1]);
+            a_min = a_min.min(p.x);
+            a_max = a_max.max(p.x);
+            c_min = c_min.min(p.y);
+            c_max = c_max.max(p.y);
         }
         let mt = match (point(&m["mt1_head"]), point(&m["mt5_head"])) {
             (Some(a), Some(b)) => Some((local(a), local(b))),
@@ -242,35 +244,35 @@ impl Foot {
     /// The straight MT1-MT5 distance (mm): the last maker's ball width.
     fn straight_ball(&self) -> Option<f64> {
         self.mt
-            .map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt())
+            .map(|(a, b)| ((a.x - b.x).powi(2) + (a.y - b.y).powi(2)).sqrt())
     }
 
     /// Draw at 1:1 with the outline's left edge at `left_x` and its rear at `bottom_y` (mm),
     /// seen from above with the toes up the page (+y of the scanner to the left). Returns the
     /// heel point and the end of the foot-length line on the page.
-    fn draw(&self, pg: &mut Page, left_x: f64, bottom_y: f64) -> ([f64; 2], [f64; 2]) {
+    fn draw(&self, pg: &mut Page, left_x: f64, bottom_y: f64) -> (P2, P2) {
         let cx = left_x + self.width() / 2.0;
         let c_mid = (self.c_max + self.c_min) / 2.0;
-        let to_page = |p: [f64; 2]| [cx - (p[1] - c_mid), bottom_y - self.a_min + p[0]];
+        let to_page = |p: P2| P2::new(cx - (p.y - c_mid), bottom_y - self.a_min + p.x);
         pg.c.set_stroke_rgb(0.1, 0.1, 0.1);
         pg.c.set_fill_rgb(0.93, 0.93, 0.93);
         pg.c.set_line_width(pt(0.3));
         for poly in &self.outlines {
             let f = to_page(poly[0]);
-            pg.c.move_to(pt(f[0]), pt(f[1]));
+            pg.c.move_to(pt(f.x), pt(f.y));
             for p in &poly[1..] {
                 let q = to_page(*p);
-                pg.c.line_to(pt(q[0]), pt(q[1]));
+                pg.c.line_to(pt(q.x), pt(q.y));
             }
             pg.c.close_path();
             pg.c.fill_nonzero_and_stroke();
         }
         // Foot length: heel point to toe tip along the axis.
-        let (h, t) = (to_page([0.0, 0.0]), to_page([self.length, 0.0]));
+        let (h, t) = (to_page(P2::origin()), to_page(P2::new(self.length, 0.0)));
         pg.line(h, t, 0.5, LENGTH_RGB);
         for (p, label, dy) in [(h, "heel point", -4.0), (to_page(self.toe), "toe tip", 2.0)] {
             pg.dot(p, 1.0, LENGTH_RGB);
-            pg.text(p[0] + 2.0, p[1] + dy, 7.0, false, label);
+            pg.text(p.x + 2.0, p.y + dy, 7.0, false, label);
         }
         // Ball: MT1 and MT5 heads, joined straight.
         if let Some((a, b)) = self.mt {
@@ -278,7 +280,7 @@ impl Foot {
             pg.line(pa, pb, 0.4, [0.0, 0.45, 0.0]);
             for (p, label) in [(pa, "MT1"), (pb, "MT5")] {
                 pg.dot(p, 0.9, [0.0, 0.45, 0.0]);
-                pg.text(p[0] + 1.5, p[1] + 1.5, 7.0, false, label);
+                pg.text(p.x + 1.5, p.y + 1.5, 7.0, false, label);
             }
         }
         (h, t)
@@ -517,7 +519,7 @@ fn draw_ruler(pg: &mut Page, rx: f64, ry: f64, x0: f64, chars: usize) {
         } else {
             1.8
         };
-        pg.line([rx - h, y], [rx, y], 0.12, [0.0, 0.0, 0.0]);
+        pg.line(P2::new(rx - h, y), P2::new(rx, y), 0.12, [0.0, 0.0, 0.0]);
         if k % 10 == 0 {
             pg.text(rx + 3.5, y - 1.0, 6.0, false, &format!("{}", k / 10));
         }

@@ -52,6 +52,22 @@ struct Cli {
     command: Command,
 }
 
+/// `--side` (`scan`, `sim foot`): which foot, as the command line spells it.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum SideArg {
+    Left,
+    Right,
+}
+
+impl From<SideArg> for footscan_geom::Side {
+    fn from(s: SideArg) -> Self {
+        match s {
+            SideArg::Left => Self::Left,
+            SideArg::Right => Self::Right,
+        }
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Run a scan and write points.ply, heightmap.png, scan.json and calibration.toml to --out.
@@ -72,7 +88,7 @@ enum Command {
         /// The foot on the glass, "left" or "right": checked against the scan (hallux and
         /// first metatarsal on the medial side); a mismatch fails the command.
         #[arg(long)]
-        side: Option<scan::SideArg>,
+        side: Option<SideArg>,
     },
     /// Write the simulated scanner's true calibration as a calibration TOML.
     SimCalibration {

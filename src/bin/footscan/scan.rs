@@ -12,19 +12,12 @@ use footscan::scandata::ScanDir;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
-/// `--side`.
-#[derive(Clone, Copy, Debug, clap::ValueEnum)]
-pub enum SideArg {
-    Left,
-    Right,
-}
-
 pub fn run(
     config: PathBuf,
     out: PathBuf,
     calibration: Option<PathBuf>,
     quiet: bool,
-    side: Option<SideArg>,
+    side: Option<crate::SideArg>,
 ) -> Result<()> {
     let cfg = crate::load_config(&config)?;
     let bar = if quiet {
@@ -43,10 +36,7 @@ pub fn run(
     let out = staged.dest.clone();
     let mut opts = ScanOptions::new(&staged.partial);
     opts.calibration = calibration;
-    opts.side = side.map(|s| match s {
-        SideArg::Left => Side::Left,
-        SideArg::Right => Side::Right,
-    });
+    opts.side = side.map(Side::from);
     let cancel = opts.cancel.clone();
     let partial = staged.partial.clone();
     // First Ctrl-C stops the slider and ends the scan cleanly; a second one exits at once.

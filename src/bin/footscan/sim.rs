@@ -2,7 +2,7 @@
 //! mesh stages (e.g. `footscan last customize`) can be run and checked without a scanner.
 
 use anyhow::{Context, Result};
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Parser, Subcommand};
 use footscan_geom::mesh::Format;
 use footscan_sim::foot::{Foot, FootParams, MeshResolution, Side};
 use serde_json::json;
@@ -22,19 +22,13 @@ enum What {
     Foot(FootArgs),
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-enum SideArg {
-    Left,
-    Right,
-}
-
 #[derive(Parser)]
 pub struct FootArgs {
     /// Foot length, heel point to toe tip along the axis (mm): 220-300.
     #[arg(long, default_value_t = 260.0)]
     length: f64,
     #[arg(long, value_enum, default_value = "right")]
-    side: SideArg,
+    side: crate::SideArg,
     /// Ball width / length: 0.36-0.44.
     #[arg(long, default_value_t = 0.40)]
     ball_width_ratio: f64,
@@ -72,10 +66,7 @@ fn foot(a: FootArgs) -> Result<()> {
             dir.display()
         );
     }
-    let side = match a.side {
-        SideArg::Left => Side::Left,
-        SideArg::Right => Side::Right,
-    };
+    let side = Side::from(a.side);
     let f = Foot::new(FootParams {
         length_mm: a.length,
         side,

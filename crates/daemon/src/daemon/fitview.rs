@@ -220,7 +220,7 @@ fn footprint_in_foot_frame(m: &Measurements) -> Vec<Vec<[f64; 2]>> {
     let frame = FootFrame::of(m);
     std::iter::once(&m.outline)
         .chain(&m.toe_outlines)
-        .map(|l| l.iter().map(|&p| frame.to_foot(p)).collect())
+        .map(|l| l.iter().map(|&p| frame.to_foot(p).into()).collect())
         .collect()
 }
 

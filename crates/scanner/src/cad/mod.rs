@@ -26,6 +26,8 @@ use crate::scandata::ScanGrid;
 use crate::surface::solid::{outline_solid, OutlineSolid};
 use crate::surface::{build_scan_model, BezierNetwork, Continuity, SurfaceError};
 use footscan_geom::mesh::{Format, GlbError, MeshError, TriMesh};
+use footscan_geom::polygon::convex_hull;
+use footscan_geom::{unit_by_hypot, P2, P3, V2};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -105,41 +107,39 @@ pub fn check_cell(
 /// The foot's frame on the glass: origin (the heel point) and the unit axis, world mm.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct FootFrame {
-    pub origin: [f64; 2],
-    pub x_axis: [f64; 2],
+    pub origin: P2,
+    pub x_axis: V2,
 }
 
 impl FootFrame {
     pub fn of(m: &Measurements) -> FootFrame {
-        let d = m.axis_dir;
-        let n = d[0].hypot(d[1]);
         FootFrame {
             origin: m.heel_point,
-            x_axis: [d[0] / n, d[1] / n],
+            x_axis: unit_by_hypot(&m.axis_dir),
         }
     }
 
     /// World (glass) point to foot coordinates.
-    pub fn to_foot(&self, p: [f64; 2]) -> [f64; 2] {
-        let (dx, dy) = (p[0] - self.origin[0], p[1] - self.origin[1]);
-        let [c, s] = self.x_axis;
-        [c * dx + s * dy, -s * dx + c * dy]
+    pub fn to_foot(&self, p: P2) -> P2 {
+        let d = p - self.origin;
+        let (c, s) = (self.x_axis.x, self.x_axis.y);
+        P2::new(c * d.x + s * d.y, -s * d.x + c * d.y)
     }
 
     /// Foot coordinates to the world (glass).
-    pub fn to_world(&self, q: [f64; 2]) -> [f64; 2] {
-        let [c, s] = self.x_axis;
-        [
-            self.origin[0] + c * q[0] - s * q[1],
-            self.origin[1] + s * q[0] + c * q[1],
-        ]
+    pub fn to_world(&self, q: P2) -> P2 {
+        let (c, s) = (self.x_axis.x, self.x_axis.y);
+        P2::new(
+            self.origin.x + c * q.x - s * q.y,
+            self.origin.y + s * q.x + c * q.y,
+        )
     }
 }
 
 /// The sole outline in foot coordinates (counterclockwise) and what was done to get it.
 #[derive(Clone, Debug)]
 pub struct SoleOutline {
-    pub points: Vec<[f64; 2]>,
+    pub points: Vec<P2>,
     /// Area the hull added between the toe pads and the body (mm^2).
     pub bridged_mm2: f64,
     pub warnings: Vec<String>,
@@ -147,11 +147,11 @@ pub struct SoleOutline {
 
 /// The measured body outline joined to the toe pads (see the module doc), foot coordinates.
 pub fn sole_outline(m: &Measurements, frame: &FootFrame) -> SoleOutline {
-    let mut body: Vec<[f64; 2]> = m.outline.iter().map(|&p| frame.to_foot(p)).collect();
+    let mut body: Vec<P2> = m.outline.iter().map(|&p| frame.to_foot(p)).collect();
     if area(&body) < 0.0 {
         body.reverse();
     }
-    let toes: Vec<Vec<[f64; 2]>> = m
+    let toes: Vec<Vec<P2>> = m
         .toe_outlines
         .iter()
         .map(|t| t.iter().map(|&p| frame.to_foot(p)).collect())
@@ -160,10 +160,10 @@ pub fn sole_outline(m: &Measurements, frame: &FootFrame) -> SoleOutline {
     let toe_area: f64 = toes.iter().map(|t| area(t).abs()).sum();
     let mut warnings = Vec::new();
     // The cut: behind both metatarsal heads and every toe pad.
-    let mut s_cut = frame.to_foot(m.mt1_head)[0].min(frame.to_foot(m.mt5_head)[0]);
+    let mut s_cut = frame.to_foot(m.mt1_head).x.min(frame.to_foot(m.mt5_head).x);
     for t in &toes {
         for p in t {
-            s_cut = s_cut.min(p[0]);
+            s_cut = s_cut.min(p.x);
         }
     }
     s_cut -= 1.0;
@@ -193,15 +193,15 @@ pub fn sole_outline(m: &Measurements, frame: &FootFrame) -> SoleOutline {
 
 /// Body outline behind x = `cut` followed by the convex hull of the body and toes in front of
 /// it; None unless the body crosses the cut exactly twice.
-fn join_front(body: &[[f64; 2]], toes: &[Vec<[f64; 2]>], cut: f64) -> Option<Vec<[f64; 2]>> {
+fn join_front(body: &[P2], toes: &[Vec<P2>], cut: f64) -> Option<Vec<P2>> {
     let n = body.len();
     // Crossings: (edge index k from body[k] to body[k+1], point, entering the front?).
     let mut cross = Vec::new();
     for k in 0..n {
         let (a, b) = (body[k], body[(k + 1) % n]);
-        if (a[0] < cut) != (b[0] < cut) {
-            let f = (cut - a[0]) / (b[0] - a[0]);
-            cross.push((k, [cut, a[1] + f * (b[1] - a[1])], a[0] < cut));
+        if (a.x < cut) != (b.x < cut) {
+            let f = (cut - a.x) / (b.x - a.x);
+            cross.push((k, P2::new(cut, a.y + f * (b.y - a.y)), a.x < cut));
         }
     }
     if cross.len() != 2 || cross[0].2 == cross[1].2 {
@@ -222,15 +222,15 @@ fn join_front(body: &[[f64; 2]], toes: &[Vec<[f64; 2]>], cut: f64) -> Option<Vec
     }
     out.push(enter.1);
     // Front: hull of the body in front of the cut, the two crossings and the toes.
-    let mut pts: Vec<[f64; 2]> = body.iter().copied().filter(|p| p[0] >= cut).collect();
+    let mut pts: Vec<P2> = body.iter().copied().filter(|p| p.x >= cut).collect();
     pts.push(enter.1);
     pts.push(leave.1);
     for t in toes {
         pts.extend(t.iter().copied());
     }
-    let hull = convex_hull(pts);
+    let hull = convex_hull(&pts).points;
     // Walk the hull counterclockwise from the entering crossing to the leaving one.
-    let at = |q: [f64; 2]| hull.iter().position(|&p| p == q);
+    let at = |q: P2| hull.iter().position(|&p| p == q);
     let (s, e) = (at(enter.1)?, at(leave.1)?);
     let h = hull.len();
     let mut k = (s + 1) % h;
@@ -241,42 +241,15 @@ fn join_front(body: &[[f64; 2]], toes: &[Vec<[f64; 2]>], cut: f64) -> Option<Vec
     Some(out)
 }
 
-/// Counterclockwise convex hull (Andrew's monotone chain), no collinear points.
-fn convex_hull(mut p: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
-    p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-    p.dedup();
-    if p.len() < 3 {
-        return p;
-    }
-    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
-        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-    };
-    let mut h: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
-    for pass in 0..2 {
-        let start = h.len();
-        let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
-            Box::new(p.iter())
-        } else {
-            Box::new(p.iter().rev())
-        };
-        for &q in iter {
-            while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], q) <= 0.0 {
-                h.pop();
-            }
-            h.push(q);
-        }
-        h.pop();
-    }
-    h
-}
-
-/// Signed area, positive counterclockwise (mm^2).
-fn area(p: &[[f64; 2]]) -> f64 {
+/// Signed area, positive counterclockwise (mm^2): the shoelace sum on the coordinates as they
+/// are (`Polygon::signed_area` takes them relative to the first vertex, which rounds
+/// differently).
+fn area(p: &[P2]) -> f64 {
     let n = p.len();
     0.5 * (0..n)
         .map(|k| {
             let (a, b) = (p[k], p[(k + 1) % n]);
-            a[0] * b[1] - b[0] * a[1]
+            a.x * b.y - b.x * a.y
         })
         .sum::<f64>()
 }
@@ -410,18 +383,18 @@ pub fn foot_solid(
 ) -> Result<OutlineSolid, CadError> {
     let frame = FootFrame::of(m);
     let solid = outline_solid(&outline.points, cell_mm, base_z, |x, y| {
-        let w = frame.to_world([x, y]);
-        sample_height(map, w[0], w[1]).or_else(|| fill.and_then(|f| f.height_at(x, y)))
+        let w = frame.to_world(P2::new(x, y));
+        sample_height(map, w.x, w.y).or_else(|| fill.and_then(|f| f.height_at(x, y)))
     })?;
     Ok(solid)
 }
 
 /// The landmarks of `m` in the foot frame, on the glass (z = 0), by the names the viewer
 /// and the glTF nodes use.
-pub fn foot_landmarks(m: &Measurements, frame: &FootFrame) -> Vec<(&'static str, [f64; 3])> {
-    let at = |p: [f64; 2]| {
+pub fn foot_landmarks(m: &Measurements, frame: &FootFrame) -> Vec<(&'static str, P3)> {
+    let at = |p: P2| {
         let q = frame.to_foot(p);
-        [q[0], q[1], 0.0]
+        P3::new(q.x, q.y, 0.0)
     };
     vec![
         ("heel_point", at(m.heel_point)),
@@ -444,16 +417,9 @@ pub fn write_foot_glb(
     frame: &FootFrame,
 ) -> Result<usize, GlbError> {
     use footscan_geom::mesh::{write_glb_scene, GlbLine, GlbMark, GlbPart, GlbScene};
-    use footscan_geom::P3;
     let lm = foot_landmarks(m, frame);
-    let marks: Vec<GlbMark> = lm
-        .iter()
-        .map(|(name, p)| GlbMark {
-            name,
-            at: P3::from(*p),
-        })
-        .collect();
-    let get = |n: &str| P3::from(lm.iter().find(|(k, _)| *k == n).expect("a landmark").1);
+    let marks: Vec<GlbMark> = lm.iter().map(|&(name, at)| GlbMark { name, at }).collect();
+    let get = |n: &str| lm.iter().find(|(k, _)| *k == n).expect("a landmark").1;
     let length = [P3::origin(), P3::new(m.foot_length_mm, 0.0, 0.0)];
     let ball = [get("mt1_head"), get("mt5_head")];
     write_glb_scene(
@@ -680,9 +646,9 @@ impl ModelSummary {
             self.continuity.max_deg,
             self.continuity.mean_deg,
             self.continuity.edges,
-            self.frame.origin[0],
-            self.frame.origin[1],
-            self.frame.x_axis[1].atan2(self.frame.x_axis[0]).to_degrees(),
+            self.frame.origin.x,
+            self.frame.origin.y,
+            self.frame.x_axis.y.atan2(self.frame.x_axis.x).to_degrees(),
             self.foot_length_mm,
             self.ball_width_mm,
             self.outline_vertices,

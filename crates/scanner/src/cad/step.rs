@@ -37,15 +37,12 @@ pub fn faceted_step(solid: &OutlineSolid, name: &str) -> (String, usize) {
     }
     for (k, p) in v.iter().enumerate() {
         if used[k] {
-            point[k] = w.point(P3::new(p[0], p[1], p[2]));
+            point[k] = w.point(*p);
         }
     }
     let mut faces = Vec::new();
     for f in facets(solid) {
-        let (p0, p1) = (
-            P3::from(v[f.ids[0] as usize]),
-            P3::from(v[f.ids[1] as usize]),
-        );
+        let (p0, p1) = (v[f.ids[0] as usize], v[f.ids[1] as usize]);
         let n = f.normal;
         let loop_ = w.add(format!(
             "POLY_LOOP('',({}))",
@@ -112,7 +109,7 @@ pub(crate) fn facets(solid: &OutlineSolid) -> Vec<Facet> {
     let v = &solid.vertices;
     let mut out = Vec::with_capacity(solid.top.len() + solid.boundary_len() + 1);
     let mut add = |ids: Vec<u32>| {
-        let pts: Vec<P3> = ids.iter().map(|&k| P3::from(v[k as usize])).collect();
+        let pts: Vec<P3> = ids.iter().map(|&k| v[k as usize]).collect();
         let normal = newell(&pts);
         out.push(Facet { ids, normal });
     };
@@ -180,7 +177,7 @@ mod tests {
 
     #[test]
     fn a_box_has_six_kinds_of_faces_and_every_point_once() {
-        let poly = vec![[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]];
+        let poly = [[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]].map(footscan_geom::P2::from);
         let s = outline_solid(&poly, 0.5, Some(-1.0), |_, _| Some(1.0)).unwrap();
         let (text, faces) = faceted_step(&s, "box");
         // 2 x 4 cells (16 triangles) at the top plus walls and the bottom.

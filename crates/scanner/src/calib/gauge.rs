@@ -12,6 +12,7 @@
 
 use super::lm;
 use super::CameraModel;
+use footscan_geom::P3;
 
 /// Heights (mm) and across-platform positions (mm) of the laser-plane points compared.
 const HEIGHTS: (f64, f64, usize) = (0.0, 60.0, 13);
@@ -37,9 +38,9 @@ pub fn untilted_equivalent(m: &CameraModel) -> Result<(CameraModel, f64), Untilt
             .map(|k| a + (b - a) * k as f64 / (n - 1) as f64)
             .collect()
     };
-    let on_plane = |m: &CameraModel, y: f64, h: f64| -> [f64; 3] {
+    let on_plane = |m: &CameraModel, y: f64, h: f64| -> P3 {
         let [a, b] = m.laser_tilt_deg.map(f64::to_radians);
-        [m.l_mm + a.tan() * y + b.tan() * h, y, h]
+        P3::new(m.l_mm + a.tan() * y + b.tan() * h, y, h)
     };
     // Image of the true laser plane, and the (y, h) of each point.
     let mut target = Vec::new();
@@ -129,7 +130,7 @@ mod tests {
         let (tm, te) = (m.triangulator(), e.triangulator());
         for (y, h) in [(-40.0, 0.0), (0.0, 25.0), (35.0, 55.0)] {
             let [a, b] = m.laser_tilt_deg.map(f64::to_radians);
-            let p = [m.l_mm + a.tan() * y + b.tan() * h, y, h];
+            let p = P3::new(m.l_mm + a.tan() * y + b.tan() * h, y, h);
             let [c, r] = m.project(0.0, p).unwrap();
             let (pt, pe) = (tm.point(0.0, c, r).unwrap(), te.point(0.0, c, r).unwrap());
             assert!((pt[2] - h).abs() < 1e-6, "truth model {pt:?}");

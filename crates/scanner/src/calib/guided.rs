@@ -21,6 +21,7 @@ use super::data::{InsystemData, PlateObservation, StairFrame};
 use super::plan::{CalibrationPlan, StepChecks};
 use super::{CalibError, CameraModel, Triangulator};
 use crate::detect::{Detector, LinePeak};
+use footscan_geom::P3;
 use footscan_targets::StaircaseGeometry;
 use serde::Serialize;
 
@@ -290,7 +291,7 @@ impl CheckModel {
         self.reference = Some((z, plate.height_mm));
     }
 
-    fn abs_point(&self, x_mm: f64, col: f64, row: usize) -> Option<[f64; 3]> {
+    fn abs_point(&self, x_mm: f64, col: f64, row: usize) -> Option<P3> {
         if !col.is_finite() {
             return None;
         }
@@ -298,14 +299,14 @@ impl CheckModel {
     }
 
     /// The point seen at (`col`, `row`), its height relative to the reference when there is one.
-    pub fn point(&self, x_mm: f64, col: f64, row: usize) -> Option<[f64; 3]> {
+    pub fn point(&self, x_mm: f64, col: f64, row: usize) -> Option<P3> {
         let mut p = self.abs_point(x_mm, col, row)?;
         if let Some((z, h0)) = &self.reference {
             let off = z
                 .get(row)
                 .filter(|v| v.is_finite())
                 .map_or(self.median_offset, |v| v - h0);
-            p[2] -= off;
+            p.z -= off;
         }
         Some(p)
     }

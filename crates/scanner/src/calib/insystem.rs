@@ -35,6 +35,7 @@ use super::data::{InsystemData, PlateObservation};
 use super::lm;
 use super::stair::{self, Edge};
 use super::{CalibError, CameraModel};
+use footscan_geom::P3;
 use footscan_targets::Placement;
 use nalgebra::DMatrix;
 use std::collections::BTreeMap;
@@ -607,7 +608,8 @@ fn edge_row(m: &CameraModel, pose: [f64; 3], e: &EdgeObs) -> Option<f64> {
             (den.abs() > 1e-6).then(|| (u - (xs - x0) * cs + y0 * sn) / den)?
         }
     };
-    m.project(e.x_mm, [xs + ta * y, y, e.h]).map(|p| p[1])
+    m.project(e.x_mm, P3::new(xs + ta * y, y, e.h))
+        .map(|p| p[1])
 }
 
 /// Eq. 18 as a check: per row, k = (c - c_x) h / F against s = c_0 - c should be a straight

@@ -1,3 +1,4 @@
+use footscan_geom::P3;
 use serde::{Deserialize, Serialize};
 
 /// The general scanner model of docs/method.md section 2.3.
@@ -112,7 +113,8 @@ impl CameraModel {
     }
 
     /// Image position (col, row) of world point `p` with the slider reporting `slider_x`.
-    pub fn project(&self, slider_x: f64, p: [f64; 3]) -> Option<[f64; 2]> {
+    /// The pixel position stays a `[col, row]` pair: image coordinates, not millimetres.
+    pub fn project(&self, slider_x: f64, p: P3) -> Option<[f64; 2]> {
         let r = self.rotation();
         let c = [self.slider_scale * slider_x, 0.0, -self.d_mm];
         let d = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
@@ -185,7 +187,7 @@ impl Triangulator {
     /// 3D point of the laser line seen at (col, row) with the slider reporting `slider_x`:
     /// the pixel's ray intersected with the laser plane. None if the ray is parallel to the
     /// plane or the intersection lies behind the camera.
-    pub fn point(&self, slider_x: f64, col: f64, row: f64) -> Option<[f64; 3]> {
+    pub fn point(&self, slider_x: f64, col: f64, row: f64) -> Option<P3> {
         let m = &self.m;
         let (xn, yn) = m.undistort((col - m.cx) / m.f_px, (row - m.cy) / m.f_px);
         let r = &self.r;
@@ -202,7 +204,7 @@ impl Triangulator {
                 return None;
             }
             let t = (h + m.d_mm) / d[2];
-            return Some([o[0] + t * d[0], o[1] + t * d[1], h]);
+            return Some(P3::new(o[0] + t * d[0], o[1] + t * d[1], h));
         }
         // plane: x - tan_a*y - tan_b*z = xs + L
         let denom = d[0] - self.tan_a * d[1] - self.tan_b * d[2];
@@ -213,7 +215,7 @@ impl Triangulator {
         if t <= 0.0 {
             return None;
         }
-        Some([o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]])
+        Some(P3::new(o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]))
     }
 }
 
@@ -291,7 +293,7 @@ pub(crate) mod tests {
         for &(y, z) in &[(0.0, 0.0), (40.0, 3.0), (-55.0, 18.0), (10.0, 30.0)] {
             let sx = 123.4;
             let x = m.slider_scale * sx + m.l_mm + a.tan() * y + b.tan() * z;
-            let [c, r] = m.project(sx, [x, y, z]).unwrap();
+            let [c, r] = m.project(sx, P3::new(x, y, z)).unwrap();
             let p = t.point(sx, c, r).unwrap();
             for k in 0..3 {
                 assert!(

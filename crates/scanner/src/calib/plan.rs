@@ -2,6 +2,7 @@
 //! where the simulated operator puts them.
 
 use super::CalibError;
+use footscan_geom::P2;
 use footscan_targets::{BoardPose, Checkerboard, Placement, StaircaseGeometry};
 use serde::{Deserialize, Serialize};
 
@@ -205,10 +206,10 @@ impl Default for SimPlacements {
             },
             board_poses: shots
                 .iter()
-                .map(|&(x, y, z, rx, ry, rz)| board_pose_at(&board, [x, y], z, [rx, ry, rz]))
+                .map(|&(x, y, z, rx, ry, rz)| board_pose_at(&board, P2::new(x, y), z, [rx, ry, rz]))
                 .collect(),
             board_x_mm: 100.0,
-            board_flat: board_pose_at(&board, [115.0, 2.0], 0.0, [0.0, 0.0, 1.0]),
+            board_flat: board_pose_at(&board, P2::new(115.0, 2.0), 0.0, [0.0, 0.0, 1.0]),
             board_flat_x_mm: [92.0, 108.0],
             lamp_dn: 110.0,
         }
@@ -219,7 +220,7 @@ impl Default for SimPlacements {
 /// `rotation_deg`, with the lowest point of the board `z_min` above the glass.
 pub fn board_pose_at(
     board: &Checkerboard,
-    centre_xy: [f64; 2],
+    centre_xy: P2,
     z_min: f64,
     rotation_deg: [f64; 3],
 ) -> BoardPose {
@@ -239,7 +240,7 @@ pub fn board_pose_at(
         .map(|&(u, v)| at_origin.world(u, v)[2])
         .fold(f64::INFINITY, f64::min);
     BoardPose {
-        origin_mm: [centre_xy[0] - c[0], centre_xy[1] - c[1], z_min - lowest],
+        origin_mm: [centre_xy.x - c[0], centre_xy.y - c[1], z_min - lowest],
         rotation_deg,
     }
 }

@@ -14,6 +14,7 @@
 
 use super::data::StairFrame;
 use super::Calibration;
+use footscan_geom::P3;
 use footscan_targets::StaircaseGeometry;
 use serde::{Deserialize, Serialize};
 
@@ -69,7 +70,7 @@ pub fn check(
     let mut sides: Vec<(f64, f64, f64, f64)> = Vec::new();
     for f in frames {
         // Per row: the point and the step it belongs to (None: glass or nothing near a step).
-        let pts: Vec<Option<([f64; 3], Option<usize>)>> = f
+        let pts: Vec<Option<(P3, Option<usize>)>> = f
             .col
             .iter()
             .enumerate()

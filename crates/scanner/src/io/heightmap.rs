@@ -1,4 +1,4 @@
-use footscan_geom::Side;
+use footscan_geom::{Side, P3};
 use image::{Rgb, RgbImage};
 use std::path::Path;
 
@@ -86,11 +86,7 @@ const TITLE_H: u32 = 28;
 
 /// Rasterise points (mm) into `cell_mm` cells (mean height per cell) and colour them, under a
 /// title of two lines: `label`'s, then the extent and the cell.
-pub fn render_heightmap(
-    points: &[[f64; 3]],
-    cell_mm: f64,
-    label: &HeightMapLabel,
-) -> HeightMapImage {
+pub fn render_heightmap(points: &[P3], cell_mm: f64, label: &HeightMapLabel) -> HeightMapImage {
     assert!(cell_mm > 0.0);
     let finite = points.iter().filter(|p| p.iter().all(|v| v.is_finite()));
     let (mut x0, mut x1, mut y0, mut y1, mut zmax) =
@@ -277,13 +273,13 @@ mod tests {
 
     #[test]
     fn raster_covers_points_and_scale_tops_max() {
-        let pts: Vec<[f64; 3]> = (0..100)
-            .flat_map(|i| (0..40).map(move |j| [i as f64, j as f64, (i as f64) * 0.13]))
+        let pts: Vec<P3> = (0..100)
+            .flat_map(|i| (0..40).map(move |j| P3::new(i as f64, j as f64, (i as f64) * 0.13)))
             .collect();
         let hm = render_heightmap(&pts, 1.0, &HeightMapLabel::default());
         assert_eq!(hm.filled_cells, 100 * 40);
         // Every other column missing: filled; a two-cell gap is left.
-        let sparse: Vec<[f64; 3]> = pts
+        let sparse: Vec<P3> = pts
             .iter()
             .filter(|p| p[0] as i32 % 2 == 0 || p[0] > 90.0)
             .copied()
@@ -292,7 +288,7 @@ mod tests {
             render_heightmap(&sparse, 1.0, &HeightMapLabel::default()).filled_cells,
             100 * 40
         );
-        let gap: Vec<[f64; 3]> = pts
+        let gap: Vec<P3> = pts
             .iter()
             .filter(|p| p[0] != 50.0 && p[0] != 51.0)
             .copied()
@@ -331,8 +327,8 @@ mod tests {
 
     #[test]
     fn title_names_side_view_and_subject() {
-        let pts: Vec<[f64; 3]> = (0..200)
-            .flat_map(|i| (0..80).map(move |j| [i as f64, j as f64, 5.0]))
+        let pts: Vec<P3> = (0..200)
+            .flat_map(|i| (0..80).map(move |j| P3::new(i as f64, j as f64, 5.0)))
             .collect();
         let label = HeightMapLabel {
             chosen: Some(Side::Left),
@@ -386,7 +382,7 @@ mod tests {
             "{t}"
         );
         // The image is widened to the whole title.
-        let narrow: Vec<[f64; 3]> = pts.iter().filter(|p| p[0] < 10.0).copied().collect();
+        let narrow: Vec<P3> = pts.iter().filter(|p| p[0] < 10.0).copied().collect();
         let hm = render_heightmap(&narrow, 1.0, &long);
         assert_eq!(read_line(&hm.image, TITLE_LINES_Y[0]), t);
     }

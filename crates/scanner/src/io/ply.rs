@@ -1,8 +1,9 @@
+use footscan_geom::P3;
 use std::path::Path;
 
 /// Write a binary little-endian PLY point cloud (x, y, z in mm as float, plus a per-point
 /// `quality` float), the layout MeshLab, CloudCompare and most CAD tools open.
-pub fn write_ply_points(path: &Path, points: &[[f64; 3]], quality: &[f32]) -> std::io::Result<()> {
+pub fn write_ply_points(path: &Path, points: &[P3], quality: &[f32]) -> std::io::Result<()> {
     assert_eq!(points.len(), quality.len(), "one quality per point");
     super::write_atomic_with(path, |w| {
         write!(
@@ -13,7 +14,7 @@ pub fn write_ply_points(path: &Path, points: &[[f64; 3]], quality: &[f32]) -> st
             points.len()
         )?;
         for (p, q) in points.iter().zip(quality) {
-            for v in p {
+            for v in p.iter() {
                 w.write_all(&(*v as f32).to_le_bytes())?;
             }
             w.write_all(&q.to_le_bytes())?;
@@ -30,7 +31,8 @@ mod tests {
     fn header_and_body_sizes() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("p.ply");
-        write_ply_points(&p, &[[1.0, 2.0, 3.0], [4.0, 5.0, 6.5]], &[0.5, 1.0]).unwrap();
+        let pts = [P3::new(1.0, 2.0, 3.0), P3::new(4.0, 5.0, 6.5)];
+        write_ply_points(&p, &pts, &[0.5, 1.0]).unwrap();
         let bytes = std::fs::read(&p).unwrap();
         let end = b"end_header\n";
         let at = bytes.windows(end.len()).position(|w| w == end).unwrap() + end.len();

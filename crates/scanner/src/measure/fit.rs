@@ -1,23 +1,24 @@
 //! Small least-squares fits used to place landmarks between outline vertices.
 
+use footscan_geom::P2;
 use nalgebra::{Const, DimMin, Matrix3, SMatrix, SVector, Vector3};
 
 /// Least-squares circle through `pts`: algebraic (Kasa) start, then Gauss-Newton on the
 /// geometric distances. Returns (centre, radius), or None for fewer than 3 usable points.
-pub fn fit_circle(pts: &[[f64; 2]]) -> Option<([f64; 2], f64)> {
+pub fn fit_circle(pts: &[P2]) -> Option<(P2, f64)> {
     if pts.len() < 3 {
         return None;
     }
     let n = pts.len() as f64;
     let (mx, my) = (
-        pts.iter().map(|p| p[0]).sum::<f64>() / n,
-        pts.iter().map(|p| p[1]).sum::<f64>() / n,
+        pts.iter().map(|p| p.x).sum::<f64>() / n,
+        pts.iter().map(|p| p.y).sum::<f64>() / n,
     );
     // x^2 + y^2 + D x + E y + F = 0 on centred coordinates.
     let mut ata = Matrix3::zeros();
     let mut atb = Vector3::zeros();
     for p in pts {
-        let (x, y) = (p[0] - mx, p[1] - my);
+        let (x, y) = (p.x - mx, p.y - my);
         let row = Vector3::new(x, y, 1.0);
         ata += row * row.transpose();
         atb += row * (-(x * x + y * y));
@@ -29,7 +30,7 @@ pub fn fit_circle(pts: &[[f64; 2]]) -> Option<([f64; 2], f64)> {
         let mut jtj = Matrix3::zeros();
         let mut jtr = Vector3::zeros();
         for p in pts {
-            let (dx, dy) = (p[0] - mx - cx, p[1] - my - cy);
+            let (dx, dy) = (p.x - mx - cx, p.y - my - cy);
             let d = (dx * dx + dy * dy).sqrt().max(1e-12);
             let res = d - r;
             let j = Vector3::new(-dx / d, -dy / d, -1.0);
@@ -44,7 +45,7 @@ pub fn fit_circle(pts: &[[f64; 2]]) -> Option<([f64; 2], f64)> {
             break;
         }
     }
-    (r.is_finite() && r > 0.0).then_some(([cx + mx, cy + my], r))
+    (r.is_finite() && r > 0.0).then_some((P2::new(cx + mx, cy + my), r))
 }
 
 /// The top of a peak sampled as (t, s) pairs (s = height of the outline in the direction the
@@ -177,15 +178,15 @@ mod tests {
 
     #[test]
     fn circle_through_an_arc() {
-        let pts: Vec<[f64; 2]> = (0..50)
+        let pts: Vec<P2> = (0..50)
             .map(|k| {
                 let a = 2.0 + 1.5 * k as f64 / 49.0;
-                [5.0 + 31.0 * a.cos(), -7.0 + 31.0 * a.sin()]
+                P2::new(5.0 + 31.0 * a.cos(), -7.0 + 31.0 * a.sin())
             })
             .collect();
         let (c, r) = fit_circle(&pts).unwrap();
         assert!(
-            (c[0] - 5.0).abs() < 1e-6 && (c[1] + 7.0).abs() < 1e-6,
+            (c.x - 5.0).abs() < 1e-6 && (c.y + 7.0).abs() < 1e-6,
             "{c:?}"
         );
         assert!((r - 31.0).abs() < 1e-6);

@@ -6,49 +6,50 @@ use super::outline::{line_crossings, regions, simplify, Region};
 use super::profile::{peaks, pick, valleys, Profiles};
 use super::MeasureError;
 use crate::geom::HeightMap;
+use footscan_geom::{quarter_turn, unit_by_hypot, P2, V2};
 use serde::{Deserialize, Serialize};
 
 /// Which foot (one type for every crate, in footscan-geom).
 pub use footscan_geom::Side;
 
-/// Foot measurements, world millimetres; points are [x, y] on the glass.
+/// Foot measurements, world millimetres; points are on the glass, written `[x, y]`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Measurements {
     pub side: Side,
-    pub heel_point: [f64; 2],
-    pub toe_tip: [f64; 2],
+    pub heel_point: P2,
+    pub toe_tip: P2,
     /// The foot axis: heel centre to second metatarsal head, and its unit direction.
-    pub heel_centre: [f64; 2],
-    pub mt2_head: [f64; 2],
-    pub axis_dir: [f64; 2],
+    pub heel_centre: P2,
+    pub mt2_head: P2,
+    pub axis_dir: V2,
     /// Axis direction counterclockwise from +x, degrees.
     pub axis_angle_deg: f64,
     pub foot_length_mm: f64,
-    pub mt1_head: [f64; 2],
-    pub mt5_head: [f64; 2],
+    pub mt1_head: P2,
+    pub mt5_head: P2,
     pub ball_width_mm: f64,
-    pub waist_inner: [f64; 2],
-    pub waist_outer: [f64; 2],
+    pub waist_inner: P2,
+    pub waist_outer: P2,
     pub midfoot_width_mm: f64,
-    pub midfoot_inner: [f64; 2],
-    pub midfoot_outer: [f64; 2],
+    pub midfoot_inner: P2,
+    pub midfoot_outer: P2,
     pub heel_width_mm: f64,
-    pub heel_width_inner: [f64; 2],
-    pub heel_width_outer: [f64; 2],
-    pub hallux_point: [f64; 2],
+    pub heel_width_inner: P2,
+    pub heel_width_outer: P2,
+    pub hallux_point: P2,
     pub arch_height_mm: f64,
-    pub arch_point: [f64; 2],
+    pub arch_point: P2,
     pub arch_index: f64,
     /// Toe-less contact area (h <= 1 mm) and its thirds, heel first (mm^2).
     pub contact_area_mm2: f64,
     pub contact_thirds_mm2: [f64; 3],
     /// Most anterior point of the toe-less footprint along the axis (end of the arch-index
     /// interval).
-    pub body_front: [f64; 2],
+    pub body_front: P2,
     /// Body outline (toes excluded), counterclockwise, simplified to 0.02 mm.
-    pub outline: Vec<[f64; 2]>,
+    pub outline: Vec<P2>,
     /// Toe pad outlines, hallux first.
-    pub toe_outlines: Vec<Vec<[f64; 2]>>,
+    pub toe_outlines: Vec<Vec<P2>>,
     /// Cell size of the height map measured (mm).
     pub cell_mm: f64,
     /// Where the heights came from ("height map", "scan grid", "bezier model ...").
@@ -120,8 +121,8 @@ fn missing_landmark(what: &'static str) -> MeasureError {
 /// Where the side profiles put the metatarsal heads and the waists: stations along the axis
 /// (mm from the heel point) and the heads' points at their profile values.
 struct Heads {
-    mt1: [f64; 2],
-    mt5: [f64; 2],
+    mt1: P2,
+    mt5: P2,
     /// The stretch of each side around its station where the profile stays within
     /// `REFINE_DEPTH` of it (mm from the heel point): the extreme is refined there.
     mt1_x: (f64, f64),
@@ -154,20 +155,20 @@ impl Heads {
     /// where a side has no such peak or valley (a border running straight, or still rising
     /// toward the heel) the extreme in the window is taken and a warning says so.
     fn find(
-        bo: &[[f64; 2]],
-        tips: &[&[[f64; 2]]],
-        centre: [f64; 2],
+        bo: &[P2],
+        tips: &[&[P2]],
+        centre: P2,
         radius: f64,
-        u: [f64; 2],
+        u: V2,
         sign: f64,
         warnings: &mut Vec<String>,
     ) -> Option<Heads> {
-        let m = [sign * -u[1], sign * u[0]];
-        let heel = add_scaled(centre, u, -radius);
+        let m = V2::new(sign * -u.y, sign * u.x);
+        let heel = centre + u * -radius;
         let length = tips
             .iter()
             .flat_map(|o| o.iter())
-            .map(|&p| dot(sub(p, heel), u))
+            .map(|&p| (p - heel).dot(&u))
             .fold(f64::NEG_INFINITY, f64::max);
         if length.is_nan() || length <= 0.0 {
             return None;
@@ -243,7 +244,7 @@ impl Heads {
         };
         let ki = waist(&prof.med, k1, PRIOR.2, "inner")?;
         let ko = waist(&prof.lat, k5, PRIOR.3, "outer")?;
-        let at = |k: usize, w: f64| add_scaled(add_scaled(heel, u, prof.x(k)), m, w);
+        let at = |k: usize, w: f64| heel + u * prof.x(k) + m * w;
         Some(Heads {
             mt1: at(k1, prof.med[k1]),
             mt5: at(k5, -prof.lat[k5]),
@@ -255,40 +256,23 @@ impl Heads {
     }
 
     /// Where the second metatarsal head lies on the line from the first head to the fifth.
-    fn mt2_on_ball_line(&self) -> [f64; 2] {
-        add_scaled(self.mt1, sub(self.mt5, self.mt1), MT2_ON_BALL_LINE)
+    fn mt2_on_ball_line(&self) -> P2 {
+        self.mt1 + (self.mt5 - self.mt1) * MT2_ON_BALL_LINE
     }
-}
-
-fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
-    a[0] * b[0] + a[1] * b[1]
-}
-fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
-    [a[0] - b[0], a[1] - b[1]]
-}
-fn add_scaled(a: [f64; 2], d: [f64; 2], s: f64) -> [f64; 2] {
-    [a[0] + s * d[0], a[1] + s * d[1]]
-}
-fn perp(d: [f64; 2]) -> [f64; 2] {
-    [-d[1], d[0]]
-}
-fn unit(d: [f64; 2]) -> [f64; 2] {
-    let n = d[0].hypot(d[1]);
-    [d[0] / n, d[1] / n]
 }
 
 /// Extreme point of a closed outline in direction `dir`, among vertices passing `keep`: the
 /// best vertex, then a two-sided parabola over the contiguous run of kept vertices within
 /// `depth` mm of it. None when no vertex is kept.
 fn extreme(
-    outline: &[[f64; 2]],
-    dir: [f64; 2],
+    outline: &[P2],
+    dir: V2,
     depth: f64,
     quartic: bool,
-    keep: impl Fn([f64; 2]) -> bool,
-) -> Option<[f64; 2]> {
+    keep: impl Fn(P2) -> bool,
+) -> Option<P2> {
     let n = outline.len();
-    let s = |k: usize| dot(outline[k % n], dir);
+    let s = |k: usize| outline[k % n].coords.dot(&dir);
     let best = (0..n)
         .filter(|&k| keep(outline[k]))
         .max_by(|&a, &b| s(a).total_cmp(&s(b)))?;
@@ -305,25 +289,26 @@ fn extreme(
         k -= 1;
         ks.push(k % n);
     }
-    let across = perp(dir);
-    let ts: Vec<f64> = ks.iter().map(|&k| dot(outline[k], across)).collect();
-    let ss: Vec<f64> = ks.iter().map(|&k| dot(outline[k], dir)).collect();
-    let (t0, s0) = peak_vertex(&ts, &ss, quartic).unwrap_or((dot(outline[best], across), top));
-    Some([s0 * dir[0] + t0 * across[0], s0 * dir[1] + t0 * across[1]])
+    let across = quarter_turn(&dir);
+    let ts: Vec<f64> = ks.iter().map(|&k| outline[k].coords.dot(&across)).collect();
+    let ss: Vec<f64> = ks.iter().map(|&k| outline[k].coords.dot(&dir)).collect();
+    let (t0, s0) =
+        peak_vertex(&ts, &ss, quartic).unwrap_or((outline[best].coords.dot(&across), top));
+    Some(P2::from(dir * s0 + across * t0))
 }
 
 /// Principal direction of a region's cells (unit, sign arbitrary).
-fn principal_axis(map: &HeightMap, r: &Region) -> [f64; 2] {
+fn principal_axis(map: &HeightMap, r: &Region) -> V2 {
     let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
     for &k in &r.cells {
         let (i, j) = map.cell(k);
-        let (dx, dy) = (map.x(i) - r.centroid[0], map.y(j) - r.centroid[1]);
+        let (dx, dy) = (map.x(i) - r.centroid.x, map.y(j) - r.centroid.y);
         sxx += dx * dx;
         sxy += dx * dy;
         syy += dy * dy;
     }
     let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    [angle.cos(), angle.sin()]
+    V2::new(angle.cos(), angle.sin())
 }
 
 /// Measure a foot on `map` (see the module doc of [`crate::measure`] for every definition).
@@ -344,7 +329,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
     // direction) in front.
     let mut u = principal_axis(map, &body);
     let extent = {
-        let s: Vec<f64> = bo.iter().map(|&p| dot(p, u)).collect();
+        let s: Vec<f64> = bo.iter().map(|p| p.coords.dot(&u)).collect();
         s.iter().copied().fold(f64::NEG_INFINITY, f64::max)
             - s.iter().copied().fold(f64::INFINITY, f64::min)
     };
@@ -352,16 +337,16 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         .iter()
         .filter(|r| r.area_mm2 >= MIN_TOE_FRACTION * body.area_mm2)
         .collect();
-    let toe_pull = big.iter().fold([0.0, 0.0], |acc, r| {
-        add_scaled(acc, sub(r.centroid, body.centroid), r.area_mm2)
+    let toe_pull = big.iter().fold(V2::zeros(), |acc, r| {
+        acc + (r.centroid - body.centroid) * r.area_mm2
     });
-    let forward = if big.is_empty() { [1.0, 0.0] } else { toe_pull };
-    if dot(u, forward) < 0.0 {
-        u = [-u[0], -u[1]];
+    let forward = if big.is_empty() { V2::x() } else { toe_pull };
+    if u.dot(&forward) < 0.0 {
+        u = -u;
     }
     let mut toes: Vec<&Region> = big
         .into_iter()
-        .filter(|r| dot(sub(r.centroid, body.centroid), u) > 0.25 * extent)
+        .filter(|r| (r.centroid - body.centroid).dot(&u) > 0.25 * extent)
         .collect();
     toes.sort_by(|a, b| b.area_mm2.total_cmp(&a.area_mm2));
 
@@ -370,15 +355,18 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
     // front on a toe, so there the axis runs to the second metatarsal head's place on the ball
     // line instead (below).
     let joined = toes.is_empty();
-    let tips: Vec<&[[f64; 2]]> = std::iter::once(bo.as_slice())
+    let tips: Vec<&[P2]> = std::iter::once(bo.as_slice())
         .chain(toes.iter().map(|t| t.outline.as_slice()))
         .collect();
-    let heel_circle = |u: [f64; 2], band: f64| {
-        let s_min = bo.iter().map(|&p| dot(p, u)).fold(f64::INFINITY, f64::min);
-        let heel: Vec<[f64; 2]> = bo
+    let heel_circle = |u: V2, band: f64| {
+        let s_min = bo
+            .iter()
+            .map(|p| p.coords.dot(&u))
+            .fold(f64::INFINITY, f64::min);
+        let heel: Vec<P2> = bo
             .iter()
             .copied()
-            .filter(|&p| dot(p, u) <= s_min + band)
+            .filter(|p| p.coords.dot(&u) <= s_min + band)
             .collect();
         fit_circle(&heel).ok_or_else(|| MeasureError::Landmark {
             what: "heel centre",
@@ -396,8 +384,8 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         if joined {
             break;
         }
-        let nu = unit(sub(front, centre));
-        let change = (nu[0] * u[1] - nu[1] * u[0]).abs();
+        let nu = unit_by_hypot(&(front - centre));
+        let change = nu.perp(&u).abs();
         u = nu;
         if it > 2 && change < 1e-9 {
             break;
@@ -406,7 +394,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
 
     // Medial side: the hallux side, else the higher midfoot.
     let sign = match toes.first() {
-        Some(h) => dot(sub(h.centroid, centre), perp(u)).signum(),
+        Some(h) => (h.centroid - centre).dot(&quarter_turn(&u)).signum(),
         None => arch_side(map, &body, centre, u, extent),
     };
     let side = if sign > 0.0 { Side::Right } else { Side::Left };
@@ -419,8 +407,8 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
             let Some(h) = &heads else { break };
             let (c, r) = heel_circle(u, band)?;
             (centre, radius, band) = (c, r, r.min(0.3 * extent));
-            let nu = unit(sub(h.mt2_on_ball_line(), centre));
-            let change = (nu[0] * u[1] - nu[1] * u[0]).abs();
+            let nu = unit_by_hypot(&(h.mt2_on_ball_line() - centre));
+            let change = nu.perp(&u).abs();
             u = nu;
             heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut Vec::new());
             if change < 1e-9 {
@@ -436,26 +424,26 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
     }
     let heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut warnings)
         .ok_or_else(|| missing_landmark("metatarsal heads"))?;
-    let m = [sign * -u[1], sign * u[0]];
+    let m = V2::new(sign * -u.y, sign * u.x);
 
     // Rearmost point of the heel circle along the axis (on the axis by construction).
-    let heel_point = add_scaled(centre, u, -radius);
+    let heel_point = centre + u * -radius;
     // Toe tip: most anterior point over the body and the toe pads.
     let mut toe_tip = extreme(bo, u, 1.0, false, |_| true).expect("non-empty outline");
     for t in &toes {
         let p = extreme(&t.outline, u, 1.0, false, |_| true).expect("non-empty outline");
-        if dot(p, u) > dot(toe_tip, u) {
+        if p.coords.dot(&u) > toe_tip.coords.dot(&u) {
             toe_tip = p;
         }
     }
-    let xl = |p: [f64; 2]| dot(sub(p, heel_point), u);
-    let yl = |p: [f64; 2]| dot(sub(p, heel_point), m);
-    let to_world = |x: f64, y: f64| add_scaled(add_scaled(heel_point, u, x), m, y);
+    let xl = |p: P2| (p - heel_point).dot(&u);
+    let yl = |p: P2| (p - heel_point).dot(&m);
+    let to_world = |x: f64, y: f64| heel_point + u * x + m * y;
     let length = xl(toe_tip);
     let missing = missing_landmark;
-    let neg_m = [-m[0], -m[1]];
+    let neg_m = -m;
     // Each extreme refined on the outline near the station the profile found it at.
-    let near = |r: (f64, f64)| move |p: [f64; 2]| (r.0..=r.1).contains(&xl(p));
+    let near = |r: (f64, f64)| move |p: P2| (r.0..=r.1).contains(&xl(p));
     let mt1 = extreme(bo, m, 0.7, false, near(heads.mt1_x)).ok_or_else(|| missing("MT1 head"))?;
     let mt5 =
         extreme(bo, neg_m, 0.7, false, near(heads.mt5_x)).ok_or_else(|| missing("MT5 head"))?;
@@ -474,7 +462,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
     .ok_or_else(|| missing("outer waist point"))?;
 
     // Mid-foot width over every outline (body and toes).
-    let all: Vec<&[[f64; 2]]> = std::iter::once(bo.as_slice())
+    let all: Vec<&[P2]> = std::iter::once(bo.as_slice())
         .chain(toes.iter().map(|t| t.outline.as_slice()))
         .collect();
     let mid = to_world(length / 2.0, 0.0);
@@ -486,7 +474,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         ts.iter().copied().fold(f64::INFINITY, f64::min),
         ts.iter().copied().fold(f64::NEG_INFINITY, f64::max),
     );
-    let (midfoot_inner, midfoot_outer) = (add_scaled(mid, m, t_hi), add_scaled(mid, m, t_lo));
+    let (midfoot_inner, midfoot_outer) = (mid + m * t_hi, mid + m * t_lo);
 
     let (heel_width, hw_in, hw_out) = heel_width(bo, map.cell_mm, length, radius, to_world, m)
         .ok_or_else(|| missing("heel width"))?;
@@ -524,7 +512,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
     }
 
     // Plausibility: a figure that breaks what holds for feet is said, never passed on silently.
-    let frac = |p: [f64; 2]| xl(p) / length;
+    let frac = |p: P2| xl(p) / length;
     for (name, p) in [("first", mt1), ("fifth", mt5)] {
         let f = frac(p);
         if !(HEADS_PLAUSIBLE.0..=HEADS_PLAUSIBLE.1).contains(&f) {
@@ -606,7 +594,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         heel_centre: centre,
         mt2_head: mt2,
         axis_dir: u,
-        axis_angle_deg: u[1].atan2(u[0]).to_degrees(),
+        axis_angle_deg: u.y.atan2(u.x).to_degrees(),
         foot_length_mm: length,
         mt1_head: mt1,
         mt5_head: mt5,
@@ -635,15 +623,15 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
 }
 
 /// +1 when the midfoot is higher to the left of the axis `u` than to the right, else -1.
-fn arch_side(map: &HeightMap, body: &Region, c: [f64; 2], u: [f64; 2], extent: f64) -> f64 {
-    let left = perp(u);
+fn arch_side(map: &HeightMap, body: &Region, c: P2, u: V2, extent: f64) -> f64 {
+    let left = quarter_turn(&u);
     let (mut l, mut r) = (0.0, 0.0);
     for &k in &body.cells {
         let (i, j) = map.cell(k);
-        let p = [map.x(i), map.y(j)];
-        let x = dot(sub(p, c), u);
+        let p = P2::new(map.x(i), map.y(j));
+        let x = (p - c).dot(&u);
         if (0.15 * extent..0.45 * extent).contains(&x) {
-            if dot(sub(p, c), left) > 0.0 {
+            if (p - c).dot(&left) > 0.0 {
                 l += map.z[k];
             } else {
                 r += map.z[k];
@@ -663,13 +651,13 @@ fn arch_side(map: &HeightMap, body: &Region, c: [f64; 2], u: [f64; 2], extent: f
 /// (`x_centre` from the heel point) instead, so the figure stays the heel's own. Returns
 /// (width, medial end, lateral end).
 fn heel_width(
-    bo: &[[f64; 2]],
+    bo: &[P2],
     cell: f64,
     length: f64,
     x_centre: f64,
-    to_world: impl Fn(f64, f64) -> [f64; 2],
-    m: [f64; 2],
-) -> Option<(f64, [f64; 2], [f64; 2])> {
+    to_world: impl Fn(f64, f64) -> P2,
+    m: V2,
+) -> Option<(f64, P2, P2)> {
     let step = (cell / 2.0).max(0.05);
     let n = (length / 4.0 / step).ceil() as usize;
     let (mut xs, mut med, mut lat) = (Vec::new(), Vec::new(), Vec::new());
@@ -716,11 +704,11 @@ fn arch_height(
     map: &HeightMap,
     body: &Region,
     x_front: f64,
-    xl: &impl Fn([f64; 2]) -> f64,
-    yl: &impl Fn([f64; 2]) -> f64,
+    xl: &impl Fn(P2) -> f64,
+    yl: &impl Fn(P2) -> f64,
     y_axis: f64,
     max_slope: f64,
-) -> Option<(f64, [f64; 2])> {
+) -> Option<(f64, P2)> {
     let cell = map.cell_mm;
     let rad = (ARCH_FIT_RADIUS / cell).ceil() as isize;
     // Evaluate on cells about 0.2 mm apart.
@@ -748,13 +736,13 @@ fn arch_height(
         s0[0], s0[1], s0[2], s0[1], s0[3], s0[4], s0[2], s0[4], s0[5],
     )
     .lu();
-    let mut best: Option<(f64, [f64; 2])> = None;
+    let mut best: Option<(f64, P2)> = None;
     'candidates: for &k in &body.cells {
         let (i, j) = map.cell(k);
         if i % stride != 0 || j % stride != 0 {
             continue;
         }
-        let p = [map.x(i), map.y(j)];
+        let p = P2::new(map.x(i), map.y(j));
         let x = xl(p);
         if x < x_front / 3.0 || x > 2.0 * x_front / 3.0 || yl(p) < y_axis {
             continue;
@@ -792,7 +780,7 @@ fn contact_thirds(
     map: &HeightMap,
     body: &Region,
     x_front: f64,
-    xl: &impl Fn([f64; 2]) -> f64,
+    xl: &impl Fn(P2) -> f64,
 ) -> [f64; 3] {
     let mut t = [0.0; 3];
     let a = map.cell_mm * map.cell_mm;
@@ -801,11 +789,308 @@ fn contact_thirds(
             continue;
         }
         let (i, j) = map.cell(k);
-        let x = xl([map.x(i), map.y(j)]);
+        let x = xl(P2::new(map.x(i), map.y(j)));
         if !(0.0..x_front).contains(&x) {
             continue;
         }
         t[((3.0 * x / x_front) as usize).min(2)] += a;
     }
     t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A point or direction of any type made from `[x, y]`: the sample below is built the
+    /// same whatever type the fields have.
+    fn p<T: From<[f64; 2]>>(x: f64, y: f64) -> T {
+        [x, y].into()
+    }
+
+    /// A measurements value with awkward numbers: thirds, negative zero, tiny and huge
+    /// magnitudes, integers, and outlines of several lengths.
+    fn sample() -> Measurements {
+        Measurements {
+            side: Side::Left,
+            heel_point: p(1.0 / 3.0, -0.0),
+            toe_tip: p(251.25, 1e-300),
+            heel_centre: p(31.000000000000004, -12.5),
+            mt2_head: p(180.0, 2.0f64.sqrt()),
+            axis_dir: p(0.9999999999999999, -1.2246467991473532e-16),
+            axis_angle_deg: -7.016709298534876e-15,
+            foot_length_mm: 250.91666666666666,
+            mt1_head: p(177.3, 48.7),
+            mt5_head: p(160.1, -45.9),
+            ball_width_mm: 94.6,
+            waist_inner: p(1e21, -1e-7),
+            waist_outer: p(90.0, -30.000000000000004),
+            midfoot_width_mm: 80.5,
+            midfoot_inner: p(125.0, 40.25),
+            midfoot_outer: p(125.0, -40.25),
+            heel_width_mm: 62.0,
+            heel_width_inner: p(40.0, 31.0),
+            heel_width_outer: p(40.0, -31.0),
+            hallux_point: p(240.0, 30.0),
+            arch_height_mm: 12.345678901234567,
+            arch_point: p(100.0, 25.0),
+            arch_index: 0.2345,
+            contact_area_mm2: 9876.5,
+            contact_thirds_mm2: [3000.0, 2345.5, 4531.0],
+            body_front: p(230.0, 0.0),
+            outline: vec![p(0.0, 0.0), p(1.5, -2.25), p(f64::MIN_POSITIVE, f64::MAX)],
+            toe_outlines: vec![vec![p(240.0, 30.0), p(241.0, 31.0)], vec![]],
+            cell_mm: 0.2,
+            heights_from: "scan grid".into(),
+            warnings: vec!["a warning".into()],
+        }
+    }
+
+    /// measurements.json as written before the points became footscan-geom's `P2`: each point
+    /// an `[x, y]` array, every number in the same digits.
+    const SAMPLE_JSON: &str = r#"{
+  "side": "left",
+  "heel_point": [
+    0.3333333333333333,
+    -0.0
+  ],
+  "toe_tip": [
+    251.25,
+    1e-300
+  ],
+  "heel_centre": [
+    31.000000000000004,
+    -12.5
+  ],
+  "mt2_head": [
+    180.0,
+    1.4142135623730951
+  ],
+  "axis_dir": [
+    0.9999999999999999,
+    -1.2246467991473532e-16
+  ],
+  "axis_angle_deg": -7.016709298534876e-15,
+  "foot_length_mm": 250.91666666666666,
+  "mt1_head": [
+    177.3,
+    48.7
+  ],
+  "mt5_head": [
+    160.1,
+    -45.9
+  ],
+  "ball_width_mm": 94.6,
+  "waist_inner": [
+    1e+21,
+    -1e-7
+  ],
+  "waist_outer": [
+    90.0,
+    -30.000000000000004
+  ],
+  "midfoot_width_mm": 80.5,
+  "midfoot_inner": [
+    125.0,
+    40.25
+  ],
+  "midfoot_outer": [
+    125.0,
+    -40.25
+  ],
+  "heel_width_mm": 62.0,
+  "heel_width_inner": [
+    40.0,
+    31.0
+  ],
+  "heel_width_outer": [
+    40.0,
+    -31.0
+  ],
+  "hallux_point": [
+    240.0,
+    30.0
+  ],
+  "arch_height_mm": 12.345678901234567,
+  "arch_point": [
+    100.0,
+    25.0
+  ],
+  "arch_index": 0.2345,
+  "contact_area_mm2": 9876.5,
+  "contact_thirds_mm2": [
+    3000.0,
+    2345.5,
+    4531.0
+  ],
+  "body_front": [
+    230.0,
+    0.0
+  ],
+  "outline": [
+    [
+      0.0,
+      0.0
+    ],
+    [
+      1.5,
+      -2.25
+    ],
+    [
+      2.2250738585072014e-308,
+      1.7976931348623157e+308
+    ]
+  ],
+  "toe_outlines": [
+    [
+      [
+        240.0,
+        30.0
+      ],
+      [
+        241.0,
+        31.0
+      ]
+    ],
+    []
+  ],
+  "cell_mm": 0.2,
+  "heights_from": "scan grid",
+  "warnings": [
+    "a warning"
+  ]
+}"#;
+
+    /// [`SAMPLE_JSON`] read back and written again by the same code: serde_json's default
+    /// float parser may miss the last bit (0.9999999999999999 reads as 1.0), and the reading
+    /// must miss it the same way.
+    const REREAD_JSON: &str = r#"{
+  "side": "left",
+  "heel_point": [
+    0.3333333333333333,
+    -0.0
+  ],
+  "toe_tip": [
+    251.25,
+    1e-300
+  ],
+  "heel_centre": [
+    31.000000000000004,
+    -12.5
+  ],
+  "mt2_head": [
+    180.0,
+    1.4142135623730951
+  ],
+  "axis_dir": [
+    1.0,
+    -1.2246467991473532e-16
+  ],
+  "axis_angle_deg": -7.016709298534876e-15,
+  "foot_length_mm": 250.91666666666663,
+  "mt1_head": [
+    177.3,
+    48.7
+  ],
+  "mt5_head": [
+    160.1,
+    -45.9
+  ],
+  "ball_width_mm": 94.6,
+  "waist_inner": [
+    1e+21,
+    -1e-7
+  ],
+  "waist_outer": [
+    90.0,
+    -30.000000000000004
+  ],
+  "midfoot_width_mm": 80.5,
+  "midfoot_inner": [
+    125.0,
+    40.25
+  ],
+  "midfoot_outer": [
+    125.0,
+    -40.25
+  ],
+  "heel_width_mm": 62.0,
+  "heel_width_inner": [
+    40.0,
+    31.0
+  ],
+  "heel_width_outer": [
+    40.0,
+    -31.0
+  ],
+  "hallux_point": [
+    240.0,
+    30.0
+  ],
+  "arch_height_mm": 12.345678901234567,
+  "arch_point": [
+    100.0,
+    25.0
+  ],
+  "arch_index": 0.2345,
+  "contact_area_mm2": 9876.5,
+  "contact_thirds_mm2": [
+    3000.0,
+    2345.5,
+    4531.0
+  ],
+  "body_front": [
+    230.0,
+    0.0
+  ],
+  "outline": [
+    [
+      0.0,
+      0.0
+    ],
+    [
+      1.5,
+      -2.25
+    ],
+    [
+      2.2250738585072014e-308,
+      1.7976931348623157e+308
+    ]
+  ],
+  "toe_outlines": [
+    [
+      [
+        240.0,
+        30.0
+      ],
+      [
+        241.0,
+        31.0
+      ]
+    ],
+    []
+  ],
+  "cell_mm": 0.2,
+  "heights_from": "scan grid",
+  "warnings": [
+    "a warning"
+  ]
+}"#;
+
+    /// The compact form (the daemon's messages).
+    const COMPACT_JSON: &str = r#"{"side":"left","heel_point":[0.3333333333333333,-0.0],"toe_tip":[251.25,1e-300],"heel_centre":[31.000000000000004,-12.5],"mt2_head":[180.0,1.4142135623730951],"axis_dir":[0.9999999999999999,-1.2246467991473532e-16],"axis_angle_deg":-7.016709298534876e-15,"foot_length_mm":250.91666666666666,"mt1_head":[177.3,48.7],"mt5_head":[160.1,-45.9],"ball_width_mm":94.6,"waist_inner":[1e+21,-1e-7],"waist_outer":[90.0,-30.000000000000004],"midfoot_width_mm":80.5,"midfoot_inner":[125.0,40.25],"midfoot_outer":[125.0,-40.25],"heel_width_mm":62.0,"heel_width_inner":[40.0,31.0],"heel_width_outer":[40.0,-31.0],"hallux_point":[240.0,30.0],"arch_height_mm":12.345678901234567,"arch_point":[100.0,25.0],"arch_index":0.2345,"contact_area_mm2":9876.5,"contact_thirds_mm2":[3000.0,2345.5,4531.0],"body_front":[230.0,0.0],"outline":[[0.0,0.0],[1.5,-2.25],[2.2250738585072014e-308,1.7976931348623157e+308]],"toe_outlines":[[[240.0,30.0],[241.0,31.0]],[]],"cell_mm":0.2,"heights_from":"scan grid","warnings":["a warning"]}"#;
+
+    #[test]
+    fn measurements_json_is_unchanged() {
+        let m = sample();
+        assert_eq!(serde_json::to_string_pretty(&m).unwrap(), SAMPLE_JSON);
+        assert_eq!(serde_json::to_string(&m).unwrap(), COMPACT_JSON);
+        let back: Measurements = serde_json::from_str(SAMPLE_JSON).unwrap();
+        assert_eq!(serde_json::to_string_pretty(&back).unwrap(), REREAD_JSON);
+        let back: Measurements = serde_json::from_str(COMPACT_JSON).unwrap();
+        assert_eq!(serde_json::to_string_pretty(&back).unwrap(), REREAD_JSON);
+        // A point of the wrong length is refused.
+        let bad = COMPACT_JSON.replace("[251.25,1e-300]", "[251.25]");
+        assert!(serde_json::from_str::<Measurements>(&bad).is_err());
+    }
 }

@@ -18,9 +18,9 @@ pub struct Region {
     /// Area in mm^2.
     pub area_mm2: f64,
     /// Mean cell centre (world mm).
-    pub centroid: [f64; 2],
+    pub centroid: P2,
     /// Outer outline, counterclockwise, world mm (last vertex not repeated).
-    pub outline: Vec<[f64; 2]>,
+    pub outline: Vec<P2>,
 }
 
 /// The 4-connected regions of the valid cells of `map`, largest first, each with its outline.
@@ -69,7 +69,7 @@ pub fn regions(map: &HeightMap) -> Vec<Region> {
         let n = cells.len() as f64;
         out.push(Region {
             area_mm2: n * map.cell_mm * map.cell_mm,
-            centroid: [sx / n, sy / n],
+            centroid: P2::new(sx / n, sy / n),
             outline: Vec::new(),
             cells,
         });
@@ -83,7 +83,7 @@ pub fn regions(map: &HeightMap) -> Vec<Region> {
 
 /// Marching squares over the bounding box of one region (label `id`), padded by one cell;
 /// returns the loop of largest area (the outer boundary; holes are clockwise and smaller).
-fn outer_outline(map: &HeightMap, label: &[u32], id: u32, cells: &[usize]) -> Vec<[f64; 2]> {
+fn outer_outline(map: &HeightMap, label: &[u32], id: u32, cells: &[usize]) -> Vec<P2> {
     let nx = map.nx;
     let (mut i0, mut i1, mut j0, mut j1) = (usize::MAX, 0, usize::MAX, 0);
     for &k in cells {
@@ -135,16 +135,16 @@ fn outer_outline(map: &HeightMap, label: &[u32], id: u32, cells: &[usize]) -> Ve
             }
         }
     }
-    let point = |e: usize| -> [f64; 2] {
+    let point = |e: usize| -> P2 {
         let (k, vertical) = (e / 2, e % 2 == 1);
         let (a, b) = ((k % w) as f64, (k / w) as f64);
         let (a, b) = if vertical { (a, b + 0.5) } else { (a + 0.5, b) };
-        [
+        P2::new(
             map.x0 + (i0 as f64 + a - 1.0) * map.cell_mm,
             map.y0 + (j0 as f64 + b - 1.0) * map.cell_mm,
-        ]
+        )
     };
-    let mut best: Vec<[f64; 2]> = Vec::new();
+    let mut best: Vec<P2> = Vec::new();
     let mut best_area = f64::NEG_INFINITY;
     let mut seen = std::collections::HashSet::new();
     let mut starts: Vec<usize> = next.keys().copied().collect();
@@ -172,22 +172,22 @@ fn outer_outline(map: &HeightMap, label: &[u32], id: u32, cells: &[usize]) -> Ve
     best
 }
 
-// The polygon operations live in the geometry layer (footscan_geom::polygon); these keep the
-// `[x, y]` form the measurements use.
+// The polygon operations live in the geometry layer (footscan_geom::polygon); these take the
+// outlines as the slices the measurements hold.
 
 /// Signed area of a closed polygon (counterclockwise positive).
-pub fn signed_area(p: &[[f64; 2]]) -> f64 {
-    Polygon::from_arrays(p).signed_area()
+pub fn signed_area(p: &[P2]) -> f64 {
+    Polygon::new(p.to_vec()).signed_area()
 }
 
 /// Parameters t where the line `o + t d` crosses the closed polygon `p`.
-pub fn line_crossings(p: &[[f64; 2]], o: [f64; 2], d: [f64; 2]) -> Vec<f64> {
-    Polygon::from_arrays(p).line_crossings(&P2::new(o[0], o[1]), &V2::new(d[0], d[1]))
+pub fn line_crossings(p: &[P2], o: P2, d: V2) -> Vec<f64> {
+    Polygon::new(p.to_vec()).line_crossings(&o, &d)
 }
 
 /// Douglas-Peucker simplification of a closed polygon to `tol` mm.
-pub fn simplify(p: &[[f64; 2]], tol: f64) -> Vec<[f64; 2]> {
-    Polygon::from_arrays(p).simplify(tol).to_arrays()
+pub fn simplify(p: &[P2], tol: f64) -> Vec<P2> {
+    Polygon::new(p.to_vec()).simplify(tol).points
 }
 
 #[cfg(test)]
@@ -215,7 +215,7 @@ mod tests {
         let o = &rs[0].outline;
         assert!(signed_area(o) > 0.0);
         for p in o {
-            let r = ((p[0] - 3.0).powi(2) + (p[1] + 2.0).powi(2)).sqrt();
+            let r = ((p.x - 3.0).powi(2) + (p.y + 2.0).powi(2)).sqrt();
             assert!((r - 10.0).abs() < 0.15, "vertex at radius {r}");
         }
         let area = signed_area(o);
@@ -223,7 +223,7 @@ mod tests {
         assert!((area - truth).abs() / truth < 0.01, "{area} vs {truth}");
         assert!((rs[0].area_mm2 - truth).abs() / truth < 0.01);
         // A line through the centre crosses twice, 20 mm apart.
-        let t = line_crossings(o, [3.0, -2.0], [0.6, 0.8]);
+        let t = line_crossings(o, P2::new(3.0, -2.0), V2::new(0.6, 0.8));
         assert_eq!(t.len(), 2);
         assert!(((t[0] - t[1]).abs() - 20.0).abs() < 0.2, "{t:?}");
         let s = simplify(o, 0.05);
@@ -254,6 +254,6 @@ mod tests {
         assert_eq!(rs[0].cells.len(), 24);
         assert!((signed_area(&rs[0].outline) - 24.5).abs() < 1e-9);
         assert!((signed_area(&rs[1].outline) - 0.5).abs() < 1e-9);
-        assert!((rs[0].centroid[0] - 7.0).abs() < 1e-9);
+        assert!((rs[0].centroid.x - 7.0).abs() < 1e-9);
     }
 }

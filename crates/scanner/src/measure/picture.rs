@@ -6,6 +6,7 @@
 use super::{line_crossings, Measurements, Side};
 use crate::geom::HeightMap;
 use crate::io::heightmap::{colour, colour_bar, nice_step, BG, FG};
+use footscan_geom::{quarter_turn, P2, V2};
 use image::{Rgb, RgbImage};
 use std::path::Path;
 
@@ -40,17 +41,17 @@ struct View {
 }
 
 impl View {
-    fn px(&self, p: [f64; 2]) -> (f64, f64) {
+    fn px(&self, p: P2) -> (f64, f64) {
         (
-            self.left + (p[0] - self.x0) * SCALE,
-            self.top + (p[1] - self.y0) * SCALE,
+            self.left + (p.x - self.x0) * SCALE,
+            self.top + (p.y - self.y0) * SCALE,
         )
     }
-    fn world(&self, u: f64, v: f64) -> [f64; 2] {
-        [
+    fn world(&self, u: f64, v: f64) -> P2 {
+        P2::new(
             self.x0 + (u - self.left) / SCALE,
             self.y0 + (v - self.top) / SCALE,
-        ]
+        )
     }
 }
 
@@ -58,20 +59,20 @@ impl View {
 pub fn render_plantar(map: &HeightMap, m: &Measurements) -> PlantarImage {
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for p in m.outline.iter().chain(m.toe_outlines.iter().flatten()) {
-        x0 = x0.min(p[0]);
-        x1 = x1.max(p[0]);
-        y0 = y0.min(p[1]);
-        y1 = y1.max(p[1]);
+        x0 = x0.min(p.x);
+        x1 = x1.max(p.x);
+        y0 = y0.min(p.y);
+        y1 = y1.max(p.y);
     }
     if x0 > x1 {
         (x0, x1, y0, y1) = (0.0, 100.0, 0.0, 50.0);
     }
     // The length's dimension line runs outside the lateral border.
     for p in length_line(m) {
-        x0 = x0.min(p[0]);
-        x1 = x1.max(p[0]);
-        y0 = y0.min(p[1]);
-        y1 = y1.max(p[1]);
+        x0 = x0.min(p.x);
+        x1 = x1.max(p.x);
+        y0 = y0.min(p.y);
+        y1 = y1.max(p.y);
     }
     let (x0, x1, y0, y1) = (
         x0 - MARGIN_MM,
@@ -107,7 +108,7 @@ pub fn render_plantar(map: &HeightMap, m: &Measurements) -> PlantarImage {
         for u in 0..draw_w {
             let (pu, pv) = (view.left as u32 + u, view.top as u32 + v);
             let w = view.world(pu as f64 + 0.5, pv as f64 + 0.5);
-            if let Some((i, j)) = map.cell_of(w[0], w[1]) {
+            if let Some((i, j)) = map.cell_of(w.x, w.y) {
                 let z = map.get(i, j);
                 if z.is_finite() {
                     img.put_pixel(pu, pv, colour(z / max_mm));
@@ -118,8 +119,8 @@ pub fn render_plantar(map: &HeightMap, m: &Measurements) -> PlantarImage {
 
     let d = m.axis_dir;
     let medial = medial_dir(m);
-    let along = |p: [f64; 2]| (p[0] - m.heel_point[0]) * d[0] + (p[1] - m.heel_point[1]) * d[1];
-    let on_axis = |s: f64| [m.heel_point[0] + s * d[0], m.heel_point[1] + s * d[1]];
+    let along = |p: P2| (p - m.heel_point).dot(&d);
+    let on_axis = |s: f64| m.heel_point + d * s;
 
     // Arch-index thirds, perpendicular to the axis across the body.
     let x_front = along(m.body_front);
@@ -129,8 +130,7 @@ pub fn render_plantar(map: &HeightMap, m: &Measurements) -> PlantarImage {
         if ts.len() >= 2 {
             let lo = ts.iter().copied().fold(f64::INFINITY, f64::min) - 4.0;
             let hi = ts.iter().copied().fold(f64::NEG_INFINITY, f64::max) + 4.0;
-            let a = [c[0] + lo * medial[0], c[1] + lo * medial[1]];
-            let b = [c[0] + hi * medial[0], c[1] + hi * medial[1]];
+            let (a, b) = (c + medial * lo, c + medial * hi);
             dashed(&mut img, &view, a, b, THIRDS, 1, 6.0);
         }
     }
@@ -165,7 +165,7 @@ pub fn render_plantar(map: &HeightMap, m: &Measurements) -> PlantarImage {
         WIDTH,
         2,
     );
-    let mid = |a: [f64; 2], b: [f64; 2]| [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0];
+    let mid = |a: P2, b: P2| nalgebra::center(&a, &b);
     let ball_mid = mid(m.mt5_head, on_axis(along(m.mt5_head)));
     for (p, s) in [
         (ball_mid, format!("ball {:.1}", m.ball_width_mm)),
@@ -178,28 +178,32 @@ pub fn render_plantar(map: &HeightMap, m: &Measurements) -> PlantarImage {
             format!("heel {:.1}", m.heel_width_mm),
         ),
     ] {
-        let q = [p[0] - 9.0 * medial[0], p[1] - 9.0 * medial[1]];
-        label(&mut img, &view, q, &s, d);
+        label(&mut img, &view, p - medial * 9.0, &s, d);
     }
     // Foot length: a dimension line on the lateral side, parallel to the axis.
     let [a, b] = length_line(m);
     line(&mut img, &view, a, b, WIDTH, 1);
     for p in [a, b] {
-        let t = [p[0] - 3.0 * medial[0], p[1] - 3.0 * medial[1]];
-        let s = [p[0] + 3.0 * medial[0], p[1] + 3.0 * medial[1]];
-        line(&mut img, &view, t, s, WIDTH, 1);
+        line(
+            &mut img,
+            &view,
+            p - medial * 3.0,
+            p + medial * 3.0,
+            WIDTH,
+            1,
+        );
     }
     label(
         &mut img,
         &view,
-        [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0],
+        mid(a, b),
         &format!("length {:.1} mm", l),
-        [-medial[0], -medial[1]],
+        -medial,
     );
 
     // Landmarks, labelled away from the foot's middle.
     let centre = on_axis(l / 2.0);
-    let points: [([f64; 2], &str); 10] = [
+    let points: [(P2, &str); 10] = [
         (m.heel_point, "heel"),
         (m.toe_tip, "toe tip"),
         (m.heel_centre, "heel centre"),
@@ -213,22 +217,19 @@ pub fn render_plantar(map: &HeightMap, m: &Measurements) -> PlantarImage {
     ];
     for (p, name) in points {
         dot(&mut img, &view, p, POINT);
-        let mut away = [p[0] - centre[0], p[1] - centre[1]];
+        let mut away = p - centre;
         if matches!(name, "heel centre" | "MT2") {
             away = medial; // on the axis: label to the medial side
         }
         if name == "arch" {
-            away = [-medial[0], -medial[1]]; // next to the medial border: label inward
+            away = -medial; // next to the medial border: label inward
         }
         label(&mut img, &view, p, name, away);
     }
     // Sides.
     let at = on_axis(l * 0.22);
     for (sign, name) in [(1.0, "medial"), (-1.0, "lateral")] {
-        let p = [
-            at[0] + sign * (m.heel_width_mm * 0.5 + 8.0) * medial[0],
-            at[1] + sign * (m.heel_width_mm * 0.5 + 8.0) * medial[1],
-        ];
+        let p = at + medial * (sign * (m.heel_width_mm * 0.5 + 8.0));
         let (u, v) = view.px(p);
         text(
             &mut img,
@@ -326,25 +327,20 @@ pub fn render_plantar(map: &HeightMap, m: &Measurements) -> PlantarImage {
     PlantarImage { image: img, max_mm }
 }
 
-fn medial_dir(m: &Measurements) -> [f64; 2] {
-    let d = m.axis_dir;
+fn medial_dir(m: &Measurements) -> V2 {
+    let left = quarter_turn(&m.axis_dir);
     match m.side {
-        Side::Right => [-d[1], d[0]],
-        Side::Left => [d[1], -d[0]],
+        Side::Right => left,
+        Side::Left => -left,
     }
 }
 
 /// End points of the foot-length dimension line, parallel to the axis outside the lateral
 /// border.
-fn length_line(m: &Measurements) -> [[f64; 2]; 2] {
+fn length_line(m: &Measurements) -> [P2; 2] {
     let (d, med) = (m.axis_dir, medial_dir(m));
     let off = -(m.ball_width_mm * 0.6 + 4.0);
-    let at = |s: f64| {
-        [
-            m.heel_point[0] + s * d[0] + off * med[0],
-            m.heel_point[1] + s * d[1] + off * med[1],
-        ]
-    };
+    let at = |s: f64| m.heel_point + d * s + med * off;
     [at(0.0), at(m.foot_length_mm)]
 }
 
@@ -373,7 +369,7 @@ fn put(img: &mut RgbImage, u: i64, v: i64, c: Rgb<u8>) {
 }
 
 /// A line of `width` pixels between two world points.
-fn line(img: &mut RgbImage, view: &View, a: [f64; 2], b: [f64; 2], c: Rgb<u8>, width: i64) {
+fn line(img: &mut RgbImage, view: &View, a: P2, b: P2, c: Rgb<u8>, width: i64) {
     let (ua, va) = view.px(a);
     let (ub, vb) = view.px(b);
     let n = (ub - ua).abs().max((vb - va).abs()).ceil().max(1.0) as usize;
@@ -389,28 +385,20 @@ fn line(img: &mut RgbImage, view: &View, a: [f64; 2], b: [f64; 2], c: Rgb<u8>, w
 }
 
 /// A dashed line with dashes of `dash` pixels.
-fn dashed(
-    img: &mut RgbImage,
-    view: &View,
-    a: [f64; 2],
-    b: [f64; 2],
-    c: Rgb<u8>,
-    width: i64,
-    dash: f64,
-) {
+fn dashed(img: &mut RgbImage, view: &View, a: P2, b: P2, c: Rgb<u8>, width: i64, dash: f64) {
     let (ua, va) = view.px(a);
     let (ub, vb) = view.px(b);
     let len = (ub - ua).hypot(vb - va);
     let n = (len / dash).ceil().max(1.0) as usize;
     for k in (0..n).step_by(2) {
         let (f0, f1) = (k as f64 / n as f64, ((k + 1) as f64 / n as f64).min(1.0));
-        let p = |f: f64| [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])];
+        let p = |f: f64| a + (b - a) * f;
         line(img, view, p(f0), p(f1), c, width);
     }
 }
 
 /// A filled marker with a dark rim.
-fn dot(img: &mut RgbImage, view: &View, p: [f64; 2], c: Rgb<u8>) {
+fn dot(img: &mut RgbImage, view: &View, p: P2, c: Rgb<u8>) {
     let (u, v) = view.px(p);
     for dv in -5i64..=5 {
         for du in -5i64..=5 {
@@ -424,10 +412,10 @@ fn dot(img: &mut RgbImage, view: &View, p: [f64; 2], c: Rgb<u8>) {
 }
 
 /// A label next to a world point, on the side of `away` (a world direction), on a dark box.
-fn label(img: &mut RgbImage, view: &View, p: [f64; 2], s: &str, away: [f64; 2]) {
+fn label(img: &mut RgbImage, view: &View, p: P2, s: &str, away: V2) {
     let (u, v) = view.px(p);
-    let n = away[0].hypot(away[1]).max(1e-9);
-    let (dx, dy) = (away[0] / n, away[1] / n);
+    let n = away.x.hypot(away.y).max(1e-9);
+    let (dx, dy) = (away.x / n, away.y / n);
     let (w, h) = (8.0 * s.len() as f64, 8.0);
     // Box centre 14 px from the point along `away`, then pushed out by half the box.
     let cx = u + dx * (14.0 + w / 2.0);

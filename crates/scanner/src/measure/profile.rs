@@ -2,6 +2,7 @@
 //! locate the metatarsal heads, the waists and the heel's widest part from the shape itself.
 
 use super::fit::local_quadratic;
+use footscan_geom::{P2, V2};
 
 /// Half-widths of the footprint either side of an axis, at stations `step` apart from the
 /// origin: `med[k]` the farthest outline crossing on the medial side of the line across the
@@ -20,20 +21,13 @@ const SMOOTH_MM: f64 = 2.0;
 impl Profiles {
     /// Profiles of `outlines` along the axis from `origin` in direction `u`, medial `m`,
     /// for x in [0, length]: one pass over the edges, each adding its crossings.
-    pub fn of(
-        outlines: &[&[[f64; 2]]],
-        origin: [f64; 2],
-        u: [f64; 2],
-        m: [f64; 2],
-        length: f64,
-        step: f64,
-    ) -> Profiles {
+    pub fn of(outlines: &[&[P2]], origin: P2, u: V2, m: V2, length: f64, step: f64) -> Profiles {
         let n = (length / step).floor() as usize + 1;
         let (mut hi, mut lo) = (vec![f64::NEG_INFINITY; n], vec![f64::INFINITY; n]);
         for o in outlines {
-            let xt = |p: [f64; 2]| {
-                let d = [p[0] - origin[0], p[1] - origin[1]];
-                (d[0] * u[0] + d[1] * u[1], d[0] * m[0] + d[1] * m[1])
+            let xt = |p: P2| {
+                let d = p - origin;
+                (d.dot(&u), d.dot(&m))
             };
             for i in 0..o.len() {
                 let (a, b) = (xt(o[i]), xt(o[(i + 1) % o.len()]));
@@ -208,8 +202,14 @@ mod tests {
 
     #[test]
     fn profiles_of_a_rectangle() {
-        let r = [[0.0, -10.0], [100.0, -10.0], [100.0, 20.0], [0.0, 20.0]];
-        let p = Profiles::of(&[&r], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0], 100.0, 0.5);
+        let r = [
+            P2::new(0.0, -10.0),
+            P2::new(100.0, -10.0),
+            P2::new(100.0, 20.0),
+            P2::new(0.0, 20.0),
+        ];
+        let (o, u, m) = (P2::origin(), V2::x(), V2::y());
+        let p = Profiles::of(&[&r], o, u, m, 100.0, 0.5);
         assert!((p.med[50] - 20.0).abs() < 1e-9 && (p.lat[50] - 10.0).abs() < 1e-9);
         assert!((p.breadth(100) - 30.0).abs() < 1e-9 || p.med[200].is_nan());
     }

@@ -17,6 +17,7 @@
 use super::MeasureError;
 use crate::geom::HeightMap;
 use crate::scandata::ScanGrid;
+use footscan_geom::P3;
 
 /// Missing rows bridged inside a run (a detector may drop a row or two in the sole).
 const MAX_GAP_ROWS: usize = 2;
@@ -28,7 +29,7 @@ const MIN_RUN_ROWS: usize = 3;
 #[derive(Clone, Debug)]
 struct Run {
     /// Points (x, y, h) by increasing y.
-    pts: Vec<[f64; 3]>,
+    pts: Vec<P3>,
     lo: f64,
     hi: f64,
 }
@@ -201,7 +202,7 @@ fn frames_of(grid: &ScanGrid) -> Result<Vec<Frame>, MeasureError> {
     let mut offsets = Vec::new();
     for f in 0..nf {
         let mut runs = Vec::new();
-        let mut cur: Vec<[f64; 3]> = Vec::new();
+        let mut cur: Vec<P3> = Vec::new();
         let mut gap = 0;
         for j in 0..rows {
             let p = grid.point(f, j);
@@ -372,7 +373,7 @@ fn envelope(d: &[f64], v: &[f64]) -> Option<(nalgebra::Vector4<f64>, f64)> {
     Some((c, res[1].max(0.0)))
 }
 
-fn make_run(mut pts: Vec<[f64; 3]>, pitch: f64) -> Run {
+fn make_run(mut pts: Vec<P3>, pitch: f64) -> Run {
     pts.sort_by(|a, b| a[1].total_cmp(&b[1]));
     let n = pts.len();
     let (lo_pitch, hi_pitch) = if n >= 2 {
@@ -557,7 +558,7 @@ mod tests {
             let points = (0..rows)
                 .map(|r| {
                     let y = (r as f64 - rows as f64 / 2.0) * 0.125 + 0.037;
-                    h(xf, y).map_or([f64::NAN; 3], |z| [xf, y, z])
+                    h(xf, y).map_or(P3::from([f64::NAN; 3]), |z| P3::new(xf, y, z))
                 })
                 .collect();
             g.push(FramePoints {

@@ -2,6 +2,7 @@
 //! `footscan_sim::foot::FootTruth`): the error table of tests and `footscan measure`.
 
 use super::{Measurements, Side};
+use footscan_geom::{P2, V2};
 use serde::{Deserialize, Serialize};
 
 /// What an error row measures, and so its unit.
@@ -38,22 +39,22 @@ pub struct TruthComparison {
 #[derive(Deserialize)]
 struct TruthRef {
     side: Side,
-    heel_point: [f64; 2],
-    toe_tip: [f64; 2],
-    heel_centre: [f64; 2],
-    mt2_head: [f64; 2],
-    axis_dir: [f64; 2],
+    heel_point: P2,
+    toe_tip: P2,
+    heel_centre: P2,
+    mt2_head: P2,
+    axis_dir: V2,
     length_mm: f64,
-    mt1_head: [f64; 2],
-    mt5_head: [f64; 2],
+    mt1_head: P2,
+    mt5_head: P2,
     ball_width_mm: f64,
-    waist_inner: [f64; 2],
-    waist_outer: [f64; 2],
+    waist_inner: P2,
+    waist_outer: P2,
     midfoot_width_mm: f64,
-    midfoot_inner: [f64; 2],
-    midfoot_outer: [f64; 2],
+    midfoot_inner: P2,
+    midfoot_outer: P2,
     heel_width_mm: f64,
-    hallux_point: [f64; 2],
+    hallux_point: P2,
     arch_height_mm: f64,
     arch_index: f64,
     contact_area_mm2: f64,
@@ -66,13 +67,14 @@ pub fn compare_with_truth(
 ) -> Result<TruthComparison, serde_json::Error> {
     let t: TruthRef = serde_json::from_str(truth_json)?;
     let mut rows = Vec::new();
-    let mut point = |name, truth: [f64; 2], got: [f64; 2]| {
+    let mut point = |name, truth: P2, got: P2| {
+        let d = got - truth;
         rows.push(ErrorRow {
             name,
             kind: ErrorKind::Landmark,
-            truth: truth.to_vec(),
-            measured: got.to_vec(),
-            error: (got[0] - truth[0]).hypot(got[1] - truth[1]),
+            truth: vec![truth.x, truth.y],
+            measured: vec![got.x, got.y],
+            error: d.x.hypot(d.y),
         })
     };
     point("heel_point", t.heel_point, m.heel_point);
@@ -86,7 +88,7 @@ pub fn compare_with_truth(
     point("midfoot_inner", t.midfoot_inner, m.midfoot_inner);
     point("midfoot_outer", t.midfoot_outer, m.midfoot_outer);
     point("hallux_point", t.hallux_point, m.hallux_point);
-    let angle = |d: [f64; 2]| d[1].atan2(d[0]).to_degrees();
+    let angle = |d: V2| d.y.atan2(d.x).to_degrees();
     rows.push(ErrorRow {
         name: "axis_angle_deg",
         kind: ErrorKind::Angle,

@@ -9,6 +9,7 @@
 
 use crate::detect::{LinePeak, Reject};
 use crate::scandata::{FrameMeta, ScanGrid};
+use footscan_geom::P3;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
@@ -302,7 +303,7 @@ pub fn bridge_gaps(grid: &mut ScanGrid, step_mm: f64, bridge_mm: f64) -> Quality
                             let (la, lb) =
                                 (grid.lines[(i - 1) * rows + j], grid.lines[i * rows + j]);
                             if pa[0].is_finite() && pb[0].is_finite() {
-                                points.push(std::array::from_fn(|c| pa[c] + (pb[c] - pa[c]) * t));
+                                points.push(pa + (pb - pa) * t);
                                 lines.push(LinePeak {
                                     col: la.col + (lb.col - la.col) * t,
                                     intensity: la.intensity.min(lb.intensity),
@@ -311,7 +312,7 @@ pub fn bridge_gaps(grid: &mut ScanGrid, step_mm: f64, bridge_mm: f64) -> Quality
                                     reject: None,
                                 });
                             } else {
-                                points.push([f64::NAN; 3]);
+                                points.push(P3::from([f64::NAN; 3]));
                                 lines.push(LinePeak::NONE);
                             }
                         }
@@ -578,8 +579,8 @@ mod tests {
                     .collect(),
                 points: (0..30)
                     .map(|j| match j {
-                        5..25 => [x, j as f64, x / 100.0],
-                        _ => [f64::NAN; 3],
+                        5..25 => P3::new(x, j as f64, x / 100.0),
+                        _ => P3::from([f64::NAN; 3]),
                     })
                     .collect(),
             });

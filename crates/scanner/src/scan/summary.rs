@@ -230,6 +230,7 @@ mod tests {
     use super::*;
     use crate::detect::LinePeak;
     use crate::scandata::{FrameMeta, FramePoints};
+    use footscan_geom::P3;
     use footscan_hal::Timestamp;
 
     struct Flat;
@@ -248,9 +249,9 @@ mod tests {
         let mut g = ScanGrid::new(3);
         for seq in 0..3u64 {
             let pts = vec![
-                [seq as f64, 0.0, 0.3],
-                [f64::NAN; 3],
-                [seq as f64, 2.0, 0.0],
+                P3::new(seq as f64, 0.0, 0.3),
+                P3::from([f64::NAN; 3]),
+                P3::new(seq as f64, 2.0, 0.0),
             ];
             g.push(FramePoints {
                 meta: FrameMeta {

@@ -10,6 +10,7 @@ pub use dir::{ScanDir, ScanDirError};
 pub use scan_grid::ScanGrid;
 
 use crate::detect::LinePeak;
+use footscan_geom::P3;
 use footscan_hal::Timestamp;
 
 /// Where and when a frame was taken.
@@ -33,5 +34,5 @@ pub struct FramePoints {
     pub meta: FrameMeta,
     pub lines: Vec<LinePeak>,
     /// One per row; NaN where the row has no line.
-    pub points: Vec<[f64; 3]>,
+    pub points: Vec<P3>,
 }

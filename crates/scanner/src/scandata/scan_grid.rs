@@ -1,5 +1,6 @@
 use super::{FrameMeta, FramePoints};
 use crate::detect::LinePeak;
+use footscan_geom::P3;
 
 /// The scan grid of docs/method.md section 3.2: frame i (slider position X_i) by row j.
 #[derive(Debug, Default)]
@@ -9,7 +10,7 @@ pub struct ScanGrid {
     /// `frames.len() * rows`, frame-major.
     pub lines: Vec<LinePeak>,
     /// `frames.len() * rows`, NaN where no line.
-    pub points: Vec<[f64; 3]>,
+    pub points: Vec<P3>,
 }
 
 impl ScanGrid {
@@ -31,12 +32,12 @@ impl ScanGrid {
         self.points.extend_from_slice(&fp.points);
     }
 
-    pub fn point(&self, frame: usize, row: usize) -> [f64; 3] {
+    pub fn point(&self, frame: usize, row: usize) -> P3 {
         self.points[frame * self.rows + row]
     }
 
     /// Valid points with (frame, row) and their line.
-    pub fn valid(&self) -> impl Iterator<Item = (usize, usize, &[f64; 3], &LinePeak)> + '_ {
+    pub fn valid(&self) -> impl Iterator<Item = (usize, usize, &P3, &LinePeak)> + '_ {
         self.points
             .iter()
             .zip(&self.lines)
@@ -74,7 +75,7 @@ impl ScanGrid {
                     w.write_all(&v.to_le_bytes())?;
                 }
                 w.write_all(&[reject_code(l.reject)])?;
-                for v in p {
+                for v in p.iter() {
                     w.write_all(&v.to_le_bytes())?;
                 }
             }
@@ -137,8 +138,11 @@ impl ScanGrid {
                 quality,
                 reject,
             });
-            g.points
-                .push([r.f64().unwrap(), r.f64().unwrap(), r.f64().unwrap()]);
+            g.points.push(P3::new(
+                r.f64().unwrap(),
+                r.f64().unwrap(),
+                r.f64().unwrap(),
+            ));
         }
         Ok(g)
     }
@@ -218,7 +222,7 @@ mod tests {
                 },
                 LinePeak::rejected(Reject::Border, 50.0),
             ],
-            points: vec![[1.0, 2.0, 3.0], [f64::NAN; 3]],
+            points: vec![P3::new(1.0, 2.0, 3.0), P3::from([f64::NAN; 3])],
         });
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("grid.bin");
@@ -227,7 +231,7 @@ mod tests {
         assert_eq!(h.frames, g.frames);
         assert_eq!(h.lines[0], g.lines[0]);
         assert_eq!(h.lines[1].reject, Some(Reject::Border));
-        assert_eq!(h.points[0], [1.0, 2.0, 3.0]);
+        assert_eq!(h.points[0], P3::new(1.0, 2.0, 3.0));
         assert!(h.points[1][0].is_nan());
         std::fs::write(&p, b"FSGRID01\x01\x00\x00\x00").unwrap();
         let e = ScanGrid::load(&p).unwrap_err().to_string();

@@ -13,6 +13,7 @@
 use super::ops::{dot, OpCount, Scalar};
 use super::point_grid::PointGrid;
 use super::SurfaceError;
+use footscan_geom::P3;
 use nalgebra::DMatrix;
 
 /// Uniform cubic B-spline basis on a span at local t in [0, 1].
@@ -116,8 +117,8 @@ impl BSplineSurface {
         }
     }
 
-    pub fn eval(&self, s: f64, t: f64) -> [f64; 3] {
-        [0, 1, 2].map(|k| self.eval_coord_generic::<f64>(k, s, t))
+    pub fn eval(&self, s: f64, t: f64) -> P3 {
+        P3::from([0, 1, 2].map(|k| self.eval_coord_generic::<f64>(k, s, t)))
     }
 
     /// Value and derivatives along s and t: [p, p_s, p_t].
@@ -326,7 +327,7 @@ pub fn interpolate(g: &PointGrid) -> Result<BSplineSurface, SurfaceError> {
     let mut out = vec![[0.0; 3]; mu];
     for j in 0..nv {
         for (i, c) in col.iter_mut().enumerate() {
-            *c = g.get(i, j);
+            *c = g.get(i, j).into();
         }
         interp_1d(&col, &mut out);
         for a in 0..mu {
@@ -413,7 +414,7 @@ mod tests {
                 pts.push([x, y, (x * 0.15).sin() * (y * 0.2).cos() * 4.0]);
             }
         }
-        PointGrid::new(nu, nv, pts)
+        PointGrid::new(nu, nv, pts.into_iter().map(P3::from).collect())
     }
 
     #[test]

@@ -17,6 +17,7 @@ use super::ops::{Counted, OpCount};
 use super::point_grid::{PointGrid, Subsample};
 use super::poly::PolySurface;
 use super::SurfaceError;
+use footscan_geom::P3;
 use serde::Serialize;
 
 /// The methods of the comparison.
@@ -89,7 +90,7 @@ impl Fitted {
     }
 
     /// (x, y, z) at global (s, t); None where the network has no segment.
-    pub fn eval(&self, s: f64, t: f64) -> Option<[f64; 3]> {
+    pub fn eval(&self, s: f64, t: f64) -> Option<P3> {
         match self {
             Fitted::Network(n) => n.eval(s, t),
             Fitted::Spline(b) => Some(b.eval(s, t)),
@@ -170,7 +171,7 @@ fn newton(
 /// A scan point held out of the sub-grid, with its fractional sub-grid index.
 #[derive(Clone, Copy, Debug)]
 pub struct HeldOut {
-    pub p: [f64; 3],
+    pub p: P3,
     pub s0: f64,
     pub t0: f64,
 }
@@ -222,7 +223,7 @@ pub fn held_out(
             k += 1;
             if k.is_multiple_of(stride.max(1)) {
                 out.push(HeldOut {
-                    p: full.get(i, j),
+                    p: P3::from(full.get(i, j)),
                     s0,
                     t0,
                 });
@@ -274,7 +275,7 @@ pub fn representation_errors(
         .iter()
         .filter_map(|&(s, t)| {
             let p = m.eval(s, t)?;
-            Some(p[2] - truth(p[0], p[1])?)
+            Some(p.z - truth(p.x, p.y)?)
         })
         .collect()
 }
@@ -310,7 +311,7 @@ mod tests {
                 });
             }
         }
-        let full = PointGrid::new(nu, nv, pts);
+        let full = PointGrid::new(nu, nv, pts.into_iter().map(P3::from).collect());
         let sub = full.even_subsample(41, 33).unwrap();
         let g = full.subsample(&sub);
         let net = BezierNetwork::build(&g).unwrap();

@@ -16,7 +16,7 @@ use super::ops::{dot, Scalar};
 use super::point_grid::{is_point, PointGrid};
 use super::SurfaceError;
 use crate::geom::HeightMap;
-use footscan_geom::V3;
+use footscan_geom::{P2, P3, V2, V3};
 use std::sync::OnceLock;
 
 const NONE: u32 = u32::MAX;
@@ -185,7 +185,7 @@ impl BezierNetwork {
     }
 
     /// (x, y, z) at global parameters (s, t).
-    pub fn eval(&self, s: f64, t: f64) -> Option<[f64; 3]> {
+    pub fn eval(&self, s: f64, t: f64) -> Option<P3> {
         let (seg, u, v) = self.locate_param(s, t)?;
         Some(seg.eval(u, v))
     }
@@ -193,7 +193,7 @@ impl BezierNetwork {
     /// Unit normal at (s, t), oriented as S_u x S_v (+z for a grid with x along frames and y
     /// along rows). On segment edges, where the first derivative across the edge vanishes,
     /// the one-sided limit of the tangent (the second derivative) is used.
-    pub fn normal(&self, s: f64, t: f64) -> Option<[f64; 3]> {
+    pub fn normal(&self, s: f64, t: f64) -> Option<V3> {
         let (seg, u, v) = self.locate_param(s, t)?;
         Some(seg.normal(u, v))
     }
@@ -201,11 +201,11 @@ impl BezierNetwork {
     /// Height z at world (x, y): the (u, v) with x(u, v) = x, y(u, v) = y found by Newton's
     /// method in the segments whose bounding box holds (x, y). None outside the model.
     pub fn height_at(&self, x: f64, y: f64) -> Option<f64> {
-        self.point_at(x, y).map(|(p, _, _)| p[2])
+        self.point_at(x, y).map(|(p, _, _)| p.z)
     }
 
     /// The model point over world (x, y) and its global parameters (s, t).
-    pub fn point_at(&self, x: f64, y: f64) -> Option<([f64; 3], f64, f64)> {
+    pub fn point_at(&self, x: f64, y: f64) -> Option<(P3, f64, f64)> {
         let loc = self.locator.get_or_init(|| Locator::new(&self.segs));
         for &k in loc.candidates(x, y) {
             let seg = &self.segs[k as usize];
@@ -221,7 +221,7 @@ impl BezierNetwork {
 
     /// Evaluate every segment at the local parameters `us x vs` (the same pattern in each,
     /// so the basis is computed once, as in the paper's Fig. 11), appending (x, y, z).
-    pub fn eval_pattern(&self, us: &[f64], vs: &[f64], out: &mut Vec<[f64; 3]>) {
+    pub fn eval_pattern(&self, us: &[f64], vs: &[f64], out: &mut Vec<P3>) {
         let bu: Vec<[f64; 4]> = us.iter().map(|&u| basis(u)).collect();
         let bv: Vec<[f64; 4]> = vs.iter().map(|&v| basis(v)).collect();
         out.reserve(self.segs.len() * us.len() * vs.len());
@@ -237,7 +237,7 @@ impl BezierNetwork {
                     }
                 }
                 for bv in &bv {
-                    out.push([dot(&r[0], bv), dot(&r[1], bv), dot(&r[2], bv)]);
+                    out.push(P3::new(dot(&r[0], bv), dot(&r[1], bv), dot(&r[2], bv)));
                 }
             }
         }
@@ -343,8 +343,8 @@ impl BezierNetwork {
     pub fn continuity(&self, per_edge: usize) -> Continuity {
         let mut c = Continuity::default();
         let mut all = Vec::new();
-        let mut add = |n1: [f64; 3], n2: [f64; 3]| {
-            let d = (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]).clamp(-1.0, 1.0);
+        let mut add = |n1: V3, n2: V3| {
+            let d = n1.dot(&n2).clamp(-1.0, 1.0);
             let ang = d.acos().to_degrees();
             if ang.is_finite() {
                 all.push(ang);
@@ -408,12 +408,12 @@ impl Segment {
         self.eval_coord_generic(k, u, v)
     }
 
-    pub fn eval(&self, u: f64, v: f64) -> [f64; 3] {
-        [
+    pub fn eval(&self, u: f64, v: f64) -> P3 {
+        P3::new(
             self.eval_coord(0, u, v),
             self.eval_coord(1, u, v),
             self.eval_coord(2, u, v),
-        ]
+        )
     }
 
     fn contract(&self, k: usize, bu: &[f64; 4], bv: &[f64; 4]) -> f64 {
@@ -427,8 +427,8 @@ impl Segment {
         s
     }
 
-    /// Value and first partial derivatives of x and y: ([x, y], [x_u, y_u], [x_v, y_v]).
-    fn xy_d1(&self, u: f64, v: f64) -> ([f64; 2], [f64; 2], [f64; 2]) {
+    /// Value and first partial derivatives of x and y: ((x, y), (x_u, y_u), (x_v, y_v)).
+    fn xy_d1(&self, u: f64, v: f64) -> (P2, V2, V2) {
         let (bu, bv, du, dv) = (basis(u), basis(v), basis_d1(u), basis_d1(v));
         let f = |k: usize| {
             // Contract along u first (value and derivative rows), then along v.
@@ -443,36 +443,32 @@ impl Segment {
         };
         let (x, xu, xv) = f(0);
         let (y, yu, yv) = f(1);
-        ([x, y], [xu, yu], [xv, yv])
+        (P2::new(x, y), V2::new(xu, yu), V2::new(xv, yv))
     }
 
     /// Tangent along u (or v) with the edge limit: where the first derivative vanishes the
     /// direction of the second derivative, signed toward increasing parameter.
-    fn tangent(&self, u: f64, v: f64, along_u: bool) -> [f64; 3] {
+    fn tangent(&self, u: f64, v: f64, along_u: bool) -> V3 {
         let (bu, bv) = (basis(u), basis(v));
         let (d1, d2, t) = if along_u {
             ((basis_d1(u), bv), (basis_d2(u), bv), u)
         } else {
             ((bu, basis_d1(v)), (bu, basis_d2(v)), v)
         };
-        let first = [0, 1, 2].map(|k| self.contract(k, &d1.0, &d1.1));
-        let second = [0, 1, 2].map(|k| self.contract(k, &d2.0, &d2.1));
-        let n1 = V3::from(first).norm();
-        let n2 = V3::from(second).norm();
-        if n1 > 1e-12 * (1.0 + n2) {
+        let first = V3::from([0, 1, 2].map(|k| self.contract(k, &d1.0, &d1.1)));
+        let second = V3::from([0, 1, 2].map(|k| self.contract(k, &d2.0, &d2.1)));
+        if first.norm() > 1e-12 * (1.0 + second.norm()) {
             first
         } else {
             let sign = if t < 0.5 { 1.0 } else { -1.0 };
-            second.map(|c| c * sign)
+            second * sign
         }
     }
 
     /// Unit normal S_u x S_v at local (u, v) (see [`BezierNetwork::normal`]).
-    pub fn normal(&self, u: f64, v: f64) -> [f64; 3] {
-        let a = V3::from(self.tangent(u, v, true));
-        let b = V3::from(self.tangent(u, v, false));
-        let n = a.cross(&b);
-        (n / n.norm()).into()
+    pub fn normal(&self, u: f64, v: f64) -> V3 {
+        let n = self.tangent(u, v, true).cross(&self.tangent(u, v, false));
+        n / n.norm()
     }
 
     /// Bounding box (x0, x1, y0, y1) of the x and y coefficients: the patch lies inside it
@@ -522,7 +518,7 @@ impl Segment {
         let mut stuck = 0;
         for _ in 0..60 {
             let (p, du, dv) = self.xy_d1(u, v);
-            let (rx, ry) = (p[0] - x, p[1] - y);
+            let (rx, ry) = (p.x - x, p.y - y);
             let r = rx.abs().max(ry.abs());
             if r < tol {
                 return Some((u, v));
@@ -536,20 +532,20 @@ impl Segment {
                 best = r;
                 stuck = 0;
             }
-            let det = du[0] * dv[1] - dv[0] * du[1];
-            let scale = (du[0].abs() + du[1].abs() + dv[0].abs() + dv[1].abs()).powi(2);
+            let det = du.x * dv.y - dv.x * du.y;
+            let scale = (du.x.abs() + du.y.abs() + dv.x.abs() + dv.y.abs()).powi(2);
             if det.abs() <= 1e-14 * scale.max(1e-300) {
                 u += (0.5 - u).signum() * 1e-3;
                 v += (0.5 - v).signum() * 1e-3;
                 continue;
             }
-            let su = (rx * dv[1] - ry * dv[0]) / det;
-            let sv = (du[0] * ry - du[1] * rx) / det;
+            let su = (rx * dv.y - ry * dv.x) / det;
+            let sv = (du.x * ry - du.y * rx) / det;
             let (nu, nv) = (u - su, v - sv);
             // Quadratic convergence: the residual after this step is about |x''| |step|^2,
             // with |x''| at most ~50 times the first derivatives' size here. Accept without
             // another evaluation when that is below the tolerance.
-            let size = du[0].abs() + du[1].abs() + dv[0].abs() + dv[1].abs();
+            let size = du.x.abs() + du.y.abs() + dv.x.abs() + dv.y.abs();
             let inside = (0.0..=1.0).contains(&nu) && (0.0..=1.0).contains(&nv);
             if inside && 50.0 * size * (su * su + sv * sv) < tol {
                 return Some((nu, nv));
@@ -574,19 +570,16 @@ impl Segment {
 
     /// (u, v) of (x, y) under the affine map through corners (0,0), (1,0), (0,1).
     fn affine_guess(&self, x: f64, y: f64) -> (f64, f64) {
-        let p00 = [self.c[0][0], self.c[1][0]];
-        let p10 = [self.c[0][12], self.c[1][12]];
-        let p01 = [self.c[0][3], self.c[1][3]];
-        let (ex, ey) = (
-            [p10[0] - p00[0], p10[1] - p00[1]],
-            [p01[0] - p00[0], p01[1] - p00[1]],
-        );
-        let det = ex[0] * ey[1] - ex[1] * ey[0];
-        let (dx, dy) = (x - p00[0], y - p00[1]);
+        let p00 = P2::new(self.c[0][0], self.c[1][0]);
+        let p10 = P2::new(self.c[0][12], self.c[1][12]);
+        let p01 = P2::new(self.c[0][3], self.c[1][3]);
+        let (ex, ey) = (p10 - p00, p01 - p00);
+        let det = ex.perp(&ey);
+        let (dx, dy) = (x - p00.x, y - p00.y);
         if det.abs() > 1e-300 {
             (
-                ((dx * ey[1] - dy * ey[0]) / det).clamp(0.0, 1.0),
-                ((ex[0] * dy - ex[1] * dx) / det).clamp(0.0, 1.0),
+                ((dx * ey.y - dy * ey.x) / det).clamp(0.0, 1.0),
+                ((ex.x * dy - ex.y * dx) / det).clamp(0.0, 1.0),
             )
         } else {
             (0.5, 0.5)
@@ -705,7 +698,7 @@ mod tests {
                 pts.push([x, y0 * (1.0 + z / 250.0), z]);
             }
         }
-        PointGrid::new(nu, nv, pts)
+        PointGrid::new(nu, nv, pts.into_iter().map(P3::from).collect())
     }
 
     #[test]
@@ -732,8 +725,8 @@ mod tests {
     #[test]
     fn missing_points_drop_their_segments() {
         let mut g = wavy(10, 10);
-        g.set(4, 4, [f64::NAN; 3]); // inside segment (1, 1) only
-        g.set(3, 5, [f64::NAN; 3]); // on the shared edge of (0, 1) and (1, 1)
+        g.set(4, 4, P3::from([f64::NAN; 3])); // inside segment (1, 1) only
+        g.set(3, 5, P3::from([f64::NAN; 3])); // on the shared edge of (0, 1) and (1, 1)
         let n = BezierNetwork::build(&g).unwrap();
         assert_eq!(n.lattice(), (3, 3));
         assert_eq!(n.skipped(), 2);
@@ -821,7 +814,12 @@ mod tests {
                 pts.push([x, y, 0.1 * x + 0.2 * y]);
             }
         }
-        let p = BezierNetwork::build(&PointGrid::new(10, 10, pts)).unwrap();
+        let p = BezierNetwork::build(&PointGrid::new(
+            10,
+            10,
+            pts.into_iter().map(P3::from).collect(),
+        ))
+        .unwrap();
         let c = p.continuity(8);
         assert!(c.max_deg < 1e-5, "{c:?}"); // acos near 1 resolves ~1e-6 deg
     }

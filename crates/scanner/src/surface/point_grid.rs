@@ -2,6 +2,7 @@
 //! every surface model here is built from.
 
 use crate::scandata::ScanGrid;
+use footscan_geom::P3;
 
 /// Index order: u-major, v fastest: point (i, j) is `points[i * nv + j]` ([`Self::index`]).
 /// This is the scan's order (a frame's rows arrive together and `grid.bin` stores them so, see
@@ -15,7 +16,7 @@ pub struct PointGrid {
     /// Points along v (image rows).
     pub nv: usize,
     /// `nu * nv`, u-major (`points[i * nv + j]`); NaN marks a missing point.
-    pub points: Vec<[f64; 3]>,
+    pub points: Vec<P3>,
 }
 
 /// Which scan frames and rows a sub-grid keeps.
@@ -26,7 +27,7 @@ pub struct Subsample {
 }
 
 impl PointGrid {
-    pub fn new(nu: usize, nv: usize, points: Vec<[f64; 3]>) -> Self {
+    pub fn new(nu: usize, nv: usize, points: Vec<P3>) -> Self {
         assert_eq!(points.len(), nu * nv, "point count != nu * nv");
         PointGrid { nu, nv, points }
     }
@@ -36,7 +37,7 @@ impl PointGrid {
         let mut pts = Vec::with_capacity(xs.len() * ys.len());
         for &x in xs {
             for &y in ys {
-                pts.push(f(x, y).map_or([f64::NAN; 3], |z| [x, y, z]));
+                pts.push(f(x, y).map_or(P3::from([f64::NAN; 3]), |z| P3::new(x, y, z)));
             }
         }
         PointGrid::new(xs.len(), ys.len(), pts)
@@ -54,12 +55,12 @@ impl PointGrid {
     }
 
     #[inline]
-    pub fn get(&self, i: usize, j: usize) -> [f64; 3] {
+    pub fn get(&self, i: usize, j: usize) -> P3 {
         self.points[self.index(i, j)]
     }
 
     #[inline]
-    pub fn set(&mut self, i: usize, j: usize, p: [f64; 3]) {
+    pub fn set(&mut self, i: usize, j: usize, p: P3) {
         let k = self.index(i, j);
         self.points[k] = p;
     }
@@ -183,7 +184,8 @@ impl PointGrid {
             for j in 0..nv {
                 if !self.is_valid(i, j) {
                     let s = self.get(i, near[j]);
-                    out[i * nv + j] = [frame_x[i], s[1] + dy * (j as f64 - near[j] as f64), s[2]];
+                    out[i * nv + j] =
+                        P3::new(frame_x[i], s.y + dy * (j as f64 - near[j] as f64), s.z);
                 }
             }
         }
@@ -206,7 +208,7 @@ impl PointGrid {
                 .unwrap();
             for j in 0..nv {
                 let s = out[src * nv + j];
-                out[i * nv + j] = [s[0] + dx * (i as f64 - src as f64), s[1], s[2]];
+                out[i * nv + j] = P3::new(s.x + dx * (i as f64 - src as f64), s.y, s.z);
             }
         }
         Some(PointGrid::new(nu, nv, out))
@@ -214,8 +216,8 @@ impl PointGrid {
 }
 
 #[inline]
-pub(crate) fn is_point(p: &[f64; 3]) -> bool {
-    p[0].is_finite() && p[1].is_finite() && p[2].is_finite()
+pub(crate) fn is_point(p: &P3) -> bool {
+    p.x.is_finite() && p.y.is_finite() && p.z.is_finite()
 }
 
 #[cfg(test)]
@@ -224,11 +226,11 @@ mod tests {
 
     #[test]
     fn subsample_and_fill() {
-        let nan = [f64::NAN; 3];
+        let nan = P3::from([f64::NAN; 3]);
         let mut pts = vec![nan; 5 * 4];
         for i in 1..4 {
             for j in 1..3 {
-                pts[i * 4 + j] = [i as f64, j as f64 * 0.5, (i + j) as f64];
+                pts[i * 4 + j] = P3::new(i as f64, j as f64 * 0.5, (i + j) as f64);
             }
         }
         let g = PointGrid::new(5, 4, pts);
@@ -239,9 +241,9 @@ mod tests {
         assert_eq!(g.subsample(&s).valid_count(), 6);
         let f = g.filled().unwrap();
         assert_eq!(f.valid_count(), 20);
-        assert_eq!(f.get(1, 0), [1.0, 0.0, 2.0]);
-        assert_eq!(f.get(2, 3), [2.0, 1.5, 4.0]);
-        assert_eq!(f.get(0, 1), [0.0, 0.5, 2.0]);
-        assert_eq!(f.get(4, 2), [4.0, 1.0, 5.0]);
+        assert_eq!(f.get(1, 0), P3::new(1.0, 0.0, 2.0));
+        assert_eq!(f.get(2, 3), P3::new(2.0, 1.5, 4.0));
+        assert_eq!(f.get(0, 1), P3::new(0.0, 0.5, 2.0));
+        assert_eq!(f.get(4, 2), P3::new(4.0, 1.0, 5.0));
     }
 }

@@ -5,6 +5,7 @@
 use super::ops::{Counted, OpCount, Scalar};
 use super::point_grid::{is_point, PointGrid};
 use super::SurfaceError;
+use footscan_geom::P3;
 use nalgebra::{DMatrix, DVector};
 
 #[derive(Clone, Debug)]
@@ -134,8 +135,8 @@ impl PolySurface {
         total
     }
 
-    pub fn eval(&self, s: f64, t: f64) -> [f64; 3] {
-        [0, 1, 2].map(|k| self.eval_coord_generic::<f64>(k, s, t))
+    pub fn eval(&self, s: f64, t: f64) -> P3 {
+        P3::from([0, 1, 2].map(|k| self.eval_coord_generic::<f64>(k, s, t)))
     }
 
     pub fn eval_d1(&self, s: f64, t: f64) -> [[f64; 3]; 3] {
@@ -190,7 +191,7 @@ mod tests {
                 });
             }
         }
-        let g = PointGrid::new(15, 12, pts);
+        let g = PointGrid::new(15, 12, pts.into_iter().map(P3::from).collect());
         let p = PolySurface::fit(&g, 4).unwrap();
         let (s, t) = (3.7, 8.2);
         let z = 1.0 + 0.3 * s - 0.02 * s * t + 0.001 * s * s * s;

@@ -18,7 +18,7 @@
 
 use super::SurfaceError;
 use footscan_geom::mesh::TriMesh;
-use footscan_geom::P3;
+use footscan_geom::{P2, P3};
 
 /// A crossing closer than this fraction of a cell to a grid node is moved to this distance,
 /// so no triangle degenerates (0.005 mm on 0.5 mm cells).
@@ -32,7 +32,7 @@ pub const MAX_NODES: usize = 40_000_000;
 /// The solid over a polygon: vertices are (top, bottom) pairs, bottom = top + 1.
 #[derive(Clone, Debug, Default)]
 pub struct OutlineSolid {
-    pub vertices: Vec<[f64; 3]>,
+    pub vertices: Vec<P3>,
     /// Top triangles, counterclockwise seen from above (top vertex indices, even).
     pub top: Vec<[u32; 3]>,
     /// Boundary loops of the top, counterclockwise seen from above (top vertex indices).
@@ -61,7 +61,7 @@ struct NodeGrid {
 /// vertices) on cells of `cell_mm`, heights from `height` (None where it has none), bottom at
 /// `base_z` if given, else at [`DEFAULT_BASE_Z`] (or 1 mm under the lowest height if lower).
 pub fn outline_solid(
-    outline: &[[f64; 2]],
+    outline: &[P2],
     cell_mm: f64,
     base_z: Option<f64>,
     height: impl Fn(f64, f64) -> Option<f64>,
@@ -69,11 +69,11 @@ pub fn outline_solid(
     if !(cell_mm.is_finite() && cell_mm > 0.0) {
         return Err(SurfaceError::BadCell(cell_mm));
     }
-    let mut poly: Vec<[f64; 2]> = outline.to_vec();
+    let mut poly: Vec<P2> = outline.to_vec();
     if poly.len() > 1 && poly[0] == poly[poly.len() - 1] {
         poly.pop();
     }
-    if poly.len() < 3 || poly.iter().any(|p| !(p[0].is_finite() && p[1].is_finite())) {
+    if poly.len() < 3 || poly.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
         return Err(SurfaceError::Empty);
     }
     if signed_area(&poly) < 0.0 {
@@ -82,10 +82,10 @@ pub fn outline_solid(
     let c = cell_mm;
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for p in &poly {
-        x0 = x0.min(p[0]);
-        x1 = x1.max(p[0]);
-        y0 = y0.min(p[1]);
-        y1 = y1.max(p[1]);
+        x0 = x0.min(p.x);
+        x1 = x1.max(p.x);
+        y0 = y0.min(p.y);
+        y1 = y1.max(p.y);
     }
     // One empty node column/row beyond the polygon on every side.
     let gx0 = (x0 / c).floor() * c - c;
@@ -158,8 +158,8 @@ pub fn outline_solid(
     let mut node_v = vec![u32::MAX; nx * ny];
     let push = |s: &mut OutlineSolid, x: f64, y: f64| -> u32 {
         let v = s.vertices.len() as u32;
-        s.vertices.push([x, y, f64::NAN]);
-        s.vertices.push([x, y, f64::NAN]);
+        s.vertices.push(P3::new(x, y, f64::NAN));
+        s.vertices.push(P3::new(x, y, f64::NAN));
         v
     };
     for j in 0..ny {
@@ -235,7 +235,7 @@ pub fn outline_solid(
             }
             let saddle = count == 2 && ins[0] == ins[2];
             let pieces: Vec<Vec<(u32, bool)>> =
-                if saddle && !point_in_polygon(&poly, [gx(i) + 0.5 * c, gy(j) + 0.5 * c]) {
+                if saddle && !point_in_polygon(&poly, P2::new(gx(i) + 0.5 * c, gy(j) + 0.5 * c)) {
                     // Two separate corners: split the hexagon after each corner's crossings.
                     let w = &walk;
                     if ins[0] {
@@ -267,7 +267,7 @@ pub fn outline_solid(
     zs.resize(s.vertices.len() / 2, f64::NAN);
     for (k, z) in zs.iter_mut().enumerate() {
         let p = s.vertices[2 * k];
-        if let Some(h) = height(p[0], p[1]).filter(|h| h.is_finite()) {
+        if let Some(h) = height(p.x, p.y).filter(|h| h.is_finite()) {
             *z = h;
         }
     }
@@ -291,8 +291,8 @@ pub fn outline_solid(
     let zmin = zs.iter().copied().fold(0.0f64, f64::min);
     s.base_z = base_z.unwrap_or((zmin - 1.0).min(DEFAULT_BASE_Z));
     for (k, z) in zs.iter().enumerate() {
-        s.vertices[2 * k][2] = *z;
-        s.vertices[2 * k + 1][2] = s.base_z;
+        s.vertices[2 * k].z = *z;
+        s.vertices[2 * k + 1].z = s.base_z;
     }
 
     // Boundary loops from the chords.
@@ -330,7 +330,7 @@ impl OutlineSolid {
     /// top's triangulation at `base_z`, reversed).
     pub fn mesh(&self) -> TriMesh {
         let mut m = TriMesh::new(
-            self.vertices.iter().map(|&v| P3::from(v)).collect(),
+            self.vertices.clone(),
             Vec::with_capacity(2 * self.top.len() + 2 * self.boundary_len()),
         );
         for &[a, b, c] in &self.top {
@@ -370,7 +370,7 @@ impl OutlineSolid {
         ];
         let z = |a: usize, b: usize| {
             let k = g.node_v[b * g.nx + a];
-            (k != u32::MAX).then(|| self.vertices[k as usize][2])
+            (k != u32::MAX).then(|| self.vertices[k as usize].z)
         };
         if corners.iter().all(|&(a, b, _)| z(a, b).is_some()) {
             return Some(corners.iter().map(|&(a, b, w)| w * z(a, b).unwrap()).sum());
@@ -393,7 +393,7 @@ impl OutlineSolid {
             .iter()
             .map(|t| {
                 let [a, b, c] = t.map(|k| self.vertices[k as usize]);
-                0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]))
+                0.5 * ((b.x - a.x) * (c.y - a.y) - (c.x - a.x) * (b.y - a.y))
             })
             .sum()
     }
@@ -535,25 +535,25 @@ fn laplace_fill(
 }
 
 /// Twice the signed area of a closed polygon, positive when counterclockwise.
-fn signed_area(p: &[[f64; 2]]) -> f64 {
+fn signed_area(p: &[P2]) -> f64 {
     let n = p.len();
     (0..n)
         .map(|k| {
             let (a, b) = (p[k], p[(k + 1) % n]);
-            a[0] * b[1] - b[0] * a[1]
+            a.x * b.y - b.x * a.y
         })
         .sum()
 }
 
 /// Even-odd test, with the row rule of the grid (crossings strictly left of the point).
-fn point_in_polygon(p: &[[f64; 2]], q: [f64; 2]) -> bool {
+fn point_in_polygon(p: &[P2], q: P2) -> bool {
     let n = p.len();
     let mut odd = false;
     for k in 0..n {
         let (a, b) = (p[k], p[(k + 1) % n]);
-        if (a[1] <= q[1]) != (b[1] <= q[1]) {
-            let x = a[0] + (q[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
-            if x < q[0] {
+        if (a.y <= q.y) != (b.y <= q.y) {
+            let x = a.x + (q.y - a.y) / (b.y - a.y) * (b.x - a.x);
+            if x < q.x {
                 odd = !odd;
             }
         }
@@ -565,11 +565,11 @@ fn point_in_polygon(p: &[[f64; 2]], q: [f64; 2]) -> bool {
 mod tests {
     use super::*;
 
-    fn circle(r: f64, n: usize, cx: f64, cy: f64) -> Vec<[f64; 2]> {
+    fn circle(r: f64, n: usize, cx: f64, cy: f64) -> Vec<P2> {
         (0..n)
             .map(|k| {
                 let t = std::f64::consts::TAU * k as f64 / n as f64;
-                [cx + r * t.cos(), cy + r * t.sin()]
+                P2::new(cx + r * t.cos(), cy + r * t.sin())
             })
             .collect()
     }
@@ -606,7 +606,7 @@ mod tests {
     fn gaps_in_the_heights_are_filled_between_their_neighbours() {
         // Heights known only left of x = 5 (z = 1) and right of x = 15 (z = 3): the fill
         // in between lies between them, rising left to right.
-        let poly = vec![[0.0, 0.0], [20.0, 0.0], [20.0, 4.0], [0.0, 4.0]];
+        let poly = [[0.0, 0.0], [20.0, 0.0], [20.0, 4.0], [0.0, 4.0]].map(P2::from);
         let s = outline_solid(&poly, 0.5, None, |x, _| {
             if x < 5.0 {
                 Some(1.0)
@@ -634,7 +634,7 @@ mod tests {
     fn a_neck_thinner_than_a_cell_leaves_the_mesh_watertight() {
         // Two squares joined by a 0.3 mm neck between node rows (0.5 mm cells): the grid
         // cannot see the neck, so the top falls into two pieces, each closed.
-        let poly = vec![
+        let poly = [
             [0.0, 0.0],
             [10.0, 0.0],
             [10.0, 4.6],
@@ -647,16 +647,17 @@ mod tests {
             [10.0, 4.9],
             [10.0, 10.0],
             [0.0, 10.0],
-        ];
+        ]
+        .map(P2::from);
         let s = outline_solid(&poly, 0.5, None, |_, _| Some(1.0)).unwrap();
         s.mesh().check_closed().unwrap();
         assert_eq!(s.components(), 2);
         // A neck across a node row is kept: one piece.
-        let mut wide = poly.clone();
-        wide[2][1] = 4.85;
-        wide[3][1] = 4.85;
-        wide[8][1] = 5.15;
-        wide[9][1] = 5.15;
+        let mut wide = poly;
+        wide[2].y = 4.85;
+        wide[3].y = 4.85;
+        wide[8].y = 5.15;
+        wide[9].y = 5.15;
         let s = outline_solid(&wide, 0.5, None, |_, _| Some(1.0)).unwrap();
         s.mesh().check_closed().unwrap();
         assert_eq!(s.components(), 1);

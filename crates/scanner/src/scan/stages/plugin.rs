@@ -224,7 +224,7 @@ impl PluginScanStage {
     fn run(&mut self, grid: &crate::scandata::ScanGrid) -> Result<(), PluginStageError> {
         let mut input = Vec::with_capacity(grid.valid_count() * 24);
         for (_, _, p, _) in grid.valid() {
-            for v in p {
+            for v in p.iter() {
                 input.extend_from_slice(&v.to_le_bytes());
             }
         }

@@ -8,6 +8,7 @@ use crate::detect::{Detector, Image, LinePeak, Prep};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::{unexpected, AcquiredFrame, FrameLines, FramePoints, Item};
 use crate::scan::{ScanCounters, ScanGrid};
+use footscan_geom::P3;
 use footscan_hal::Frame;
 use std::sync::Arc;
 
@@ -152,7 +153,7 @@ impl Stage<Item> for Triangulate {
                 l.is_valid()
                     .then(|| self.tri.point(x, l.col, r as f64))
                     .flatten()
-                    .unwrap_or([f64::NAN; 3])
+                    .unwrap_or(P3::from([f64::NAN; 3]))
             })
             .collect();
         let _ = out.emit(Item::Points(FramePoints {

@@ -5,6 +5,7 @@ use crate::io::{render_heightmap, write_ply_points, HeightMapLabel};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::Item;
 use crate::scan::summary::{summarize, TruthSource};
+use footscan_geom::P3;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -18,7 +19,7 @@ impl Stage<Item> for PlySink {
             let _ = out.emit(item);
             return Ok(());
         };
-        let (pts, q): (Vec<[f64; 3]>, Vec<f32>) =
+        let (pts, q): (Vec<P3>, Vec<f32>) =
             grid.valid().map(|(_, _, p, l)| (*p, l.quality)).unzip();
         write_ply_points(&self.path, &pts, &q)
             .map_err(|e| format!("writing {}: {e}", self.path.display()))?;
@@ -35,11 +36,11 @@ pub struct HeightMapSink {
     pub cell_mm: f64,
     pub label: HeightMapLabel,
     /// The grid's valid points, kept for a title with the measured side.
-    pub points: Option<Vec<[f64; 3]>>,
+    pub points: Option<Vec<P3>>,
 }
 
 impl HeightMapSink {
-    fn write(&self, pts: &[[f64; 3]]) -> Result<(), BoxError> {
+    fn write(&self, pts: &[P3]) -> Result<(), BoxError> {
         render_heightmap(pts, self.cell_mm, &self.label)
             .save(&self.path)
             .map_err(|e| format!("writing {}: {e}", self.path.display()).into())
@@ -50,7 +51,7 @@ impl Stage<Item> for HeightMapSink {
     fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
         match &item {
             Item::Grid(grid) => {
-                let pts: Vec<[f64; 3]> = grid.valid().map(|(_, _, p, _)| *p).collect();
+                let pts: Vec<P3> = grid.valid().map(|(_, _, p, _)| *p).collect();
                 self.write(&pts)?;
                 self.points = Some(pts);
             }
