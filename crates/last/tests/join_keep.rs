@@ -149,3 +149,72 @@ fn the_patch_stays_between_the_lasts() {
         );
     }
 }
+
+/// The fit cache (issue 36: the fits may be cached per last): a second join of the same lasts
+/// reads both fits back bit for bit, in a small part of the fit's time; a damaged file is a
+/// miss, fitted and stored again; another plane is another key.
+#[test]
+fn fitted_parts_come_back_from_the_cache() {
+    let (b, t) = pair("scan");
+    let dir = tempfile::tempdir().unwrap();
+    let p = JoinParams {
+        fit_parts: true,
+        fit_cache: Some(dir.path().to_path_buf()),
+        ..JoinParams::default()
+    };
+    let first = join::join(&b, &t, &p).unwrap();
+    let second = join::join(&b, &t, &p).unwrap();
+    let (f1, f2) = (first.fits.unwrap(), second.fits.unwrap());
+    assert!(!f1[0].cached && !f1[1].cached, "{f1:?}");
+    assert!(f2[0].cached && f2[1].cached, "{f2:?}");
+    let files: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(files.len(), 2, "{files:?}");
+    for (a, c) in [(&first.back, &second.back), (&first.toe, &second.toe)] {
+        assert_eq!(a.points, c.points);
+        assert_eq!((&a.knots_u, &a.knots_v), (&c.knots_u, &c.knots_v));
+    }
+    assert_eq!(first.patch.points, second.patch.points);
+    for (x, y) in f1.iter().zip(&f2) {
+        assert_eq!(
+            (x.max_mm, x.rms_mm, x.spans_u, x.ms),
+            (y.max_mm, y.rms_mm, y.spans_u, y.ms)
+        );
+    }
+    let (t1, t2) = (&first.timings, &second.timings);
+    println!(
+        "fit cache: fits {:.0} / {:.0} ms, read back in {:.1} / {:.1} ms",
+        t1.fit_back, t1.fit_toe, t2.fit_back, t2.fit_toe
+    );
+    assert!(
+        t2.fit_back < 0.25 * t1.fit_back && t2.fit_toe < 0.25 * t1.fit_toe,
+        "{t1:?} {t2:?}"
+    );
+    // A damaged file is a miss: fitted again, the same surface, and stored whole again.
+    for f in &files {
+        let bytes = std::fs::read(f).unwrap();
+        std::fs::write(f, &bytes[..bytes.len() / 2]).unwrap();
+    }
+    let third = join::join(&b, &t, &p).unwrap();
+    let f3 = third.fits.unwrap();
+    assert!(!f3[0].cached && !f3[1].cached);
+    assert_eq!(third.back.points, first.back.points);
+    assert!(join::join(&b, &t, &p).unwrap().fits.unwrap()[0].cached);
+    // Another back plane: other section surfaces and planes, so other keys.
+    let moved = JoinParams {
+        back_plane: Some(
+            footscan_geom::plane::Plane::with_axis(
+                first.back_plane.origin - first.back_plane.normal * 3.0,
+                first.back_plane.normal,
+                first.back_plane.u,
+            )
+            .unwrap(),
+        ),
+        ..p.clone()
+    };
+    let fourth = join::join(&b, &t, &moved).unwrap();
+    assert!(!fourth.fits.unwrap()[0].cached);
+    assert!(std::fs::read_dir(dir.path()).unwrap().count() >= 3);
+}

@@ -95,12 +95,20 @@ pub struct JoinArgs {
     /// Join two lasts whose lengths differ by more than a size group (13 %).
     #[arg(long)]
     allow_size_mismatch: bool,
-    /// Gordon: refit the kept parts to their meshes' facets (within 0.08-0.26 mm on the real
-    /// pairs, the section surfaces 0.2-0.9 mm) and keep the original meshes in the STL; the
-    /// patch meets them G1 at its control columns (normal jumps up to 1.3-7.7 deg at the
-    /// rim between them). Off by default: the fits take 0.5-2.5 s per part.
+    /// Gordon: refit the kept parts to their meshes' facets (within 0.1 mm on the fit's
+    /// check grid, 0.16-0.31 mm on a denser one; the section surfaces 0.2-0.9 mm) and keep
+    /// the original meshes in the STL; the patch meets them G1 at its control columns (normal
+    /// jumps up to 1-4 deg at the rim between them). Off by default: the fits take 0.25-0.9 s
+    /// per part in a release build (read back from --fit-cache in a few ms).
     #[arg(long)]
     fit_parts: bool,
+    /// With --fit-parts: the directory that keeps fitted parts, keyed by the SHA-256 of
+    /// everything a fit reads (the part's section surface, the placed mesh, the plane, the
+    /// fit's rules), so joining the same lasts again reads the fits instead of making them.
+    /// Default $XDG_CACHE_HOME/footscan/fits (else ~/.cache/footscan/fits); `none` fits
+    /// every time.
+    #[arg(long, value_name = "DIR")]
+    fit_cache: Option<PathBuf>,
     /// Output directory (created if missing).
     #[arg(long)]
     out: PathBuf,
@@ -246,6 +254,11 @@ pub fn run(a: JoinArgs) -> Result<()> {
         placement_back: placement,
         placement_toe: placement,
         fit_parts: a.fit_parts,
+        fit_cache: match &a.fit_cache {
+            Some(d) if d.as_os_str() == "none" => None,
+            Some(d) => Some(d.clone()),
+            None => join::fit_cache::default_dir(),
+        },
         ..JoinParams::default()
     };
     let j = join::join(&back, &toe, &p)?;
@@ -270,9 +283,17 @@ pub fn run(a: JoinArgs) -> Result<()> {
         t.join, t.place, t.sections, t.curves, t.gordon, t.split, t.meet
     );
     if let Some(f) = &q.fits {
-        for (s, f) in [("back", &f[0]), ("toe", &f[1])] {
+        for ((s, f), ms) in [("back", &f[0]), ("toe", &f[1])]
+            .into_iter()
+            .zip([t.fit_back, t.fit_toe])
+        {
+            let how = match (&p.fit_cache, f.cached) {
+                (Some(_), true) => format!("read from the fit cache in {ms:.0} ms, fitted"),
+                (Some(d), false) => format!("fit cache miss ({}), fitted", d.display()),
+                (None, _) => "fitted".to_string(),
+            };
             println!(
-                "{s} part fitted to its mesh in {:.0} ms: {} facet points, {} fits, {} x {} \
+                "{s} part {how} to its mesh in {:.0} ms: {} facet points, {} fits, {} x {} \
                  spans; max {:.3} mm at ({:.1}, {:.1}, {:.1}), {:.1} mm from the {s} plane; \
                  rms {:.4} mm",
                 f.ms,

@@ -15,9 +15,11 @@ use footscan_geom::{P3, V3};
 pub struct Extension {
     pub r: Vec<P3>,
     pub s: Vec<P3>,
-    /// Points found by curve extension instead of the closed forms (the ends of an open
-    /// slice, and points whose neighbours coincide).
+    /// Points where the closed forms do not hold (the ends of an open slice, points whose
+    /// neighbours coincide, and points the closed forms throw off, see [`extend`]).
     pub by_curve: usize,
+    /// Which points were extended along their own curve (R and S both on it).
+    pub on_curve: Vec<bool>,
 }
 
 /// Neighbour differences below this (mm) leave the direction along the slice undefined.
@@ -30,6 +32,21 @@ const REACH: f64 = 2.0;
 /// Extend the slices `o`, `p`, `q` (in the order they run towards the gap, equally spaced)
 /// by R and S. `closed` slices wrap around; open ones get their two end points by extending
 /// the curve through O_i, P_i, Q_i.
+///
+/// R_i and S_i come from the closed forms (eq. 4-8). R_i (eq. 4) is the linear extension of
+/// P_i Q_i: its chord from Q_i is the part's last chord, the discrete tangent condition, but it
+/// falls short of a curved part by 3/8 of the second difference, and S_i, built on it to carry
+/// the curvature, makes up for it: the slices Q, R, S, R', S', ... of repeated steps zig-zag
+/// (the second differences of a parabola's extension alternate 0.5, -0.25, 0.125). The fill
+/// keeps eq. 4's R in its first step, where the tangent condition holds the seam, and takes
+/// [`Extension::r_on_quadratic`] after it.
+///
+/// Where the closed forms break at a point of a closed slice (R_i more than two steps from
+/// Q_i, S_i more than four; the neighbours crowd or the slice kinks), the point moves by the
+/// displacement of the nearest good points either side, interpolated by index: its own curve
+/// extension lay millimetres from its neighbours' closed forms (dimples at the top of the
+/// RoundTip fill). With no good point at all, and at the ends of an open slice, points are
+/// extended along their own curve (R and S both on it).
 pub fn extend(o: &[P3], p: &[P3], q: &[P3], closed: bool) -> Extension {
     let n = q.len();
     assert!(
@@ -38,7 +55,7 @@ pub fn extend(o: &[P3], p: &[P3], q: &[P3], closed: bool) -> Extension {
     );
     let mut r = vec![P3::origin(); n];
     let mut s = vec![P3::origin(); n];
-    let mut by_curve = 0;
+    let mut good = vec![false; n];
     let idx = |i: isize| -> Option<usize> {
         if closed {
             Some(i.rem_euclid(n as isize) as usize)
@@ -56,20 +73,47 @@ pub fn extend(o: &[P3], p: &[P3], q: &[P3], closed: bool) -> Extension {
             }
             _ => None,
         };
-        match closed_form {
-            Some((ri, si)) => {
-                r[i] = ri;
-                s[i] = si;
-            }
-            None => {
-                let (ri, si) = by_curve_extension(&o[i], &p[i], &q[i]);
-                r[i] = ri;
-                s[i] = si;
-                by_curve += 1;
-            }
+        (r[i], s[i]) = closed_form.unwrap_or_else(|| by_curve_extension(&o[i], &p[i], &q[i]));
+        good[i] = closed_form.is_some();
+    }
+    let by_curve = good.iter().filter(|&&g| !g).count();
+    // Points extended along their own curve: R is already on that curve.
+    let mut on_curve: Vec<bool> = good.iter().map(|&g| !g).collect();
+    if closed && by_curve > 0 && by_curve < n {
+        on_curve.fill(false);
+        let (r0, s0) = (r.clone(), s.clone());
+        for i in (0..n).filter(|&i| !good[i]) {
+            let a = (1..n).find(|&a| good[(i + n - a) % n]).unwrap_or(n);
+            let b = (1..n).find(|&b| good[(i + b) % n]).unwrap_or(n);
+            let (j, k) = ((i + n - a) % n, (i + b) % n);
+            let t = a as f64 / (a + b) as f64;
+            r[i] = q[i] + (r0[j] - q[j]) * (1.0 - t) + (r0[k] - q[k]) * t;
+            s[i] = q[i] + (s0[j] - q[j]) * (1.0 - t) + (s0[k] - q[k]) * t;
         }
     }
-    Extension { r, s, by_curve }
+    Extension {
+        r,
+        s,
+        by_curve,
+        on_curve,
+    }
+}
+
+impl Extension {
+    /// R taken on the quadratic through P_i, Q_i and S_i, halfway between Q_i and S_i:
+    /// (3 S_i + 6 Q_i - P_i) / 8 (points extended along their own curve keep their R, which
+    /// is on it already). See [`extend`] for why the fill uses it after its first step.
+    pub fn r_on_quadratic(&self, p: &[P3], q: &[P3]) -> Vec<P3> {
+        (0..q.len())
+            .map(|i| {
+                if self.on_curve[i] {
+                    self.r[i]
+                } else {
+                    P3::from((3.0 * self.s[i].coords + 6.0 * q[i].coords - p[i].coords) / 8.0)
+                }
+            })
+            .collect()
+    }
 }
 
 /// R_i and S_i from the closed forms, or None where Q's neighbours coincide.

@@ -215,7 +215,7 @@ pub struct Filled {
     /// The common parameters of the slice points.
     pub u: Vec<f64>,
     /// The blend's name and its b at each fill slice: the slice's position across the gap,
-    /// the position b was read at ([`step_position`]) and b.
+    /// the position b was read at ([`step_position`], [`slice_position`]) and b.
     pub blend: String,
     pub weights: Vec<[f64; 3]>,
     pub fair: Option<FairReport>,
@@ -224,7 +224,8 @@ pub struct Filled {
     pub gap_mm: f64,
     pub step_mm: f64,
     pub morph_shift: usize,
-    /// Points the extension found by curve extension instead of the closed forms.
+    /// Points where the extension's closed forms broke (moved with their neighbours, see
+    /// [`extend::extend`]; seams.json still names them `points_by_curve_extension`).
     pub by_curve: usize,
     pub back_plane: Plane,
     pub toe_plane: Plane,
@@ -320,12 +321,23 @@ pub fn step_position(j: usize, k: usize) -> f64 {
     }
 }
 
+/// Where across the gap b is read for slice `l` (1 = R of the first step, 2 = its S, ...,
+/// 2k = the last S) of a front of `k` steps: 0 for both slices of the first step, then
+/// evenly up to 1/2 at the last S.
+pub fn slice_position(l: usize, k: usize) -> f64 {
+    if k <= 1 {
+        0.0
+    } else {
+        0.5 * l.saturating_sub(2) as f64 / (2 * k - 2) as f64
+    }
+}
+
 /// The blended fill between the back part's slices (`back`: ..., O, P, Q towards the gap,
 /// Q at z = 0, a step `d` apart) and the toe part's (`toe`: ..., O, P, Q towards the gap, Q at
 /// z = `gap`), gap = 2 k d. Each front takes k steps of two slices (R at half a step, S at a
-/// whole step past its current boundary), both b(t) morph + (1 - b(t)) extension with t from
-/// [`step_position`] (1 - t on the toe side); the fronts meet in the middle, whose slice is
-/// the mean of the two sides' S.
+/// whole step past its current boundary), both b(t) morph + (1 - b(t)) extension, S with t
+/// from [`step_position`] and R from [`slice_position`] (1 - t on the toe side); the fronts
+/// meet in the middle, whose slice is the mean of the two sides' S.
 pub fn blend_slices(
     back: [&[P3]; 3],
     toe: [&[P3]; 3],
@@ -341,19 +353,30 @@ pub fn blend_slices(
     let mut right = vec![(zt, (1.0, b(1.0)), tq.clone())];
     let mut by_curve = 0;
     for it in 0..k {
-        let eb = extend::extend(&bo, &bp, &bq, true);
-        let et = extend::extend(&to, &tp, &tq, true);
+        let mut eb = extend::extend(&bo, &bp, &bq, true);
+        let mut et = extend::extend(&to, &tp, &tq, true);
+        if it > 0 {
+            // Past the first step R on the quadratic through P, Q and S: eq. 4's linear R
+            // and the S built on it zig-zag from step to step ([`extend::extend`]).
+            eb.r = eb.r_on_quadratic(&bp, &bq);
+            et.r = et.r_on_quadratic(&tp, &tq);
+        }
         by_curve += eb.by_curve + et.by_curve;
         let t = step_position(it, k);
         let (wb, wt) = (b(t), b(1.0 - t));
+        // R reads b halfway between the previous step's S and this one's: read at the step's
+        // t, R and S of a step shared b and the fill's slices went in pairs, a stripe every
+        // slice where the morph and the extension lie apart (the RoundTip pair's toe side).
+        let tr = slice_position(2 * it + 1, k);
+        let (wbr, wtr) = (b(tr), b(1.0 - tr));
         let mixed = |z: f64, e: &[P3], w: f64| {
             let m = extend::morph(&bq, zb, &tq, zt, z);
             extend::mix(&m, e, w)
         };
-        let (rb, sb) = (mixed(zb + 0.5 * d, &eb.r, wb), mixed(zb + d, &eb.s, wb));
-        let (rt, st) = (mixed(zt - 0.5 * d, &et.r, wt), mixed(zt - d, &et.s, wt));
-        left.push((zb + 0.5 * d, (t, wb), rb));
-        right.push((zt - 0.5 * d, (1.0 - t, wt), rt));
+        let (rb, sb) = (mixed(zb + 0.5 * d, &eb.r, wbr), mixed(zb + d, &eb.s, wb));
+        let (rt, st) = (mixed(zt - 0.5 * d, &et.r, wtr), mixed(zt - d, &et.s, wt));
+        left.push((zb + 0.5 * d, (tr, wbr), rb));
+        right.push((zt - 0.5 * d, (1.0 - tr, wtr), rt));
         if it + 1 == k {
             // The fronts meet: the middle slice from both sides (t = 1/2 on both when k > 1).
             let mid = (0.5 * (t + 1.0 - t), 0.5 * (wb + wt));

@@ -19,6 +19,7 @@
 
 pub mod compare;
 pub mod error;
+pub mod fit_cache;
 pub mod gordon;
 pub mod guides;
 pub mod keep;
@@ -89,12 +90,16 @@ pub struct JoinParams {
     /// points zig-zag and the cubic guides then swing by millimetres across the gap).
     pub mid_guide_points: bool,
     /// Refit the kept parts to their meshes' facets ([`keep`]) and bend the patch to meet
-    /// them ([`keep::Continuity`]). Off by default: the fitted parts are within 0.08-0.26 mm
-    /// of their meshes (0.1 mm asked) and the fits take 0.5-2.5 s per part, where the whole
-    /// join takes tens of milliseconds (docs/method.md 11.7).
+    /// them ([`keep::Continuity`]). Off by default: the fitted parts are within 0.1 mm of
+    /// their meshes on the fit's check grid (0.16-0.31 mm on a denser one) and the fits take
+    /// 0.25-0.9 s per part in a release build, where the whole join takes tens of
+    /// milliseconds (docs/method.md 11.7.3); [`JoinParams::fit_cache`] keeps them.
     pub fit_parts: bool,
     /// Continuity of the patch against the fitted parts.
     pub continuity: keep::Continuity,
+    /// Where fitted kept parts are stored and looked up ([`fit_cache`]); `None` fits every
+    /// time. The command line's default is [`fit_cache::default_dir`].
+    pub fit_cache: Option<std::path::PathBuf>,
 }
 
 impl Default for JoinParams {
@@ -115,6 +120,7 @@ impl Default for JoinParams {
             mid_guide_points: false,
             fit_parts: false,
             continuity: keep::Continuity::G1,
+            fit_cache: None,
         }
     }
 }
@@ -167,8 +173,8 @@ pub struct Timings {
     pub curves: f64,
     pub gordon: f64,
     pub split: f64,
-    /// Fitting the kept parts to their meshes (each its own last's, so a cache per last
-    /// could hold it) and bending the patch to meet them.
+    /// Fitting the kept parts to their meshes in this run, or reading them from the fit
+    /// cache ([`keep::PartFit::cached`]; the fit's own time is [`keep::PartFit::ms`]).
     pub fit_back: f64,
     pub fit_toe: f64,
     pub meet: f64,
@@ -483,8 +489,29 @@ pub fn join(back: &TriMesh, toe: &TriMesh, p: &JoinParams) -> Result<Joined, Joi
     let (mut fit_back, mut fit_toe) = (0.0, 0.0);
     if p.fit_parts {
         let deepest = |o: &[f64]| o.iter().copied().fold(0.0, f64::max);
-        let (b, fb) = keep::fit_part(&back_s, &bm, &back_plane, -1.0, deepest(&back_off))?;
-        let (t, ft) = keep::fit_part(&toe_s, &tm, &toe_plane, 1.0, deepest(&toe_off))?;
+        // Each fit, or its copy in the cache; the time is this run's (a cache hit's is the
+        // reading), the fit's own time stays in its PartFit.
+        let fit = |s0: &NurbsSurface, mesh: &TriMesh, plane: &Plane, side: f64, within: f64| {
+            let t = Instant::now();
+            let key = p.fit_cache.as_ref().map(|d| {
+                let k = fit_cache::key(s0, mesh, plane, side, within, &keep::rules());
+                (d, k)
+            });
+            if let Some((d, k)) = &key {
+                if let Some((s, mut f)) = fit_cache::load(d, k) {
+                    f.cached = true;
+                    return Ok((s, f, t.elapsed().as_secs_f64() * 1e3));
+                }
+            }
+            let (s, f) = keep::fit_part(s0, mesh, plane, side, within)?;
+            if let Some((d, k)) = &key {
+                // A cache that cannot be written only misses next time.
+                let _ = fit_cache::store(d, k, &s, &f);
+            }
+            Ok::<_, JoinError>((s, f, t.elapsed().as_secs_f64() * 1e3))
+        };
+        let (b, fb, mb) = fit(&back_s, &bm, &back_plane, -1.0, deepest(&back_off))?;
+        let (t, ft, mt) = fit(&toe_s, &tm, &toe_plane, 1.0, deepest(&toe_off))?;
         let (v0, v1) = g.surface.domain_v();
         patch = keep::meet(
             &patch,
@@ -493,7 +520,7 @@ pub fn join(back: &TriMesh, toe: &TriMesh, p: &JoinParams) -> Result<Joined, Joi
             [v_bm - v0, v_tm - v_bm, v1 - v_tm],
             p.continuity,
         )?;
-        (fit_back, fit_toe) = (fb.ms, ft.ms);
+        (fit_back, fit_toe) = (mb, mt);
         (back_s, toe_s) = (b, t);
         fits = Some([fb, ft]);
     }
