@@ -333,6 +333,19 @@ impl Peak {
             .iter()
             .any(|&(x, y)| (x as usize) <= b && (y as usize) >= a)
     }
+
+    /// Moves every column by `off`: a peak found in a slice of the row, in row columns.
+    pub fn shift(&mut self, off: usize) {
+        self.m += off;
+        self.top_lo += off;
+        self.top_hi += off;
+        self.lo += off;
+        self.hi += off;
+        for s in &mut self.spikes[..self.spike_count as usize] {
+            s.0 += off as u32;
+            s.1 += off as u32;
+        }
+    }
 }
 
 impl Peak {
@@ -1016,15 +1029,7 @@ pub fn coarse_row_local_on<T: Px>(
     if ((lv + pk.m) as f64 - near.col).abs() > width.max(3.0) {
         return None;
     }
-    pk.m += lv;
-    pk.top_lo += lv;
-    pk.top_hi += lv;
-    pk.lo += lv;
-    pk.hi += lv;
-    for s in &mut pk.spikes[..pk.spike_count as usize] {
-        s.0 += lv as u32;
-        s.1 += lv as u32;
-    }
+    pk.shift(lv);
     Some(pk)
 }
 
@@ -1145,15 +1150,7 @@ pub fn coarse_row_near_on<T: Px>(
     if ((a + pk.m) as f64 - near.col).abs() > width.max(3.0) {
         return None;
     }
-    pk.m += a;
-    pk.top_lo += a;
-    pk.top_hi += a;
-    pk.lo += a;
-    pk.hi += a;
-    for s in &mut pk.spikes[..pk.spike_count as usize] {
-        s.0 += a as u32;
-        s.1 += a as u32;
-    }
+    pk.shift(a);
     Some(pk)
 }
 
