@@ -19,30 +19,11 @@ fn main() {
             let u = (i as f64 + 0.5) / nu as f64;
             for j in 0..nv {
                 let v = (j as f64 + 0.5) / nv as f64;
-                let d = s.derivatives(u, v, 1);
-                let (su, sv) = (d[1][0], d[0][1]);
-                let area = su.cross(&sv).norm() / (nu * nv) as f64;
-                let c = s.curvature(u, v);
-                let (e, ff, g) = (su.dot(&su), su.dot(&sv), sv.dot(&sv));
-                let det = e * g - ff * ff;
-                let mut dk2 = 0.0;
-                for (which, t) in [(1, c.dir1), (2, c.dir2)] {
-                    let (tu, tv) = (t.dot(&su), t.dot(&sv));
-                    let a = (g * tu - ff * tv) / det;
-                    let b = (e * tv - ff * tu) / det;
-                    let (ua, va) = (u + 0.5 * a, (v + 0.5 * b).clamp(0.0, 1.0));
-                    let (ub, vb) = (u - 0.5 * a, (v - 0.5 * b).clamp(0.0, 1.0));
-                    let ds = (s.point(ua, va) - s.point(ub, vb)).norm();
-                    let (ca, cb) = (s.curvature(ua, va), s.curvature(ub, vb));
-                    let (ka, kb) = if which == 1 {
-                        (ca.k1, cb.k1)
-                    } else {
-                        (ca.k2, cb.k2)
-                    };
-                    dk2 += ((ka - kb) / ds).powi(2);
-                }
-                cells[i / 8][j / 3] += dk2 * area;
-                tot += dk2 * area;
+                let du = 1.0 / nu as f64;
+                let dv = 1.0 / nv as f64;
+                let var = blend::fair::fairness_at(s, u, v, du, dv).0.unwrap_or(0.0);
+                cells[i / 8][j / 3] += var;
+                tot += var;
             }
         }
         println!(

@@ -24,23 +24,7 @@ fn main() {
     if let Some(out) = out {
         std::fs::create_dir_all(&out).unwrap();
         for pair in &pairs {
-            let pick = |m: &str| {
-                pics.iter()
-                    .find(|p| p.pair == pair.name && p.method == m)
-                    .expect("a picture of every method")
-            };
-            let slug = pair.name.split_whitespace().next().unwrap().to_lowercase();
-            let p = out.join(format!("zebra_{slug}.png"));
-            let caption = format!(
-                "{}: Gordon join at 45 deg (left) and polynomial blend (right)",
-                pair.name
-            );
-            compare::zebra_side_by_side_png(
-                &p,
-                [pick("gordon 45 deg"), pick("blend poly")],
-                &caption,
-            )
-            .unwrap();
+            let p = compare::pair_zebra_png(&out, &pair.name, &pics).unwrap();
             eprintln!("wrote {}", p.display());
         }
     }

@@ -412,39 +412,7 @@ pub fn run(args: Args) -> Result<()> {
                 compare::time_vs_points_png(&p, &study_rows)?;
                 eprintln!("wrote {}", p.display());
                 for pair in &pairs {
-                    let pick = |m: &str| {
-                        pics.iter()
-                            .find(|p| p.pair == pair.name && p.method == m)
-                            .expect("a picture of every method")
-                    };
-                    let slug: String = pair
-                        .name
-                        .split_whitespace()
-                        .next()
-                        .unwrap_or("pair")
-                        .to_lowercase();
-                    let p = out.join(format!("zebra_{slug}.png"));
-                    let caption = format!(
-                        "{}: Gordon join at 45 deg (left) and polynomial blend (right)",
-                        pair.name
-                    );
-                    compare::zebra_side_by_side_png(
-                        &p,
-                        [pick("gordon 45 deg"), pick("blend poly")],
-                        &caption,
-                    )?;
-                    eprintln!("wrote {}", p.display());
-                    let p = out.join(format!("zebra_morph_{slug}.png"));
-                    let caption = format!(
-                        "{}: the morph alone, pieces skinned apart (left), and the polynomial \
-                         blend, one skin (right)",
-                        pair.name
-                    );
-                    compare::zebra_side_by_side_png(
-                        &p,
-                        [pick("blend morph pieces"), pick("blend poly")],
-                        &caption,
-                    )?;
+                    let p = compare::pair_zebra_png(&out, &pair.name, &pics)?;
                     eprintln!("wrote {}", p.display());
                 }
             }

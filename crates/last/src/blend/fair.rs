@@ -141,43 +141,55 @@ pub fn surface_fairness(s: &NurbsSurface, nu: usize, nv: usize) -> (f64, f64) {
     let (du, dv) = ((u1 - u0) / nu as f64, (v1 - v0) / nv as f64);
     let mut var = 0.0;
     let mut energy = 0.0;
-    let step = 0.5; // mm along a principal direction
     for i in 0..nu {
         let u = u0 + (i as f64 + 0.5) * du;
         for j in 0..nv {
             let v = v0 + (j as f64 + 0.5) * dv;
-            let d = s.derivatives(u, v, 1);
-            let (su, sv) = (d[1][0], d[0][1]);
-            let area = su.cross(&sv).norm() * du * dv;
-            let c = s.curvature(u, v);
-            energy += (c.k1 * c.k1 + c.k2 * c.k2) * area;
-            // Parameter direction of a 3D tangent t: solve [su sv] (a, b) = t.
-            let (e, f, g) = (su.dot(&su), su.dot(&sv), sv.dot(&sv));
-            let det = e * g - f * f;
-            if det.abs() < 1e-18 {
-                continue;
+            let (dvar, de) = fairness_at(s, u, v, du, dv);
+            energy += de;
+            if let Some(dvar) = dvar {
+                var += dvar;
             }
-            let mut dk2 = 0.0;
-            for (which, t) in [(1, c.dir1), (2, c.dir2)] {
-                let (tu, tv) = (t.dot(&su), t.dot(&sv));
-                let a = (g * tu - f * tv) / det;
-                let b = (e * tv - f * tu) / det;
-                let (ua, va) = (u + step * a, (v + step * b).clamp(v0, v1));
-                let (ub, vb) = (u - step * a, (v - step * b).clamp(v0, v1));
-                let ds = (s.point(ua, va) - s.point(ub, vb)).norm();
-                if ds < 1e-9 {
-                    continue;
-                }
-                let (ca, cb) = (s.curvature(ua, va), s.curvature(ub, vb));
-                let (ka, kb) = if which == 1 {
-                    (ca.k1, cb.k1)
-                } else {
-                    (ca.k2, cb.k2)
-                };
-                dk2 += ((ka - kb) / ds).powi(2);
-            }
-            var += dk2 * area;
         }
     }
     (var, energy)
+}
+
+/// [`surface_fairness`]'s two integrands at (u, v) over a cell of `du` x `dv` in the
+/// parameters: the curvature variation (None where the tangents are parallel) and the
+/// curvature energy.
+pub fn fairness_at(s: &NurbsSurface, u: f64, v: f64, du: f64, dv: f64) -> (Option<f64>, f64) {
+    let (v0, v1) = s.domain_v();
+    let step = 0.5; // mm along a principal direction
+    let d = s.derivatives(u, v, 1);
+    let (su, sv) = (d[1][0], d[0][1]);
+    let area = su.cross(&sv).norm() * du * dv;
+    let c = s.curvature(u, v);
+    let energy = (c.k1 * c.k1 + c.k2 * c.k2) * area;
+    // Parameter direction of a 3D tangent t: solve [su sv] (a, b) = t.
+    let (e, f, g) = (su.dot(&su), su.dot(&sv), sv.dot(&sv));
+    let det = e * g - f * f;
+    if det.abs() < 1e-18 {
+        return (None, energy);
+    }
+    let mut dk2 = 0.0;
+    for (which, t) in [(1, c.dir1), (2, c.dir2)] {
+        let (tu, tv) = (t.dot(&su), t.dot(&sv));
+        let a = (g * tu - f * tv) / det;
+        let b = (e * tv - f * tu) / det;
+        let (ua, va) = (u + step * a, (v + step * b).clamp(v0, v1));
+        let (ub, vb) = (u - step * a, (v - step * b).clamp(v0, v1));
+        let ds = (s.point(ua, va) - s.point(ub, vb)).norm();
+        if ds < 1e-9 {
+            continue;
+        }
+        let (ca, cb) = (s.curvature(ua, va), s.curvature(ub, vb));
+        let (ka, kb) = if which == 1 {
+            (ca.k1, cb.k1)
+        } else {
+            (ca.k2, cb.k2)
+        };
+        dk2 += ((ka - kb) / ds).powi(2);
+    }
+    (Some(dk2 * area), energy)
 }

@@ -336,6 +336,38 @@ pub fn table(rows: &[Row]) -> String {
     s
 }
 
+/// DIR/zebra_PAIR.png for the pair named `pair`: its Gordon join at 45 deg (left) beside its
+/// polynomial blend (right), from `pics` as [`run`] draws them. Returns the path written.
+pub fn pair_zebra_png(
+    dir: &Path,
+    pair: &str,
+    pics: &[Picture],
+) -> std::io::Result<std::path::PathBuf> {
+    let pick = |m: &str| {
+        pics.iter()
+            .find(|p| p.pair == pair && p.method == m)
+            .ok_or_else(|| {
+                std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    format!("no {m} picture of {pair}: run the Gordon 45 deg and poly blend rows"),
+                )
+            })
+    };
+    let slug = pair
+        .split_whitespace()
+        .next()
+        .unwrap_or("pair")
+        .to_lowercase();
+    let path = dir.join(format!("zebra_{slug}.png"));
+    let caption = format!("{pair}: Gordon join at 45 deg (left) and polynomial blend (right)");
+    zebra_side_by_side_png(
+        &path,
+        [pick("gordon 45 deg")?, pick("blend poly")?],
+        &caption,
+    )?;
+    Ok(path)
+}
+
 /// Zebra stripes of two results in one picture, left and right, each a top view over a side
 /// view of the join region at one common scale, so stripes compare stripe for stripe.
 pub fn zebra_side_by_side_png(
