@@ -42,6 +42,9 @@ fn hull_girth(m: &TriMesh, plane: &Plane) -> f64 {
 
 /// The rule quantities of a last in the foot frame, cut here. `l`: the foot length placing
 /// the stations; a left foot (medial -y) is mirrored first.
+/// A station of the plan profile: x, lowest y, highest y, the highest and the lowest point.
+type Ring = (f64, f64, f64, P3, P3);
+
 fn cut_last(m: &TriMesh, l: f64, side: &str) -> [f64; 8] {
     let mut m = m.clone();
     if side == "left" {
@@ -64,7 +67,7 @@ fn cut_last(m: &TriMesh, l: f64, side: &str) -> [f64; 8] {
     // a width is taken at the end of its window (a shop last's waist at 0.25 L, its sides
     // still narrowing there) a station 0.1 mm off reads it 0.2 mm off.
     let x0 = (xmin / 0.25).ceil() * 0.25;
-    let rings: Vec<(f64, f64, f64, P3, P3)> = (0..)
+    let rings: Vec<Ring> = (0..)
         .map(|k| x0 + 0.25 * k as f64)
         .take_while(|&x| x < 0.9 * l)
         .filter_map(|x| {
@@ -79,14 +82,21 @@ fn cut_last(m: &TriMesh, l: f64, side: &str) -> [f64; 8] {
         })
         .collect();
     let in_x = |a: f64, b: f64| rings.iter().filter(move |r| r.0 >= a && r.0 <= b);
-    let b = in_x(0.55 * l, 0.85 * l)
-        .max_by(|u, v| u.2.total_cmp(&v.2))
-        .unwrap()
-        .3;
-    let c = in_x(0.55 * l, 0.85 * l)
-        .min_by(|u, v| u.1.total_cmp(&v.1))
-        .unwrap()
-        .4;
+    // A joint point: the side's widest breadth, at the middle of where the side stands
+    // within 0.5 mm of it (weights (1 - shortfall / 0.5)^2), as docs/method.md defines it;
+    // a flat side has no single widest station.
+    let joint = |y: &dyn Fn(&Ring) -> f64| {
+        let top = in_x(0.55 * l, 0.85 * l).map(y).fold(f64::MIN, f64::max);
+        let (sw, sx) = in_x(0.55 * l, 0.85 * l).fold((0.0, 0.0), |(sw, sx), r| {
+            let w = (1.0 - (top - y(r)) / 0.5).max(0.0).powi(2);
+            (sw + w, sx + w * r.0)
+        });
+        (sx / sw, top)
+    };
+    let (bx, by) = joint(&|r| r.2);
+    let (cx, cy) = joint(&|r| -r.1);
+    let b = P3::new(bx, by, 0.0);
+    let c = P3::new(cx, -cy, 0.0);
     let heel = in_x(0.0, 0.25 * l)
         .max_by(|u, v| (u.2 - u.1).total_cmp(&(v.2 - v.1)))
         .unwrap();

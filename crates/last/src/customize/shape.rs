@@ -1230,7 +1230,10 @@ pub fn solve(
         fresh = false;
         (p, mesh, me, r) = (q, mq, meq, rq);
         if debug {
-            eprintln!("solve: r {r:.3?} p {p:.4?}");
+            eprintln!(
+                "solve: r {r:.3?} p {p:.4?} joints x {:.2} {:.2}",
+                me.b.x, me.c.x
+            );
         }
         let bad = p[1..5].iter().any(|s| !(0.5..=2.0).contains(s))
             || [5, 6, 7].iter().any(|&j| p[j].abs() > 0.15 * nd.length)
