@@ -41,6 +41,32 @@ fn bad_plans_write_no_calibration() {
         assert!(err.contains(expect), "{plan}: {err}");
         assert!(!out.exists(), "{plan}: a calibration was written");
     }
+    // The same plan named by the scanner config: refused when the config is read, with the
+    // key and its line.
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/sim.toml"))
+            .unwrap();
+    let cfg = dir.path().join("scanner.toml");
+    std::fs::write(
+        &cfg,
+        format!("{text}\n[calibration]\nplan = \"plan.toml\"\n"),
+    )
+    .unwrap();
+    std::fs::write(dir.path().join("plan.toml"), "frames_per_height = 1\n").unwrap();
+    let o = footscan()
+        .args(["calibrate", "--method", "insystem", "--quiet", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("calibration.plan (line") && err.contains("frames_per_height = 1"),
+        "{err}"
+    );
+    assert!(!out.exists());
 }
 
 #[test]

@@ -14,7 +14,14 @@ use std::time::{Duration, Instant};
 #[test]
 fn calibration_job_becomes_the_calibration_of_later_scans() {
     let tmp = tempfile::tempdir().unwrap();
-    let d = Footscand::start(tmp.path(), Opts::default());
+    let light = light_calibration(tmp.path());
+    let d = Footscand::start(
+        tmp.path(),
+        Opts {
+            scanner_extra: light,
+            ..Opts::default()
+        },
+    );
     assert!(d.get_json("/api/status")["calibration"].is_null());
     let events = d.client.get(d.url("/api/events")).send().unwrap();
     let t0 = Instant::now();
@@ -71,6 +78,10 @@ fn calibration_job_becomes_the_calibration_of_later_scans() {
         8
     );
     assert_eq!(entry["steps"].as_array().unwrap().len(), 10, "{entry}");
+    assert_eq!(
+        entry["plan"]["frames_per_height"], 4,
+        "the scanner config's calibration.plan: {entry}"
+    );
     // No daily check yet: the status warns.
     assert!(
         st["daily_check"]["warning"]
@@ -109,6 +120,7 @@ fn calibration_job_becomes_the_calibration_of_later_scans() {
         tmp.path(),
         Opts {
             archive: Some(archive),
+            scanner_extra: light,
             ..Opts::default()
         },
     );
@@ -133,7 +145,14 @@ fn wait_phase(d: &Footscand, phases: &[&str], limit: Duration) -> Value {
 #[test]
 fn guided_calibration_over_http_repeats_a_wrong_plate_aborts_and_checks_daily() {
     let tmp = tempfile::tempdir().unwrap();
-    let d = Footscand::start(tmp.path(), Opts::default());
+    let light = light_calibration(tmp.path());
+    let d = Footscand::start(
+        tmp.path(),
+        Opts {
+            scanner_extra: light,
+            ..Opts::default()
+        },
+    );
     let limit = Duration::from_secs(120);
 
     // An abort while the first step waits: nothing kept, the daemon free again.

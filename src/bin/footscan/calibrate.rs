@@ -24,7 +24,7 @@ pub struct Args {
     out: PathBuf,
     /// The shop's calibration plan as TOML: spacer heights and staircase dimensions as
     /// measured, their tolerance, the slider positions, the step checks; default: the
-    /// built-in plan of the default scanner.
+    /// config's `calibration.plan`, else the built-in plan of the default scanner.
     #[arg(long)]
     plan: Option<PathBuf>,
     /// Confirm every step without asking (scripts; the simulator places its own targets). A
@@ -142,7 +142,7 @@ pub fn run(args: Args) -> Result<()> {
     let cfg = crate::load_config(&args.config)?;
     let plan = match &args.plan {
         Some(p) => CalibrationPlan::load(p)?,
-        None => CalibrationPlan::default(),
+        None => cfg.calibration_plan()?,
     };
     let method: Method = args.method.parse()?;
     let prior = procedure::prior_calibration(&cfg)?;

@@ -18,7 +18,8 @@ pub struct Args {
     /// when the simulator has none).
     #[arg(long)]
     calibration: Option<PathBuf>,
-    /// The plan whose staircase gauge is used (stated heights and width, the pass).
+    /// The plan whose staircase gauge is used (stated heights and width, the pass); default:
+    /// the config's `calibration.plan`, else the built-in plan.
     #[arg(long)]
     plan: Option<PathBuf>,
     /// Do not wait for the operator to confirm that the gauge is in place.
@@ -59,7 +60,7 @@ pub fn run(args: Args) -> Result<()> {
     let cfg = crate::load_config(&args.config)?;
     let plan = match &args.plan {
         Some(p) => CalibrationPlan::load(p)?,
-        None => CalibrationPlan::default(),
+        None => cfg.calibration_plan()?,
     };
     let cal = match args.calibration.clone().or_else(|| cfg.calibration_path()) {
         Some(p) => Calibration::load(&p)?,

@@ -620,8 +620,11 @@ impl Daemon {
         req: &JobRequest,
         answers: Receiver<Answer>,
     ) -> Result<(CalibrationInfo, String), JobError> {
-        let plan = CalibrationPlan::default();
         let method = req.method;
+        let plan = self
+            .scanner
+            .calibration_plan()
+            .map_err(|e| JobError::from_calib(method.name(), req.guided, e))?;
         let mut guide = self.guide(req, answers);
         let outcome = if method == Method::Opencv {
             procedure::calibrate_unattended(&self.scanner.config, method, &plan, &mut |_, _, _| {})
@@ -693,7 +696,10 @@ impl Daemon {
         calibration_id: Option<String>,
         cal: &calib::Calibration,
     ) -> Result<CheckEntry, JobError> {
-        let plan = CalibrationPlan::default();
+        let plan = self
+            .scanner
+            .calibration_plan()
+            .map_err(|e| JobError::from_calib("the daily check", req.guided, e))?;
         let mut guide = self.guide(req, answers);
         let report = self
             .open_rig(req, &plan)

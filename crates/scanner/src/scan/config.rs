@@ -46,6 +46,11 @@ pub struct CalibrationSection {
     pub verify_max_age_h: f64,
     /// Slider step of the daily check's staircase pass (mm).
     pub verify_step_mm: f64,
+    /// The shop's calibration plan (TOML: its spacer heights and staircase block as
+    /// measured, frames per step, slider positions), relative to this file; `footscan
+    /// calibrate --plan` overrides it. Default: the built-in plan of the default scanner.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub plan: Option<PathBuf>,
 }
 
 impl Default for CalibrationSection {
@@ -57,6 +62,7 @@ impl Default for CalibrationSection {
             verify_width_tolerance_mm: 0.5,
             verify_max_age_h: 26.0,
             verify_step_mm: 1.0,
+            plan: None,
         }
     }
 }
@@ -436,6 +442,13 @@ impl LoadedConfig {
                 self.locate(&["calibration", e.key]).unwrap_or_default()
             )
         })?;
+        // A plan with a typo is named when the config is read, not at the first calibration.
+        self.calibration_plan().map_err(|e| {
+            format!(
+                "calibration.plan{}: {e}",
+                self.locate(&["calibration", "plan"]).unwrap_or_default()
+            )
+        })?;
         self.config.quality.validate().map_err(|e| {
             format!(
                 "{e}{}",
@@ -598,12 +611,26 @@ impl LoadedConfig {
     /// The calibration file named by `scanner.calibration`, resolved against the config
     /// file's directory.
     pub fn calibration_path(&self) -> Option<PathBuf> {
-        let p = self.config.scanner.calibration.as_ref()?;
-        Some(if p.is_absolute() {
-            p.clone()
+        Some(self.resolve(self.config.scanner.calibration.as_ref()?))
+    }
+
+    /// The calibration plan `calibration.plan` names (resolved against the config file's
+    /// directory, read and validated), else the built-in one.
+    pub fn calibration_plan(
+        &self,
+    ) -> Result<crate::calib::CalibrationPlan, crate::calib::CalibError> {
+        match &self.config.calibration.plan {
+            Some(p) => crate::calib::CalibrationPlan::load(&self.resolve(p)),
+            None => Ok(crate::calib::CalibrationPlan::default()),
+        }
+    }
+
+    fn resolve(&self, p: &Path) -> PathBuf {
+        if p.is_absolute() {
+            p.to_owned()
         } else {
             self.path.parent().unwrap_or(Path::new(".")).join(p)
-        })
+        }
     }
 
     /// " (line L, column C)" of a key path such as ["scan", "step_mm"], if present.
