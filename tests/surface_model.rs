@@ -139,14 +139,7 @@ fn continuity_jump_is_measured_and_the_c2_spline_has_none() {
     };
     let n = |s0: f64, t0: f64| {
         let d = s.eval_d1(s0, t0);
-        let (a, b) = (d[1], d[2]);
-        let n = [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ];
-        let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-        n.map(|c| c / l)
+        d.du.cross(&d.dv).normalize()
     };
     let (s0, t0) = (40.0, 60.5);
     let (l, r) = (n(s0 - 1e-9, t0), n(s0 + 1e-9, t0));

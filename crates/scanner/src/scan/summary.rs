@@ -3,13 +3,14 @@
 
 use super::quality::{Quality, ScanStatus};
 use crate::scandata::ScanGrid;
+use footscan_geom::P3;
 use serde::Serialize;
 
 /// Ground truth per frame (camera sequence number), from a simulator.
 pub trait TruthSource: Send + Sync {
     /// The true surface point of every row (`None` where the row truly has no line), or
     /// `None` if no truth was recorded for that frame.
-    fn frame(&self, seq: u64) -> Option<Vec<Option<[f64; 3]>>>;
+    fn frame(&self, seq: u64) -> Option<Vec<Option<P3>>>;
 }
 
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
@@ -230,15 +231,14 @@ mod tests {
     use super::*;
     use crate::detect::LinePeak;
     use crate::scandata::{FrameMeta, FramePoints};
-    use footscan_geom::P3;
     use footscan_hal::Timestamp;
 
     struct Flat;
     impl TruthSource for Flat {
-        fn frame(&self, seq: u64) -> Option<Vec<Option<[f64; 3]>>> {
+        fn frame(&self, seq: u64) -> Option<Vec<Option<P3>>> {
             (seq < 2).then(|| {
                 (0..3)
-                    .map(|row| (row < 2).then_some([seq as f64, row as f64, 0.0]))
+                    .map(|row| (row < 2).then_some(P3::new(seq as f64, row as f64, 0.0)))
                     .collect()
             })
         }

@@ -122,7 +122,7 @@ impl BSplineSurface {
     }
 
     /// Value and derivatives along s and t: [p, p_s, p_t].
-    pub fn eval_d1(&self, s: f64, t: f64) -> [[f64; 3]; 3] {
+    pub fn eval_d1(&self, s: f64, t: f64) -> super::Jet {
         let (i, tu) = self.span(0, s);
         let (j, tv) = self.span(1, t);
         let (bu, bv) = (cubic(tu), cubic(tv));
@@ -160,7 +160,7 @@ impl BSplineSurface {
             out[1][k] *= self.scale[0];
             out[2][k] *= self.scale[1];
         }
-        out
+        out.into()
     }
 
     pub fn domain(&self) -> [f64; 2] {
@@ -459,7 +459,7 @@ mod tests {
             for k in 0..3 {
                 let ds = (s.eval(u + h, v)[k] - s.eval(u - h, v)[k]) / (2.0 * h);
                 let dt = (s.eval(u, v + h)[k] - s.eval(u, v - h)[k]) / (2.0 * h);
-                assert!((d[1][k] - ds).abs() < 1e-6 && (d[2][k] - dt).abs() < 1e-6);
+                assert!((d.du[k] - ds).abs() < 1e-6 && (d.dv[k] - dt).abs() < 1e-6);
             }
         }
         assert!(n.z_ops(3.3, 4.4).total() > b.z_ops(3.3, 4.4).total());

@@ -144,7 +144,7 @@ impl Fitted {
 
 /// Newton's method for (x, y)(s, t) = (x, y), clamped to the domain; z at the solution.
 fn newton(
-    f: impl Fn(f64, f64) -> [[f64; 3]; 3],
+    f: impl Fn(f64, f64) -> super::Jet,
     max: [f64; 2],
     x: f64,
     y: f64,
@@ -154,16 +154,16 @@ fn newton(
     let (mut s, mut t) = (s0, t0);
     for _ in 0..30 {
         let d = f(s, t);
-        let (rx, ry) = (d[0][0] - x, d[0][1] - y);
+        let (rx, ry) = (d.p.x - x, d.p.y - y);
         if rx.abs().max(ry.abs()) < 1e-7 {
-            return Some(d[0][2]);
+            return Some(d.p.z);
         }
-        let det = d[1][0] * d[2][1] - d[2][0] * d[1][1];
+        let det = d.du.x * d.dv.y - d.dv.x * d.du.y;
         if det.abs() < 1e-300 {
             return None;
         }
-        s = (s - (rx * d[2][1] - ry * d[2][0]) / det).clamp(0.0, max[0]);
-        t = (t - (d[1][0] * ry - d[1][1] * rx) / det).clamp(0.0, max[1]);
+        s = (s - (rx * d.dv.y - ry * d.dv.x) / det).clamp(0.0, max[0]);
+        t = (t - (d.du.x * ry - d.du.y * rx) / det).clamp(0.0, max[1]);
     }
     None
 }

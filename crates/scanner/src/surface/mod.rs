@@ -24,6 +24,26 @@ pub mod poly;
 pub mod solid;
 
 pub use basis::{basis, basis_d1, basis_d2, interpolation_matrix};
+
+/// A surface's point and first derivatives at (s, t): what Newton's inversion of (x, y)
+/// needs ([`bspline::BSplineSurface::eval_d1`], [`poly::PolySurface::eval_d1`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Jet {
+    pub p: footscan_geom::P3,
+    pub du: footscan_geom::V3,
+    pub dv: footscan_geom::V3,
+}
+
+impl From<[[f64; 3]; 3]> for Jet {
+    /// Rows [p, p_s, p_t], as the evaluators accumulate them.
+    fn from(r: [[f64; 3]; 3]) -> Self {
+        Jet {
+            p: r[0].into(),
+            du: r[1].into(),
+            dv: r[2].into(),
+        }
+    }
+}
 pub use export::build_scan_model;
 pub use mesh::closed_from_heightmap;
 pub use network::{BezierNetwork, Continuity, Segment};

@@ -139,7 +139,7 @@ impl PolySurface {
         P3::from([0, 1, 2].map(|k| self.eval_coord_generic::<f64>(k, s, t)))
     }
 
-    pub fn eval_d1(&self, s: f64, t: f64) -> [[f64; 3]; 3] {
+    pub fn eval_d1(&self, s: f64, t: f64) -> super::Jet {
         let d = self.degree;
         let (x, y) = (2.0 * s / self.max[0] - 1.0, 2.0 * t / self.max[1] - 1.0);
         let (mut tu, mut tv) = (vec![0.0; d + 1], vec![0.0; d + 1]);
@@ -163,7 +163,7 @@ impl PolySurface {
             out[1][k] *= 2.0 / self.max[0];
             out[2][k] *= 2.0 / self.max[1];
         }
-        out
+        out.into()
     }
 
     pub fn z_ops(&self, s: f64, t: f64) -> OpCount {
@@ -198,8 +198,8 @@ mod tests {
         let e = p.eval(s, t);
         assert!((e[2] - z).abs() < 1e-9 && (e[0] - s * 0.5).abs() < 1e-9);
         let d = p.eval_d1(s, t);
-        assert!((d[1][2] - (0.3 - 0.02 * t + 0.003 * s * s)).abs() < 1e-8);
-        assert!((d[2][2] + 0.02 * s).abs() < 1e-8 && (d[2][1] - 0.25).abs() < 1e-9);
+        assert!((d.du.z - (0.3 - 0.02 * t + 0.003 * s * s)).abs() < 1e-8);
+        assert!((d.dv.z + 0.02 * s).abs() < 1e-8 && (d.dv.y - 0.25).abs() < 1e-9);
         assert!(p.z_ops(s, t).total() > terms(4) as u64);
     }
 }

@@ -216,13 +216,13 @@ pub fn true_calibration(cfg: &ScanConfig) -> Calibration {
 }
 
 impl TruthSource for TruthLog {
-    fn frame(&self, seq: u64) -> Option<Vec<Option<[f64; 3]>>> {
+    fn frame(&self, seq: u64) -> Option<Vec<Option<footscan_geom::P3>>> {
         let t = self.get(seq)?;
         Some(
             t.rows
                 .iter()
                 .map(|r| match r {
-                    RowTruth::Line { point, .. } => Some(*point),
+                    RowTruth::Line { point, .. } => Some((*point).into()),
                     RowTruth::NoLine => None,
                 })
                 .collect(),
