@@ -208,6 +208,16 @@ fn fsync_dir(dir: &Path) -> std::io::Result<()> {
     std::fs::File::open(dir)?.sync_all()
 }
 
+/// The cell a rebuilt model file is meshed on (None: not rebuilt from the model): what the
+/// rebuild uses and the manifest records, so a later rebuild makes the same bytes.
+fn rebuild_cell(name: &str, codec: Codec) -> Option<f64> {
+    match (name, codec) {
+        (ScanDir::MODEL_GLB, Codec::RebuildModel) => Some(crate::cad::DEFAULT_GLB_CELL_MM),
+        (_, Codec::RebuildModel) => Some(0.5),
+        _ => None,
+    }
+}
+
 /// Put the scan directory `dir` into compact form, in place (module doc). Idempotent: a
 /// directory already compact is left as it is, one half-done is finished, and an original
 /// that differs from its manifest entry (rewritten since) is compacted anew. Scratch files
@@ -269,14 +279,7 @@ pub fn compact_dir(dir: &Path, opts: &CompactOptions) -> std::io::Result<Compact
     let rebuildable: Vec<(&str, Codec, Option<f64>)> = todo
         .iter()
         .filter(|(_, c, _, _)| opts.rebuild && matches!(c, Codec::RebuildPly | Codec::RebuildModel))
-        .map(|(n, c, _, _)| {
-            let cell = match (*n, c) {
-                (ScanDir::MODEL_GLB, _) => Some(crate::cad::DEFAULT_GLB_CELL_MM),
-                (_, Codec::RebuildModel) => Some(0.5),
-                _ => None,
-            };
-            (*n, *c, cell)
-        })
+        .map(|(n, c, _, _)| (*n, *c, rebuild_cell(n, *c)))
         .collect();
     let rebuilt: BTreeMap<String, Vec<u8>> = if rebuildable.is_empty() {
         BTreeMap::new()
@@ -322,11 +325,7 @@ pub fn compact_dir(dir: &Path, opts: &CompactOptions) -> std::io::Result<Compact
                 writes += 1;
             }
         }
-        let cell_mm = match (*name, codec) {
-            (ScanDir::MODEL_GLB, Codec::RebuildModel) => Some(crate::cad::DEFAULT_GLB_CELL_MM),
-            (_, Codec::RebuildModel) => Some(0.5),
-            _ => None,
-        };
+        let cell_mm = rebuild_cell(name, codec);
         man.files.insert(
             name.to_string(),
             Entry {
