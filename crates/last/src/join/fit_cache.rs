@@ -16,7 +16,6 @@ use footscan_geom::nurbs::NurbsSurface;
 use footscan_geom::plane::Plane;
 use footscan_geom::P3;
 use sha2::{Digest, Sha256};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Bumped whenever the fit's rules change (its constants are hashed too).
@@ -169,13 +168,7 @@ pub fn store(dir: &Path, key: &str, s: &NurbsSurface, fit: &PartFit) -> std::io:
         &mut s.points.iter().flat_map(|p| [p.x, p.y, p.z]),
         3 * s.points.len(),
     );
-    let tmp = dir.join(format!(".{key}.{}.tmp", std::process::id()));
-    {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(&b)?;
-        f.sync_all()?;
-    }
-    std::fs::rename(&tmp, path(dir, key))
+    footscan_util::write_atomic(&path(dir, key), &b)
 }
 
 struct Reader<'a> {
