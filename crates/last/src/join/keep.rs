@@ -466,6 +466,21 @@ struct Check {
     exact: bool,
 }
 
+impl Check {
+    /// No point checked yet, room for `cap`.
+    fn empty(cap: usize, exact: bool) -> Check {
+        Check {
+            far: Vec::new(),
+            max: 0.0,
+            rms: 0.0,
+            at: P3::origin(),
+            pts: Vec::with_capacity(cap),
+            dist: Vec::with_capacity(cap),
+            exact,
+        }
+    }
+}
+
 fn distinct(k: &[f64], lo: f64, hi: f64) -> Vec<f64> {
     let mut v: Vec<f64> = k.iter().copied().filter(|&x| x >= lo && x <= hi).collect();
     v.dedup();
@@ -521,15 +536,7 @@ fn check(
     let chunk = 16;
     let chunks = us.len().div_ceil(chunk);
     let parts = crate::par::map(chunks, crate::par::cores(2), |ck| {
-        let mut c = Check {
-            far: Vec::new(),
-            max: 0.0,
-            rms: 0.0,
-            at: P3::origin(),
-            pts: Vec::with_capacity(chunk * nv),
-            dist: Vec::with_capacity(chunk * nv),
-            exact: prev.is_none(),
-        };
+        let mut c = Check::empty(chunk * nv, prev.is_none());
         let mut sum = 0.0;
         for iu in ck * chunk..((ck + 1) * chunk).min(us.len()) {
             let u = us[iu];
@@ -581,15 +588,7 @@ fn check(
         c.rms = sum;
         c
     });
-    let mut c = Check {
-        far: Vec::new(),
-        max: 0.0,
-        rms: 0.0,
-        at: P3::origin(),
-        pts: Vec::with_capacity(n),
-        dist: Vec::with_capacity(n),
-        exact: prev.is_none(),
-    };
+    let mut c = Check::empty(n, prev.is_none());
     let mut sum = 0.0;
     for p in parts {
         c.far.extend(p.far);
