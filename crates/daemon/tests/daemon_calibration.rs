@@ -14,14 +14,7 @@ use std::time::{Duration, Instant};
 #[test]
 fn calibration_job_becomes_the_calibration_of_later_scans() {
     let tmp = tempfile::tempdir().unwrap();
-    let light = light_calibration(tmp.path());
-    let d = Footscand::start(
-        tmp.path(),
-        Opts {
-            scanner_extra: light,
-            ..Opts::default()
-        },
-    );
+    let d = Footscand::start(tmp.path(), light_calibration(tmp.path()));
     assert!(d.get_json("/api/status")["calibration"].is_null());
     let events = d.client.get(d.url("/api/events")).send().unwrap();
     let t0 = Instant::now();
@@ -120,8 +113,7 @@ fn calibration_job_becomes_the_calibration_of_later_scans() {
         tmp.path(),
         Opts {
             archive: Some(archive),
-            scanner_extra: light,
-            ..Opts::default()
+            ..light_calibration(tmp.path())
         },
     );
     let st = d.get_json("/api/status");
@@ -145,14 +137,7 @@ fn wait_phase(d: &Footscand, phases: &[&str], limit: Duration) -> Value {
 #[test]
 fn guided_calibration_over_http_repeats_a_wrong_plate_aborts_and_checks_daily() {
     let tmp = tempfile::tempdir().unwrap();
-    let light = light_calibration(tmp.path());
-    let d = Footscand::start(
-        tmp.path(),
-        Opts {
-            scanner_extra: light,
-            ..Opts::default()
-        },
-    );
+    let d = Footscand::start(tmp.path(), light_calibration(tmp.path()));
     let limit = Duration::from_secs(120);
 
     // An abort while the first step waits: nothing kept, the daemon free again.

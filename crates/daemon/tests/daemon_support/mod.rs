@@ -53,25 +53,25 @@ pub struct Opts<'a> {
     pub archive: Option<PathBuf>,
     /// More [daemon] lines, e.g. `tls = "self-signed"`.
     pub daemon_extra: &'a str,
-    /// More scanner config sections, appended (e.g. [`LIGHT_CALIBRATION`]).
+    /// More scanner config sections, appended (e.g. [`light_calibration`]'s).
     pub scanner_extra: &'a str,
 }
 
-/// A lighter calibration plan than the built-in one (4 frames per plate instead of 16, the
-/// staircase every 2 mm instead of 0.25, the daily check's every 2 instead of 1), written
-/// into `dir` as plan.toml, and the scanner config section that names it: the guided
-/// procedure's steps and checks are the same, its real-time passes 3-8 times shorter.
-pub fn light_calibration(dir: &Path) -> &'static str {
+/// The daemon's options with a lighter calibration plan than the built-in one (4 frames per
+/// plate instead of 16, the staircase every 2 mm instead of 0.25, the daily check's every 2
+/// instead of 1), written into `dir` as plan.toml and named by the scanner config: the
+/// guided procedure's steps and checks are the same, its real-time passes 3-8 times shorter.
+pub fn light_calibration(dir: &Path) -> Opts<'static> {
     std::fs::write(
         dir.join("plan.toml"),
         "frames_per_height = 4\nstair_step_mm = 2.0\n",
     )
     .unwrap();
-    LIGHT_CALIBRATION
+    Opts {
+        scanner_extra: "\n[calibration]\nplan = \"plan.toml\"\nverify_step_mm = 2.0\n",
+        ..Opts::default()
+    }
 }
-
-/// The scanner config section of [`light_calibration`].
-pub const LIGHT_CALIBRATION: &str = "\n[calibration]\nplan = \"plan.toml\"\nverify_step_mm = 2.0\n";
 
 impl Default for Opts<'_> {
     fn default() -> Self {
