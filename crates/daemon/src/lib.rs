@@ -9,4 +9,3 @@
 pub mod api;
 pub mod archive;
 pub mod daemon;
-pub mod priority;

@@ -93,7 +93,7 @@ fn limit_malloc_arenas() {
 /// needs no privilege. A new thread inherits its creator's value, so jobs are started from a
 /// thread made before the runtime (`daemon::jobs::Launcher`), not from these.
 fn lower_priority() {
-    if let Err(e) = footscan_daemon::priority::lower_this_thread(10) {
+    if let Err(e) = footscan_util::priority::lower_this_thread(10) {
         // Once: every runtime thread would say the same.
         static SAID: std::sync::Once = std::sync::Once::new();
         SAID.call_once(|| {

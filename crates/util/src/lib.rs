@@ -5,6 +5,7 @@ use std::io::Write;
 use std::path::Path;
 
 pub mod beneath;
+pub mod priority;
 
 /// The current UTC time as RFC 3339 (seconds precision), for records in files.
 pub fn now_rfc3339() -> String {

@@ -349,7 +349,7 @@ impl Pusher {
 
 /// Ten nice levels below the daemon for this thread.
 fn lower_own_priority() {
-    if let Err(e) = crate::priority::lower_this_thread(10) {
+    if let Err(e) = footscan_util::priority::lower_this_thread(10) {
         tracing::warn!(
             "fleet: cannot lower the pusher's priority ({e}): it competes with the scan for the CPU"
         );

@@ -374,7 +374,7 @@ impl Daemon {
         let spawned = std::thread::Builder::new()
             .name("compact".into())
             .spawn(move || {
-                let _ = crate::priority::lower_this_thread(10);
+                let _ = footscan_util::priority::lower_this_thread(10);
                 let t = Instant::now();
                 // Wait for the scanner to be idle (at most 30 minutes; a daemon shutting down
                 // leaves the scan as it is: the reader takes either form, a later run of
@@ -530,7 +530,7 @@ fn start_retention(archive: &Arc<Archive>, config: &DaemonConfig) -> std::io::Re
     std::thread::Builder::new()
         .name("retention".into())
         .spawn(move || {
-            let _ = crate::priority::lower_this_thread(10);
+            let _ = footscan_util::priority::lower_this_thread(10);
             loop {
                 let Some(a) = archive.upgrade() else { return };
                 a.retain(&rules, crate::archive::retention::now_secs());

@@ -152,7 +152,15 @@ impl ModelJob {
         self.set_progress(ModelProgress::building());
         let h = std::thread::Builder::new()
             .name("model.files".into())
-            .spawn(work)?;
+            .spawn(|| {
+                // Ten nice levels below the scan: the stages that give the results (the
+                // measurements' files, the height map, the summary) run beside it and the
+                // patient waits on them, not on the CAD files (issue 34 item 2).
+                if let Err(e) = footscan_util::priority::lower_this_thread(10) {
+                    tracing::debug!("model.files: priority not lowered: {e}");
+                }
+                work()
+            })?;
         if let Some(old) = self.thread.lock().unwrap().replace(h) {
             let _ = old.join();
         }

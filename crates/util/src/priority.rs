@@ -1,9 +1,10 @@
-//! Lowering a thread's CPU priority relative to the daemon's, so work that can wait (web
-//! answers, pushing to the fleet) slows down before the scan pipeline drops frames.
+//! Lowering a thread's CPU priority relative to its process's, so work that can wait (web
+//! answers, pushing to the fleet, a scan's CAD files) slows down before the scan pipeline
+//! drops frames or the results wait.
 
 /// Set the calling thread's nice value `by` levels above its current one (at most 19). Linux
 /// nice values are per thread and lowering one's own priority needs no privilege; relative,
-/// because the daemon itself may already run niced (a service unit, a test runner), where an
+/// because the process itself may already run niced (a service unit, a test runner), where an
 /// absolute 10 would put this thread level with the scan. A new thread inherits its
 /// creator's value. Elsewhere than Linux: nothing.
 pub fn lower_this_thread(by: i32) -> std::io::Result<()> {
