@@ -86,8 +86,8 @@ pub use outline::{line_crossings, regions, signed_area, simplify, Region};
 pub use picture::{render_plantar, PlantarImage};
 pub use rasterize::{grid_truncation, rasterize_grid};
 pub use scanned::{
-    measure_grid, measure_scan_dir, scan_heightmap, write_measurements, MeasureOutput,
-    DEFAULT_CELL_MM,
+    measure_grid, measure_grid_with, measure_scan_dir, scan_heightmap, write_measurements, Ahead,
+    MeasureOutput, DEFAULT_CELL_MM,
 };
 pub use truth::{compare_with_truth, ErrorKind, ErrorRow, TruthComparison};
 

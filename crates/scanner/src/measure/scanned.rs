@@ -25,20 +25,45 @@ pub fn scan_heightmap(
     model: Option<&BezierNetwork>,
     cell_mm: f64,
 ) -> Result<(HeightMap, &'static str), MeasureError> {
+    scan_heightmap_with(grid, model, cell_mm, Ahead::default())
+}
+
+/// Parts of a scan's height map computed before it is measured (a scan computes them while
+/// the frames come and while the model is built: `scan::early`, the `measure.foot` stage).
+/// Each must be exactly what [`measure_grid`] would compute itself.
+#[derive(Debug, Default)]
+pub struct Ahead {
+    /// [`rasterize_grid`] of the grid on the measured cell.
+    pub footprint: Option<Result<HeightMap, MeasureError>>,
+    /// The model's [`BezierNetwork::eval_heightmap`] on the measured cell.
+    pub model_map: Option<HeightMap>,
+}
+
+/// [`scan_heightmap`] with what was computed `ahead`.
+fn scan_heightmap_with(
+    grid: &ScanGrid,
+    model: Option<&BezierNetwork>,
+    cell_mm: f64,
+    ahead: Ahead,
+) -> Result<(HeightMap, &'static str), MeasureError> {
+    let Ahead {
+        footprint,
+        model_map,
+    } = ahead;
     let Some(net) = model else {
-        return Ok((rasterize_grid(grid, cell_mm)?, "scan grid"));
+        let map = footprint.unwrap_or_else(|| rasterize_grid(grid, cell_mm))?;
+        return Ok((map, "scan grid"));
     };
     // The footprint and the model's heights are independent: side by side, since the
     // results of a scan wait on them (issue 34 item 2).
     let (map, mm) = std::thread::scope(|s| {
-        let footprint = s.spawn(|| rasterize_grid(grid, cell_mm));
-        let mm = net.eval_heightmap(cell_mm);
-        (
-            footprint
-                .join()
-                .unwrap_or_else(|p| std::panic::resume_unwind(p)),
-            mm,
-        )
+        let fp = match footprint {
+            Some(done) => Ok(done),
+            None => Err(s.spawn(|| rasterize_grid(grid, cell_mm))),
+        };
+        let mm = model_map.unwrap_or_else(|| net.eval_heightmap(cell_mm));
+        let map = fp.unwrap_or_else(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)));
+        (map, mm)
     });
     let mut map = map?;
     for j in 0..map.ny {
@@ -63,7 +88,17 @@ pub fn measure_grid(
     model: Option<&BezierNetwork>,
     cell_mm: f64,
 ) -> Result<(HeightMap, Measurements), MeasureError> {
-    let (map, heights) = scan_heightmap(grid, model, cell_mm)?;
+    measure_grid_with(grid, model, cell_mm, Ahead::default())
+}
+
+/// [`measure_grid`] with parts of the height map computed `ahead`.
+pub fn measure_grid_with(
+    grid: &ScanGrid,
+    model: Option<&BezierNetwork>,
+    cell_mm: f64,
+    ahead: Ahead,
+) -> Result<(HeightMap, Measurements), MeasureError> {
+    let (map, heights) = scan_heightmap_with(grid, model, cell_mm, ahead)?;
     let mut m = measure_foot(&map)?;
     m.heights_from = heights.to_string();
     m.warnings.extend(grid_truncation(grid));

@@ -3,6 +3,7 @@
 mod backend;
 pub mod calibrate;
 pub mod config;
+pub mod early;
 mod error;
 pub mod item;
 pub mod model_job;
@@ -100,6 +101,8 @@ pub struct ScanCounters {
     last_frame: Mutex<Option<std::time::Instant>>,
     /// The CAD files, written after the results by `model.bezier`'s job.
     pub model: model_job::ModelJob,
+    /// The model's height map, filled while the frames come (for `measure.foot`).
+    pub early: early::EarlyHeights,
 }
 
 impl ScanCounters {

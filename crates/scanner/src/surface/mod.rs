@@ -17,7 +17,7 @@ pub mod bspline;
 pub mod compare;
 mod export;
 mod mesh;
-mod network;
+pub(crate) mod network;
 pub mod ops;
 mod point_grid;
 pub mod poly;
@@ -46,7 +46,7 @@ impl From<[[f64; 3]; 3]> for Jet {
 }
 pub use export::build_scan_model;
 pub use mesh::closed_from_heightmap;
-pub use network::{BezierNetwork, Continuity, Segment};
+pub use network::{BezierNetwork, Continuity, HeightFill, Segment};
 pub use point_grid::{PointGrid, Subsample};
 
 /// Errors building a surface model.

@@ -57,11 +57,11 @@ pub struct Continuity {
 }
 
 /// Number of segments along a side of `n` points, and the period of segment `a`.
-fn segments_along(n: usize) -> usize {
+pub(crate) fn segments_along(n: usize) -> usize {
     (n - 1).div_ceil(3)
 }
 
-fn period(n: usize, a: usize) -> usize {
+pub(crate) fn period(n: usize, a: usize) -> usize {
     (n - 1 - 3 * a).min(3)
 }
 
@@ -78,50 +78,14 @@ impl BezierNetwork {
         let mut skipped = 0;
         for a in 0..su {
             let ku = period(nu, a);
-            let eu = interpolation_matrix(ku);
             for b in 0..sv {
-                let kv = period(nv, b);
-                let ev = interpolation_matrix(kv);
-                let (i0, j0) = (3 * a, 3 * b);
-                let mut p = [[[0.0; 4]; 4]; 3]; // p[coord][i][j]
-                let mut ok = true;
-                'pts: for di in 0..=ku {
-                    for dj in 0..=kv {
-                        let q = grid.get(i0 + di, j0 + dj);
-                        if !is_point(&q) {
-                            ok = false;
-                            break 'pts;
-                        }
-                        for k in 0..3 {
-                            p[k][di][dj] = q[k];
-                        }
+                match Segment::interpolating(|i, j| grid.get(i, j), a, b, ku, period(nv, b)) {
+                    Some(seg) => {
+                        index[a * sv + b] = segs.len() as u32;
+                        segs.push(seg);
                     }
+                    None => skipped += 1,
                 }
-                if !ok {
-                    skipped += 1;
-                    continue;
-                }
-                let mut c = [[0.0; 16]; 3];
-                for k in 0..3 {
-                    // t = E_u P (4 x (kv+1)), then C = t E_v^T.
-                    let mut t = [[0.0; 4]; 4];
-                    for (i, row) in t.iter_mut().enumerate() {
-                        for (dj, r) in row.iter_mut().enumerate().take(kv + 1) {
-                            *r = (0..=ku).map(|di| eu[i][di] * p[k][di][dj]).sum();
-                        }
-                    }
-                    for i in 0..4 {
-                        for j in 0..4 {
-                            c[k][i * 4 + j] = (0..=kv).map(|dj| t[i][dj] * ev[j][dj]).sum();
-                        }
-                    }
-                }
-                index[a * sv + b] = segs.len() as u32;
-                segs.push(Segment {
-                    a: a as u32,
-                    b: b as u32,
-                    c,
-                });
             }
         }
         Ok(BezierNetwork {
@@ -255,81 +219,24 @@ impl BezierNetwork {
     /// whatever the count).
     pub fn eval_heightmap_on(&self, cell_mm: f64, threads: usize) -> HeightMap {
         assert!(cell_mm > 0.0, "cell size must be positive");
-        let boxes: Vec<[f64; 4]> = self.segs.iter().map(Segment::bbox).collect();
-        if boxes.is_empty() {
+        let Some(area) = Lattice::covering(&self.segs, cell_mm) else {
             return HeightMap::new(0.0, 0.0, cell_mm, 0, 0);
-        }
-        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-        for b in &boxes {
-            x0 = x0.min(b[0]);
-            x1 = x1.max(b[1]);
-            y0 = y0.min(b[2]);
-            y1 = y1.max(b[3]);
-        }
-        let x0 = (x0 / cell_mm).floor() * cell_mm;
-        let y0 = (y0 / cell_mm).floor() * cell_mm;
-        let nx = ((x1 - x0) / cell_mm).floor() as usize + 1;
-        let ny = ((y1 - y0) / cell_mm).floor() as usize + 1;
-        let mut map = HeightMap::new(x0, y0, cell_mm, nx, ny);
+        };
+        let mut map = area.map(cell_mm);
+        let nx = map.nx;
         // Bands of rows on threads of their own: a cell depends only on the segments before
         // it in order and on its own row's neighbours, so every band computes exactly what
         // one pass over the map would (the measurements wait on this map after the last
         // frame, issue 34 item 2).
-        let threads = threads.clamp(1, ny.div_ceil(64).max(1));
-        let band = ny.div_ceil(threads);
-        let (xs, ys): (Vec<f64>, Vec<f64>) = (
-            (0..nx).map(|i| map.x(i)).collect(),
-            (0..ny).map(|j| map.y(j)).collect(),
-        );
-        let fill = |rows: std::ops::Range<usize>, z: &mut [f64]| {
-            for (seg, b) in self.segs.iter().zip(&boxes) {
-                let i0 = ((b[0] - x0) / cell_mm).ceil().max(0.0) as usize;
-                let i1 = (((b[1] - x0) / cell_mm).floor() as usize).min(nx - 1);
-                let j0 = ((b[2] - y0) / cell_mm).ceil().max(0.0) as usize;
-                let j1 = (((b[3] - y0) / cell_mm).floor() as usize).min(ny - 1);
-                for j in j0.max(rows.start)..=j1.min(rows.end.saturating_sub(1)) {
-                    let zr = &mut z[(j - rows.start) * nx..(j - rows.start + 1) * nx];
-                    // Start each cell from its left neighbours' solutions (extrapolated) when
-                    // they had one.
-                    let mut prev: Option<(f64, f64)> = None;
-                    let mut prev2: Option<(f64, f64)> = None;
-                    for i in i0..=i1 {
-                        if zr[i].is_finite() {
-                            (prev, prev2) = (None, None);
-                            continue;
-                        }
-                        let guess = match (prev, prev2) {
-                            (Some(a), Some(b)) => Some((
-                                (2.0 * a.0 - b.0).clamp(0.0, 1.0),
-                                (2.0 * a.1 - b.1).clamp(0.0, 1.0),
-                            )),
-                            (a, _) => a,
-                        };
-                        let (x, y) = (xs[i], ys[j]);
-                        // 1e-7 mm in (x, y) is far below any height the map can show.
-                        let found = match guess {
-                            Some(p) => seg
-                                .invert_tol(x, y, Some(p), 1e-7)
-                                .or_else(|| seg.invert_tol(x, y, None, 1e-7)),
-                            None => seg.invert_tol(x, y, None, 1e-7),
-                        };
-                        if let Some((u, v)) = found {
-                            zr[i] = seg.eval_coord(2, u, v);
-                        }
-                        prev2 = if found.is_some() { prev } else { None };
-                        prev = found;
-                    }
-                }
-            }
-        };
+        let threads = threads.clamp(1, map.ny.div_ceil(64).max(1));
+        let band = map.ny.div_ceil(threads);
         if threads <= 1 {
-            fill(0..ny, &mut map.z);
+            fill_heights(&self.segs, cell_mm, &area, 0, &mut map.z);
         } else {
             std::thread::scope(|s| {
                 for (k, z) in map.z.chunks_mut(band * nx).enumerate() {
-                    let rows = k * band..(k * band + z.len() / nx);
-                    let fill = &fill;
-                    s.spawn(move || fill(rows, z));
+                    let area = &area;
+                    s.spawn(move || fill_heights(&self.segs, cell_mm, area, k * band, z));
                 }
             });
         }
@@ -384,6 +291,51 @@ impl BezierNetwork {
 }
 
 impl Segment {
+    /// Segment (a, b) interpolating the points `get(i, j)` of the grid's (a, b) block
+    /// (periods `ku`, `kv`: 3, or fewer at the grid's end); None where one is missing.
+    pub fn interpolating(
+        get: impl Fn(usize, usize) -> P3,
+        a: usize,
+        b: usize,
+        ku: usize,
+        kv: usize,
+    ) -> Option<Segment> {
+        let (eu, ev) = (interpolation_matrix(ku), interpolation_matrix(kv));
+        let (i0, j0) = (3 * a, 3 * b);
+        let mut p = [[[0.0; 4]; 4]; 3]; // p[coord][i][j]
+        for di in 0..=ku {
+            for dj in 0..=kv {
+                let q = get(i0 + di, j0 + dj);
+                if !is_point(&q) {
+                    return None;
+                }
+                for k in 0..3 {
+                    p[k][di][dj] = q[k];
+                }
+            }
+        }
+        let mut c = [[0.0; 16]; 3];
+        for k in 0..3 {
+            // t = E_u P (4 x (kv+1)), then C = t E_v^T.
+            let mut t = [[0.0; 4]; 4];
+            for (i, row) in t.iter_mut().enumerate() {
+                for (dj, r) in row.iter_mut().enumerate().take(kv + 1) {
+                    *r = (0..=ku).map(|di| eu[i][di] * p[k][di][dj]).sum();
+                }
+            }
+            for i in 0..4 {
+                for j in 0..4 {
+                    c[k][i * 4 + j] = (0..=kv).map(|dj| t[i][dj] * ev[j][dj]).sum();
+                }
+            }
+        }
+        Some(Segment {
+            a: a as u32,
+            b: b as u32,
+            c,
+        })
+    }
+
     /// One coordinate at local (u, v): 16 products and the basis in both directions.
     #[inline]
     pub fn eval_coord_generic<T: Scalar>(&self, k: usize, u: T, v: T) -> T {
@@ -584,6 +536,232 @@ impl Segment {
         } else {
             (0.5, 0.5)
         }
+    }
+}
+
+/// Cells of a height map on the absolute lattice of a cell size: cell (i, j) of the map is
+/// centred on ((x0 + i) c, (y0 + j) c). Every map of one cell size agrees on where its cells
+/// are, so a map filled while a scan runs ([`HeightFill`]) holds the heights a map of the
+/// whole network would, bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Lattice {
+    x0: i64,
+    y0: i64,
+    nx: usize,
+    ny: usize,
+}
+
+impl Lattice {
+    /// Lattice indices of the cells in `b` (x0, x1, y0, y1 in mm): first and last along x,
+    /// first and last along y (empty where first > last).
+    fn cells_in(b: &[f64; 4], cell: f64) -> [i64; 4] {
+        [
+            (b[0] / cell).ceil() as i64,
+            (b[1] / cell).floor() as i64,
+            (b[2] / cell).ceil() as i64,
+            (b[3] / cell).floor() as i64,
+        ]
+    }
+
+    /// The smallest lattice holding the boxes of `segs` (the cells at or below each box's
+    /// lower edge included), or None without segments.
+    fn covering(segs: &[Segment], cell: f64) -> Option<Lattice> {
+        let mut it = segs.iter().map(|s| Lattice::around(&s.bbox(), cell));
+        let first = it.next()?;
+        Some(it.fold(first, |a, b| a.union(&b)))
+    }
+
+    fn around(b: &[f64; 4], cell: f64) -> Lattice {
+        let (x0, y0) = ((b[0] / cell).floor() as i64, (b[2] / cell).floor() as i64);
+        let (x1, y1) = ((b[1] / cell).floor() as i64, (b[3] / cell).floor() as i64);
+        Lattice {
+            x0,
+            y0,
+            nx: (x1 - x0).max(0) as usize + 1,
+            ny: (y1 - y0).max(0) as usize + 1,
+        }
+    }
+
+    fn union(&self, o: &Lattice) -> Lattice {
+        let (x0, y0) = (self.x0.min(o.x0), self.y0.min(o.y0));
+        let x1 = (self.x0 + self.nx as i64).max(o.x0 + o.nx as i64);
+        let y1 = (self.y0 + self.ny as i64).max(o.y0 + o.ny as i64);
+        Lattice {
+            x0,
+            y0,
+            nx: (x1 - x0) as usize,
+            ny: (y1 - y0) as usize,
+        }
+    }
+
+    fn contains(&self, o: &Lattice) -> bool {
+        self.union(o) == *self
+    }
+
+    /// An empty (NaN) map on this lattice.
+    fn map(&self, cell: f64) -> HeightMap {
+        HeightMap::new(
+            self.x0 as f64 * cell,
+            self.y0 as f64 * cell,
+            cell,
+            self.nx,
+            self.ny,
+        )
+    }
+}
+
+/// Heights of `segs`, in their order, into the rows `row0..` of a map on `area` (`z` holds
+/// whole rows from row `row0` on). Each segment's cells (those in the bounding box of its
+/// coefficients, which holds the patch) are inverted to (u, v) by Newton's method and z
+/// evaluated there; a cell an earlier segment filled is kept.
+fn fill_heights(segs: &[Segment], cell: f64, area: &Lattice, row0: usize, z: &mut [f64]) {
+    let nx = area.nx;
+    let rows = row0..row0 + z.len() / nx;
+    for seg in segs {
+        let [i0, i1, j0, j1] = Lattice::cells_in(&seg.bbox(), cell);
+        let (i0, i1) = ((i0 - area.x0).max(0), (i1 - area.x0).min(nx as i64 - 1));
+        let (j0, j1) = (
+            (j0 - area.y0).max(0),
+            (j1 - area.y0).min(area.ny as i64 - 1),
+        );
+        if i0 > i1 || j0 > j1 {
+            continue;
+        }
+        let (i0, i1) = (i0 as usize, i1 as usize);
+        for j in (j0 as usize).max(rows.start)..=(j1 as usize).min(rows.end.saturating_sub(1)) {
+            let zr = &mut z[(j - row0) * nx..(j - row0 + 1) * nx];
+            let y = (area.y0 + j as i64) as f64 * cell;
+            // Start each cell from its left neighbours' solutions (extrapolated) when they
+            // had one.
+            let mut prev: Option<(f64, f64)> = None;
+            let mut prev2: Option<(f64, f64)> = None;
+            for (i, zc) in zr.iter_mut().enumerate().take(i1 + 1).skip(i0) {
+                if zc.is_finite() {
+                    (prev, prev2) = (None, None);
+                    continue;
+                }
+                let guess = match (prev, prev2) {
+                    (Some(a), Some(b)) => Some((
+                        (2.0 * a.0 - b.0).clamp(0.0, 1.0),
+                        (2.0 * a.1 - b.1).clamp(0.0, 1.0),
+                    )),
+                    (a, _) => a,
+                };
+                let x = (area.x0 + i as i64) as f64 * cell;
+                // 1e-7 mm in (x, y) is far below any height the map can show.
+                let found = match guess {
+                    Some(p) => seg
+                        .invert_tol(x, y, Some(p), 1e-7)
+                        .or_else(|| seg.invert_tol(x, y, None, 1e-7)),
+                    None => seg.invert_tol(x, y, None, 1e-7),
+                };
+                if let Some((u, v)) = found {
+                    *zc = seg.eval_coord(2, u, v);
+                }
+                prev2 = if found.is_some() { prev } else { None };
+                prev = found;
+            }
+        }
+    }
+}
+
+/// A network's height map filled segment by segment while its grid grows (a scan's frames
+/// arrive in order along u, and a column of segments is final once the three frames after
+/// its first have come), so that after the last frame only the last columns are left.
+/// [`HeightFill::finish`] checks the segments it was given against the finished network and
+/// gives exactly [`BezierNetwork::eval_heightmap`]'s map, or that map itself when they differ
+/// (frames bridged or changed after they were given).
+#[derive(Debug)]
+pub struct HeightFill {
+    cell: f64,
+    area: Option<Lattice>,
+    z: Vec<f64>,
+    segs: Vec<Segment>,
+}
+
+impl HeightFill {
+    pub fn new(cell_mm: f64) -> Self {
+        assert!(cell_mm > 0.0, "cell size must be positive");
+        HeightFill {
+            cell: cell_mm,
+            area: None,
+            z: Vec::new(),
+            segs: Vec::new(),
+        }
+    }
+
+    /// Segments given so far.
+    pub fn len(&self) -> usize {
+        self.segs.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.segs.is_empty()
+    }
+
+    /// Fill the cells of `segs`, the network's next segments in its order.
+    pub fn add(&mut self, segs: &[Segment]) {
+        let Some(need) = Lattice::covering(segs, self.cell) else {
+            return;
+        };
+        let area = match self.area {
+            Some(a) if a.contains(&need) => a,
+            _ => self.grow(need),
+        };
+        fill_heights(segs, self.cell, &area, 0, &mut self.z);
+        self.segs.extend_from_slice(segs);
+    }
+
+    /// A larger map holding `need`, with room to grow (half as wide again and an eighth as
+    /// high each way, so a scan's map is copied a few times, not once a column).
+    fn grow(&mut self, need: Lattice) -> Lattice {
+        let u = self.area.map_or(need, |a| a.union(&need));
+        let (mx, my) = (u.nx / 2 + 16, u.ny / 8 + 16);
+        let grown = Lattice {
+            x0: u.x0 - mx as i64,
+            y0: u.y0 - my as i64,
+            nx: u.nx + 2 * mx,
+            ny: u.ny + 2 * my,
+        };
+        let mut z = vec![f64::NAN; grown.nx * grown.ny];
+        if let Some(old) = self.area {
+            copy_rect(&self.z, &old, &mut z, &grown, &old);
+        }
+        self.z = z;
+        self.area = Some(grown);
+        grown
+    }
+
+    /// The network's height map: the segments not given yet filled in, cut to the lattice of
+    /// [`BezierNetwork::eval_heightmap`], which it equals bit for bit; that map itself when
+    /// the segments given are not the network's first ones.
+    pub fn finish(mut self, net: &BezierNetwork) -> HeightMap {
+        let k = self.segs.len();
+        if net.segs.len() < k || net.segs[..k] != self.segs[..] {
+            tracing::debug!(
+                given = k,
+                "height map: the segments given are not the network's; computed again"
+            );
+            return net.eval_heightmap(self.cell);
+        }
+        self.add(&net.segs[k..]);
+        let (Some(all), Some(area)) = (Lattice::covering(&net.segs, self.cell), self.area) else {
+            return HeightMap::new(0.0, 0.0, self.cell, 0, 0);
+        };
+        let mut map = all.map(self.cell);
+        copy_rect(&self.z, &area, &mut map.z, &all, &all);
+        map
+    }
+}
+
+/// Copy the cells of `rect` from a map on `from` into a map on `to` (both hold `rect`).
+fn copy_rect(src: &[f64], from: &Lattice, dst: &mut [f64], to: &Lattice, rect: &Lattice) {
+    for j in 0..rect.ny as i64 {
+        let (js, jd) = (rect.y0 + j - from.y0, rect.y0 + j - to.y0);
+        let (is, id) = (rect.x0 - from.x0, rect.x0 - to.x0);
+        let s0 = js as usize * from.nx + is as usize;
+        let d0 = jd as usize * to.nx + id as usize;
+        dst[d0..d0 + rect.nx].copy_from_slice(&src[s0..s0 + rect.nx]);
     }
 }
 
@@ -794,6 +972,44 @@ mod tests {
                 .all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
             assert!(same, "{threads} threads");
         }
+    }
+
+    fn same_map(a: &HeightMap, b: &HeightMap) -> bool {
+        (a.nx, a.ny, a.x0, a.y0, a.cell_mm) == (b.nx, b.ny, b.x0, b.y0, b.cell_mm)
+            && a.z
+                .iter()
+                .zip(&b.z)
+                .all(|(p, q)| p.to_bits() == q.to_bits() || (p.is_nan() && q.is_nan()))
+    }
+
+    /// Filled column by column as a scan's frames come, the map is the whole network's,
+    /// bit for bit, and so is a fill given segments of another grid (computed again).
+    #[test]
+    fn a_map_filled_column_by_column_is_the_whole_map() {
+        let mut g = wavy(61, 80);
+        // A hole, so some segments are left out and the order has gaps.
+        for (i, j) in [(20, 30), (21, 31), (40, 5)] {
+            g.set(i, j, P3::from([f64::NAN; 3]));
+        }
+        let n = BezierNetwork::build(&g).unwrap();
+        assert!(n.skipped() > 0);
+        let whole = n.eval_heightmap_on(0.05, 1);
+        assert!(whole.valid_count() > 10_000, "{}", whole.valid_count());
+        let mut fill = HeightFill::new(0.05);
+        let last = n.segments().last().unwrap().a;
+        for a in 0..last {
+            let col: Vec<Segment> = n.segments().iter().filter(|s| s.a == a).cloned().collect();
+            fill.add(&col);
+        }
+        assert!(fill.len() > n.segments().len() * 9 / 10);
+        assert!(same_map(&fill.finish(&n), &whole));
+
+        let mut other = g.clone();
+        other.set(3, 3, P3::new(1.0, 0.8, 3.5));
+        let o = BezierNetwork::build(&other).unwrap();
+        let mut fill = HeightFill::new(0.05);
+        fill.add(&o.segments()[..o.segments().len() / 2]);
+        assert!(same_map(&fill.finish(&n), &whole));
     }
 
     #[test]

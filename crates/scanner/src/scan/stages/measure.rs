@@ -3,7 +3,8 @@
 //! the last stages (`last.adjust`).
 
 use super::out_file;
-use crate::measure::{measure_grid, write_measurements};
+use crate::geom::HeightMap;
+use crate::measure::{measure_grid_with, rasterize_grid, write_measurements, Ahead, MeasureError};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::Item;
 use crate::scan::model_job::MeasuredFoot;
@@ -43,8 +44,8 @@ fn yes() -> bool {
     true
 }
 
-/// `measure.foot`: keeps the grid (and the model, which comes after it) and measures at the
-/// end of the stream; passes every item on.
+/// `measure.foot`: keeps the grid (and the model, which comes after it) and measures once
+/// both have come (without a model, at the end of the stream); passes every item on.
 pub struct MeasureStage {
     json: PathBuf,
     png: PathBuf,
@@ -54,6 +55,10 @@ pub struct MeasureStage {
     grid: Option<Arc<ScanGrid>>,
     model: Option<Arc<BezierNetwork>>,
     counters: Option<Arc<crate::scan::ScanCounters>>,
+    /// Measured already (when the model came): the end of the stream has nothing to do.
+    measured: bool,
+    /// The footprint, rasterised from the grid while the model is built.
+    footprint: Option<std::thread::JoinHandle<Result<HeightMap, MeasureError>>>,
 }
 
 impl MeasureStage {
@@ -71,6 +76,8 @@ impl MeasureStage {
             grid: None,
             model: None,
             counters: None,
+            measured: false,
+            footprint: None,
         })
     }
 
@@ -80,6 +87,9 @@ impl MeasureStage {
     pub fn with_counters(mut self, counters: Arc<crate::scan::ScanCounters>) -> Self {
         if self.shares() {
             counters.model.foot.expect();
+        }
+        if self.use_model {
+            counters.early.request(self.cell_mm);
         }
         self.counters = Some(counters);
         self
@@ -108,22 +118,60 @@ impl Drop for MeasureStage {
 }
 
 impl Stage<Item> for MeasureStage {
+    /// Measures as soon as the model has come after the grid (the sinks between the model
+    /// and this stage may still be writing: the results do not wait on them), else at the
+    /// end of the stream.
     fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
         match &item {
-            Item::Grid(g) => self.grid = Some(g.clone()),
+            Item::Grid(g) => {
+                self.grid = Some(g.clone());
+                let (g, cell) = (g.clone(), self.cell_mm);
+                self.footprint = std::thread::Builder::new()
+                    .name("measure.footprint".into())
+                    .spawn(move || rasterize_grid(&g, cell))
+                    .ok();
+            }
             Item::Model(n) if self.use_model => self.model = Some(n.clone()),
             _ => {}
         }
+        let ready = matches!(item, Item::Model(_)) && self.use_model && self.grid.is_some();
         let _ = out.emit(item);
+        if ready {
+            self.measure(out)?;
+        }
         Ok(())
     }
 
     fn finish(&mut self, out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        if self.measured {
+            return Ok(());
+        }
+        self.measure(out)
+    }
+}
+
+impl MeasureStage {
+    fn measure(&mut self, out: &mut Emitter<Item>) -> Result<(), BoxError> {
+        self.measured = true;
         let Some(grid) = self.grid.take() else {
             return Err("measure.foot received no scan grid: put it after accumulate".into());
         };
         let model = self.model.clone();
-        let result = measure_grid(&grid, model.as_deref(), self.cell_mm).and_then(|(map, m)| {
+        // The model's heights filled while the frames came, when accumulate fed them.
+        let t = std::time::Instant::now();
+        let ms = |t: std::time::Instant| t.elapsed().as_secs_f64() * 1e3;
+        let ahead = Ahead {
+            model_map: match (&self.counters, &model) {
+                (Some(c), Some(net)) => c.early.finish(net),
+                _ => None,
+            },
+            footprint: self.footprint.take().and_then(|h| h.join().ok()),
+        };
+        let early_ms = ms(t);
+        let had_early = ahead.model_map.is_some();
+        let result = measure_grid_with(&grid, model.as_deref(), self.cell_mm, ahead);
+        let measured_ms = ms(t);
+        let result = result.and_then(|(map, m)| {
             let Some(net) = model else {
                 return write_measurements(&m, &map, &self.json, &self.png).map(|_| m);
             };
@@ -139,6 +187,13 @@ impl Stage<Item> for MeasureStage {
         if result.is_err() {
             self.publish(None);
         }
+        tracing::debug!(
+            early_heights = had_early,
+            heights_ready_ms = early_ms,
+            measured_ms,
+            written_ms = ms(t),
+            "measure.foot timing"
+        );
         match result {
             Ok(m) => {
                 tracing::info!(

@@ -189,6 +189,9 @@ impl Stage<Item> for Accumulate {
         let Item::Points(fp) = item else {
             return Err(unexpected("accumulate", &item, "points"));
         };
+        if let Some((counters, ..)) = &self.gate {
+            counters.early.push(&fp.points);
+        }
         self.grid
             .get_or_insert_with(|| ScanGrid::new(fp.points.len()))
             .push(fp);

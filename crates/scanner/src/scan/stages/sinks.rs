@@ -19,11 +19,14 @@ impl Stage<Item> for PlySink {
             let _ = out.emit(item);
             return Ok(());
         };
+        let grid = grid.clone();
+        // Passed on before the file is written: the measurements after this stage wait on
+        // the grid, not on the disk (issue 34 item 2); a failed write still fails the scan.
+        let _ = out.emit(item);
         let (pts, q): (Vec<P3>, Vec<f32>) =
             grid.valid().map(|(_, _, p, l)| (*p, l.quality)).unzip();
         write_ply_points(&self.path, &pts, &q)
             .map_err(|e| format!("writing {}: {e}", self.path.display()))?;
-        let _ = out.emit(item);
         Ok(())
     }
 }
@@ -93,11 +96,16 @@ pub struct GridSink {
 
 impl Stage<Item> for GridSink {
     fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
-        if let Item::Grid(grid) = &item {
+        let grid = match &item {
+            Item::Grid(grid) => Some(grid.clone()),
+            _ => None,
+        };
+        // Passed on first, as in [`PlySink`].
+        let _ = out.emit(item);
+        if let Some(grid) = grid {
             grid.save(&self.path)
                 .map_err(|e| format!("writing {}: {e}", self.path.display()))?;
         }
-        let _ = out.emit(item);
         Ok(())
     }
 }
