@@ -488,24 +488,32 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
     // The arch: where the medial midfoot faces the glass; on a foot that bears no weight the
     // whole vault may slope more, and a looser limit is taken (said in the warnings) rather
     // than losing every other measurement and the side with it.
-    let mut arch = arch_height(map, &body, x_front, &xl, &yl, yc, ARCH_SLOPE);
-    for limit in ARCH_SLOPE_FALLBACK {
-        if arch.is_some() {
-            break;
+    // The arch fit and the contact thirds read the map independently: side by side (a
+    // scan's results wait on them, issue 34 item 2).
+    let (arch, thirds) = std::thread::scope(|s| {
+        let thirds = s.spawn(|| contact_thirds(map, &body, x_front, &xl));
+        let mut arch = arch_height(map, &body, x_front, &xl, &yl, yc, ARCH_SLOPE);
+        for limit in ARCH_SLOPE_FALLBACK {
+            if arch.is_some() {
+                break;
+            }
+            arch = arch_height(map, &body, x_front, &xl, &yl, yc, limit);
+            if arch.is_some() {
+                warnings.push(format!(
+                    "arch height taken where the medial midfoot slopes under {:.0} degrees: it \
+                     slopes over {:.0} everywhere (a foot not bearing weight?)",
+                    limit.atan().to_degrees(),
+                    ARCH_SLOPE.atan().to_degrees()
+                ));
+            }
         }
-        arch = arch_height(map, &body, x_front, &xl, &yl, yc, limit);
-        if arch.is_some() {
-            warnings.push(format!(
-                "arch height taken where the medial midfoot slopes under {:.0} degrees: it slopes \
-                 over {:.0} everywhere (a foot not bearing weight?)",
-                limit.atan().to_degrees(),
-                ARCH_SLOPE.atan().to_degrees()
-            ));
-        }
-    }
+        let thirds = thirds
+            .join()
+            .unwrap_or_else(|p| std::panic::resume_unwind(p));
+        (arch, thirds)
+    });
     let (arch_height, arch_point) =
         arch.ok_or_else(|| missing("arch height (no gently sloping medial midfoot)"))?;
-    let thirds = contact_thirds(map, &body, x_front, &xl);
     let total: f64 = thirds.iter().sum();
     if total <= 0.0 {
         return Err(missing("contact area"));

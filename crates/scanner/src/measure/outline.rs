@@ -29,7 +29,10 @@ pub fn regions(map: &HeightMap) -> Vec<Region> {
     let valid: Vec<bool> = map.z.iter().map(|z| z.is_finite()).collect();
     let mut label = vec![u32::MAX; nx * ny];
     let mut out = Vec::new();
-    let mut stack = Vec::new();
+    let mut boxes = Vec::new();
+    // Cells with their column and row: no division per cell (a scan's results wait on this,
+    // issue 34 item 2).
+    let mut stack: Vec<(usize, usize, usize)> = Vec::new();
     for start in 0..nx * ny {
         if !valid[start] || label[start] != u32::MAX {
             continue;
@@ -37,34 +40,34 @@ pub fn regions(map: &HeightMap) -> Vec<Region> {
         let id = out.len() as u32;
         let mut cells = Vec::new();
         label[start] = id;
-        stack.push(start);
-        while let Some(k) = stack.pop() {
+        let (si, sj) = map.cell(start);
+        stack.push((start, si, sj));
+        // Centre sums in the order the cells are taken, and the bounding box.
+        let (mut sx, mut sy) = (0.0, 0.0);
+        let mut bb = [usize::MAX, 0, usize::MAX, 0];
+        while let Some((k, i, j)) = stack.pop() {
             cells.push(k);
-            let (i, j) = map.cell(k);
-            let mut visit = |n: usize| {
+            sx += map.x(i);
+            sy += map.y(j);
+            bb = [bb[0].min(i), bb[1].max(i), bb[2].min(j), bb[3].max(j)];
+            let mut visit = |n: usize, i: usize, j: usize| {
                 if valid[n] && label[n] == u32::MAX {
                     label[n] = id;
-                    stack.push(n);
+                    stack.push((n, i, j));
                 }
             };
             if i > 0 {
-                visit(k - 1);
+                visit(k - 1, i - 1, j);
             }
             if i + 1 < nx {
-                visit(k + 1);
+                visit(k + 1, i + 1, j);
             }
             if j > 0 {
-                visit(k - nx);
+                visit(k - nx, i, j - 1);
             }
             if j + 1 < ny {
-                visit(k + nx);
+                visit(k + nx, i, j + 1);
             }
-        }
-        let (mut sx, mut sy) = (0.0, 0.0);
-        for &k in &cells {
-            let (i, j) = map.cell(k);
-            sx += map.x(i);
-            sy += map.y(j);
         }
         let n = cells.len() as f64;
         out.push(Region {
@@ -73,9 +76,10 @@ pub fn regions(map: &HeightMap) -> Vec<Region> {
             outline: Vec::new(),
             cells,
         });
+        boxes.push(bb);
     }
-    for (id, r) in out.iter_mut().enumerate() {
-        r.outline = outer_outline(map, &label, id as u32, &r.cells);
+    for (id, (r, bb)) in out.iter_mut().zip(&boxes).enumerate() {
+        r.outline = outer_outline(map, &label, id as u32, *bb);
     }
     out.sort_by_key(|r| std::cmp::Reverse(r.cells.len()));
     out
@@ -83,16 +87,10 @@ pub fn regions(map: &HeightMap) -> Vec<Region> {
 
 /// Marching squares over the bounding box of one region (label `id`), padded by one cell;
 /// returns the loop of largest area (the outer boundary; holes are clockwise and smaller).
-fn outer_outline(map: &HeightMap, label: &[u32], id: u32, cells: &[usize]) -> Vec<P2> {
+/// `bb` is the region's bounding box in cells: first and last column, first and last row.
+fn outer_outline(map: &HeightMap, label: &[u32], id: u32, bb: [usize; 4]) -> Vec<P2> {
     let nx = map.nx;
-    let (mut i0, mut i1, mut j0, mut j1) = (usize::MAX, 0, usize::MAX, 0);
-    for &k in cells {
-        let (i, j) = map.cell(k);
-        i0 = i0.min(i);
-        i1 = i1.max(i);
-        j0 = j0.min(j);
-        j1 = j1.max(j);
-    }
+    let [i0, i1, j0, j1] = bb;
     // Local padded grid: local (a, b) = cell (i0 + a - 1, j0 + b - 1).
     let w = i1 - i0 + 3;
     let h = j1 - j0 + 3;
@@ -107,15 +105,19 @@ fn outer_outline(map: &HeightMap, label: &[u32], id: u32, cells: &[usize]) -> Ve
     let hid = |a: usize, b: usize| 2 * (b * w + a);
     let vid = |a: usize, b: usize| 2 * (b * w + a) + 1;
     let mut next = std::collections::HashMap::new();
+    // Two rows of samples, each looked up once.
+    let row = |b: usize, r: &mut Vec<bool>| {
+        r.clear();
+        r.extend((0..w).map(|a| inside(a, b)));
+    };
+    let (mut lo, mut hi) = (Vec::with_capacity(w), Vec::with_capacity(w));
+    row(0, &mut hi);
     for b in 0..h - 1 {
+        std::mem::swap(&mut lo, &mut hi);
+        row(b + 1, &mut hi);
         for a in 0..w - 1 {
             // Corners counterclockwise (x right, y up): (a,b), (a+1,b), (a+1,b+1), (a,b+1).
-            let c = [
-                inside(a, b),
-                inside(a + 1, b),
-                inside(a + 1, b + 1),
-                inside(a, b + 1),
-            ];
+            let c = [lo[a], lo[a + 1], hi[a + 1], hi[a]];
             if c.iter().all(|&v| v) || c.iter().all(|&v| !v) {
                 continue;
             }
