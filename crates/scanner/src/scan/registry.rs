@@ -304,9 +304,11 @@ pub fn registry() -> Registry<Item, ScanContext> {
         "writes the point cloud as binary PLY (file, default points.ply)",
         |p, ctx: &ScanContext| {
             let p: FileParams = params(p)?;
-            Ok(Node::stage(PlySink {
-                path: file_in(ctx, p.file, ScanDir::POINTS)?,
-            }))
+            Ok(Node::stage(PlySink::new(file_in(
+                ctx,
+                p.file,
+                ScanDir::POINTS,
+            )?)))
         },
     );
     r.register(
@@ -331,9 +333,11 @@ pub fn registry() -> Registry<Item, ScanContext> {
         "saves the scan grid as grid.bin for later model and measure runs (file)",
         |p, ctx: &ScanContext| {
             let p: FileParams = params(p)?;
-            Ok(Node::stage(GridSink {
-                path: file_in(ctx, p.file, ScanDir::GRID)?,
-            }))
+            Ok(Node::stage(GridSink::new(file_in(
+                ctx,
+                p.file,
+                ScanDir::GRID,
+            )?)))
         },
     );
     r.register(

@@ -732,9 +732,11 @@ impl HeightFill {
         grown
     }
 
-    /// The network's height map: the segments not given yet filled in, cut to the lattice of
-    /// [`BezierNetwork::eval_heightmap`], which it equals bit for bit; that map itself when
-    /// the segments given are not the network's first ones.
+    /// The network's height map: the segments not given yet filled in. Each cell holds
+    /// exactly what [`BezierNetwork::eval_heightmap`] gives for it, but the map may reach
+    /// further (NaN there): the room it kept to grow, not cut off, since a copy of the map
+    /// would cost more than the measurement that reads it by position. When the segments
+    /// given are not the network's first ones, `eval_heightmap` itself.
     pub fn finish(mut self, net: &BezierNetwork) -> HeightMap {
         let k = self.segs.len();
         if net.segs.len() < k || net.segs[..k] != self.segs[..] {
@@ -745,12 +747,17 @@ impl HeightFill {
             return net.eval_heightmap(self.cell);
         }
         self.add(&net.segs[k..]);
-        let (Some(all), Some(area)) = (Lattice::covering(&net.segs, self.cell), self.area) else {
+        let Some(area) = self.area else {
             return HeightMap::new(0.0, 0.0, self.cell, 0, 0);
         };
-        let mut map = all.map(self.cell);
-        copy_rect(&self.z, &area, &mut map.z, &all, &all);
-        map
+        HeightMap {
+            x0: area.x0 as f64 * self.cell,
+            y0: area.y0 as f64 * self.cell,
+            cell_mm: self.cell,
+            nx: area.nx,
+            ny: area.ny,
+            z: self.z,
+        }
     }
 }
 
@@ -862,7 +869,7 @@ impl Locator {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A smooth surface on an irregular grid (x spacing varies, y depends on z).
@@ -982,8 +989,27 @@ mod tests {
                 .all(|(p, q)| p.to_bits() == q.to_bits() || (p.is_nan() && q.is_nan()))
     }
 
-    /// Filled column by column as a scan's frames come, the map is the whole network's,
-    /// bit for bit, and so is a fill given segments of another grid (computed again).
+    /// `got` holds `want`'s heights bit for bit at `want`'s cells and nothing elsewhere.
+    pub(crate) fn same_heights(got: &HeightMap, want: &HeightMap) -> bool {
+        let mut n = 0;
+        for j in 0..want.ny {
+            for i in 0..want.nx {
+                let w = want.get(i, j);
+                let g = got
+                    .cell_of(want.x(i), want.y(j))
+                    .map_or(f64::NAN, |(a, b)| got.get(a, b));
+                if !(w.to_bits() == g.to_bits() || (w.is_nan() && g.is_nan())) {
+                    return false;
+                }
+                n += w.is_finite() as usize;
+            }
+        }
+        got.cell_mm == want.cell_mm && got.valid_count() == n
+    }
+
+    /// Filled column by column as a scan's frames come, the map holds the whole network's
+    /// heights bit for bit, and so does a fill given segments of another grid (computed
+    /// again).
     #[test]
     fn a_map_filled_column_by_column_is_the_whole_map() {
         let mut g = wavy(61, 80);
@@ -1002,7 +1028,7 @@ mod tests {
             fill.add(&col);
         }
         assert!(fill.len() > n.segments().len() * 9 / 10);
-        assert!(same_map(&fill.finish(&n), &whole));
+        assert!(same_heights(&fill.finish(&n), &whole));
 
         let mut other = g.clone();
         other.set(3, 3, P3::new(1.0, 0.8, 3.5));
