@@ -304,11 +304,9 @@ pub fn registry() -> Registry<Item, ScanContext> {
         "writes the point cloud as binary PLY (file, default points.ply)",
         |p, ctx: &ScanContext| {
             let p: FileParams = params(p)?;
-            Ok(Node::stage(PlySink::new(file_in(
-                ctx,
-                p.file,
-                ScanDir::POINTS,
-            )?)))
+            Ok(Node::stage(PlySink {
+                path: file_in(ctx, p.file, ScanDir::POINTS)?,
+            }))
         },
     );
     r.register(
@@ -333,11 +331,9 @@ pub fn registry() -> Registry<Item, ScanContext> {
         "saves the scan grid as grid.bin for later model and measure runs (file)",
         |p, ctx: &ScanContext| {
             let p: FileParams = params(p)?;
-            Ok(Node::stage(GridSink::new(file_in(
-                ctx,
-                p.file,
-                ScanDir::GRID,
-            )?)))
+            Ok(Node::stage(GridSink {
+                path: file_in(ctx, p.file, ScanDir::GRID)?,
+            }))
         },
     );
     r.register(

@@ -11,48 +11,6 @@ use std::sync::Arc;
 
 pub struct PlySink {
     pub path: PathBuf,
-    pub writing: Writing,
-}
-
-impl PlySink {
-    pub fn new(path: PathBuf) -> Self {
-        PlySink {
-            path,
-            writing: Writing::default(),
-        }
-    }
-}
-
-/// A sink's file written on a thread of its own: the items behind it (the model, then the
-/// measurements, which a scan's results wait on) are passed on at once, not after the disk
-/// (issue 34 item 2). The end of the stream waits for the file, and a failed write still
-/// fails the stage.
-#[derive(Default)]
-pub struct Writing(Option<std::thread::JoinHandle<Result<(), String>>>);
-
-impl Writing {
-    fn start(
-        &mut self,
-        what: &str,
-        job: impl FnOnce() -> Result<(), String> + Send + 'static,
-    ) -> Result<(), BoxError> {
-        self.finish()?;
-        let h = std::thread::Builder::new()
-            .name(what.into())
-            .spawn(job)
-            .map_err(|e| format!("{what}: cannot start the writer's thread: {e}"))?;
-        self.0 = Some(h);
-        Ok(())
-    }
-
-    /// Wait for the file being written, if any; its error.
-    fn finish(&mut self) -> Result<(), BoxError> {
-        match self.0.take().map(|h| h.join()) {
-            None | Some(Ok(Ok(()))) => Ok(()),
-            Some(Ok(Err(e))) => Err(e.into()),
-            Some(Err(p)) => std::panic::resume_unwind(p),
-        }
-    }
 }
 
 impl Stage<Item> for PlySink {
@@ -61,18 +19,12 @@ impl Stage<Item> for PlySink {
             let _ = out.emit(item);
             return Ok(());
         };
-        let (grid, path) = (grid.clone(), self.path.clone());
+        let (pts, q): (Vec<P3>, Vec<f32>) =
+            grid.valid().map(|(_, _, p, l)| (*p, l.quality)).unzip();
+        write_ply_points(&self.path, &pts, &q)
+            .map_err(|e| format!("writing {}: {e}", self.path.display()))?;
         let _ = out.emit(item);
-        self.writing.start("sink.ply", move || {
-            let (pts, q): (Vec<P3>, Vec<f32>) =
-                grid.valid().map(|(_, _, p, l)| (*p, l.quality)).unzip();
-            write_ply_points(&path, &pts, &q)
-                .map_err(|e| format!("writing {}: {e}", path.display()))
-        })
-    }
-
-    fn finish(&mut self, _out: &mut Emitter<Item>) -> Result<(), BoxError> {
-        self.writing.finish()
+        Ok(())
     }
 }
 
@@ -134,40 +86,18 @@ impl Stage<Item> for SummarySink {
     }
 }
 
-/// Saves the grid as grid.bin so `footscan model` and `footscan measure` can reuse a scan
-/// (on its own thread, as [`PlySink`]).
+/// Saves the grid as grid.bin so `footscan model` and `footscan measure` can reuse a scan.
 pub struct GridSink {
     pub path: PathBuf,
-    pub writing: Writing,
-}
-
-impl GridSink {
-    pub fn new(path: PathBuf) -> Self {
-        GridSink {
-            path,
-            writing: Writing::default(),
-        }
-    }
 }
 
 impl Stage<Item> for GridSink {
     fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
-        let grid = match &item {
-            Item::Grid(grid) => Some(grid.clone()),
-            _ => None,
-        };
+        if let Item::Grid(grid) = &item {
+            grid.save(&self.path)
+                .map_err(|e| format!("writing {}: {e}", self.path.display()))?;
+        }
         let _ = out.emit(item);
-        let Some(grid) = grid else {
-            return Ok(());
-        };
-        let path = self.path.clone();
-        self.writing.start("sink.grid", move || {
-            grid.save(&path)
-                .map_err(|e| format!("writing {}: {e}", path.display()))
-        })
-    }
-
-    fn finish(&mut self, _out: &mut Emitter<Item>) -> Result<(), BoxError> {
-        self.writing.finish()
+        Ok(())
     }
 }
