@@ -17,7 +17,7 @@
 use crate::optics::{check_range, SimError};
 use crate::render::Surface;
 use footscan_geom::mesh::{Axes, IntakeOptions, MeshError, TriMesh, Units};
-use footscan_geom::P3;
+use footscan_geom::{P2, P3};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -59,13 +59,13 @@ impl Placement {
 
     /// The map from the mesh's own frame to the world, given its reference point and lowest
     /// z there: `world = R (p - reference) + (heel_x, axis_y, lift - z_min)`.
-    pub fn transform(&self, reference: [f64; 2], z_min: f64) -> RigidXy {
+    pub fn transform(&self, reference: P2, z_min: f64) -> RigidXy {
         let (s, c) = self.yaw_deg.to_radians().sin_cos();
         RigidXy {
             cos: c,
             sin: s,
-            from: [reference[0], reference[1], z_min],
-            to: [self.heel_x_mm, self.axis_y_mm, self.lift_mm],
+            from: P3::new(reference.x, reference.y, z_min),
+            to: P3::new(self.heel_x_mm, self.axis_y_mm, self.lift_mm),
         }
     }
 }
@@ -75,18 +75,18 @@ impl Placement {
 pub struct RigidXy {
     pub cos: f64,
     pub sin: f64,
-    pub from: [f64; 3],
-    pub to: [f64; 3],
+    pub from: P3,
+    pub to: P3,
 }
 
 impl RigidXy {
-    pub fn apply(&self, p: [f64; 3]) -> [f64; 3] {
-        let (x, y) = (p[0] - self.from[0], p[1] - self.from[1]);
-        [
-            self.to[0] + self.cos * x - self.sin * y,
-            self.to[1] + self.sin * x + self.cos * y,
-            self.to[2] + p[2] - self.from[2],
-        ]
+    pub fn apply(&self, p: P3) -> P3 {
+        let (x, y) = (p.x - self.from.x, p.y - self.from.y);
+        P3::new(
+            self.to.x + self.cos * x - self.sin * y,
+            self.to.y + self.sin * x + self.cos * y,
+            self.to.z + p.z - self.from.z,
+        )
     }
 }
 
@@ -395,18 +395,17 @@ impl Surface for MeshSurface {
 pub fn place(mesh: &TriMesh, placement: &Placement) -> Result<TriMesh, SimError> {
     placement.validate()?;
     let bb = mesh.bbox();
-    let reference = [bb.min.x, 0.5 * (bb.min.y + bb.max.y)];
+    let reference = P2::new(bb.min.x, 0.5 * (bb.min.y + bb.max.y));
     Ok(place_at(mesh, placement, reference))
 }
 
 /// A copy of `mesh` placed with the given reference point (mesh frame).
-pub fn place_at(mesh: &TriMesh, placement: &Placement, reference: [f64; 2]) -> TriMesh {
+pub fn place_at(mesh: &TriMesh, placement: &Placement, reference: P2) -> TriMesh {
     let z_min = mesh.bbox().min.z;
     let tf = placement.transform(reference, z_min);
     let mut m = mesh.clone();
     for v in &mut m.vertices {
-        let p = tf.apply([v.x, v.y, v.z]);
-        *v = P3::new(p[0], p[1], p[2]);
+        *v = tf.apply(*v);
     }
     m
 }

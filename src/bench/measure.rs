@@ -32,8 +32,8 @@ pub fn analytic_map(foot: &Foot, cell: f64, toes: bool) -> HeightMap {
         if toes {
             foot.height(x, y)
         } else {
-            let [xf, yf] = foot.to_foot(x, y);
-            foot.body_height_foot_frame(xf, yf)
+            let f = foot.to_foot(x, y);
+            foot.body_height_foot_frame(f.x, f.y)
         }
     })
 }

@@ -62,6 +62,13 @@ pub fn unit_by_hypot(v: &V2) -> V2 {
     v / v.x.hypot(v.y)
 }
 
+/// The distance from `a` to `b` as `hypot` gives it, `(a.x - b.x).hypot(a.y - b.y)`: the
+/// outlines' arc lengths and distances (see [`unit_by_hypot`] for why not nalgebra's
+/// `distance`).
+pub fn dist_by_hypot(a: &P2, b: &P2) -> f64 {
+    (a.x - b.x).hypot(a.y - b.y)
+}
+
 /// `v` turned a quarter turn counterclockwise, `(-y, x)`: the left normal of a direction in
 /// the plane (not nalgebra's `perp`, which is the scalar cross product of two vectors).
 pub fn quarter_turn(v: &V2) -> V2 {

@@ -22,15 +22,6 @@ impl Polygon {
         Polygon { points }
     }
 
-    /// From `[x, y]` pairs (the form footscan's measurements use).
-    pub fn from_arrays(p: &[[f64; 2]]) -> Polygon {
-        Polygon::new(p.iter().map(|q| P2::new(q[0], q[1])).collect())
-    }
-
-    pub fn to_arrays(&self) -> Vec<[f64; 2]> {
-        self.points.iter().map(|p| [p.x, p.y]).collect()
-    }
-
     pub fn len(&self) -> usize {
         self.points.len()
     }
@@ -354,6 +345,11 @@ pub fn convex_hull(points: &[P2]) -> Polygon {
 mod tests {
     use super::*;
 
+    /// A polygon from literal `[x, y]` pairs.
+    fn poly(p: &[[f64; 2]]) -> Polygon {
+        Polygon::new(p.iter().map(|&q| P2::from(q)).collect())
+    }
+
     fn circle(n: usize, r: f64, c: P2) -> Polygon {
         Polygon::new(
             (0..n)
@@ -367,7 +363,7 @@ mod tests {
 
     #[test]
     fn area_centroid_containment() {
-        let sq = Polygon::from_arrays(&[[1.0, 1.0], [3.0, 1.0], [3.0, 2.0], [1.0, 2.0]]);
+        let sq = poly(&[[1.0, 1.0], [3.0, 1.0], [3.0, 2.0], [1.0, 2.0]]);
         assert_eq!(sq.signed_area(), 2.0);
         assert_eq!(sq.orientation(), Orientation::CounterClockwise);
         assert_eq!(sq.centroid(), P2::new(2.0, 1.5));
@@ -381,7 +377,7 @@ mod tests {
         assert!(cw.contains(&P2::new(2.0, 1.5)));
         cw.make_ccw();
         assert!(cw.is_ccw());
-        assert_eq!(sq.to_arrays()[2], [3.0, 2.0]);
+        assert_eq!(sq.points[2], P2::new(3.0, 2.0));
         // Far from the origin the shoelace stays exact.
         let far = sq.translated(&V2::new(1e7, -1e7));
         assert_eq!(far.signed_area(), 2.0);
@@ -420,7 +416,7 @@ mod tests {
         }
         assert_eq!(ring.extreme_vertex(&V2::new(1.0, 0.0)), Some(0));
         // A line through a vertex that it only touches is not a crossing.
-        let tri = Polygon::from_arrays(&[[0.0, 0.0], [2.0, 0.0], [1.0, 1.0]]);
+        let tri = poly(&[[0.0, 0.0], [2.0, 0.0], [1.0, 1.0]]);
         let touch = tri.line_crossings(&P2::new(0.0, 1.0), &V2::new(1.0, 0.0));
         assert_eq!(touch, vec![1.0, 1.0]);
         assert_eq!(

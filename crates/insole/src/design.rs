@@ -9,7 +9,7 @@ use footscan::scandata::ScanDir;
 use footscan::surface::solid::{outline_solid, OutlineSolid};
 use footscan_geom::mesh::TriMesh;
 use footscan_geom::polygon::Polygon;
-use footscan_geom::P2;
+use footscan_geom::{P2, V2};
 use std::path::Path;
 
 /// Cell of the foot's heights in the foot frame (mm): the solid samples them bilinearly.
@@ -119,19 +119,15 @@ impl ShoeBottom {
 
     /// The outline of the last's bottom seen from below, in the foot frame: its downward
     /// faces rasterised on 0.5 mm cells, the largest region's outline.
-    fn outline(&self, frame: &FootFrame) -> Result<Vec<[f64; 2]>, InsoleError> {
+    fn outline(&self, frame: &FootFrame) -> Result<Vec<P2>, InsoleError> {
         let m = &self.last;
-        let pts: Vec<[f64; 2]> = m
-            .vertices
-            .iter()
-            .map(|v| frame.to_foot(P2::new(v.x, v.y)).into())
-            .collect();
+        let pts: Vec<P2> = m.vertices.iter().map(|v| frame.to_foot(v.xy())).collect();
         let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
         for q in &pts {
-            x0 = x0.min(q[0]);
-            x1 = x1.max(q[0]);
-            y0 = y0.min(q[1]);
-            y1 = y1.max(q[1]);
+            x0 = x0.min(q.x);
+            x1 = x1.max(q.x);
+            y0 = y0.min(q.y);
+            y1 = y1.max(q.y);
         }
         let c = FOOT_CELL_MM;
         let nx = ((x1 - x0) / c).ceil() as usize + 3;
@@ -143,31 +139,28 @@ impl ShoeBottom {
             }
             let q = tri.map(|k| pts[k as usize]);
             let (lo_x, hi_x) = (
-                q[0][0].min(q[1][0]).min(q[2][0]),
-                q[0][0].max(q[1][0]).max(q[2][0]),
+                q[0].x.min(q[1].x).min(q[2].x),
+                q[0].x.max(q[1].x).max(q[2].x),
             );
             let (lo_y, hi_y) = (
-                q[0][1].min(q[1][1]).min(q[2][1]),
-                q[0][1].max(q[1][1]).max(q[2][1]),
+                q[0].y.min(q[1].y).min(q[2].y),
+                q[0].y.max(q[1].y).max(q[2].y),
             );
             let i0 = ((lo_x - mask.x0) / c).floor().max(0.0) as usize;
             let i1 = (((hi_x - mask.x0) / c).ceil() as usize).min(nx - 1);
             let j0 = ((lo_y - mask.y0) / c).floor().max(0.0) as usize;
             let j1 = (((hi_y - mask.y0) / c).ceil() as usize).min(ny - 1);
-            let det = (q[1][0] - q[0][0]) * (q[2][1] - q[0][1])
-                - (q[2][0] - q[0][0]) * (q[1][1] - q[0][1]);
+            let det = (q[1].x - q[0].x) * (q[2].y - q[0].y) - (q[2].x - q[0].x) * (q[1].y - q[0].y);
             if det.abs() < 1e-12 {
                 continue;
             }
             for j in j0..=j1 {
                 for i in i0..=i1 {
                     let (x, y) = (mask.x(i), mask.y(j));
-                    let l1 = ((x - q[0][0]) * (q[2][1] - q[0][1])
-                        - (q[2][0] - q[0][0]) * (y - q[0][1]))
-                        / det;
-                    let l2 = ((q[1][0] - q[0][0]) * (y - q[0][1])
-                        - (x - q[0][0]) * (q[1][1] - q[0][1]))
-                        / det;
+                    let l1 =
+                        ((x - q[0].x) * (q[2].y - q[0].y) - (q[2].x - q[0].x) * (y - q[0].y)) / det;
+                    let l2 =
+                        ((q[1].x - q[0].x) * (y - q[0].y) - (x - q[0].x) * (q[1].y - q[0].y)) / det;
                     if l1 >= -1e-9 && l2 >= -1e-9 && l1 + l2 <= 1.0 + 1e-9 {
                         mask.set(i, j, 0.0);
                     }
@@ -212,11 +205,9 @@ impl ShoeBottom {
         };
         // The raster's half-cell steps and the hairs of the last's edge made fair: a
         // periodic smoothing spline through the edge (see [`fair_closed`]).
-        let edge: Vec<[f64; 2]> = r.outline.iter().map(|&p| p.into()).collect();
-        let mut poly =
-            Polygon::from_arrays(&fair_closed(&edge, FAIR_SPACING_MM, FAIR_WAVELENGTH_MM));
+        let mut poly = Polygon::new(fair_closed(&r.outline, FAIR_SPACING_MM, FAIR_WAVELENGTH_MM));
         poly.make_ccw();
-        Ok(poly.to_arrays())
+        Ok(poly.points)
     }
 }
 
@@ -270,10 +261,10 @@ impl ShoeBottom {
             if m.face_normal(t).z < BOTTOM_NZ {
                 for p in m.corners(t) {
                     let q = frame.to_foot(P2::new(p.x, p.y));
-                    x0 = x0.min(q[0]);
-                    x1 = x1.max(q[0]);
-                    y0 = y0.min(q[1]);
-                    y1 = y1.max(q[1]);
+                    x0 = x0.min(q.x);
+                    x1 = x1.max(q.x);
+                    y0 = y0.min(q.y);
+                    y1 = y1.max(q.y);
                 }
             }
         }
@@ -289,7 +280,7 @@ impl ShoeBottom {
                 while y <= y1 {
                     let w = frame.to_world(P2::new(x, y));
                     let hit = bvh.ray_cast(
-                        &P3::new(w[0], w[1], bb.min.z - 10.0),
+                        &P3::new(w.x, w.y, bb.min.z - 10.0),
                         &V3::z(),
                         bb.max.z - bb.min.z + 20.0,
                     );
@@ -345,7 +336,7 @@ const FAIR_WAVELENGTH_MM: f64 = 20.0;
 /// harmonic k is divided by 1 + lambda (2 - 2 cos(2 pi k / n))^2, with lambda set so the
 /// harmonic of wavelength `wavelength` keeps half its amplitude. A few hundred points: the
 /// direct transform is cheap and needs no crate.
-pub fn fair_closed(outline: &[[f64; 2]], spacing: f64, wavelength: f64) -> Vec<[f64; 2]> {
+pub fn fair_closed(outline: &[P2], spacing: f64, wavelength: f64) -> Vec<P2> {
     let q = resample_closed(outline, spacing);
     let n = q.len();
     if n < 8 {
@@ -353,7 +344,7 @@ pub fn fair_closed(outline: &[[f64; 2]], spacing: f64, wavelength: f64) -> Vec<[
     }
     let w = 2.0 * std::f64::consts::PI * spacing / wavelength;
     let lambda = 1.0 / (2.0 - 2.0 * w.cos()).powi(2);
-    let mut out = vec![[0.0; 2]; n];
+    let mut out = vec![P2::origin(); n];
     let (cos, sin): (Vec<f64>, Vec<f64>) = (0..n)
         .map(|m| {
             let a = 2.0 * std::f64::consts::PI * m as f64 / n as f64;
@@ -381,14 +372,14 @@ pub fn fair_closed(outline: &[[f64; 2]], spacing: f64, wavelength: f64) -> Vec<[
 }
 
 /// A closed polyline resampled at equal steps of about `step` along its length.
-fn resample_closed(p: &[[f64; 2]], step: f64) -> Vec<[f64; 2]> {
+fn resample_closed(p: &[P2], step: f64) -> Vec<P2> {
     let k = p.len();
     if k < 3 {
         return p.to_vec();
     }
     let seg = |i: usize| {
         let (a, b) = (p[i], p[(i + 1) % k]);
-        ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt()
+        ((b.x - a.x).powi(2) + (b.y - a.y).powi(2)).sqrt()
     };
     let total: f64 = (0..k).map(seg).sum();
     let n = ((total / step).round() as usize).max(3);
@@ -407,7 +398,7 @@ fn resample_closed(p: &[[f64; 2]], step: f64) -> Vec<[f64; 2]> {
         } else {
             0.0
         };
-        out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+        out.push(a + (b - a) * t);
     }
     out
 }
@@ -415,13 +406,13 @@ fn resample_closed(p: &[[f64; 2]], step: f64) -> Vec<[f64; 2]> {
 /// Landmarks in the foot frame (mm).
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct Marks {
-    pub heel_centre: [f64; 2],
-    pub arch_point: [f64; 2],
-    pub mt1_head: [f64; 2],
-    pub mt2_head: [f64; 2],
-    pub mt3_head: [f64; 2],
-    pub mt5_head: [f64; 2],
-    pub toe_tip: [f64; 2],
+    pub heel_centre: P2,
+    pub arch_point: P2,
+    pub mt1_head: P2,
+    pub mt2_head: P2,
+    pub mt3_head: P2,
+    pub mt5_head: P2,
+    pub toe_tip: P2,
 }
 
 /// The designed insole: its outline, the foot's heights and every correction, in the foot
@@ -438,7 +429,7 @@ pub struct Design {
     /// +1 when +y is medial (a right foot), -1 otherwise.
     pub medial: f64,
     /// The insole's outline, counterclockwise.
-    pub outline: Vec<[f64; 2]>,
+    pub outline: Vec<P2>,
     outline_poly: Polygon,
     /// The foot's heights in the foot frame, laid flat ([`Self::bottom_rise_mm`]), filled
     /// beyond the footprint; `measured[k]` is whether cell k had a scanned height.
@@ -457,7 +448,7 @@ pub struct Design {
     /// The foot's height at the heel centre: the heel seat (mm).
     pub seat_mm: f64,
     /// Pad apex (foot frame) and where the 3/4 insole ends (x, mm) if it does.
-    pub pad_apex: [f64; 2],
+    pub pad_apex: P2,
     /// The shoe's bottom curve the insole is bent onto (None: a flat bottom).
     pub spring: Option<Spring>,
     pub warnings: Vec<String>,
@@ -494,13 +485,10 @@ pub fn design_in(
     params.validate()?;
     let m = &p.m;
     let frame = FootFrame::of(m);
-    let to = |q: P2| -> [f64; 2] { frame.to_foot(q).into() };
+    let to = |q: P2| frame.to_foot(q);
     let medial = if m.side == Side::Right { 1.0 } else { -1.0 };
     let (mt1, mt2, mt5) = (to(m.mt1_head), to(m.mt2_head), to(m.mt5_head));
-    let mt3 = [
-        mt2[0] + (mt5[0] - mt2[0]) / 3.0,
-        mt2[1] + (mt5[1] - mt2[1]) / 3.0,
-    ];
+    let mt3 = mt2 + (mt5 - mt2) / 3.0;
     let marks = Marks {
         heel_centre: to(m.heel_centre),
         arch_point: to(m.arch_point),
@@ -559,26 +547,26 @@ pub fn design_in(
             if params.margin_mm > 0.0 {
                 poly = poly.offset(params.margin_mm);
             }
-            poly.to_arrays()
+            poly.points
         }
     };
-    let heads_x = mt1[0].min(mt5[0]);
+    let heads_x = mt1.x.min(mt5.x);
     match params.length {
         Length::Full => {
             if params.extra_length_mm > 0.0 {
-                let tip = outline.iter().map(|q| q[0]).fold(f64::MIN, f64::max);
+                let tip = outline.iter().map(|q| q.x).fold(f64::MIN, f64::max);
                 for q in &mut outline {
-                    if q[0] > heads_x {
-                        q[0] +=
-                            params.extra_length_mm * smoothstep((q[0] - heads_x) / (tip - heads_x));
+                    if q.x > heads_x {
+                        q.x +=
+                            params.extra_length_mm * smoothstep((q.x - heads_x) / (tip - heads_x));
                     }
                 }
             }
         }
         Length::ThreeQuarter => {
             // Behind the line through the first and fifth heads, moved back along the axis.
-            let a = [mt1[0] - params.three_quarter_behind_mm, mt1[1]];
-            let b = [mt5[0] - params.three_quarter_behind_mm, mt5[1]];
+            let back = V2::new(params.three_quarter_behind_mm, 0.0);
+            let (a, b) = (mt1 - back, mt5 - back);
             outline = clip_behind(&outline, a, b).ok_or_else(|| InsoleError::Param {
                 name: "three_quarter_behind_mm",
                 value: params.three_quarter_behind_mm,
@@ -592,15 +580,15 @@ pub fn design_in(
             })?;
         }
     }
-    let outline_poly = Polygon::from_arrays(&outline);
+    let outline_poly = Polygon::new(outline.clone());
 
     // The foot's heights on the foot frame's grid over the outline.
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for q in &outline {
-        x0 = x0.min(q[0]);
-        x1 = x1.max(q[0]);
-        y0 = y0.min(q[1]);
-        y1 = y1.max(q[1]);
+        x0 = x0.min(q.x);
+        x1 = x1.max(q.x);
+        y0 = y0.min(q.y);
+        y1 = y1.max(q.y);
     }
     let c = FOOT_CELL_MM;
     let (gx0, gy0) = (
@@ -614,10 +602,10 @@ pub fn design_in(
     for j in 0..ny {
         for i in 0..nx {
             let w = frame.to_world(P2::new(foot.x(i), foot.y(j)));
-            let cell = p.map.cell_of(w[0], w[1]);
+            let cell = p.map.cell_of(w.x, w.y);
             let inside = cell.is_some_and(|(a, b)| p.map.get(a, b).is_finite());
             if inside {
-                if let Some(z) = sample_height(&p.map, w[0], w[1]) {
+                if let Some(z) = sample_height(&p.map, w.x, w.y) {
                     foot.set(i, j, z.max(0.0));
                     measured[foot.index(i, j)] = true;
                 }
@@ -645,7 +633,7 @@ pub fn design_in(
     } else {
         (vec![0.0; nx], 0.0)
     };
-    let toe_line_x = mt1[0].max(mt5[0]) + TOE_LINE_MM;
+    let toe_line_x = mt1.x.max(mt5.x) + TOE_LINE_MM;
     for j in 0..ny {
         for (i, b) in bottom.iter().enumerate() {
             let mut z = (foot.get(i, j) - b).max(0.0);
@@ -675,12 +663,12 @@ pub fn design_in(
         scanned_arch_mm: 0.0,
         arch_target_mm: 0.0,
         seat_mm: 0.0,
-        pad_apex: [mt3[0] - params.met_pad_behind_mm, mt3[1]],
+        pad_apex: P2::new(mt3.x - params.met_pad_behind_mm, mt3.y),
         spring: None,
         warnings,
     };
     if let Some(shoe) = shoe {
-        let xs = d.outline.iter().map(|q| q[0]);
+        let xs = d.outline.iter().map(|q| q.x);
         let range = (
             xs.clone().fold(f64::MAX, f64::min),
             xs.fold(f64::MIN, f64::max),
@@ -699,8 +687,8 @@ pub fn design_in(
             ),
         });
     }
-    d.seat_mm = d.foot_at(marks.heel_centre[0], marks.heel_centre[1]);
-    d.scanned_arch_mm = d.foot_at(marks.arch_point[0], marks.arch_point[1]);
+    d.seat_mm = d.foot_at(marks.heel_centre.x, marks.heel_centre.y);
+    d.scanned_arch_mm = d.foot_at(marks.arch_point.x, marks.arch_point.y);
     d.arch_target_mm = params
         .arch_height_mm
         .unwrap_or(params.arch_share * d.scanned_arch_mm);
@@ -721,10 +709,10 @@ pub fn design_in(
         // The end line at the pad's y; the apex must lie a pad's half-length behind it, or
         // the end cuts the pad through its top.
         let (a, b) = (mt1, mt5);
-        let t = (d.pad_apex[1] - a[1]) / (b[1] - a[1]);
-        let end_x = a[0] + t * (b[0] - a[0]) - params.three_quarter_behind_mm;
-        let lo = mt3[0] - end_x + 0.5 * PAD_HALF_LENGTH_MM;
-        if d.pad_apex[0] > end_x - 0.5 * PAD_HALF_LENGTH_MM {
+        let t = (d.pad_apex.y - a.y) / (b.y - a.y);
+        let end_x = a.x + t * (b.x - a.x) - params.three_quarter_behind_mm;
+        let lo = mt3.x - end_x + 0.5 * PAD_HALF_LENGTH_MM;
+        if d.pad_apex.x > end_x - 0.5 * PAD_HALF_LENGTH_MM {
             return Err(InsoleError::Param {
                 name: "met_pad_behind_mm",
                 value: params.met_pad_behind_mm,
@@ -744,13 +732,13 @@ pub fn design_in(
 
 /// `outline` behind the line a-b (the side away from the toes); None unless the line crosses
 /// it exactly twice.
-fn clip_behind(outline: &[[f64; 2]], a: [f64; 2], b: [f64; 2]) -> Option<Vec<[f64; 2]>> {
+fn clip_behind(outline: &[P2], a: P2, b: P2) -> Option<Vec<P2>> {
     // n points toward the toes (+x).
-    let mut n = [b[1] - a[1], a[0] - b[0]];
-    if n[0] < 0.0 {
-        n = [-n[0], -n[1]];
+    let mut n = V2::new(b.y - a.y, a.x - b.x);
+    if n.x < 0.0 {
+        n = -n;
     }
-    let side = |q: [f64; 2]| (q[0] - a[0]) * n[0] + (q[1] - a[1]) * n[1];
+    let side = |q: P2| (q - a).dot(&n);
     let k = outline.len();
     let mut out = Vec::with_capacity(k);
     let mut crossings = 0;
@@ -762,7 +750,7 @@ fn clip_behind(outline: &[[f64; 2]], a: [f64; 2], b: [f64; 2]) -> Option<Vec<[f6
         }
         if (sp <= 0.0) != (sq <= 0.0) {
             let t = sp / (sp - sq);
-            out.push([p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])]);
+            out.push(p + (q - p) * t);
             crossings += 1;
         }
     }
@@ -908,7 +896,7 @@ impl Design {
     }
 
     fn heads_x(&self) -> f64 {
-        self.marks.mt1_head[0].min(self.marks.mt5_head[0])
+        self.marks.mt1_head.x.min(self.marks.mt5_head.x)
     }
 
     /// Heel lift at x: full under the rear 35 % of the length, tapering smoothly to nothing
@@ -927,7 +915,7 @@ impl Design {
         }
         let sigma = self.post_sign(self.params.rearfoot_post_side);
         let hw = 0.5 * self.heel_width_mm;
-        let across = (sigma * (y - self.marks.heel_centre[1]) + hw).max(0.0);
+        let across = (sigma * (y - self.marks.heel_centre.y) + hw).max(0.0);
         let l = self.foot_length_mm;
         let w = 1.0 - smoothstep((x - 0.3 * l) / (0.2 * l));
         self.params.rearfoot_post_deg.to_radians().tan() * across * w
@@ -941,7 +929,7 @@ impl Design {
             return 0.0;
         }
         let sigma = self.post_sign(self.params.forefoot_post_side);
-        let mid = 0.5 * (self.marks.mt1_head[1] + self.marks.mt5_head[1]);
+        let mid = 0.5 * (self.marks.mt1_head.y + self.marks.mt5_head.y);
         let across = (sigma * (y - mid) + 0.5 * self.ball_width_mm).max(0.0);
         let w = smoothstep((x - (self.heads_x() - 40.0)) / 20.0);
         self.params.forefoot_post_deg.to_radians().tan() * across * w
@@ -962,7 +950,7 @@ impl Design {
             return 0.0;
         }
         let l = self.foot_length_mm;
-        let a = self.marks.heel_centre[0] + 0.05 * l;
+        let a = self.marks.heel_centre.x + 0.05 * l;
         let wr = 1.0 - smoothstep((x - a) / (0.15 * l));
         if wr == 0.0 {
             return 0.0;
@@ -975,8 +963,8 @@ impl Design {
     /// 0.14 of the length each way, across it from the axis to past the medial border.
     pub fn arch_weight(&self, x: f64, y: f64) -> f64 {
         let ap = self.marks.arch_point;
-        let ay = ap[1].abs().max(15.0);
-        dome(x - ap[0], y - ap[1], 0.14 * self.foot_length_mm, ay)
+        let ay = ap.y.abs().max(15.0);
+        dome(x - ap.x, y - ap.y, 0.14 * self.foot_length_mm, ay)
     }
 
     /// The metatarsal pad's height at (x, y).
@@ -986,8 +974,8 @@ impl Design {
             return 0.0;
         }
         h * dome(
-            x - self.pad_apex[0],
-            y - self.pad_apex[1],
+            x - self.pad_apex.x,
+            y - self.pad_apex.y,
             PAD_HALF_LENGTH_MM,
             PAD_HALF_WIDTH_MM,
         )
@@ -1002,8 +990,8 @@ impl Design {
             return 0.0;
         }
         let (m1, m2) = (self.marks.mt1_head, self.marks.mt2_head);
-        let mid = 0.5 * (m1[1] + m2[1]);
-        let sx = smoothstep((x - (m1[0] - CUTOUT_BEHIND_MM)) / BLEND_MM);
+        let mid = 0.5 * (m1.y + m2.y);
+        let sx = smoothstep((x - (m1.x - CUTOUT_BEHIND_MM)) / BLEND_MM);
         let sy = smoothstep(self.medial * (y - mid) / BLEND_MM);
         d * sx * sy
     }
@@ -1056,12 +1044,9 @@ impl Design {
 
     /// The solid on cells of `cell_mm`, bottom at z = 0.
     pub fn solid(&self, cell_mm: f64) -> Result<OutlineSolid, InsoleError> {
-        outline_solid(
-            &Polygon::from_arrays(&self.outline).points,
-            cell_mm,
-            Some(0.0),
-            |x, y| Some(self.shell_top(x, y)),
-        )
+        outline_solid(&self.outline, cell_mm, Some(0.0), |x, y| {
+            Some(self.shell_top(x, y))
+        })
         .map_err(|e| InsoleError::Solid(e.to_string()))
     }
 
@@ -1077,7 +1062,7 @@ impl Design {
         let mut s = self.solid(cell_mm)?;
         if self.spring.is_some() {
             for v in &mut s.vertices {
-                v[2] += self.spring_at(v[0]);
+                v[2] += self.spring_at(v.x);
             }
         }
         Ok(s)
@@ -1100,7 +1085,7 @@ impl Design {
 /// degrees per millimetre, and its total absolute turning in degrees (360 for a convex
 /// outline). Measured on the outline resampled every 0.5 mm, so it sees corners however the
 /// outline's vertices lie.
-pub fn outline_turning(outline: &[[f64; 2]], window: f64) -> (f64, f64) {
+pub fn outline_turning(outline: &[P2], window: f64) -> (f64, f64) {
     let t = outline_turning_behind(outline, window, f64::INFINITY);
     (t.max, t.total)
 }
@@ -1111,7 +1096,7 @@ pub struct Turning {
     /// The largest turning over the window (deg/mm).
     pub max: f64,
     /// Where it is (mm, the outline's frame).
-    pub at: [f64; 2],
+    pub at: P2,
     /// The total absolute turning (deg).
     pub total: f64,
 }
@@ -1119,32 +1104,32 @@ pub struct Turning {
 /// [`outline_turning`] with the largest turning taken only where x < `x_max` (behind the
 /// toes, whose lobes are the foot's own shape), with where it is; the total over the whole
 /// outline.
-pub fn outline_turning_behind(outline: &[[f64; 2]], window: f64, x_max: f64) -> Turning {
+pub fn outline_turning_behind(outline: &[P2], window: f64, x_max: f64) -> Turning {
     let step = 0.5;
     let q = resample_closed(outline, step);
     let n = q.len();
     let w = ((window / step).round() as usize).max(1);
     let heading = |i: usize| {
         let (a, b) = (q[i % n], q[(i + w) % n]);
-        (b[1] - a[1]).atan2(b[0] - a[0])
+        (b.y - a.y).atan2(b.x - a.x)
     };
     let wrap = |a: f64| {
         let t = std::f64::consts::TAU;
         (a + t / 2.0).rem_euclid(t) - t / 2.0
     };
     let mut max = 0.0f64;
-    let mut at = [f64::NAN; 2];
+    let mut at = P2::new(f64::NAN, f64::NAN);
     let mut total = 0.0;
     for i in 0..n {
         // The heading of the chord behind the point and of the one ahead of it.
         let turn = wrap(heading(i + n - w) - heading(i)).abs();
         let rate = turn.to_degrees() / (w as f64 * step);
-        if q[i][0] < x_max && rate > max {
+        if q[i].x < x_max && rate > max {
             (max, at) = (rate, q[i]);
         }
         let one = wrap({
             let (a, b, c) = (q[(i + n - 1) % n], q[i], q[(i + 1) % n]);
-            (c[1] - b[1]).atan2(c[0] - b[0]) - (b[1] - a[1]).atan2(b[0] - a[0])
+            (c.y - b.y).atan2(c.x - b.x) - (b.y - a.y).atan2(b.x - a.x)
         });
         total += one.abs();
     }
@@ -1169,11 +1154,14 @@ mod tests {
         let mut raw = Vec::new();
         for i in 0..2000 {
             let t = i as f64 / 2000.0 * std::f64::consts::TAU;
-            let mut p = [a * t.cos(), b * t.sin()];
+            let mut p = P2::new(a * t.cos(), b * t.sin());
             if (200..203).contains(&i) {
-                p[1] -= 2.0;
+                p.y -= 2.0;
             }
-            raw.push([(p[0] / 0.5).round() * 0.5, (p[1] / 0.5).round() * 0.5]);
+            raw.push(P2::new(
+                (p.x / 0.5).round() * 0.5,
+                (p.y / 0.5).round() * 0.5,
+            ));
         }
         raw.dedup();
         let (max_raw, total_raw) = outline_turning(&raw, 2.0);
@@ -1185,15 +1173,13 @@ mod tests {
             let prev = old.clone();
             for i in 0..k {
                 let (a, b, c) = (prev[(i + k - 1) % k], prev[i], prev[(i + 1) % k]);
-                old[i] = [
-                    0.25 * a[0] + 0.5 * b[0] + 0.25 * c[0],
-                    0.25 * a[1] + 0.5 * b[1] + 0.25 * c[1],
-                ];
+                old[i] = P2::new(
+                    0.25 * a.x + 0.5 * b.x + 0.25 * c.x,
+                    0.25 * a.y + 0.5 * b.y + 0.25 * c.y,
+                );
             }
         }
-        let old = Polygon::from_arrays(&old)
-            .simplify(OUTLINE_TOL_MM)
-            .to_arrays();
+        let old = Polygon::new(old).simplify(OUTLINE_TOL_MM).points;
         let (max_old, _) = outline_turning(&old, 2.0);
         assert!(max_old > 5.7, "the earlier smoothing: {max_old} deg/mm");
         let fair = fair_closed(&raw, FAIR_SPACING_MM, FAIR_WAVELENGTH_MM);
@@ -1208,16 +1194,16 @@ mod tests {
         assert!(max < 5.7, "{max} deg/mm");
         // The notch leaves a shallow dent (two gentle inflections), not a kink.
         assert!((total - 360.0).abs() < 30.0, "{total} deg in all");
-        let ellipse: Vec<[f64; 2]> = (0..4000)
+        let ellipse: Vec<P2> = (0..4000)
             .map(|i| i as f64 / 4000.0 * std::f64::consts::TAU)
-            .map(|t| [a * t.cos(), b * t.sin()])
+            .map(|t| P2::new(a * t.cos(), b * t.sin()))
             .collect();
         let off = fair
             .iter()
             .map(|p| {
                 ellipse
                     .iter()
-                    .map(|e| (e[0] - p[0]).hypot(e[1] - p[1]))
+                    .map(|e| (e.x - p.x).hypot(e.y - p.y))
                     .fold(f64::MAX, f64::min)
             })
             .fold(0.0f64, f64::max);

@@ -6,7 +6,7 @@ use crate::design::{Design, Plantar};
 use crate::params::Length;
 use footscan::cad::sample_height;
 use footscan_geom::mesh::{Bvh, TriMesh};
-use footscan_geom::{P3, V3};
+use footscan_geom::{P2, P3, V3};
 use serde::Serialize;
 
 /// Bounds of the targets: parameters within 0.2 mm and 0.3 degrees, the top within
@@ -49,18 +49,18 @@ impl Check {
 pub struct Measured {
     pub checks: Vec<Check>,
     /// Measured pad apex (foot frame, mm), when there is a pad.
-    pub pad_apex_mm: Option<[f64; 2]>,
+    pub pad_apex_mm: Option<P2>,
     /// The thinnest place of the shell (mm) and where (foot frame), and its lower bound:
     /// base thickness less top cover less the first ray cut-out.
     pub min_thickness_mm: f64,
-    pub min_thickness_at: [f64; 2],
+    pub min_thickness_at: P2,
     pub min_thickness_bound_mm: f64,
     /// The top (with its cover) against the scanned plantar surface raised by the base
     /// thickness, lift and posts, over the weight-bearing area outside the corrections:
     /// points compared, largest and RMS difference (mm).
     pub contact_points: usize,
     pub contact_max_mm: f64,
-    pub contact_max_at: [f64; 2],
+    pub contact_max_at: P2,
     pub contact_rms_mm: f64,
     pub ok: bool,
 }
@@ -82,11 +82,11 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
     // straight from the scan's height map.
     let plantar = |x: f64, y: f64| -> Option<f64> {
         let w = d.frame.to_world(footscan_geom::P2::new(x, y));
-        let (i, j) = p.map.cell_of(w[0], w[1])?;
+        let (i, j) = p.map.cell_of(w.x, w.y)?;
         if !p.map.get(i, j).is_finite() {
             return None;
         }
-        sample_height(&p.map, w[0], w[1]).map(|z| (z.max(0.0) - d.bottom_at(x)).max(0.0))
+        sample_height(&p.map, w.x, w.y).map(|z| (z.max(0.0) - d.bottom_at(x)).max(0.0))
     };
     // The top above the seat plane: what the foot touches less the base, lift and posts.
     let above = |x: f64, y: f64| -> Option<f64> {
@@ -98,12 +98,12 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
     let hc = d.marks.heel_centre;
 
     // Thickness at the heel centre: the shell from the floor to its top.
-    let t_hc = top(&bvh, hc[0], hc[1]).unwrap_or(f64::NAN);
-    let seat = plantar(hc[0], hc[1]).unwrap_or(d.seat_mm);
+    let t_hc = top(&bvh, hc.x, hc.y).unwrap_or(f64::NAN);
+    let seat = plantar(hc.x, hc.y).unwrap_or(d.seat_mm);
     checks.push(Check::new(
         "thickness_at_heel_centre",
         "mm",
-        pr.shell_mm() + d.lift(hc[0]) + d.rear_post(hc[0], hc[1]) + seat,
+        pr.shell_mm() + d.lift(hc.x) + d.rear_post(hc.x, hc.y) + seat,
         t_hc,
         MM_BOUND,
     ));
@@ -111,9 +111,9 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
     // Heel cup: the rim at the outline's rearmost point level with the heel centre, above
     // the heel centre's top (0.2 mm inside the outline, where the ray meets the top).
     if pr.heel_cup_depth_mm > 0.0 {
-        let x_rim = rear_crossing(d, hc[1]) + 0.2;
-        let rim = top(&bvh, x_rim, hc[1]).unwrap_or(f64::NAN) - d.rear_post(x_rim, hc[1]);
-        let seat_top = t_hc - d.rear_post(hc[0], hc[1]);
+        let x_rim = rear_crossing(d, hc.y) + 0.2;
+        let rim = top(&bvh, x_rim, hc.y).unwrap_or(f64::NAN) - d.rear_post(x_rim, hc.y);
+        let seat_top = t_hc - d.rear_post(hc.x, hc.y);
         checks.push(Check::new(
             "heel_cup_depth",
             "mm",
@@ -132,7 +132,7 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
         "arch_height",
         "mm",
         d.arch_target_mm,
-        above(ap[0], ap[1]).unwrap_or(f64::NAN),
+        above(ap.x, ap.y).unwrap_or(f64::NAN),
         MM_BOUND,
     ));
 
@@ -173,8 +173,8 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
         "deg",
         pr.rearfoot_post_deg,
         across(
-            hc[0],
-            hc[1],
+            hc.x,
+            hc.y,
             0.35 * d.heel_width_mm,
             post_sign(pr.rearfoot_post_side),
         )
@@ -183,8 +183,8 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
     ));
     let (m1, m5) = (d.marks.mt1_head, d.marks.mt5_head);
     let x_ff = match pr.length {
-        Length::Full => 0.5 * (m1[0] + m5[0]),
-        Length::ThreeQuarter => m1[0].min(m5[0]) - pr.three_quarter_behind_mm - 8.0,
+        Length::Full => 0.5 * (m1.x + m5.x),
+        Length::ThreeQuarter => m1.x.min(m5.x) - pr.three_quarter_behind_mm - 8.0,
     };
     if pr.forefoot_post_deg > 0.0 {
         checks.push(Check::new(
@@ -193,7 +193,7 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
             pr.forefoot_post_deg,
             across(
                 x_ff,
-                0.5 * (m1[1] + m5[1]),
+                0.5 * (m1.y + m5.y),
                 0.35 * d.ball_width_mm,
                 post_sign(pr.forefoot_post_side),
             )
@@ -207,7 +207,7 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
     let mut pad_apex = None;
     if pr.met_pad_height_mm > 0.0 {
         let rel = |x: f64, y: f64| -> Option<f64> { Some(above(x, y)? - plantar(x, y)?) };
-        let [px, py] = d.pad_apex;
+        let (px, py) = (d.pad_apex.x, d.pad_apex.y);
         let mut best = (f64::MIN, px, py);
         let s = 0.5;
         for a in -16..=16 {
@@ -239,14 +239,14 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
                 let (ax, ay) = (cx + dx, cy + dy);
                 let h =
                     c[0] + c[1] * dx + c[2] * dy + c[3] * dx * dx + c[4] * dx * dy + c[5] * dy * dy;
-                pad_apex = Some([ax, ay]);
+                pad_apex = Some(P2::new(ax, ay));
                 let dist = (ax - px).hypot(ay - py);
                 checks.push(Check::new("met_pad_apex_offset", "mm", 0.0, dist, MM_BOUND));
                 checks.push(Check::new(
                     "met_pad_apex_behind_heads",
                     "mm",
                     pr.met_pad_behind_mm,
-                    d.marks.mt3_head[0] - ax,
+                    d.marks.mt3_head.x - ax,
                     MM_BOUND,
                 ));
                 checks.push(Check::new(
@@ -272,7 +272,7 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
     // First ray cut-out: the top below the plantar surface under the first head, 8 mm in
     // from the medial border (the head's landmark is on the border).
     if pr.first_ray_cutout_mm > 0.0 {
-        let (x, y) = (m1[0], m1[1] - 8.0 * d.medial);
+        let (x, y) = (m1.x, m1.y - 8.0 * d.medial);
         let depth = match (above(x, y), plantar(x, y)) {
             (Some(a), Some(f)) => f - a,
             _ => f64::NAN,
@@ -287,29 +287,29 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
     }
 
     // Thinnest place: the lowest top vertex (the bottom is the plane z = 0).
-    let (mut min_t, mut min_at) = (f64::MAX, [0.0, 0.0]);
+    let (mut min_t, mut min_at) = (f64::MAX, P2::origin());
     for (k, v) in mesh.vertices.iter().enumerate() {
         // Top vertices are even in the outline solid; take any vertex above the floor.
         let _ = k;
         if v.z > 1e-9 && v.z < min_t {
             min_t = v.z;
-            min_at = [v.x, v.y];
+            min_at = v.xy();
         }
     }
     let bound = pr.shell_mm() - pr.first_ray_cutout_mm;
 
     // The top against the plantar surface over the weight-bearing area: scanned cells at
     // least 3 mm inside the footprint (the margin plus 3 mm inside the outline), outside the heel cup, arch support, pad and cut-out.
-    let (mut n, mut maxd, mut ss, mut max_at) = (0usize, 0.0f64, 0.0, [0.0; 2]);
+    let (mut n, mut maxd, mut ss, mut max_at) = (0usize, 0.0f64, 0.0, P2::origin());
     let outline = d.outline_polygon();
     let step = 2.0;
     let (mut x, x_end) = (
-        d.outline.iter().map(|q| q[0]).fold(f64::MAX, f64::min),
-        d.outline.iter().map(|q| q[0]).fold(f64::MIN, f64::max),
+        d.outline.iter().map(|q| q.x).fold(f64::MAX, f64::min),
+        d.outline.iter().map(|q| q.x).fold(f64::MIN, f64::max),
     );
     let (y_lo, y_hi) = (
-        d.outline.iter().map(|q| q[1]).fold(f64::MAX, f64::min),
-        d.outline.iter().map(|q| q[1]).fold(f64::MIN, f64::max),
+        d.outline.iter().map(|q| q.y).fold(f64::MAX, f64::min),
+        d.outline.iter().map(|q| q.y).fold(f64::MIN, f64::max),
     );
     while x <= x_end {
         let mut y = y_lo;
@@ -337,7 +337,7 @@ pub fn measure_back(d: &Design, p: &Plantar, mesh: &TriMesh) -> Measured {
                     n += 1;
                     if e.abs() > maxd {
                         maxd = e.abs();
-                        max_at = [x, y];
+                        max_at = P2::new(x, y);
                     }
                     ss += e * e;
                 }
@@ -373,9 +373,9 @@ fn rear_crossing(d: &Design, y: f64) -> f64 {
     let mut best = f64::MAX;
     for k in 0..o.len() {
         let (a, b) = (o[k], o[(k + 1) % o.len()]);
-        if (a[1] <= y) != (b[1] <= y) {
-            let t = (y - a[1]) / (b[1] - a[1]);
-            best = best.min(a[0] + t * (b[0] - a[0]));
+        if (a.y <= y) != (b.y <= y) {
+            let t = (y - a.y) / (b.y - a.y);
+            best = best.min(a.x + t * (b.x - a.x));
         }
     }
     best

@@ -4,6 +4,7 @@
 
 use crate::design::Design;
 use footscan_geom::mesh::TriMesh;
+use footscan_geom::P2;
 use footscan_last::draw::{sequential, Canvas, View, BLACK, BLUE, GREEN, GREY, RED, WHITE};
 
 /// The mesh's top seen from above on pixels of `px` mm: heights (NaN off the insole).
@@ -68,7 +69,7 @@ fn rasterise(mesh: &TriMesh, px: f64) -> Raster {
     }
 }
 
-fn marks(d: &Design) -> Vec<(&'static str, [f64; 2])> {
+fn marks(d: &Design) -> Vec<(&'static str, P2)> {
     let m = &d.marks;
     let mut v = vec![
         ("heel centre", m.heel_centre),
@@ -116,11 +117,11 @@ fn top_view(
 }
 
 fn draw_marks(cv: &mut Canvas, view: &View, d: &Design) {
-    let o: Vec<(f64, f64)> = d.outline.iter().map(|q| (q[0], q[1])).collect();
+    let o: Vec<(f64, f64)> = d.outline.iter().map(|q| (q.x, q.y)).collect();
     cv.polyline(view, &o, true, BLACK, 1);
     for (name, p) in marks(d) {
-        cv.dot(view, (p[0], p[1]), 3, RED);
-        let (c, r) = view.px(p[0], p[1]);
+        cv.dot(view, (p.x, p.y), 3, RED);
+        let (c, r) = view.px(p.x, p.y);
         cv.text(c as i64 + 5, r as i64 - 10, name, BLACK, 1);
     }
 }
@@ -208,7 +209,7 @@ pub fn side_picture(d: &Design, mesh: &TriMesh) -> Canvas {
     let (x0, x1) = (r.x0, r.x0 + r.w as f64 * r.px);
     let lines = [
         ("along the axis (y = 0)", 0.0, BLUE),
-        ("through the arch point", d.marks.arch_point[1], RED),
+        ("through the arch point", d.marks.arch_point.y, RED),
     ];
     let profile = |y: f64| -> Vec<(f64, f64)> {
         let j = ((y - r.y0) / r.px).round();

@@ -9,6 +9,7 @@ use crate::InsoleError;
 use footscan::cad::faceted_step;
 use footscan::cad::FootFrame;
 use footscan_geom::mesh::TriMesh;
+use footscan_geom::P2;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -36,7 +37,7 @@ pub struct Report {
     /// The scanned arch height (laid flat) and the insole's (mm); the pad's apex as placed.
     pub scanned_arch_mm: f64,
     pub arch_target_mm: f64,
-    pub pad_apex_mm: [f64; 2],
+    pub pad_apex_mm: P2,
     /// How far the midfoot stood off the glass (0: the foot bore weight).
     pub midfoot_off_glass_mm: f64,
     pub outline_vertices: usize,
@@ -45,7 +46,7 @@ pub struct Report {
     /// has the toes' lobes) and in all (deg; 360 for a convex outline).
     pub outline_max_turn_deg_per_mm: f64,
     /// Where that most is (foot frame, mm).
-    pub outline_max_turn_at: [f64; 2],
+    pub outline_max_turn_at: P2,
     pub outline_total_turn_deg: f64,
     /// Where the outline came from: "footprint + margin" or the shoe bottom's last.
     pub outline_from: String,
@@ -127,7 +128,7 @@ pub fn write_insole_in(
     let (step_text, step_faces) = faceted_step(&step_solid, "footscan insole");
     let threemf = crate::threemf::to_3mf(&mesh, "footscan insole");
     let bb = mesh.bbox();
-    let heads_x = d.marks.mt1_head[0].min(d.marks.mt5_head[0]);
+    let heads_x = d.marks.mt1_head.x.min(d.marks.mt5_head.x);
     let turning = crate::design::outline_turning_behind(&d.outline, 2.0, heads_x);
     let mut report = Report {
         scan: p.source.clone(),
@@ -259,13 +260,13 @@ impl Report {
              sole over the weight-bearing area: {} points, max {:.3} mm at ({:.1}, {:.1}), RMS \
              {:.3} mm (bound {})\n",
             m.min_thickness_mm,
-            m.min_thickness_at[0],
-            m.min_thickness_at[1],
+            m.min_thickness_at.x,
+            m.min_thickness_at.y,
             m.min_thickness_bound_mm,
             m.contact_points,
             m.contact_max_mm,
-            m.contact_max_at[0],
-            m.contact_max_at[1],
+            m.contact_max_at.x,
+            m.contact_max_at.y,
             m.contact_rms_mm,
             crate::measure::CONTACT_BOUND_MM
         );

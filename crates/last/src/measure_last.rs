@@ -64,31 +64,31 @@ pub enum LastSide {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct LastLandmarks {
     /// Back of the heel seat at the featherline, in the centre plane.
-    pub heel_point: [f64; 3],
+    pub heel_point: P3,
     /// The foremost point of the last.
-    pub toe_point: [f64; 3],
+    pub toe_point: P3,
     /// Front end of the bottom at the featherline, in the centre plane.
-    pub toe_end: [f64; 3],
+    pub toe_end: P3,
     /// Joint points on the featherline: inside (first metatarsal) and outside (fifth).
-    pub mt1: [f64; 3],
-    pub mt5: [f64; 3],
+    pub mt1: P3,
+    pub mt5: P3,
     /// Where the bottom touches the ground under the joint line.
-    pub tread: [f64; 3],
+    pub tread: P3,
     /// Top of the centre profile at `INSTEP_AT` of the stick length.
-    pub instep: [f64; 3],
+    pub instep: P3,
     /// The highest point of the centre profile (the top of the cone).
-    pub top: [f64; 3],
+    pub top: P3,
     /// Where the short heel girth's plane leaves the top of the centre profile.
-    pub short_heel_top: [f64; 3],
+    pub short_heel_top: P3,
     /// The featherline points at the waist width's station, left and right.
-    pub waist_left: [f64; 3],
-    pub waist_right: [f64; 3],
+    pub waist_left: P3,
+    pub waist_right: P3,
 }
 
 impl LastLandmarks {
     /// The landmarks a last maker names, with their names (the picture's labels and the
     /// command's lines).
-    pub fn named(&self) -> [(&'static str, [f64; 3]); 8] {
+    pub fn named(&self) -> [(&'static str, P3); 8] {
         [
             ("heel point", self.heel_point),
             ("toe point", self.toe_point),
@@ -150,8 +150,8 @@ pub struct LastMeasures {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GirthPlane {
     pub name: String,
-    pub origin: [f64; 3],
-    pub normal: [f64; 3],
+    pub origin: P3,
+    pub normal: V3,
 }
 
 /// The rigid map taking `from` onto `to` (the same vertices moved; least squares).
@@ -497,10 +497,6 @@ fn shortest(a: f64, b: f64, f: impl Fn(f64) -> (Vec<P3>, f64)) -> (f64, Vec<P3>,
     }
 }
 
-fn arr(p: P3) -> [f64; 3] {
-    [p.x, p.y, p.z]
-}
-
 /// Linear interpolation of the bottom width (left minus right featherline y) at x.
 fn width_at(st: &[Station], x: f64) -> Option<f64> {
     let w = |s: &Station| Some(s.left?.y - s.right?.y);
@@ -658,8 +654,8 @@ pub fn measure_last(mut m: TriMesh, input: &str) -> Result<LastMeasures, Measure
     let (top_loop, top_girth) = girth(&m, &Plane::axis_aligned(2, top.z - TOP_GIRTH_BELOW_MM));
     let gp = |name: &str, o: P3, nrm: V3| GirthPlane {
         name: name.to_string(),
-        origin: arr(o),
-        normal: arr(P3::from(nrm.normalize())),
+        origin: o,
+        normal: nrm.normalize(),
     };
     let girth_planes = vec![
         gp("joint", mt5, joint_normal(t_joint)),
@@ -715,17 +711,17 @@ pub fn measure_last(mut m: TriMesh, input: &str) -> Result<LastMeasures, Measure
         top_height: top.z,
         pitch_deg: pitch_rad.to_degrees(),
         landmarks: LastLandmarks {
-            heel_point: arr(heel),
-            toe_point: arr(p.toe),
-            toe_end: arr(p.toe_end),
-            mt1: arr(mt1),
-            mt5: arr(mt5),
-            tread: arr(p.tread),
-            instep: arr(instep),
-            top: arr(top),
-            short_heel_top: arr(short_heel_top),
-            waist_left: arr(ws.left.unwrap_or_default()),
-            waist_right: arr(ws.right.unwrap_or_default()),
+            heel_point: heel,
+            toe_point: p.toe,
+            toe_end: p.toe_end,
+            mt1,
+            mt5,
+            tread: p.tread,
+            instep,
+            top,
+            short_heel_top,
+            waist_left: ws.left.unwrap_or_default(),
+            waist_right: ws.right.unwrap_or_default(),
         },
         girth_planes,
         frame: rigid_map(&given, &m.vertices),
@@ -835,17 +831,15 @@ pub fn draw_measures(lm: &LastMeasures, path: &Path) -> std::io::Result<()> {
         cv.text(c0 as i64 - 20, r0 as i64 - 14, name, c, 1);
     }
     let l = &lm.landmarks;
-    let p3 = |a: [f64; 3]| P3::new(a[0], a[1], a[2]);
     let marks = l.named().into_iter().chain([("waist", l.waist_left)]);
-    for (name, a) in marks {
-        let q = p3(a);
+    for (name, q) in marks {
         for (v, pos) in [(&side, xz(&q)), (&top, xy(&q))] {
             cv.dot(v, pos, 4, draw::BLACK);
             let (c0, r0) = v.px(pos.0, pos.1);
             cv.text(c0 as i64 + 6, r0 as i64 + 4, name, draw::BLACK, 1);
         }
     }
-    cv.dot(&top, xy(&p3(l.waist_right)), 4, draw::BLACK);
+    cv.dot(&top, xy(&l.waist_right), 4, draw::BLACK);
     // The measures, listed on the right.
     let x0 = 1080;
     let mut y = 60;

@@ -2,23 +2,24 @@
 //! known factor in plan and in height and shifted (and turned), must give back exactly those
 //! factors and that shift, and end on the foot within the accuracy targets.
 
+use footscan_geom::{P2, V2};
 use footscan_last::adjust::synthetic::AnalyticFoot;
 use footscan_last::adjust::{adjust, AdjustError, AdjustOptions, Side};
 
-fn centre(f: &footscan_last::adjust::FootPlantar) -> [f64; 2] {
+fn centre(f: &footscan_last::adjust::FootPlantar) -> P2 {
     let l = &f.landmarks;
     let p = [l.heel_point, l.toe_tip, l.mt1_head, l.mt5_head];
-    [
-        p.iter().map(|q| q[0]).sum::<f64>() / 4.0,
-        p.iter().map(|q| q[1]).sum::<f64>() / 4.0,
-    ]
+    P2::new(
+        p.iter().map(|q| q.x).sum::<f64>() / 4.0,
+        p.iter().map(|q| q.y).sum::<f64>() / 4.0,
+    )
 }
 
 #[test]
 fn eps_zeta_and_shift_are_recovered_to_a_tenth_of_a_percent() {
     for (side, k_xy, k_z, shift) in [
-        (Side::Right, 1.06, 1.15, [7.0, -4.0]),
-        (Side::Left, 0.95, 0.9, [-12.0, 3.0]),
+        (Side::Right, 1.06, 1.15, V2::new(7.0, -4.0)),
+        (Side::Left, 0.95, 0.9, V2::new(-12.0, 3.0)),
     ] {
         let foot_model = AnalyticFoot::new(240.0, side);
         let foot = foot_model.plantar(0.2);
@@ -26,13 +27,12 @@ fn eps_zeta_and_shift_are_recovered_to_a_tenth_of_a_percent() {
         let bottom = foot_model.bottom(c, k_xy, k_z, 0.0, shift, 0.25);
         let a = adjust(&foot, &bottom, &AdjustOptions::default()).unwrap();
         let rel = |got: f64, want: f64| (got - want).abs() / want.abs();
-        let shift_err =
-            ((a.shift[0] + shift[0]).hypot(a.shift[1] + shift[1])) / shift[0].hypot(shift[1]);
+        let shift_err = ((a.shift.x + shift.x).hypot(a.shift.y + shift.y)) / shift.x.hypot(shift.y);
         println!(
             "{side:?}: eps {:.6} (true {k_xy}), zeta {:.6} (true {k_z}) at {:?}, shift ({:.4}, {:.4}) (true {:?}), rotation {:.5} deg; \
              after: outline RMS {:.3} max {:.3}, landmarks {:.3}, heights RMS {:.3} max {:.3}, >0.5 mm {:.4}; \
              before: heights RMS {:.3}, outline RMS {:.3}, landmarks {:.3}",
-            a.eps, a.zeta, a.zeta_at, -a.shift[0], -a.shift[1], shift, a.rotation_deg,
+            a.eps, a.zeta, a.zeta_at, -a.shift.x, -a.shift.y, shift, a.rotation_deg,
             a.after.outline_rms_mm, a.after.outline_max_mm, a.after.landmark_max_mm,
             a.after.height_rms_mm, a.after.height_max_mm, a.after.share_beyond_0_5,
             a.before.height_rms_mm, a.before.outline_rms_mm, a.before.landmark_max_mm
@@ -54,15 +54,15 @@ fn a_turned_bottom_of_the_other_foot_is_mirrored_and_fitted() {
     let foot = foot_model.plantar(0.2);
     let c = centre(&foot);
     let mut bottom =
-        AnalyticFoot::new(260.0, Side::Left).bottom(c, 1.03, 1.1, 0.0, [0.0, 0.0], 0.25);
+        AnalyticFoot::new(260.0, Side::Left).bottom(c, 1.03, 1.1, 0.0, V2::zeros(), 0.25);
     // Turn the left bottom by 4 degrees about the centre, shift it.
     let (co, si) = (4f64.to_radians().cos(), 4f64.to_radians().sin());
     for p in &mut bottom.outline {
-        let d = [p[0] - c[0], p[1] - c[1]];
-        *p = [
-            c[0] + co * d[0] - si * d[1] + 5.0,
-            c[1] + si * d[0] + co * d[1] - 2.0,
-        ];
+        let d = *p - c;
+        *p = P2::new(
+            c.x + co * d.x - si * d.y + 5.0,
+            c.y + si * d.x + co * d.y - 2.0,
+        );
     }
     // Its heights do not follow the turn: they are only used after the fit, which the
     // outline drives; a height mismatch shows up as the correction field.
@@ -85,7 +85,7 @@ fn a_foot_without_measurements_and_a_short_bottom_are_refused_by_name() {
     let mut empty = foot.clone();
     empty.outline.clear();
     empty.source = "scan-0042".into();
-    let bottom = foot_model.bottom(c, 1.0, 1.0, 0.0, [0.0, 0.0], 0.5);
+    let bottom = foot_model.bottom(c, 1.0, 1.0, 0.0, V2::zeros(), 0.5);
     let e = adjust(&empty, &bottom, &AdjustOptions::default()).unwrap_err();
     assert!(matches!(e, AdjustError::Foot { .. }));
     assert!(
@@ -93,10 +93,10 @@ fn a_foot_without_measurements_and_a_short_bottom_are_refused_by_name() {
         "{e}"
     );
     let mut nan = foot.clone();
-    nan.landmarks.mt1_head = [f64::NAN, 0.0];
+    nan.landmarks.mt1_head = P2::new(f64::NAN, 0.0);
     let e = adjust(&nan, &bottom, &AdjustOptions::default()).unwrap_err();
     assert!(e.to_string().contains("MT1 head"), "{e}");
-    let short = foot_model.bottom(c, 1.5, 1.0, 0.0, [0.0, 0.0], 0.5);
+    let short = foot_model.bottom(c, 1.5, 1.0, 0.0, V2::zeros(), 0.5);
     let e = adjust(&foot, &short, &AdjustOptions::default()).unwrap_err();
     assert!(matches!(e, AdjustError::TooShort { .. }), "{e}");
     assert!(e.to_string().contains("30 %"), "{e}");

@@ -165,8 +165,8 @@ fn parametric_last_against_its_parameters() {
 
 /// The section of a mesh by a plane cut here, triangle by triangle, and the perimeter of
 /// its convex hull (Andrew's monotone chain), with nothing of the library's section code.
-fn own_girth(m: &TriMesh, o: [f64; 3], n: [f64; 3]) -> f64 {
-    let (o, n) = (P3::from(o), V3::from(n).normalize());
+fn own_girth(m: &TriMesh, o: P3, n: V3) -> f64 {
+    let n = n.normalize();
     let u = if n.x.abs() < 0.9 { V3::x() } else { V3::y() };
     let u = (u - n * n.dot(&u)).normalize();
     let v = n.cross(&u);
@@ -239,7 +239,7 @@ fn girths_against_an_independent_cut() {
             lowest.z > -2.0,
             "{name}: the frame stands the last on the ground ({lowest:?})"
         );
-        assert!(hp[0].abs() < 1e-6, "{name}: heel point at x = 0");
+        assert!(hp.x.abs() < 1e-6, "{name}: heel point at x = 0");
         let values = [
             ("joint", lm.joint_girth),
             ("waist", lm.waist_girth),

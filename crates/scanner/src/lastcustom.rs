@@ -53,12 +53,11 @@ pub fn plantar_of(m: &Measurements) -> Plantar {
     let (d, left) = (m.axis_dir, quarter_turn(&m.axis_dir));
     let waist = (m.waist_inner - m.waist_outer).dot(&left).abs();
     // The footprint in the foot's frame: x along the axis from the heel point, y across it,
-    // positive on the side of the first metatarsal head (medial); as the `[x, y]` pairs of
-    // footscan-last's `Plantar`.
+    // positive on the side of the first metatarsal head (medial).
     let h = m.heel_point;
     let across = |p: P2| (p - h).dot(&left);
     let medial = if across(m.mt1_head) >= 0.0 { 1.0 } else { -1.0 };
-    let frame = |p: &P2| [(p - h).dot(&d), medial * across(*p)];
+    let frame = |p: &P2| P2::new((p - h).dot(&d), medial * across(*p));
     let footprint = std::iter::once(&m.outline)
         .chain(&m.toe_outlines)
         .map(|l| l.iter().map(frame).collect())

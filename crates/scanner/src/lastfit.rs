@@ -11,14 +11,13 @@
 
 use crate::measure::{rasterize_grid, MeasureError, Measurements};
 use crate::scandata::{ScanDir, ScanDirError, ScanGrid};
-use footscan_geom::P2;
 use footscan_last::adjust::last::{
     deform_last, prepare_last, scanned_bottom, DeformReport, LastOptions, PreparedLast,
 };
 use footscan_last::adjust::output::{Report, Written};
 use footscan_last::adjust::surface::{fit_bottom, BottomSurface};
 use footscan_last::adjust::{
-    self, AdjustError, AdjustOptions, Adjustment, FootLandmarks, FootPlantar, LastBottom, Pt,
+    self, AdjustError, AdjustOptions, Adjustment, FootLandmarks, FootPlantar, LastBottom,
 };
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -53,22 +52,20 @@ pub fn foot_plantar(
     cell_mm: f64,
 ) -> Result<FootPlantar, MeasureError> {
     let map = rasterize_grid(grid, cell_mm)?;
-    // footscan-last's adjustment keeps its points as `[x, y]` pairs (`adjust::Pt`).
-    let pts = |o: &[P2]| o.iter().map(|&p| p.into()).collect::<Vec<Pt>>();
     Ok(FootPlantar {
         source: source.to_string(),
         side: m.side,
-        outline: pts(&m.outline),
-        toe_outlines: m.toe_outlines.iter().map(|o| pts(o)).collect(),
+        outline: m.outline.clone(),
+        toe_outlines: m.toe_outlines.clone(),
         landmarks: FootLandmarks {
-            heel_point: m.heel_point.into(),
-            toe_tip: m.toe_tip.into(),
-            hallux: m.hallux_point.into(),
-            mt1_head: m.mt1_head.into(),
-            mt5_head: m.mt5_head.into(),
-            waist_inner: m.waist_inner.into(),
-            waist_outer: m.waist_outer.into(),
-            arch_point: m.arch_point.into(),
+            heel_point: m.heel_point,
+            toe_tip: m.toe_tip,
+            hallux: m.hallux_point,
+            mt1_head: m.mt1_head,
+            mt5_head: m.mt5_head,
+            waist_inner: m.waist_inner,
+            waist_outer: m.waist_outer,
+            arch_point: m.arch_point,
             arch_height_mm: m.arch_height_mm,
         },
         heights: map,

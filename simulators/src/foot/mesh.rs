@@ -10,16 +10,17 @@
 //! [`Foot::girth`] as the resampling gets finer.
 //!
 //! Coordinates: world (the foot's placement on the glass, z up, lowest sole point z = 0).
-//! Plain arrays are returned so the simulator need not share a mesh type with the code it
-//! checks.
+//! Vertices and triangles are returned as they are (points of footscan-geom's vocabulary),
+//! so the simulator need not share a mesh type with the code it checks.
 
 use super::model::Foot;
 use super::FootTruth;
+use footscan_geom::{P3, V3};
 
 /// A closed, outward-oriented triangle mesh of the foot and its truth.
 #[derive(Clone, Debug)]
 pub struct FootMesh {
-    pub vertices: Vec<[f64; 3]>,
+    pub vertices: Vec<P3>,
     /// Counterclockwise seen from outside.
     pub triangles: Vec<[u32; 3]>,
     pub truth: FootMeshTruth,
@@ -28,16 +29,11 @@ pub struct FootMesh {
 impl FootMesh {
     /// The mesh as the geometry layer's triangle mesh (what the mesh stages read).
     pub fn tri_mesh(&self) -> footscan_geom::mesh::TriMesh {
-        let verts = self
-            .vertices
-            .iter()
-            .map(|v| footscan_geom::P3::new(v[0], v[1], v[2]))
-            .collect();
-        footscan_geom::mesh::TriMesh::new(verts, self.triangles.clone())
+        footscan_geom::mesh::TriMesh::new(self.vertices.clone(), self.triangles.clone())
     }
 }
 
-/// Analytic truth of the mesh (world mm; points [x, y, z]).
+/// Analytic truth of the mesh (world mm).
 #[derive(Clone, Debug)]
 pub struct FootMeshTruth {
     pub plan: FootTruth,
@@ -48,15 +44,15 @@ pub struct FootMeshTruth {
     pub heel_width_mm: f64,
     /// Landmarks on the glass (z = 0): heel point O, toe tip A, hallux point P, MT1 B,
     /// MT5 C, waist inner D and outer E.
-    pub heel_point: [f64; 3],
-    pub toe_tip: [f64; 3],
-    pub hallux_point: [f64; 3],
-    pub mt1: [f64; 3],
-    pub mt5: [f64; 3],
-    pub waist_inner: [f64; 3],
-    pub waist_outer: [f64; 3],
+    pub heel_point: P3,
+    pub toe_tip: P3,
+    pub hallux_point: P3,
+    pub mt1: P3,
+    pub mt5: P3,
+    pub waist_inner: P3,
+    pub waist_outer: P3,
     /// Unit axis direction heel to toe, in the glass plane.
-    pub axis_dir: [f64; 3],
+    pub axis_dir: V3,
     /// Girths of the sections perpendicular to the axis: (x' from the heel point, perimeter).
     pub girths: Vec<(f64, f64)>,
     /// Dorsal height above the glass at those stations.
@@ -79,11 +75,11 @@ impl Default for MeshResolution {
     }
 }
 
-fn resample_closed(pts: &[[f64; 3]], n: usize) -> Vec<[f64; 3]> {
+fn resample_closed(pts: &[P3], n: usize) -> Vec<P3> {
     let m = pts.len();
     let seg = |i: usize| {
         let (a, b) = (pts[i], pts[(i + 1) % m]);
-        ((a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+        ((a.y - b.y).powi(2) + (a.z - b.z).powi(2)).sqrt()
     };
     let total: f64 = (0..m).map(seg).sum();
     let mut out = Vec::with_capacity(n);
@@ -97,7 +93,7 @@ fn resample_closed(pts: &[[f64; 3]], n: usize) -> Vec<[f64; 3]> {
         let l = seg(i).max(1e-300);
         let t = ((s - acc) / l).clamp(0.0, 1.0);
         let (a, b) = (pts[i], pts[(i + 1) % m]);
-        out.push([a[0], a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])]);
+        out.push(P3::new(a.x, a.y + t * (b.y - a.y), a.z + t * (b.z - a.z)));
     }
     out
 }
@@ -107,7 +103,7 @@ impl Foot {
     pub fn mesh(&self, res: MeshResolution) -> FootMesh {
         let (k, n) = (res.stations.max(4), res.around.max(8));
         let l = self.l;
-        let mut rings: Vec<Vec<[f64; 3]>> = Vec::with_capacity(k);
+        let mut rings: Vec<Vec<P3>> = Vec::with_capacity(k);
         for s in 0..k {
             let t = (s as f64 + 0.5) / k as f64;
             let xf = l * 0.5 * (1.0 - (std::f64::consts::PI * t).cos());
@@ -117,11 +113,11 @@ impl Foot {
             }
             rings.push(resample_closed(&sec, n));
         }
-        let world = |p: &[f64; 3]| {
-            let [x, y] = self.to_world(p[0], p[1]);
-            [x, y, p[2]]
+        let world = |p: &P3| {
+            let w = self.to_world(p.x, p.y);
+            P3::new(w.x, w.y, p.z)
         };
-        let mut vertices: Vec<[f64; 3]> = rings.iter().flatten().map(world).collect();
+        let mut vertices: Vec<P3> = rings.iter().flatten().map(world).collect();
         let mut triangles = Vec::new();
         let idx = |r: usize, i: usize| (r * n + i % n) as u32;
         for r in 0..rings.len() - 1 {
@@ -132,10 +128,8 @@ impl Foot {
             }
         }
         for (r, back) in [(0usize, true), (rings.len() - 1, false)] {
-            let c = rings[r]
-                .iter()
-                .fold([0.0; 3], |s, p| [s[0] + p[0], s[1] + p[1], s[2] + p[2]]);
-            let c = [c[0] / n as f64, c[1] / n as f64, c[2] / n as f64];
+            let c = rings[r].iter().fold(V3::zeros(), |s, p| s + p.coords);
+            let c = P3::from(c / n as f64);
             let ci = vertices.len() as u32;
             vertices.push(world(&c));
             for i in 0..n {
@@ -148,8 +142,8 @@ impl Foot {
             .iter()
             .map(|t| {
                 let [a, b, c] = t.map(|i| vertices[i as usize]);
-                a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-                    + a[2] * (b[0] * c[1] - b[1] * c[0])
+                a.x * (b.y * c.z - b.z * c.y) - a.y * (b.x * c.z - b.z * c.x)
+                    + a.z * (b.x * c.y - b.y * c.x)
             })
             .sum();
         if vol < 0.0 {
@@ -158,7 +152,7 @@ impl Foot {
             }
         }
         let plan = self.truth();
-        let lift = |p: [f64; 2]| [p[0], p[1], 0.0];
+        let lift = |p: footscan_geom::P2| P3::new(p.x, p.y, 0.0);
         let girths = (1..20)
             .map(|i| {
                 let xf = l * i as f64 / 20.0;
@@ -185,7 +179,7 @@ impl Foot {
                 mt5: lift(plan.mt5_head),
                 waist_inner: lift(plan.waist_inner),
                 waist_outer: lift(plan.waist_outer),
-                axis_dir: [plan.axis_dir[0], plan.axis_dir[1], 0.0],
+                axis_dir: V3::new(plan.axis_dir.x, plan.axis_dir.y, 0.0),
                 girths,
                 dorsum,
                 plan,

@@ -3,6 +3,7 @@
 
 use crate::optics::{check_range, SimError};
 use crate::surface::Surface;
+use footscan_geom::{P2, P3, V2};
 use serde::{Deserialize, Serialize};
 
 pub use footscan_geom::Side;
@@ -412,8 +413,8 @@ impl Foot {
             .iter()
             .chain(foot.toes_outlines().iter().flatten())
         {
-            lo = lo.min(q[1]);
-            hi = hi.max(q[1]);
+            lo = lo.min(q.y);
+            hi = hi.max(q.y);
         }
         foot.y_bounds = (lo - 1.0, hi + 1.0);
         Ok(foot)
@@ -435,31 +436,31 @@ impl Foot {
 
     /// World (x, y) to foot frame (x', y').
     #[inline]
-    pub fn to_foot(&self, x: f64, y: f64) -> [f64; 2] {
+    pub fn to_foot(&self, x: f64, y: f64) -> P2 {
         let (dx, dy) = (x - self.p.heel_x_mm, y - self.p.axis_y_mm);
-        [
+        P2::new(
             self.cos * dx + self.sin * dy,
             self.sgn * (-self.sin * dx + self.cos * dy),
-        ]
+        )
     }
 
     /// Foot frame (x', y') to world (x, y).
     #[inline]
-    pub fn to_world(&self, xf: f64, yf: f64) -> [f64; 2] {
+    pub fn to_world(&self, xf: f64, yf: f64) -> P2 {
         let ym = self.sgn * yf;
-        [
+        P2::new(
             self.p.heel_x_mm + self.cos * xf - self.sin * ym,
             self.p.axis_y_mm + self.sin * xf + self.cos * ym,
-        ]
+        )
     }
 
     /// Direction of a foot-frame vector in world.
-    pub(crate) fn dir_world(&self, dxf: f64, dyf: f64) -> [f64; 2] {
+    pub(crate) fn dir_world(&self, dxf: f64, dyf: f64) -> V2 {
         let ym = self.sgn * dyf;
-        [
+        V2::new(
             self.cos * dxf - self.sin * ym,
             self.sin * dxf + self.cos * ym,
-        ]
+        )
     }
 
     /// Body half-widths (medial, lateral) at x' (None outside [0, x_f]).
@@ -571,18 +572,18 @@ impl Foot {
 
     /// Sole height at world (x, y), None outside the footprint (no laser return).
     pub fn height(&self, x: f64, y: f64) -> Option<f64> {
-        let [xf, yf] = self.to_foot(x, y);
-        self.height_foot_frame(xf, yf)
+        let f = self.to_foot(x, y);
+        self.height_foot_frame(f.x, f.y)
     }
 
     /// Height gradient (dh/dx, dh/dy) in world by central differences (1e-5 mm), None where
     /// either neighbour is outside the footprint.
-    pub fn gradient(&self, x: f64, y: f64) -> Option<[f64; 2]> {
+    pub fn gradient(&self, x: f64, y: f64) -> Option<V2> {
         let e = 1e-5;
-        Some([
+        Some(V2::new(
             (self.height(x + e, y)? - self.height(x - e, y)?) / (2.0 * e),
             (self.height(x, y + e)? - self.height(x, y - e)?) / (2.0 * e),
-        ])
+        ))
     }
 
     /// Dorsal (top of foot) height profile T(x') above the glass.
@@ -615,7 +616,7 @@ impl Foot {
     /// dorsum as a superellipse of exponent 2.5 (vertical at both edges) reaching the dorsal
     /// height T(x') (about 0.18 L at the heel, 0.25 L at the instep, 0.1 L at the toes), back
     /// down to the lateral edge. Empty outside (0, L).
-    pub fn section(&self, xf: f64) -> Vec<[f64; 3]> {
+    pub fn section(&self, xf: f64) -> Vec<P3> {
         let Some((lo, hi)) = self.extent_at(xf) else {
             return Vec::new();
         };
@@ -664,12 +665,12 @@ impl Foot {
             }
             i += 1;
         }
-        let mut pts: Vec<[f64; 3]> = sole
+        let mut pts: Vec<P3> = sole
             .iter()
             .enumerate()
-            .map(|(i, z)| [xf, y_at(i), z.unwrap()])
+            .map(|(i, z)| P3::new(xf, y_at(i), z.unwrap()))
             .collect();
-        let (zl, zh) = (pts[0][2], pts[n][2]);
+        let (zl, zh) = (pts[0].z, pts[n].z);
         let top = self.dorsum_height(xf).max(zl.max(zh) + 1.0);
         let (yc, a) = ((lo + hi) / 2.0, (hi - lo) / 2.0);
         let m = 200;
@@ -679,7 +680,7 @@ impl Foot {
             let (s, c) = phi.sin_cos();
             let y = yc + a * c.signum() * c.abs().powf(e);
             let base = if c >= 0.0 { zh } else { zl };
-            pts.push([xf, y, base + (top - base) * s.abs().powf(e)]);
+            pts.push(P3::new(xf, y, base + (top - base) * s.abs().powf(e)));
         }
         pts
     }
@@ -693,7 +694,7 @@ impl Foot {
         (0..s.len())
             .map(|i| {
                 let (a, b) = (s[i], s[(i + 1) % s.len()]);
-                ((a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+                ((a.y - b.y).powi(2) + (a.z - b.z).powi(2)).sqrt()
             })
             .sum()
     }

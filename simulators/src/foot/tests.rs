@@ -1,11 +1,12 @@
 use super::*;
+use footscan_geom::P2;
 
 fn foot() -> Foot {
     Foot::new(FootParams::default()).unwrap()
 }
 
-fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
+fn dist(a: P2, b: P2) -> f64 {
+    ((a.x - b.x).powi(2) + (a.y - b.y).powi(2)).sqrt()
 }
 
 #[test]
@@ -39,7 +40,7 @@ fn default_truth_matches_parameters() {
         assert!((dx * t.axis_dir[1] - dy * t.axis_dir[0]).abs() < 1e-9);
     }
     // Ball width = distances of MT1 and MT5 heads from the axis.
-    let off = |q: [f64; 2]| {
+    let off = |q: P2| {
         let (dx, dy) = (q[0] - t.heel_point[0], q[1] - t.heel_point[1]);
         (dx * t.axis_dir[1] - dy * t.axis_dir[0]).abs()
     };
@@ -131,7 +132,7 @@ fn default_foot_fits_the_field_of_view() {
 fn outline_is_dense_and_bounds_the_height_field() {
     let f = foot();
     let t = f.truth();
-    let polys: Vec<&Vec<[f64; 2]>> = std::iter::once(&t.outline_body)
+    let polys: Vec<&Vec<P2>> = std::iter::once(&t.outline_body)
         .chain(t.outline_toes.iter())
         .collect();
     for poly in polys {
@@ -199,7 +200,7 @@ fn left_is_the_mirror_of_right() {
         assert_eq!(r.height(x, y), l.height(x, -y), "at {x}, {y}");
     }
     let (tr, tl) = (r.truth(), l.truth());
-    let m = |p: [f64; 2]| [p[0], -p[1]];
+    let m = |p: P2| P2::new(p.x, -p.y);
     assert!(dist(m(tr.toe_tip), tl.toe_tip) < 1e-9);
     assert!(dist(m(tr.mt1_head), tl.mt1_head) < 1e-9);
     assert!((tr.arch_index - tl.arch_index).abs() < 1e-12);

@@ -3,6 +3,7 @@
 
 use super::model::Foot;
 use super::Side;
+use footscan_geom::{P2, V2};
 use serde::Serialize;
 use std::f64::consts::FRAC_PI_2;
 
@@ -14,31 +15,31 @@ const OUTLINE_STEP: f64 = 0.4;
 pub struct FootTruth {
     pub side: Side,
     /// Body outline (toes excluded), closed polygon (last vertex not repeated), counterclockwise.
-    pub outline_body: Vec<[f64; 2]>,
+    pub outline_body: Vec<P2>,
     /// Each toe pad outline, hallux first, counterclockwise.
-    pub outline_toes: Vec<Vec<[f64; 2]>>,
-    pub heel_point: [f64; 2],
-    pub toe_tip: [f64; 2],
+    pub outline_toes: Vec<Vec<P2>>,
+    pub heel_point: P2,
+    pub toe_tip: P2,
     /// Heel centre and second metatarsal head: the points defining the axis.
-    pub heel_centre: [f64; 2],
-    pub mt2_head: [f64; 2],
+    pub heel_centre: P2,
+    pub mt2_head: P2,
     /// Unit axis direction, heel to toe.
-    pub axis_dir: [f64; 2],
+    pub axis_dir: V2,
     pub length_mm: f64,
-    pub mt1_head: [f64; 2],
-    pub mt5_head: [f64; 2],
+    pub mt1_head: P2,
+    pub mt5_head: P2,
     pub ball_width_mm: f64,
-    pub waist_inner: [f64; 2],
-    pub waist_outer: [f64; 2],
+    pub waist_inner: P2,
+    pub waist_outer: P2,
     /// Breadth perpendicular to the axis at half the length, and its two end points.
     pub midfoot_width_mm: f64,
-    pub midfoot_inner: [f64; 2],
-    pub midfoot_outer: [f64; 2],
+    pub midfoot_inner: P2,
+    pub midfoot_outer: P2,
     pub heel_width_mm: f64,
-    pub hallux_point: [f64; 2],
+    pub hallux_point: P2,
     pub arch_height_mm: f64,
     /// Where the arch height is attained (one point of the plateau).
-    pub arch_point: [f64; 2],
+    pub arch_point: P2,
     pub arch_index: f64,
     /// Toe-less contact area (h <= 1 mm) and its three thirds, heel first (mm^2).
     pub contact_area_mm2: f64,
@@ -47,7 +48,7 @@ pub struct FootTruth {
 
 impl Foot {
     /// Body outline in the foot frame, counterclockwise in (x', y').
-    pub fn outline_body_foot_frame(&self) -> Vec<[f64; 2]> {
+    pub fn outline_body_foot_frame(&self) -> Vec<P2> {
         let hh = self.hh;
         let mut pts = Vec::new();
         let arc = |n: usize| (0..n).map(move |k| FRAC_PI_2 * k as f64 / n as f64);
@@ -55,7 +56,7 @@ impl Foot {
         // Heel point to the lateral side (y' negative), counterclockwise in (x', y'):
         // going from (0, 0) toward (H, -H).
         for t in arc(n_heel) {
-            pts.push([hh - hh * t.cos(), -hh * t.sin()]);
+            pts.push(P2::new(hh - hh * t.cos(), -hh * t.sin()));
         }
         // Lateral side forward.
         push_side(&mut pts, &self.lateral, hh, -1.0);
@@ -67,13 +68,13 @@ impl Foot {
         // Medial heel arc back to the heel point.
         for k in (1..n_heel).rev() {
             let t = FRAC_PI_2 * k as f64 / n_heel as f64;
-            pts.push([hh - hh * t.cos(), hh * t.sin()]);
+            pts.push(P2::new(hh - hh * t.cos(), hh * t.sin()));
         }
         pts
     }
 
     /// Toe pad outlines in the foot frame, counterclockwise in (x', y').
-    pub fn toes_outlines_foot_frame(&self) -> Vec<Vec<[f64; 2]>> {
+    pub fn toes_outlines_foot_frame(&self) -> Vec<Vec<P2>> {
         self.toes
             .iter()
             .map(|t| {
@@ -82,15 +83,15 @@ impl Foot {
                 (0..n)
                     .map(|k| {
                         let (s, c) = (2.0 * std::f64::consts::PI * k as f64 / n as f64).sin_cos();
-                        [t.xc + t.a * c, t.yc + t.b * s]
+                        P2::new(t.xc + t.a * c, t.yc + t.b * s)
                     })
                     .collect()
             })
             .collect()
     }
 
-    fn poly_world(&self, pts: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
-        let mut w: Vec<[f64; 2]> = pts.iter().map(|p| self.to_world(p[0], p[1])).collect();
+    fn poly_world(&self, pts: Vec<P2>) -> Vec<P2> {
+        let mut w: Vec<P2> = pts.iter().map(|p| self.to_world(p.x, p.y)).collect();
         if signed_area(&w) < 0.0 {
             w.reverse();
         }
@@ -98,12 +99,12 @@ impl Foot {
     }
 
     /// Body outline in world, counterclockwise.
-    pub fn outline_body(&self) -> Vec<[f64; 2]> {
+    pub fn outline_body(&self) -> Vec<P2> {
         self.poly_world(self.outline_body_foot_frame())
     }
 
     /// Toe pad outlines in world, hallux first, counterclockwise.
-    pub fn toes_outlines(&self) -> Vec<Vec<[f64; 2]>> {
+    pub fn toes_outlines(&self) -> Vec<Vec<P2>> {
         self.toes_outlines_foot_frame()
             .into_iter()
             .map(|p| self.poly_world(p))
@@ -161,7 +162,7 @@ impl Foot {
 
     /// Arch height per the definition: max h over x' in [x_f/3, 2 x_f/3], y' >= 0, at least R
     /// inside the outline. Returns (height, foot-frame point).
-    pub(crate) fn arch_height_numeric(&self) -> (f64, [f64; 2]) {
+    pub(crate) fn arch_height_numeric(&self) -> (f64, P2) {
         let xf = self.body_front();
         let r = self.p.edge_radius_mm;
         let eval = |x: f64, y: f64| -> Option<f64> {
@@ -176,8 +177,8 @@ impl Foot {
             }
             self.body_height_foot_frame(x, y)
         };
-        let mut best = (f64::NEG_INFINITY, [0.0, 0.0]);
-        let scan = |x0: f64, x1: f64, y0: f64, y1: f64, step: f64, best: &mut (f64, [f64; 2])| {
+        let mut best = (f64::NEG_INFINITY, P2::origin());
+        let scan = |x0: f64, x1: f64, y0: f64, y1: f64, step: f64, best: &mut (f64, P2)| {
             let nx = ((x1 - x0) / step).ceil() as usize;
             let ny = ((y1 - y0) / step).ceil() as usize;
             for i in 0..=nx {
@@ -186,7 +187,7 @@ impl Foot {
                     let y = y0 + (y1 - y0) * j as f64 / ny as f64;
                     if let Some(h) = eval(x, y) {
                         if h > best.0 {
-                            *best = (h, [x, y]);
+                            *best = (h, P2::new(x, y));
                         }
                     }
                 }
@@ -195,7 +196,7 @@ impl Foot {
         scan(xf / 3.0, 2.0 * xf / 3.0, 0.0, 0.6 * self.l, 0.5, &mut best);
         let mut step = 0.5;
         for _ in 0..4 {
-            let [bx, by] = best.1;
+            let (bx, by) = (best.1.x, best.1.y);
             let s = step / 10.0;
             scan(
                 bx - step,
@@ -219,8 +220,7 @@ impl Foot {
         let heel_centre = self.to_world(self.hh, 0.0);
         let mt2_head = self.to_world(self.mt2_x, 0.0);
         let axis_dir = self.dir_world(1.0, 0.0);
-        let length_mm =
-            (toe_tip[0] - heel_point[0]) * axis_dir[0] + (toe_tip[1] - heel_point[1]) * axis_dir[1];
+        let length_mm = (toe_tip - heel_point).dot(&axis_dir);
         let m = &self.medial;
         let lat = &self.lateral;
         let (wm_mid, wl_mid) = self
@@ -264,7 +264,7 @@ impl Foot {
             heel_width_mm: heel_width,
             hallux_point: self.to_world(hallux.xc, hallux.yc + hallux.b),
             arch_height_mm,
-            arch_point: self.to_world(arch_pt[0], arch_pt[1]),
+            arch_point: self.to_world(arch_pt.x, arch_pt.y),
             arch_index: thirds[1] / total,
             contact_area_mm2: total,
             contact_thirds_mm2: thirds,
@@ -273,12 +273,12 @@ impl Foot {
 }
 
 /// Side outline points for x' from H to the front end (y' = sign * w), spaced <= OUTLINE_STEP.
-fn push_side(pts: &mut Vec<[f64; 2]>, side: &super::model::SideCurve, hh: f64, sign: f64) {
+fn push_side(pts: &mut Vec<P2>, side: &super::model::SideCurve, hh: f64, sign: f64) {
     // Hermite part, by x'.
     let n = ((side.x_head - hh) / (OUTLINE_STEP / 2.0)).ceil() as usize;
     for k in 0..n {
         let x = hh + (side.x_head - hh) * k as f64 / n as f64;
-        pts.push([x, sign * side.eval(x).0]);
+        pts.push(P2::new(x, sign * side.eval(x).0));
     }
     // Quarter ellipse by angle, up to but excluding the front end point for the medial side
     // (the lateral side includes it: the two sides share it).
@@ -287,16 +287,16 @@ fn push_side(pts: &mut Vec<[f64; 2]>, side: &super::model::SideCurve, hh: f64, s
     let last = if sign < 0.0 { n } else { n - 1 };
     for k in 0..=last {
         let t = FRAC_PI_2 * k as f64 / n as f64;
-        pts.push([side.x_head + a * t.sin(), sign * b * t.cos()]);
+        pts.push(P2::new(side.x_head + a * t.sin(), sign * b * t.cos()));
     }
 }
 
-pub(crate) fn signed_area(p: &[[f64; 2]]) -> f64 {
+pub(crate) fn signed_area(p: &[P2]) -> f64 {
     let n = p.len();
     (0..n)
         .map(|i| {
             let (a, b) = (p[i], p[(i + 1) % n]);
-            a[0] * b[1] - b[0] * a[1]
+            a.x * b.y - b.x * a.y
         })
         .sum::<f64>()
         / 2.0

@@ -4,7 +4,7 @@ use crate::foot::Side;
 use crate::mesh_scene::{place_at, MeshSurface, Placement};
 use crate::optics::{check_range, SimError};
 use footscan_geom::mesh::TriMesh;
-use footscan_geom::P3;
+use footscan_geom::{P2, P3};
 use serde::{Deserialize, Serialize};
 
 /// Toe shape of the bottom outline.
@@ -117,22 +117,22 @@ pub struct LastTruth {
     pub ball_width_mm: f64,
     pub heel_mm: f64,
     /// Rearmost bottom point.
-    pub heel_point: [f64; 3],
+    pub heel_point: P3,
     /// Foremost bottom point.
-    pub toe_tip: [f64; 3],
+    pub toe_tip: P3,
     /// Most medial bottom outline point (first metatarsal head).
-    pub mt1: [f64; 3],
+    pub mt1: P3,
     /// Most lateral bottom outline point (fifth metatarsal head).
-    pub mt5: [f64; 3],
+    pub mt5: P3,
     /// Narrowest points of the waist, medial and lateral.
-    pub waist_medial: [f64; 3],
-    pub waist_lateral: [f64; 3],
+    pub waist_medial: P3,
+    pub waist_lateral: P3,
     /// A lowest point, under the ball (on the glass, or at the placement's lift); a flat last
     /// (heel 0) rests on its whole middle line from heel to ball.
-    pub ball_contact: [f64; 3],
+    pub ball_contact: P3,
     /// The bottom outline (feather edge) as the mesh has it: heel point, the lateral side to
     /// the toe tip, the medial side back (a closed polygon, last point not repeated).
-    pub outline: Vec<[f64; 3]>,
+    pub outline: Vec<P3>,
 }
 
 /// A parametric last: its mesh in the last frame and placed in the world, with the truth.
@@ -403,9 +403,9 @@ impl Last {
             local.flip();
         }
         let mirror = if params.side == Side::Left { -1.0 } else { 1.0 };
-        let world = place_at(&local, &params.placement, [0.0, 0.0]);
-        let tf = params.placement.transform([0.0, 0.0], 0.0);
-        let at = |x: f64, y: f64, z: f64| tf.apply([x, mirror * y, z]);
+        let world = place_at(&local, &params.placement, P2::origin());
+        let tf = params.placement.transform(P2::origin(), 0.0);
+        let at = |x: f64, y: f64, z: f64| tf.apply(P3::new(x, mirror * y, z));
         let l = s.l;
         // Landmarks are feather-edge vertices: station i on the lateral (ring i) or medial
         // (ring 2n - i) side.
@@ -414,10 +414,7 @@ impl Last {
                 .position(|&x| x == f * l)
                 .expect("landmark station")
         };
-        let vertex = |r: usize| {
-            let p = local.vertices[wall(r, 0) as usize];
-            tf.apply([p.x, p.y, p.z])
-        };
+        let vertex = |r: usize| tf.apply(local.vertices[wall(r, 0) as usize]);
         let medial = |f: f64| vertex(ring - station(f));
         let lateral = |f: f64| vertex(station(f));
         let outline = (0..ring).map(vertex).collect();

@@ -76,11 +76,7 @@ fn truth_matches_the_mesh_outline() {
             let lowest = l.mesh().bbox().min.z;
             assert_eq!(lowest, 0.0);
             assert_eq!(t.ball_contact[2], 0.0);
-            assert!(l
-                .mesh()
-                .vertices
-                .iter()
-                .any(|p| [p.x, p.y, p.z] == t.ball_contact));
+            assert!(l.mesh().vertices.contains(&t.ball_contact));
             assert!((t.heel_point[2] - heel - 1.5).abs() < 1e-12);
         }
     }

@@ -211,7 +211,7 @@ fn run_measure(a: MeasureArgs) -> Result<()> {
         );
         let l = &m.landmarks;
         for (name, p) in l.named() {
-            println!("  {name:18} ({:7.2}, {:7.2}, {:7.2}) mm", p[0], p[1], p[2]);
+            println!("  {name:18} ({:7.2}, {:7.2}, {:7.2}) mm", p.x, p.y, p.z);
         }
     }
     if let Some(p) = &a.picture {

@@ -12,7 +12,7 @@ use footscan::cad::FootFrame;
 use footscan::measure::Measurements;
 use footscan::scandata::ScanDir;
 use footscan_geom::mesh::{GlbPart, TriMesh};
-use footscan_geom::P3;
+use footscan_geom::{dist_by_hypot, P2, P3, V2};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -40,7 +40,7 @@ pub struct FitView {
     /// negated first when `mirrored`, then `translation_mm` added; z is the height above the
     /// glass once the last's bottom curve is taken out.
     pub rotation_deg: f64,
-    pub translation_mm: [f64; 2],
+    pub translation_mm: V2,
     pub mirrored: bool,
     /// The footprint's largest distance from the placement (mm): the fit's own check.
     pub residual_mm: f64,
@@ -57,46 +57,45 @@ pub struct FitView {
 struct Rigid2 {
     cos: f64,
     sin: f64,
-    t: [f64; 2],
+    t: V2,
     mirrored: bool,
 }
 
 impl Rigid2 {
-    fn apply(&self, p: [f64; 2]) -> [f64; 2] {
-        let y = if self.mirrored { -p[1] } else { p[1] };
-        [
-            self.cos * p[0] - self.sin * y + self.t[0],
-            self.sin * p[0] + self.cos * y + self.t[1],
-        ]
+    fn apply(&self, p: P2) -> P2 {
+        let y = if self.mirrored { -p.y } else { p.y };
+        P2::new(
+            self.cos * p.x - self.sin * y + self.t.x,
+            self.sin * p.x + self.cos * y + self.t.y,
+        )
     }
 
     /// The least-squares rotation and translation taking `src` onto `dst` (paired points),
     /// with y mirrored first or not, whichever fits better; and the largest residual (mm).
-    fn fit(src: &[[f64; 2]], dst: &[[f64; 2]]) -> (Rigid2, f64) {
+    fn fit(src: &[P2], dst: &[P2]) -> (Rigid2, f64) {
         let fit_one = |mirrored: bool| {
-            let s: Vec<[f64; 2]> = src
+            let s: Vec<P2> = src
                 .iter()
-                .map(|p| [p[0], if mirrored { -p[1] } else { p[1] }])
+                .map(|p| P2::new(p.x, if mirrored { -p.y } else { p.y }))
                 .collect();
             let n = s.len() as f64;
-            let mean = |v: &[[f64; 2]]| {
-                let (x, y) = v.iter().fold((0.0, 0.0), |(x, y), p| (x + p[0], y + p[1]));
-                [x / n, y / n]
+            let mean = |v: &[P2]| {
+                let (x, y) = v.iter().fold((0.0, 0.0), |(x, y), p| (x + p.x, y + p.y));
+                P2::new(x / n, y / n)
             };
             let (cs, cd) = (mean(&s), mean(dst));
             let (mut a, mut b) = (0.0, 0.0);
             for (p, q) in s.iter().zip(dst) {
-                let (px, py) = (p[0] - cs[0], p[1] - cs[1]);
-                let (qx, qy) = (q[0] - cd[0], q[1] - cd[1]);
-                a += px * qx + py * qy;
-                b += px * qy - py * qx;
+                let (p, q) = (p - cs, q - cd);
+                a += p.dot(&q);
+                b += p.perp(&q);
             }
             let th = b.atan2(a);
             let (sin, cos) = th.sin_cos();
-            let t = [
-                cd[0] - (cos * cs[0] - sin * cs[1]),
-                cd[1] - (sin * cs[0] + cos * cs[1]),
-            ];
+            let t = V2::new(
+                cd.x - (cos * cs.x - sin * cs.y),
+                cd.y - (sin * cs.x + cos * cs.y),
+            );
             let r = Rigid2 {
                 cos,
                 sin,
@@ -106,10 +105,7 @@ impl Rigid2 {
             let worst = src
                 .iter()
                 .zip(dst)
-                .map(|(p, q)| {
-                    let m = r.apply(*p);
-                    (m[0] - q[0]).hypot(m[1] - q[1])
-                })
+                .map(|(p, q)| dist_by_hypot(&r.apply(*p), q))
                 .fold(0.0, f64::max);
             (r, worst)
         };
@@ -123,25 +119,25 @@ impl Rigid2 {
 }
 
 /// The bottom curve's height at `x` (linear between its samples, its end values beyond).
-fn curve_at(curve: &[[f64; 2]], x: f64) -> f64 {
+fn curve_at(curve: &[P2], x: f64) -> f64 {
     match curve {
         [] => 0.0,
-        [only] => only[1],
+        [only] => only.y,
         _ => {
-            let i = curve.partition_point(|p| p[0] < x);
+            let i = curve.partition_point(|p| p.x < x);
             if i == 0 {
-                return curve[0][1];
+                return curve[0].y;
             }
             if i == curve.len() {
-                return curve[curve.len() - 1][1];
+                return curve[curve.len() - 1].y;
             }
             let (a, b) = (curve[i - 1], curve[i]);
-            let w = if b[0] > a[0] {
-                (x - a[0]) / (b[0] - a[0])
+            let w = if b.x > a.x {
+                (x - a.x) / (b.x - a.x)
             } else {
                 0.0
             };
-            a[1] + w * (b[1] - a[1])
+            a.y + w * (b.y - a.y)
         }
     }
 }
@@ -216,11 +212,11 @@ pub fn glb_node_mesh(bytes: &[u8], name: &str) -> Result<TriMesh, String> {
 
 /// The footprint loops of the measurements in the foot frame, in the order the clinic path
 /// takes them (the outline, then each toe's).
-fn footprint_in_foot_frame(m: &Measurements) -> Vec<Vec<[f64; 2]>> {
+fn footprint_in_foot_frame(m: &Measurements) -> Vec<Vec<P2>> {
     let frame = FootFrame::of(m);
     std::iter::once(&m.outline)
         .chain(&m.toe_outlines)
-        .map(|l| l.iter().map(|&p| frame.to_foot(p).into()).collect())
+        .map(|l| l.iter().map(|&p| frame.to_foot(p)).collect())
         .collect()
 }
 
@@ -243,7 +239,7 @@ pub fn write_fit_view(
         })?;
     let foot = glb_node_mesh(&bytes, "foot").map_err(|e| format!("{}: {e}", model.display()))?;
     let ours = footprint_in_foot_frame(m);
-    let shape = |v: &[Vec<[f64; 2]>]| v.iter().map(Vec::len).collect::<Vec<_>>();
+    let shape = |v: &[Vec<P2>]| v.iter().map(Vec::len).collect::<Vec<_>>();
     if ours.is_empty() || shape(&ours) != shape(&c.footprint) {
         return Err(format!(
             "the last's footprint ({:?} points by loop) is not the scan's ({:?}): no \
@@ -252,8 +248,8 @@ pub fn write_fit_view(
             shape(&ours)
         ));
     }
-    let src: Vec<[f64; 2]> = c.footprint.iter().flatten().copied().collect();
-    let dst: Vec<[f64; 2]> = ours.iter().flatten().copied().collect();
+    let src: Vec<P2> = c.footprint.iter().flatten().copied().collect();
+    let dst: Vec<P2> = ours.iter().flatten().copied().collect();
     let (r, residual) = Rigid2::fit(&src, &dst);
     if residual > RIGID_TOLERANCE_MM {
         return Err(format!(
@@ -267,8 +263,8 @@ pub fn write_fit_view(
         .vertices
         .iter()
         .map(|p| {
-            let q = r.apply([p.x, p.y]);
-            P3::new(q[0], q[1], p.z - curve_at(curve, p.x))
+            let q = r.apply(p.xy());
+            P3::new(q.x, q.y, p.z - curve_at(curve, p.x))
         })
         .collect();
     // A mirror turns the triangles inside out: wind them back so the inside stays inside.
@@ -339,31 +335,31 @@ mod tests {
 
     #[test]
     fn the_fit_finds_a_turn_a_shift_and_a_mirror() {
-        let src: Vec<[f64; 2]> = (0..40)
+        let src: Vec<P2> = (0..40)
             .map(|i| {
                 let a = i as f64 * 0.3;
-                [120.0 * a.cos() + 130.0, 45.0 * a.sin() + (i % 3) as f64]
+                P2::new(120.0 * a.cos() + 130.0, 45.0 * a.sin() + (i % 3) as f64)
             })
             .collect();
         for mirrored in [false, true] {
             let truth = Rigid2 {
                 cos: 0.05f64.cos(),
                 sin: 0.05f64.sin(),
-                t: [-3.0, 7.5],
+                t: V2::new(-3.0, 7.5),
                 mirrored,
             };
-            let dst: Vec<[f64; 2]> = src.iter().map(|p| truth.apply(*p)).collect();
+            let dst: Vec<P2> = src.iter().map(|p| truth.apply(*p)).collect();
             let (r, res) = Rigid2::fit(&src, &dst);
             assert!(res < 1e-9, "{res}");
             assert_eq!(r.mirrored, mirrored);
             assert!((r.sin.atan2(r.cos) - 0.05).abs() < 1e-12);
-            assert!((r.t[0] + 3.0).abs() < 1e-9 && (r.t[1] - 7.5).abs() < 1e-9);
+            assert!((r.t.x + 3.0).abs() < 1e-9 && (r.t.y - 7.5).abs() < 1e-9);
         }
     }
 
     #[test]
     fn the_bottom_curve_is_read_between_and_beyond_its_samples() {
-        let c = [[0.0, 20.0], [100.0, 0.0], [200.0, 5.0]];
+        let c = [P2::new(0.0, 20.0), P2::new(100.0, 0.0), P2::new(200.0, 5.0)];
         assert_eq!(curve_at(&c, -5.0), 20.0);
         assert!((curve_at(&c, 50.0) - 10.0).abs() < 1e-12);
         assert!((curve_at(&c, 150.0) - 2.5).abs() < 1e-12);

@@ -5,7 +5,7 @@ use super::outline;
 use super::{AdjustError, Adjustment, HeightMap, LastBottom};
 use crate::smoothstep;
 use footscan_geom::mesh::{LoadReport, TriMesh, Units};
-use footscan_geom::{P3, V3};
+use footscan_geom::{P2, P3, V2, V3};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -277,8 +277,8 @@ pub fn bottom_from_below(
     for i in 0..nx {
         let js: Vec<usize> = (0..ny).filter(|&j| piece[j * nx + i]).collect();
         if let (Some(&a), Some(&b)) = (js.first(), js.last()) {
-            lower.push([below.x(i), below.y(a) - cell / 2.0]);
-            upper.push([below.x(i), below.y(b) + cell / 2.0]);
+            lower.push(V2::new(below.x(i), below.y(a) - cell / 2.0));
+            upper.push(V2::new(below.x(i), below.y(b) + cell / 2.0));
         }
     }
     if lower.len() < 8 {
@@ -287,10 +287,12 @@ pub fn bottom_from_below(
             lower.len()
         )));
     }
-    let mut outline_pts = lower;
-    outline_pts.extend(upper.into_iter().rev());
-    let pinned = vec![false; outline_pts.len()];
-    outline::taubin(&mut outline_pts, &pinned, 10, 0.5, -0.53);
+    // Smoothed as positions from the origin, then points.
+    let mut around = lower;
+    around.extend(upper.into_iter().rev());
+    let pinned = vec![false; around.len()];
+    outline::taubin(&mut around, &pinned, 10, 0.5, -0.53);
+    let mut outline_pts: Vec<P2> = around.into_iter().map(P2::from).collect();
     outline::make_ccw(&mut outline_pts);
     let inside = outline::inside_mask(&outline_pts, below.x0, below.y0, cell, nx, ny);
     let mut heights = below.clone();
@@ -539,12 +541,13 @@ fn planned_moves(
     new_bottom: &HeightMap,
 ) -> Vec<(P3, V3, f64)> {
     let change = |x: f64, y: f64| -> V3 {
-        let p = [x, y];
+        let p = P2::new(x, y);
         let q = adj.rigid.apply(p);
         let t = adj.forward.apply(adj.to_foot.apply(p));
         let zb = prep.lowest.sample_clamped(x, y);
-        let nb = new_bottom.sample_clamped(t[0], t[1]);
-        V3::new(t[0] - q[0], t[1] - q[1], nb - zb)
+        let nb = new_bottom.sample_clamped(t.x, t.y);
+        let d = t - q;
+        V3::new(d.x, d.y, nb - zb)
     };
     // Above the bottom the change is taken from a box average of the bottom's change whose
     // half-width grows with the height: a wall leaning over the rim, where the plan map
@@ -554,7 +557,7 @@ fn planned_moves(
         .vertices
         .iter()
         .map(|v| {
-            let q = adj.rigid.apply([v.x, v.y]);
+            let q = adj.rigid.apply(v.xy());
             let hb = v.z - prep.lowest.sample_clamped(v.x, v.y);
             let exact = change(v.x, v.y);
             let s = smoothstep(hb / BLUR_RAMP_MM);
@@ -564,7 +567,7 @@ fn planned_moves(
             } else {
                 exact
             };
-            (P3::new(q[0], q[1], v.z), d, hb)
+            (P3::new(q.x, q.y, v.z), d, hb)
         })
         .collect()
 }

@@ -39,24 +39,24 @@ pub mod synthetic;
 pub mod tps;
 
 pub use footscan_geom::HeightMap;
-pub use outline::{outline_landmarks, OutlineLandmarks, Pt};
+pub use outline::{outline_landmarks, OutlineLandmarks};
 pub use side::Side;
 
-use outline::{add, dist, dot, scale, sub};
+use footscan_geom::{dist_by_hypot, P2, V2};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
 /// A scanned foot's landmarks (scan frame, mm), as the scanner's measurements give them.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FootLandmarks {
-    pub heel_point: Pt,
-    pub toe_tip: Pt,
-    pub hallux: Pt,
-    pub mt1_head: Pt,
-    pub mt5_head: Pt,
-    pub waist_inner: Pt,
-    pub waist_outer: Pt,
-    pub arch_point: Pt,
+    pub heel_point: P2,
+    pub toe_tip: P2,
+    pub hallux: P2,
+    pub mt1_head: P2,
+    pub mt5_head: P2,
+    pub waist_inner: P2,
+    pub waist_outer: P2,
+    pub arch_point: P2,
     pub arch_height_mm: f64,
 }
 
@@ -69,9 +69,9 @@ pub struct FootPlantar {
     pub source: String,
     pub side: Side,
     /// Body outline (toes excluded), closed.
-    pub outline: Vec<Pt>,
+    pub outline: Vec<P2>,
     /// Toe pad outlines, hallux first (may be empty).
-    pub toe_outlines: Vec<Vec<Pt>>,
+    pub toe_outlines: Vec<Vec<P2>>,
     pub landmarks: FootLandmarks,
     pub heights: HeightMap,
 }
@@ -82,7 +82,7 @@ pub struct FootPlantar {
 pub struct LastBottom {
     /// What the bottom came from (a last file), for error messages.
     pub source: String,
-    pub outline: Vec<Pt>,
+    pub outline: Vec<P2>,
     pub heights: HeightMap,
 }
 
@@ -152,21 +152,21 @@ pub enum AdjustError {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Affine2 {
     pub a: [[f64; 2]; 2],
-    pub t: Pt,
+    pub t: V2,
 }
 
 impl Affine2 {
     pub fn identity() -> Affine2 {
         Affine2 {
             a: [[1.0, 0.0], [0.0, 1.0]],
-            t: [0.0, 0.0],
+            t: V2::zeros(),
         }
     }
-    pub fn apply(&self, p: Pt) -> Pt {
-        [
-            self.a[0][0] * p[0] + self.a[0][1] * p[1] + self.t[0],
-            self.a[1][0] * p[0] + self.a[1][1] * p[1] + self.t[1],
-        ]
+    pub fn apply(&self, p: P2) -> P2 {
+        P2::new(
+            self.a[0][0] * p.x + self.a[0][1] * p.y + self.t.x,
+            self.a[1][0] * p.x + self.a[1][1] * p.y + self.t.y,
+        )
     }
     pub fn det(&self) -> f64 {
         self.a[0][0] * self.a[1][1] - self.a[0][1] * self.a[1][0]
@@ -177,10 +177,10 @@ impl Affine2 {
             [self.a[1][1] / d, -self.a[0][1] / d],
             [-self.a[1][0] / d, self.a[0][0] / d],
         ];
-        let t = [
-            -(a[0][0] * self.t[0] + a[0][1] * self.t[1]),
-            -(a[1][0] * self.t[0] + a[1][1] * self.t[1]),
-        ];
+        let t = V2::new(
+            -(a[0][0] * self.t.x + a[0][1] * self.t.y),
+            -(a[1][0] * self.t.x + a[1][1] * self.t.y),
+        );
         Affine2 { a, t }
     }
     /// `self` after `first`.
@@ -188,7 +188,7 @@ impl Affine2 {
         let m = |r: usize, c: usize| self.a[r][0] * first.a[0][c] + self.a[r][1] * first.a[1][c];
         Affine2 {
             a: [[m(0, 0), m(0, 1)], [m(1, 0), m(1, 1)]],
-            t: self.apply(first.t),
+            t: self.apply(P2::from(first.t)).coords,
         }
     }
 }
@@ -214,9 +214,9 @@ pub struct Deviation {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LandmarkPair {
     pub name: String,
-    pub foot: Pt,
-    pub before: Pt,
-    pub after: Pt,
+    pub foot: P2,
+    pub before: P2,
+    pub after: P2,
 }
 
 /// The adjusted bottom and what it took.
@@ -225,16 +225,16 @@ pub struct Adjustment {
     pub eps: f64,
     pub zeta: f64,
     /// Where the largest excursions were found (foot frame).
-    pub eps_at: Pt,
-    pub zeta_at: Pt,
+    pub eps_at: P2,
+    pub zeta_at: P2,
     /// Whether the bottom was mirrored (a last of the other side).
     pub mirrored: bool,
     pub bottom_side: Side,
     /// Rigid fit: rotation (deg, counterclockwise) and translation of the bottom frame.
     pub rotation_deg: f64,
-    pub shift: Pt,
+    pub shift: V2,
     /// Landmarks' centroid, the centre of the eps scaling.
-    pub centre: Pt,
+    pub centre: P2,
     /// Bottom frame -> foot frame: the rigid fit, and the rigid fit then eps.
     pub rigid: Affine2,
     pub to_foot: Affine2,
@@ -244,10 +244,10 @@ pub struct Adjustment {
     pub heights: HeightMap,
     /// Cells inside the adjusted outline.
     pub inside: Vec<bool>,
-    pub outline: Vec<Pt>,
+    pub outline: Vec<P2>,
     /// The foot's sole outline (body and toe pads).
-    pub foot_outline: Vec<Pt>,
-    pub bottom_outline_before: Vec<Pt>,
+    pub foot_outline: Vec<P2>,
+    pub bottom_outline_before: Vec<P2>,
     pub landmarks: Vec<LandmarkPair>,
     pub before: Deviation,
     pub after: Deviation,
@@ -259,8 +259,8 @@ pub struct Adjustment {
     pub notes: Vec<String>,
 }
 
-fn finite(p: Pt) -> bool {
-    p[0].is_finite() && p[1].is_finite()
+fn finite(p: P2) -> bool {
+    p.x.is_finite() && p.y.is_finite()
 }
 
 fn check_foot(foot: &FootPlantar) -> Result<(), AdjustError> {
@@ -293,10 +293,10 @@ fn check_foot(foot: &FootPlantar) -> Result<(), AdjustError> {
     if !l.arch_height_mm.is_finite() {
         return Err(bad("no measurements: the arch height is missing".into()));
     }
-    if dist(l.heel_point, l.toe_tip) < 50.0 {
+    if dist_by_hypot(&l.heel_point, &l.toe_tip) < 50.0 {
         return Err(bad(format!(
             "heel point and toe tip are {:.1} mm apart; a foot is 50 mm long at least",
-            dist(l.heel_point, l.toe_tip)
+            dist_by_hypot(&l.heel_point, &l.toe_tip)
         )));
     }
     let g = &foot.heights;
@@ -318,23 +318,23 @@ fn check_foot(foot: &FootPlantar) -> Result<(), AdjustError> {
 }
 
 /// Rigid 2D least squares: the rotation and translation taking `p[k]` nearest `q[k]`.
-pub fn rigid_fit(p: &[Pt], q: &[Pt]) -> Affine2 {
+pub fn rigid_fit(p: &[P2], q: &[P2]) -> Affine2 {
     let n = p.len() as f64;
-    let pc = scale(p.iter().fold([0.0, 0.0], |a, &b| add(a, b)), 1.0 / n);
-    let qc = scale(q.iter().fold([0.0, 0.0], |a, &b| add(a, b)), 1.0 / n);
+    let pc = P2::from(p.iter().fold(V2::zeros(), |a, b| a + b.coords) * (1.0 / n));
+    let qc = P2::from(q.iter().fold(V2::zeros(), |a, b| a + b.coords) * (1.0 / n));
     let (mut sc, mut ss) = (0.0, 0.0);
     for (a, b) in p.iter().zip(q) {
-        let (a, b) = (sub(*a, pc), sub(*b, qc));
-        sc += dot(a, b);
-        ss += a[0] * b[1] - a[1] * b[0];
+        let (a, b) = (a - pc, b - qc);
+        sc += a.dot(&b);
+        ss += a.perp(&b);
     }
     let th = ss.atan2(sc);
     let (c, s) = (th.cos(), th.sin());
     let a = [[c, -s], [s, c]];
-    let r = Affine2 { a, t: [0.0, 0.0] };
+    let r = Affine2 { a, t: V2::zeros() };
     Affine2 {
         a,
-        t: sub(qc, r.apply(pc)),
+        t: qc - r.apply(pc),
     }
 }
 
@@ -364,8 +364,8 @@ pub fn adjust(
     let f_rs = outline::resample_closed(&sole.outline, 512);
     let placed = Placement::of(&plan, &sole, &f_rs);
     let to_plan = placed.scale_m.after(&placed.rigid_m);
-    let scaled: Vec<Pt> = plan.outline.iter().map(|&p| to_plan.apply(p)).collect();
-    let scaled_lm: Vec<Pt> = plan.landmarks.iter().map(|&p| to_plan.apply(p)).collect();
+    let scaled: Vec<P2> = plan.outline.iter().map(|&p| to_plan.apply(p)).collect();
+    let scaled_lm: Vec<P2> = plan.landmarks.iter().map(|&p| to_plan.apply(p)).collect();
     let warp = Warp::fit(&scaled, &scaled_lm, &sole, opts, bottom)?;
     let grid = Grid::sample(foot, bottom, &f_rs, opts, &placed, &scaled, &warp);
     let (zeta, zeta_at, heights) =
@@ -411,9 +411,9 @@ fn last_err(bottom: &LastBottom, why: String) -> AdjustError {
 /// (heel point, toe tip, MT1 and MT5 heads, inner and outer waist) as measured and moved
 /// onto that outline.
 struct Sole {
-    outline: Vec<Pt>,
-    raw: [Pt; 6],
-    on: Vec<Pt>,
+    outline: Vec<P2>,
+    raw: [P2; 6],
+    on: Vec<P2>,
     /// Heel point to toe tip along the foot's axis (mm).
     length: f64,
 }
@@ -421,9 +421,9 @@ struct Sole {
 impl Sole {
     fn of(foot: &FootPlantar, notes: &mut Vec<String>) -> Sole {
         let fl = &foot.landmarks;
-        let forward_f = outline::scale(sub(fl.toe_tip, fl.heel_point), 1.0);
-        let axis_f = scale(forward_f, 1.0 / dist(fl.toe_tip, fl.heel_point));
-        let cut = if dot(fl.mt1_head, axis_f) < dot(fl.mt5_head, axis_f) {
+        let axis_f =
+            (fl.toe_tip - fl.heel_point) * (1.0 / dist_by_hypot(&fl.toe_tip, &fl.heel_point));
+        let cut = if fl.mt1_head.coords.dot(&axis_f) < fl.mt5_head.coords.dot(&axis_f) {
             fl.mt1_head
         } else {
             fl.mt5_head
@@ -437,14 +437,14 @@ impl Sole {
             fl.waist_inner,
             fl.waist_outer,
         ];
-        let on: Vec<Pt> = raw
+        let on: Vec<P2> = raw
             .iter()
             .map(|&q| outline::closest_on(&outline, q).0)
             .collect();
         let off = raw
             .iter()
             .zip(&on)
-            .map(|(a, b)| dist(*a, *b))
+            .map(|(a, b)| dist_by_hypot(a, b))
             .fold(0.0, f64::max);
         if off > 0.05 {
             notes.push(format!(
@@ -455,7 +455,7 @@ impl Sole {
             outline,
             raw,
             on,
-            length: dot(sub(fl.toe_tip, fl.heel_point), axis_f),
+            length: (fl.toe_tip - fl.heel_point).dot(&axis_f),
         }
     }
 }
@@ -463,8 +463,8 @@ impl Sole {
 /// Step 1: the bottom's outline (counterclockwise) and landmarks, mirrored when it is a
 /// last of the other foot.
 struct BottomPlan {
-    outline: Vec<Pt>,
-    landmarks: Vec<Pt>,
+    outline: Vec<P2>,
+    landmarks: Vec<P2>,
     /// The side the bottom was before any mirroring.
     side_before: Side,
     mirrored: bool,
@@ -481,13 +481,13 @@ impl BottomPlan {
     ) -> Result<BottomPlan, AdjustError> {
         let mut b_out = bottom.outline.clone();
         outline::make_ccw(&mut b_out);
-        let lm0 = outline_landmarks(&b_out, [1.0, 0.0], None)
+        let lm0 = outline_landmarks(&b_out, V2::x(), None)
             .map_err(|e| last_err(bottom, format!("bottom landmarks: {e}")))?;
         let mirrored = lm0.side != foot.side;
         let mirror = if mirrored {
             Affine2 {
                 a: [[1.0, 0.0], [0.0, -1.0]],
-                t: [0.0, 0.0],
+                t: V2::zeros(),
             }
         } else {
             Affine2::identity()
@@ -500,7 +500,7 @@ impl BottomPlan {
                 lm0.side, foot.side
             ));
         }
-        let lb = outline_landmarks(&b_out, [1.0, 0.0], Some(foot.side))
+        let lb = outline_landmarks(&b_out, V2::x(), Some(foot.side))
             .map_err(|e| last_err(bottom, format!("bottom landmarks: {e}")))?;
         if lb.length < opts.min_length_ratio * foot_len {
             return Err(AdjustError::TooShort {
@@ -526,34 +526,31 @@ struct Placement {
     rigid_m: Affine2,
     rigid: Affine2,
     /// The landmarks' centroid, the centre of the eps scaling.
-    centre: Pt,
+    centre: P2,
     /// The plan's outline after the rigid fit.
-    aligned: Vec<Pt>,
+    aligned: Vec<P2>,
     eps: f64,
-    eps_at: Pt,
+    eps_at: P2,
     scale_m: Affine2,
     /// Bottom frame -> foot frame: the rigid fit, then eps.
     to_foot: Affine2,
 }
 
 impl Placement {
-    fn of(plan: &BottomPlan, sole: &Sole, f_rs: &[Pt]) -> Placement {
+    fn of(plan: &BottomPlan, sole: &Sole, f_rs: &[P2]) -> Placement {
         let rigid_m = rigid_fit(&plan.landmarks[..4], &sole.raw[..4]);
         let rigid = rigid_m.after(&plan.mirror);
-        let centre = scale(
-            sole.raw[..4].iter().fold([0.0, 0.0], |a, &b| add(a, b)),
-            0.25,
-        );
-        let aligned: Vec<Pt> = plan.outline.iter().map(|&p| rigid_m.apply(p)).collect();
+        let centre = P2::from(sole.raw[..4].iter().fold(V2::zeros(), |a, b| a + b.coords) * 0.25);
+        let aligned: Vec<P2> = plan.outline.iter().map(|&p| rigid_m.apply(p)).collect();
         let a_rs = outline::resample_closed(&aligned, 512);
         let (mut best_d, mut eps, mut eps_at) = (f64::NEG_INFINITY, 1.0, centre);
         for &q in f_rs {
-            let d = sub(q, centre);
-            let rf = d[0].hypot(d[1]);
+            let d = q - centre;
+            let rf = d.x.hypot(d.y);
             if rf < 1e-9 {
                 continue;
             }
-            if let Some(t) = outline::ray_exit(&a_rs, centre, scale(d, 1.0 / rf)) {
+            if let Some(t) = outline::ray_exit(&a_rs, centre, d * (1.0 / rf)) {
                 if rf - t > best_d {
                     (best_d, eps, eps_at) = (rf - t, rf / t, q);
                 }
@@ -561,7 +558,7 @@ impl Placement {
         }
         let scale_m = Affine2 {
             a: [[eps, 0.0], [0.0, eps]],
-            t: sub(centre, scale(centre, eps)),
+            t: centre - centre * eps,
         };
         Placement {
             rigid_m,
@@ -586,8 +583,8 @@ struct Warp {
 
 impl Warp {
     fn fit(
-        scaled: &[Pt],
-        scaled_lm: &[Pt],
+        scaled: &[P2],
+        scaled_lm: &[P2],
         sole: &Sole,
         opts: &AdjustOptions,
         bottom: &LastBottom,
@@ -607,10 +604,10 @@ impl Warp {
         // Smooth the displacements (not the positions): a contour that already fits is left
         // alone, and the smoothing cannot shrink the outline.
         let (it, lam, mu) = opts.taubin;
-        let mut disp: Vec<Pt> = tgt.iter().zip(&src).map(|(t, s)| sub(*t, *s)).collect();
+        let mut disp: Vec<V2> = tgt.iter().zip(&src).map(|(t, s)| t - s).collect();
         outline::taubin(&mut disp, &pinned, it, lam, mu);
         for k in 0..tgt.len() {
-            tgt[k] = add(src[k], disp[k]);
+            tgt[k] = src[k] + disp[k];
         }
         let degenerate = || last_err(bottom, "the outline correspondences are degenerate".into());
         Ok(Warp {
@@ -631,7 +628,7 @@ struct Grid {
     ny: usize,
     /// Cells inside the adjusted outline.
     inside: Vec<bool>,
-    adj_outline: Vec<Pt>,
+    adj_outline: Vec<P2>,
     /// Foot heights, and the bottom's heights carried along.
     hf: HeightMap,
     hs: HeightMap,
@@ -644,10 +641,10 @@ impl Grid {
     fn sample(
         foot: &FootPlantar,
         bottom: &LastBottom,
-        f_rs: &[Pt],
+        f_rs: &[P2],
         opts: &AdjustOptions,
         placed: &Placement,
-        scaled: &[Pt],
+        scaled: &[P2],
         warp: &Warp,
     ) -> Grid {
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
@@ -665,13 +662,13 @@ impl Grid {
         let n = nx * ny;
         let inv_tab = tps::Tabulated::new(
             &warp.inv,
-            [x0, y0],
-            [x0 + nx as f64 * c, y0 + ny as f64 * c],
+            P2::new(x0, y0),
+            P2::new(x0 + nx as f64 * c, y0 + ny as f64 * c),
             opts.table_step_mm,
         );
         let back = placed.to_foot.inverse();
         let rigid_back = placed.rigid.inverse();
-        let adj_outline: Vec<Pt> = outline::resample_closed(scaled, 1024)
+        let adj_outline: Vec<P2> = outline::resample_closed(scaled, 1024)
             .iter()
             .map(|&p| warp.fwd.apply(p))
             .collect();
@@ -683,24 +680,24 @@ impl Grid {
         let fg = &foot.heights;
         for j in 0..ny {
             for i in 0..nx {
-                let p = [x0 + i as f64 * c, y0 + j as f64 * c];
+                let p = P2::new(x0 + i as f64 * c, y0 + j as f64 * c);
                 let k = j * nx + i;
-                if let Some((a, b)) = fg.cell_of(p[0], p[1]) {
+                if let Some((a, b)) = fg.cell_of(p.x, p.y) {
                     if fg.get(a, b).is_finite() {
-                        match fg.sample_full(p[0], p[1]) {
+                        match fg.sample_full(p.x, p.y) {
                             Some(z) => (hf.z[k], full[k]) = (z, true),
-                            None => hf.z[k] = fg.sample(p[0], p[1]),
+                            None => hf.z[k] = fg.sample(p.x, p.y),
                         }
                         let pb = rigid_back.apply(p);
-                        h_before[k] = bottom.heights.sample(pb[0], pb[1]);
+                        h_before[k] = bottom.heights.sample(pb.x, pb.y);
                     }
                 }
                 if inside[k] || hf.z[k].is_finite() {
                     let pb = back.apply(inv_tab.apply(p));
-                    match bottom.heights.sample_full(pb[0], pb[1]) {
+                    match bottom.heights.sample_full(pb.x, pb.y) {
                         Some(z) => hs.z[k] = z,
                         None => {
-                            hs.z[k] = bottom.heights.sample(pb[0], pb[1]);
+                            hs.z[k] = bottom.heights.sample(pb.x, pb.y);
                             full[k] = false;
                         }
                     }
@@ -736,10 +733,10 @@ fn fit_heights(
     foot: &FootPlantar,
     sole: &Sole,
     opts: &AdjustOptions,
-    centre: Pt,
+    centre: P2,
     bottom: &LastBottom,
     notes: &mut Vec<String>,
-) -> Result<(f64, Pt, HeightMap), AdjustError> {
+) -> Result<(f64, P2, HeightMap), AdjustError> {
     let fl = &foot.landmarks;
     let (nx, ny, c) = (g.nx, g.ny, g.c);
     let n = nx * ny;
@@ -761,8 +758,11 @@ fn fit_heights(
                 continue;
             }
             if zf - zs > best_dz {
-                (best_dz, zeta, zeta_at) =
-                    (zf - zs, zf / zs, [g.x0 + i as f64 * c, g.y0 + j as f64 * c]);
+                (best_dz, zeta, zeta_at) = (
+                    zf - zs,
+                    zf / zs,
+                    P2::new(g.x0 + i as f64 * c, g.y0 + j as f64 * c),
+                );
             }
         }
     }
@@ -779,11 +779,11 @@ fn fit_heights(
     }
     let mut pin_cells = Vec::new();
     for p in sole.raw.iter().chain(std::iter::once(&fl.arch_point)) {
-        if let Some((i, j)) = corr.cell_of(p[0], p[1]) {
+        if let Some((i, j)) = corr.cell_of(p.x, p.y) {
             pin_cells.push(j * nx + i);
         }
     }
-    if let Some((i, j)) = corr.cell_of(fl.arch_point[0], fl.arch_point[1]) {
+    if let Some((i, j)) = corr.cell_of(fl.arch_point.x, fl.arch_point.y) {
         let k = j * nx + i;
         if hs.z[k].is_finite() {
             corr.z[k] = fl.arch_height_mm - zeta * hs.z[k];
@@ -804,7 +804,7 @@ fn fit_heights(
             hf.z[k]
         };
     }
-    if let Some((i, j)) = heights.cell_of(fl.arch_point[0], fl.arch_point[1]) {
+    if let Some((i, j)) = heights.cell_of(fl.arch_point.x, fl.arch_point.y) {
         heights.set(i, j, fl.arch_height_mm);
     }
     heights.fill();
@@ -833,7 +833,7 @@ impl Deviations {
         plan: &BottomPlan,
         placed: &Placement,
         warp: &Warp,
-        scaled_lm: &[Pt],
+        scaled_lm: &[P2],
     ) -> Deviations {
         let mut before_map = g.map();
         let mut after_map = g.map();
@@ -850,7 +850,7 @@ impl Deviations {
             sa.add(a);
         }
         let foot_small = outline::resample_closed(&sole.outline, 512);
-        let outline_dev = |o: &[Pt]| {
+        let outline_dev = |o: &[P2]| {
             let mut s = Stats::default();
             for q in outline::resample_closed(o, 512) {
                 s.add(outline::distance_to(&foot_small, q));
@@ -873,10 +873,10 @@ impl Deviations {
                 after: warp.fwd.apply(scaled_lm[k]),
             })
             .collect();
-        let lmax = |f: &dyn Fn(&LandmarkPair) -> Pt| {
+        let lmax = |f: &dyn Fn(&LandmarkPair) -> P2| {
             landmarks
                 .iter()
-                .map(|l| dist(l.foot, f(l)))
+                .map(|l| dist_by_hypot(&l.foot, &f(l)))
                 .fold(0.0, f64::max)
         };
         let (ob_rms, ob_max) = outline_dev(&placed.aligned);

@@ -3,58 +3,34 @@
 
 use super::side::Side;
 use footscan_geom::polygon::convex_hull;
-use footscan_geom::P2;
-
-pub type Pt = [f64; 2];
-
-pub(crate) fn sub(a: Pt, b: Pt) -> Pt {
-    [a[0] - b[0], a[1] - b[1]]
-}
-pub(crate) fn add(a: Pt, b: Pt) -> Pt {
-    [a[0] + b[0], a[1] + b[1]]
-}
-pub(crate) fn scale(a: Pt, s: f64) -> Pt {
-    [a[0] * s, a[1] * s]
-}
-pub(crate) fn dot(a: Pt, b: Pt) -> f64 {
-    a[0] * b[0] + a[1] * b[1]
-}
-pub(crate) fn dist(a: Pt, b: Pt) -> f64 {
-    (a[0] - b[0]).hypot(a[1] - b[1])
-}
-pub(crate) fn perp(u: Pt) -> Pt {
-    [-u[1], u[0]]
-}
+use footscan_geom::{dist_by_hypot, quarter_turn, P2, V2};
 
 /// Signed area (counterclockwise positive).
-pub fn signed_area(p: &[Pt]) -> f64 {
+pub fn signed_area(p: &[P2]) -> f64 {
     let n = p.len();
-    let o = p.first().copied().unwrap_or([0.0, 0.0]);
+    let o = p.first().copied().unwrap_or(P2::origin());
     (0..n)
-        .map(|i| {
-            let (a, b) = (sub(p[i], o), sub(p[(i + 1) % n], o));
-            a[0] * b[1] - a[1] * b[0]
-        })
+        .map(|i| (p[i] - o).perp(&(p[(i + 1) % n] - o)))
         .sum::<f64>()
         / 2.0
 }
 
 /// Makes `p` counterclockwise.
-pub fn make_ccw(p: &mut [Pt]) {
+pub fn make_ccw(p: &mut [P2]) {
     if signed_area(p) < 0.0 {
         p.reverse();
     }
 }
 
 /// Perimeter of a closed outline.
-pub fn perimeter(p: &[Pt]) -> f64 {
+pub fn perimeter(p: &[P2]) -> f64 {
     let n = p.len();
-    (0..n).map(|i| dist(p[i], p[(i + 1) % n])).sum()
+    (0..n).map(|i| dist_by_hypot(&p[i], &p[(i + 1) % n])).sum()
 }
 
 /// `n` points at equal arc-length steps around the closed outline, starting at vertex 0.
 /// A fixed count (not a fixed step) keeps the result exactly similar under scaling.
-pub fn resample_closed(p: &[Pt], n: usize) -> Vec<Pt> {
+pub fn resample_closed(p: &[P2], n: usize) -> Vec<P2> {
     let m = p.len();
     let total = perimeter(p);
     let mut out = Vec::with_capacity(n);
@@ -62,7 +38,7 @@ pub fn resample_closed(p: &[Pt], n: usize) -> Vec<Pt> {
     for q in 0..n {
         let target = total * q as f64 / n as f64;
         while k < m {
-            let l = dist(p[k], p[(k + 1) % m]);
+            let l = dist_by_hypot(&p[k], &p[(k + 1) % m]);
             if acc + l >= target || k == m - 1 {
                 let t = if l > 0.0 {
                     ((target - acc) / l).clamp(0.0, 1.0)
@@ -70,7 +46,7 @@ pub fn resample_closed(p: &[Pt], n: usize) -> Vec<Pt> {
                     0.0
                 };
                 let (a, b) = (p[k], p[(k + 1) % m]);
-                out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+                out.push(a + (b - a) * t);
                 break;
             }
             acc += l;
@@ -81,19 +57,19 @@ pub fn resample_closed(p: &[Pt], n: usize) -> Vec<Pt> {
 }
 
 /// Area, area centroid and principal (long) axis of the region a closed outline bounds.
-pub fn moments(p: &[Pt]) -> (f64, Pt, Pt) {
+pub fn moments(p: &[P2]) -> (f64, P2, V2) {
     let n = p.len();
     let o = p[0];
     let (mut a2, mut cx, mut cy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     for i in 0..n {
-        let (a, b) = (sub(p[i], o), sub(p[(i + 1) % n], o));
-        let w = a[0] * b[1] - b[0] * a[1];
+        let (a, b) = (p[i] - o, p[(i + 1) % n] - o);
+        let w = a.perp(&b);
         a2 += w;
-        cx += (a[0] + b[0]) * w;
-        cy += (a[1] + b[1]) * w;
-        sxx += (a[0] * a[0] + a[0] * b[0] + b[0] * b[0]) * w;
-        syy += (a[1] * a[1] + a[1] * b[1] + b[1] * b[1]) * w;
-        sxy += (a[0] * b[1] + 2.0 * a[0] * a[1] + 2.0 * b[0] * b[1] + b[0] * a[1]) * w;
+        cx += (a.x + b.x) * w;
+        cy += (a.y + b.y) * w;
+        sxx += (a.x * a.x + a.x * b.x + b.x * b.x) * w;
+        syy += (a.y * a.y + a.y * b.y + b.y * b.y) * w;
+        sxy += (a.x * b.y + 2.0 * a.x * a.y + 2.0 * b.x * b.y + b.x * a.y) * w;
     }
     let area = a2 / 2.0;
     let (mx, my) = (cx / (3.0 * a2), cy / (3.0 * a2));
@@ -102,7 +78,7 @@ pub fn moments(p: &[Pt]) -> (f64, Pt, Pt) {
     let iyy = syy / 12.0 - area * my * my;
     let ixy = sxy / 24.0 - area * mx * my;
     let angle = 0.5 * (2.0 * ixy).atan2(ixx - iyy);
-    (area, add(o, [mx, my]), [angle.cos(), angle.sin()])
+    (area, o + V2::new(mx, my), V2::new(angle.cos(), angle.sin()))
 }
 
 /// Landmarks of an outline by the operational rules used for foot and last bottom alike.
@@ -117,21 +93,21 @@ pub fn moments(p: &[Pt]) -> (f64, Pt, Pt) {
 /// a scaled, moved copy of an outline are the scaled, moved landmarks.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OutlineLandmarks {
-    pub centre: Pt,
-    pub axis: Pt,
+    pub centre: P2,
+    pub axis: V2,
     pub length: f64,
     pub side: Side,
-    pub heel: Pt,
-    pub toe: Pt,
-    pub ball_medial: Pt,
-    pub ball_lateral: Pt,
-    pub waist_medial: Pt,
-    pub waist_lateral: Pt,
+    pub heel: P2,
+    pub toe: P2,
+    pub ball_medial: P2,
+    pub ball_lateral: P2,
+    pub waist_medial: P2,
+    pub waist_lateral: P2,
 }
 
 impl OutlineLandmarks {
     /// The landmarks in the order used for correspondence and reports.
-    pub fn named(&self) -> [(&'static str, Pt); 6] {
+    pub fn named(&self) -> [(&'static str, P2); 6] {
         [
             ("heel point", self.heel),
             ("toe tip", self.toe),
@@ -144,8 +120,8 @@ impl OutlineLandmarks {
 }
 
 pub fn outline_landmarks(
-    p: &[Pt],
-    forward: Pt,
+    p: &[P2],
+    forward: V2,
     side: Option<Side>,
 ) -> Result<OutlineLandmarks, String> {
     if p.len() < 8 {
@@ -155,13 +131,13 @@ pub fn outline_landmarks(
     if area.abs().is_nan() || area.abs() <= 100.0 {
         return Err(format!("outline area {:.1} mm^2 is too small", area.abs()));
     }
-    if dot(u, forward) < 0.0 {
-        u = scale(u, -1.0);
+    if u.dot(&forward) < 0.0 {
+        u = -u;
     }
-    let v = perp(u);
-    let s = |q: Pt| dot(sub(q, c), u);
-    let t = |q: Pt| dot(sub(q, c), v);
-    let arg = |keep: &dyn Fn(Pt) -> bool, key: &dyn Fn(Pt) -> f64| -> Option<Pt> {
+    let v = quarter_turn(&u);
+    let s = |q: P2| (q - c).dot(&u);
+    let t = |q: P2| (q - c).dot(&v);
+    let arg = |keep: &dyn Fn(P2) -> bool, key: &dyn Fn(P2) -> f64| -> Option<P2> {
         p.iter()
             .copied()
             .filter(|&q| keep(q))
@@ -170,7 +146,7 @@ pub fn outline_landmarks(
     let heel = arg(&|_| true, &|q| -s(q)).unwrap();
     let toe = arg(&|_| true, &|q| s(q)).unwrap();
     let (s0, length) = (s(heel), s(toe) - s(heel));
-    let fore = |q: Pt| s(q) - s0 >= 0.4 * length;
+    let fore = |q: P2| s(q) - s0 >= 0.4 * length;
     let left = arg(&fore, &|q| t(q)).ok_or("no forepart outline point")?;
     let right = arg(&fore, &|q| -t(q)).ok_or("no forepart outline point")?;
     let side = side.unwrap_or(if s(left) >= s(right) {
@@ -183,7 +159,7 @@ pub fn outline_landmarks(
         Side::Right => (left, right, 1.0),
         Side::Left => (right, left, -1.0),
     };
-    let waist = |ball: Pt, sgn: f64| {
+    let waist = |ball: P2, sgn: f64| {
         arg(
             &|q| sgn * t(q) > 0.0 && s(q) - s0 >= 0.2 * length && s(q) <= s(ball),
             &|q| -sgn * t(q),
@@ -209,25 +185,22 @@ pub fn outline_landmarks(
 /// axis position, e.g. the rearmost ball point), and in front of it the convex hull of the
 /// body's forepart and the toe pads, which closes the gaps between the toes the way a last
 /// bottom does. Counterclockwise.
-pub fn sole_envelope(body: &[Pt], toes: &[Vec<Pt>], axis: Pt, cut_point: Pt) -> Vec<Pt> {
+pub fn sole_envelope(body: &[P2], toes: &[Vec<P2>], axis: V2, cut_point: P2) -> Vec<P2> {
     let mut body = body.to_vec();
     make_ccw(&mut body);
     if toes.iter().all(|t| t.is_empty()) {
         return body;
     }
-    let cut = dot(cut_point, axis);
+    let cut = cut_point.coords.dot(&axis);
     let front: Vec<P2> = body
         .iter()
         .chain(toes.iter().flatten())
-        .filter(|q| dot(**q, axis) >= cut)
-        .map(|q| P2::new(q[0], q[1]))
+        .filter(|q| q.coords.dot(&axis) >= cut)
+        .copied()
         .collect();
-    let hull: Vec<Pt> = convex_hull(&front)
-        .to_arrays()
-        .into_iter()
-        .collect::<Vec<_>>();
+    let hull = convex_hull(&front).points;
     let n = body.len();
-    let behind = |q: Pt| dot(q, axis) < cut;
+    let behind = |q: P2| q.coords.dot(&axis) < cut;
     // The rear chain: from the first vertex after the forepart run to the last before it.
     let Some(start) = (0..n).find(|&i| behind(body[i]) && !behind(body[(i + n - 1) % n])) else {
         return body;
@@ -247,9 +220,9 @@ pub fn sole_envelope(body: &[Pt], toes: &[Vec<Pt>], axis: Pt, cut_point: Pt) -> 
     // (Every hull point is in front of the cut, so the cut cannot be found on the hull.)
     let (entry, exit) = (body[i], body[(start + n - 1) % n]);
     let h = hull.len();
-    let nearest = |q: Pt| {
+    let nearest = |q: P2| {
         (0..h)
-            .min_by(|&a, &b| dist(hull[a], q).total_cmp(&dist(hull[b], q)))
+            .min_by(|&a, &b| dist_by_hypot(&hull[a], &q).total_cmp(&dist_by_hypot(&hull[b], &q)))
             .unwrap_or(0)
     };
     if h > 0 {
@@ -268,20 +241,20 @@ pub fn sole_envelope(body: &[Pt], toes: &[Vec<Pt>], axis: Pt, cut_point: Pt) -> 
 
 /// Nearest point of the closed outline to `q`: (point, edge index, position along the edge
 /// in [0, 1], distance).
-pub fn closest_on(p: &[Pt], q: Pt) -> (Pt, usize, f64, f64) {
+pub fn closest_on(p: &[P2], q: P2) -> (P2, usize, f64, f64) {
     let n = p.len();
     let mut best = (p[0], 0, 0.0, f64::INFINITY);
     for i in 0..n {
         let (a, b) = (p[i], p[(i + 1) % n]);
-        let ab = sub(b, a);
-        let l2 = dot(ab, ab);
+        let ab = b - a;
+        let l2 = ab.dot(&ab);
         let t = if l2 > 0.0 {
-            (dot(sub(q, a), ab) / l2).clamp(0.0, 1.0)
+            ((q - a).dot(&ab) / l2).clamp(0.0, 1.0)
         } else {
             0.0
         };
-        let x = add(a, scale(ab, t));
-        let d = dist(x, q);
+        let x = a + ab * t;
+        let d = dist_by_hypot(&x, &q);
         if d < best.3 {
             best = (x, i, t, d);
         }
@@ -290,29 +263,29 @@ pub fn closest_on(p: &[Pt], q: Pt) -> (Pt, usize, f64, f64) {
 }
 
 /// Distance from `q` to the closed outline.
-pub fn distance_to(p: &[Pt], q: Pt) -> f64 {
+pub fn distance_to(p: &[P2], q: P2) -> f64 {
     closest_on(p, q).3
 }
 
 /// Cumulative arc length at each vertex (entry n = perimeter).
-fn cumulative(p: &[Pt]) -> Vec<f64> {
+fn cumulative(p: &[P2]) -> Vec<f64> {
     let n = p.len();
     let mut c = Vec::with_capacity(n + 1);
     c.push(0.0);
     for i in 0..n {
-        c.push(c[i] + dist(p[i], p[(i + 1) % n]));
+        c.push(c[i] + dist_by_hypot(&p[i], &p[(i + 1) % n]));
     }
     c
 }
 
 /// Arc-length position of the point nearest `q` on the outline.
-pub fn arc_position(p: &[Pt], cum: &[f64], q: Pt) -> f64 {
+pub fn arc_position(p: &[P2], cum: &[f64], q: P2) -> f64 {
     let (_, i, t, _) = closest_on(p, q);
     cum[i] + t * (cum[i + 1] - cum[i])
 }
 
 /// The outline point at arc-length position `a` (taken modulo the perimeter).
-pub fn point_at(p: &[Pt], cum: &[f64], a: f64) -> Pt {
+pub fn point_at(p: &[P2], cum: &[f64], a: f64) -> P2 {
     let n = p.len();
     let total = cum[n];
     let a = a.rem_euclid(total);
@@ -323,7 +296,7 @@ pub fn point_at(p: &[Pt], cum: &[f64], a: f64) -> Pt {
     let l = cum[i + 1] - cum[i];
     let t = if l > 0.0 { (a - cum[i]) / l } else { 0.0 };
     let (x, y) = (p[i], p[(i + 1) % n]);
-    add(x, scale(sub(y, x), t))
+    x + (y - x) * t
 }
 
 /// Corresponding points on two closed outlines: both are cut at matching landmarks (given
@@ -332,13 +305,13 @@ pub fn point_at(p: &[Pt], cum: &[f64], a: f64) -> Pt {
 /// `b`, index of each landmark in the lists). Fails when the landmarks do not come in the
 /// same cyclic order on both outlines.
 /// Matched points on two outlines and the index of each landmark among them.
-pub type Correspondence = (Vec<Pt>, Vec<Pt>, Vec<usize>);
+pub type Correspondence = (Vec<P2>, Vec<P2>, Vec<usize>);
 
 pub fn correspond(
-    a: &[Pt],
-    la: &[Pt],
-    b: &[Pt],
-    lb: &[Pt],
+    a: &[P2],
+    la: &[P2],
+    b: &[P2],
+    lb: &[P2],
     spacing: f64,
 ) -> Result<Correspondence, String> {
     let (ca, cb) = (cumulative(a), cumulative(b));
@@ -384,8 +357,9 @@ pub fn correspond(
 
 /// Taubin's lambda/mu smoothing of a closed point loop: a shrinking Laplacian step (lambda)
 /// then an inflating one (mu < -lambda), which removes short wiggles without the steady
-/// shrinkage of plain Laplacian averaging. `pinned` points do not move.
-pub fn taubin(p: &mut [Pt], pinned: &[bool], iterations: usize, lambda: f64, mu: f64) {
+/// shrinkage of plain Laplacian averaging. `pinned` points do not move. The loop is of
+/// vectors: displacements, or positions from the origin.
+pub fn taubin(p: &mut [V2], pinned: &[bool], iterations: usize, lambda: f64, mu: f64) {
     let n = p.len();
     let mut next = p.to_vec();
     for _ in 0..iterations {
@@ -395,8 +369,8 @@ pub fn taubin(p: &mut [Pt], pinned: &[bool], iterations: usize, lambda: f64, mu:
                     continue;
                 }
                 let (a, b) = (p[(i + n - 1) % n], p[(i + 1) % n]);
-                let lap = sub(scale(add(a, b), 0.5), p[i]);
-                next[i] = add(p[i], scale(lap, f));
+                let lap = (a + b) * 0.5 - p[i];
+                next[i] = p[i] + lap * f;
             }
             p.copy_from_slice(&next);
         }
@@ -406,30 +380,30 @@ pub fn taubin(p: &mut [Pt], pinned: &[bool], iterations: usize, lambda: f64, mu:
 /// The plantar scanner paper's contour smoothing, each point replaced by the mean of its two
 /// neighbours (y_i = (y_(i-1) + y_(i+1)) / 2), applied to both coordinates, `iterations`
 /// times (Jacobi). Kept to measure its shrinkage.
-pub fn neighbour_mean(p: &mut [Pt], iterations: usize) {
+pub fn neighbour_mean(p: &mut [V2], iterations: usize) {
     let n = p.len();
     for _ in 0..iterations {
         let prev = p.to_vec();
         for i in 0..n {
-            p[i] = scale(add(prev[(i + n - 1) % n], prev[(i + 1) % n]), 0.5);
+            p[i] = (prev[(i + n - 1) % n] + prev[(i + 1) % n]) * 0.5;
         }
     }
 }
 
 /// Largest positive parameter t at which the ray `c + t d` crosses the closed outline.
-pub fn ray_exit(p: &[Pt], c: Pt, d: Pt) -> Option<f64> {
+pub fn ray_exit(p: &[P2], c: P2, d: V2) -> Option<f64> {
     let n = p.len();
     let mut best: Option<f64> = None;
     for i in 0..n {
         let (a, b) = (p[i], p[(i + 1) % n]);
-        let e = sub(b, a);
-        let den = d[0] * e[1] - d[1] * e[0];
+        let e = b - a;
+        let den = d.perp(&e);
         if den.abs() < 1e-15 {
             continue;
         }
-        let ac = sub(a, c);
-        let t = (ac[0] * e[1] - ac[1] * e[0]) / den;
-        let s = (ac[0] * d[1] - ac[1] * d[0]) / den;
+        let ac = a - c;
+        let t = ac.perp(&e) / den;
+        let s = ac.perp(&d) / den;
         if (0.0..=1.0).contains(&s) && t > 0.0 && best.is_none_or(|b| t > b) {
             best = Some(t);
         }
@@ -439,7 +413,7 @@ pub fn ray_exit(p: &[Pt], c: Pt, d: Pt) -> Option<f64> {
 
 /// For each grid row, the cells whose centres are inside the closed outline (even-odd rule
 /// on the row's crossings): a mask over `nx * ny` cells.
-pub fn inside_mask(p: &[Pt], x0: f64, y0: f64, cell: f64, nx: usize, ny: usize) -> Vec<bool> {
+pub fn inside_mask(p: &[P2], x0: f64, y0: f64, cell: f64, nx: usize, ny: usize) -> Vec<bool> {
     let mut mask = vec![false; nx * ny];
     let n = p.len();
     let mut xs = Vec::new();
@@ -448,8 +422,8 @@ pub fn inside_mask(p: &[Pt], x0: f64, y0: f64, cell: f64, nx: usize, ny: usize) 
         xs.clear();
         for i in 0..n {
             let (a, b) = (p[i], p[(i + 1) % n]);
-            if (a[1] <= y) != (b[1] <= y) {
-                xs.push(a[0] + (y - a[1]) / (b[1] - a[1]) * (b[0] - a[0]));
+            if (a.y <= y) != (b.y <= y) {
+                xs.push(a.x + (y - a.y) / (b.y - a.y) * (b.x - a.x));
             }
         }
         xs.sort_by(f64::total_cmp);
@@ -471,11 +445,11 @@ pub fn inside_mask(p: &[Pt], x0: f64, y0: f64, cell: f64, nx: usize, ny: usize) 
 mod tests {
     use super::*;
 
-    fn circle(r: f64, n: usize) -> Vec<Pt> {
+    fn circle(r: f64, n: usize) -> Vec<P2> {
         (0..n)
             .map(|k| {
                 let a = std::f64::consts::TAU * k as f64 / n as f64;
-                [r * a.cos(), r * a.sin()]
+                P2::new(r * a.cos(), r * a.sin())
             })
             .collect()
     }
@@ -485,33 +459,32 @@ mod tests {
     /// body behind the cut and closes over the pads in front, and every pad lies inside it.
     #[test]
     fn sole_envelope_closes_over_separate_toe_pads() {
-        let body: Vec<Pt> = circle(1.0, 400)
+        let body: Vec<P2> = circle(1.0, 400)
             .iter()
-            .map(|q| [100.0 + 100.0 * q[0], 40.0 * q[1]])
+            .map(|q| P2::new(100.0 + 100.0 * q.x, 40.0 * q.y))
             .collect();
-        let pads: Vec<Vec<Pt>> = (0..5)
+        let pads: Vec<Vec<P2>> = (0..5)
             .map(|k| {
-                let c = [215.0 - 6.0 * k as f64, 25.0 - 12.0 * k as f64];
-                circle(5.0, 40).iter().map(|q| add(c, *q)).collect()
+                let c = V2::new(215.0 - 6.0 * k as f64, 25.0 - 12.0 * k as f64);
+                circle(5.0, 40).iter().map(|q| q + c).collect()
             })
             .collect();
-        let env = sole_envelope(&body, &pads, [1.0, 0.0], [160.0, 35.0]);
+        let env = sole_envelope(&body, &pads, V2::x(), P2::new(160.0, 35.0));
         assert!(signed_area(&env) > signed_area(&body), "the pads add area");
-        let xmax = env.iter().map(|p| p[0]).fold(f64::MIN, f64::max);
+        let xmax = env.iter().map(|p| p.x).fold(f64::MIN, f64::max);
         assert!(
             (xmax - 220.0).abs() < 0.1,
             "front at the hallux pad's tip: {xmax}"
         );
-        let poly =
-            footscan_geom::polygon::Polygon::new(env.iter().map(|p| P2::new(p[0], p[1])).collect());
+        let poly = footscan_geom::polygon::Polygon::new(env.clone());
         for q in pads.iter().flatten().chain(body.iter()) {
             assert!(
-                poly.contains(&P2::new(q[0], q[1])) || distance_to(&env, *q) < 1e-9,
+                poly.contains(q) || distance_to(&env, *q) < 1e-9,
                 "{q:?} outside the envelope"
             );
         }
         // Behind the cut the envelope is the body itself.
-        for p in env.iter().filter(|p| p[0] < 150.0) {
+        for p in env.iter().filter(|p| p.x < 150.0) {
             assert!(distance_to(&body, *p) < 1e-9);
         }
     }
@@ -519,26 +492,27 @@ mod tests {
     #[test]
     fn moments_of_a_rotated_rectangle() {
         let a = 0.3f64;
-        let (u, v) = ([a.cos(), a.sin()], [-a.sin(), a.cos()]);
-        let p: Vec<Pt> = [[-50.0, -10.0], [50.0, -10.0], [50.0, 10.0], [-50.0, 10.0]]
+        let (u, v) = (V2::new(a.cos(), a.sin()), V2::new(-a.sin(), a.cos()));
+        let c0 = P2::new(5.0, 7.0);
+        let p: Vec<P2> = [[-50.0, -10.0], [50.0, -10.0], [50.0, 10.0], [-50.0, 10.0]]
             .iter()
-            .map(|q| add([5.0, 7.0], add(scale(u, q[0]), scale(v, q[1]))))
+            .map(|q| c0 + (u * q[0] + v * q[1]))
             .collect();
         let (area, c, axis) = moments(&p);
         assert!((area - 2000.0).abs() < 1e-9);
-        assert!(dist(c, [5.0, 7.0]) < 1e-9);
-        assert!((axis[0] * u[1] - axis[1] * u[0]).abs() < 1e-12);
+        assert!(dist_by_hypot(&c, &c0) < 1e-9);
+        assert!(axis.perp(&u).abs() < 1e-12);
     }
 
     #[test]
     fn taubin_keeps_a_circle_where_the_neighbour_mean_shrinks_it() {
         let r = 50.0;
-        let mut a = circle(r, 100);
+        let mut a: Vec<V2> = circle(r, 100).iter().map(|p| p.coords).collect();
         let mut b = a.clone();
         neighbour_mean(&mut a, 10);
         taubin(&mut b, &[false; 100], 10, 0.5, -0.53);
-        let ra = a.iter().map(|q| q[0].hypot(q[1])).sum::<f64>() / 100.0;
-        let rb = b.iter().map(|q| q[0].hypot(q[1])).sum::<f64>() / 100.0;
+        let ra = a.iter().map(|q| q.x.hypot(q.y)).sum::<f64>() / 100.0;
+        let rb = b.iter().map(|q| q.x.hypot(q.y)).sum::<f64>() / 100.0;
         // Each pass multiplies the radius by cos(2 pi / n).
         let expect = r * (std::f64::consts::TAU / 100.0).cos().powi(10);
         assert!((ra - expect).abs() < 1e-9, "{ra} {expect}");

@@ -2,12 +2,12 @@
 //! deviation heat map (PNG) and a report (JSON), all or nothing.
 
 use super::last::{DeformReport, PreparedLast};
-use super::outline::Pt;
 use super::surface::BottomSurface;
 use super::{AdjustError, Adjustment, Deviation, HeightMap, LandmarkPair};
 use crate::draw::{self, Canvas, View, BLACK, BLUE, GREEN, GREY, WHITE};
 use footscan_geom::export::{iges, step, Header};
 use footscan_geom::mesh::{Format, TriMesh};
+use footscan_geom::{P2, V2};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -27,11 +27,11 @@ pub struct Report {
     pub last: String,
     pub eps: f64,
     pub zeta: f64,
-    pub eps_at: Pt,
-    pub zeta_at: Pt,
+    pub eps_at: P2,
+    pub zeta_at: P2,
     pub mirrored: bool,
     pub rotation_deg: f64,
-    pub shift_mm: Pt,
+    pub shift_mm: V2,
     pub before: Deviation,
     pub after: Deviation,
     pub landmarks: Vec<LandmarkPair>,
@@ -81,8 +81,8 @@ fn panel(
     view: &View,
     map: &HeightMap,
     range: f64,
-    outlines: [(&[Pt], draw::Colour); 2],
-    marks: &[(Pt, draw::Colour)],
+    outlines: [(&[P2], draw::Colour); 2],
+    marks: &[(P2, draw::Colour)],
     area: (i64, i64, i64, i64),
 ) {
     let (x0, y0, w, h) = area;
@@ -98,11 +98,11 @@ fn panel(
         }
     }
     for (o, colour) in outlines {
-        let pts: Vec<(f64, f64)> = o.iter().map(|p| (p[0], p[1])).collect();
+        let pts: Vec<(f64, f64)> = o.iter().map(|p| (p.x, p.y)).collect();
         c.polyline(view, &pts, true, colour, 2);
     }
     for (p, colour) in marks {
-        c.dot(view, (p[0], p[1]), 4, *colour);
+        c.dot(view, (p.x, p.y), 4, *colour);
     }
 }
 
@@ -167,7 +167,7 @@ pub fn heatmap(adj: &Adjustment, title: &str) -> Canvas {
         let (px, py, pw, ph) = (20 + k as i64 * 740, 90i64, 600i64, 600i64);
         let view = View::fit(bounds, px as f64, (py + ph) as f64, pw as f64, ph as f64);
         let r = range(map, floor);
-        let marks: Vec<(Pt, draw::Colour)> = adj
+        let marks: Vec<(P2, draw::Colour)> = adj
             .landmarks
             .iter()
             .flat_map(|l| {

@@ -113,7 +113,7 @@ pub fn fit_bottom(adj: &Adjustment, spacing_mm: f64) -> Result<BottomSurface, Ad
     let mut notes = Vec::new();
     let lifted: Vec<P3> = super::outline::resample_closed(&adj.outline, 256)
         .iter()
-        .map(|q| P3::new(q[0], q[1], surface.point(q[0], q[1]).z))
+        .map(|q| P3::new(q.x, q.y, surface.point(q.x, q.y).z))
         .collect();
     let outline = match fit_closed_adaptive(
         &lifted,

@@ -2,8 +2,9 @@
 //! outline and heights, and a bottom that is the foot scaled, turned and shifted by known
 //! amounts, so an adjustment must recover exactly those amounts.
 
-use super::outline::{self, Pt};
+use super::outline;
 use super::{FootLandmarks, FootPlantar, HeightMap, LastBottom, Side};
+use footscan_geom::{P2, V2};
 
 /// A smooth foot sole of length `length` (mm), heel at x = 0, toe toward +x.
 #[derive(Clone, Copy, Debug)]
@@ -82,7 +83,7 @@ impl AnalyticFoot {
         (self.sign() * m * c, -self.sign() * l * c)
     }
     /// The outline, counterclockwise, `n` points per side.
-    pub fn outline(&self, n: usize) -> Vec<Pt> {
+    pub fn outline(&self, n: usize) -> Vec<P2> {
         let xs: Vec<f64> = (0..=n)
             .map(|k| {
                 let t = k as f64 / n as f64;
@@ -90,16 +91,16 @@ impl AnalyticFoot {
                 self.length * (0.5 - 0.5 * (std::f64::consts::PI * t).cos())
             })
             .collect();
-        let mut p: Vec<Pt> = xs
+        let mut p: Vec<P2> = xs
             .iter()
-            .map(|&x| [x, self.edges(x).1.min(self.edges(x).0)])
+            .map(|&x| P2::new(x, self.edges(x).1.min(self.edges(x).0)))
             .collect();
         p.extend(
             xs.iter()
                 .rev()
                 .skip(1)
                 .take(n - 1)
-                .map(|&x| [x, self.edges(x).0.max(self.edges(x).1)]),
+                .map(|&x| P2::new(x, self.edges(x).0.max(self.edges(x).1))),
         );
         outline::make_ccw(&mut p);
         p
@@ -133,7 +134,7 @@ impl AnalyticFoot {
     /// on `cell_mm` cells, landmarks by [`outline::outline_landmarks`].
     pub fn plantar(&self, cell_mm: f64) -> FootPlantar {
         let out = self.outline(1500);
-        let lm = outline::outline_landmarks(&out, [1.0, 0.0], Some(self.side)).expect("landmarks");
+        let lm = outline::outline_landmarks(&out, V2::x(), Some(self.side)).expect("landmarks");
         let w = 60.0 * self.length / 235.0;
         let (x0, y0) = (-2.0, -w);
         let nx = ((self.length + 4.0) / cell_mm).ceil() as usize + 1;
@@ -147,7 +148,7 @@ impl AnalyticFoot {
             }
         }
         // The arch point: highest sole point over the medial midfoot.
-        let (mut best, mut at) = (f64::NEG_INFINITY, [0.0, 0.0]);
+        let (mut best, mut at) = (f64::NEG_INFINITY, P2::origin());
         for j in 0..ny {
             for i in 0..nx {
                 let (x, y) = (g.x(i), g.y(j));
@@ -156,7 +157,7 @@ impl AnalyticFoot {
                 if (0.3..0.6).contains(&s) && y * self.sign() > 0.0 && (y / a) < 0.8 {
                     let h = g.get(i, j);
                     if h > best {
-                        (best, at) = (h, [x, y]);
+                        (best, at) = (h, P2::new(x, y));
                     }
                 }
             }
@@ -187,29 +188,29 @@ impl AnalyticFoot {
     /// no turn).
     pub fn bottom(
         &self,
-        centre: Pt,
+        centre: P2,
         k_xy: f64,
         k_z: f64,
         turn_deg: f64,
-        shift: Pt,
+        shift: V2,
         cell_mm: f64,
     ) -> LastBottom {
         let (c, s) = (turn_deg.to_radians().cos(), turn_deg.to_radians().sin());
-        let to_b = |p: Pt| {
-            let d = [(p[0] - centre[0]) / k_xy, (p[1] - centre[1]) / k_xy];
-            [
-                centre[0] + c * d[0] - s * d[1] + shift[0],
-                centre[1] + s * d[0] + c * d[1] + shift[1],
-            ]
+        let to_b = |p: P2| {
+            let d = (p - centre) / k_xy;
+            P2::new(
+                centre.x + c * d.x - s * d.y + shift.x,
+                centre.y + s * d.x + c * d.y + shift.y,
+            )
         };
-        let to_f = |b: Pt| {
-            let d = [b[0] - centre[0] - shift[0], b[1] - centre[1] - shift[1]];
-            [
-                centre[0] + k_xy * (c * d[0] + s * d[1]),
-                centre[1] + k_xy * (-s * d[0] + c * d[1]),
-            ]
+        let to_f = |b: P2| {
+            let d = b - centre - shift;
+            P2::new(
+                centre.x + k_xy * (c * d.x + s * d.y),
+                centre.y + k_xy * (-s * d.x + c * d.y),
+            )
         };
-        let out: Vec<Pt> = self.outline(1500).iter().map(|&p| to_b(p)).collect();
+        let out: Vec<P2> = self.outline(1500).iter().map(|&p| to_b(p)).collect();
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for p in &out {
             for d in 0..2 {
@@ -222,8 +223,8 @@ impl AnalyticFoot {
         let mut g = HeightMap::new(lo[0] - 2.0, lo[1] - 2.0, cell_mm, nx, ny);
         for j in 0..ny {
             for i in 0..nx {
-                let f = to_f([g.x(i), g.y(j)]);
-                if let Some(h) = self.height(f[0], f[1]) {
+                let f = to_f(P2::new(g.x(i), g.y(j)));
+                if let Some(h) = self.height(f.x, f.y) {
                     g.set(i, j, h / k_z);
                 }
             }

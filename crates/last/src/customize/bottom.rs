@@ -1,6 +1,7 @@
 //! A last's or a foot's bottom curve in the side view, and laying a mesh flat by it.
 
 use footscan_geom::mesh::TriMesh;
+use footscan_geom::P2;
 
 /// A bottom that rises less than this anywhere (mm) is taken as flat.
 pub(crate) const FLAT_TOL_MM: f64 = 0.5;
@@ -139,11 +140,11 @@ impl BottomCurve {
 
     /// The curve's own samples (every millimetre: linear interpolation between them is
     /// [`BottomCurve::at`], so a reader lays the last flat exactly as it was raised).
-    pub(crate) fn samples(&self) -> Vec<[f64; 2]> {
+    pub(crate) fn samples(&self) -> Vec<P2> {
         self.z
             .iter()
             .enumerate()
-            .map(|(i, z)| [self.x0 + i as f64, *z])
+            .map(|(i, z)| P2::new(self.x0 + i as f64, *z))
             .collect()
     }
 }

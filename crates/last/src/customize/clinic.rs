@@ -11,7 +11,7 @@ use super::rules::RuleSet;
 use super::{clearance, foot_in_frame, footprint_clearance, frame_curves, judge, shape, targets};
 use super::{CustomizeError, Customized, Inputs};
 use footscan_geom::mesh::TriMesh;
-use footscan_geom::P3;
+use footscan_geom::{P2, P3};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -103,7 +103,7 @@ pub struct Plantar {
     /// The footprint (the body's and the toes' outlines) in the foot's frame: x along the
     /// axis from the heel point, y positive on the medial side (mm). The clearance is
     /// measured on it; empty: the stock last's own clearance inside the new one instead.
-    pub footprint: Vec<Vec<[f64; 2]>>,
+    pub footprint: Vec<Vec<P2>>,
 }
 
 impl TapeGirths {
@@ -548,7 +548,7 @@ pub fn customize_stock_with(
         bottom_curve = Some(
             b.samples()
                 .into_iter()
-                .map(|[x, z]| [l.min.x + (x - s.min.x) / k, z])
+                .map(|p| P2::new(l.min.x + (p.x - s.min.x) / k, p.y))
                 .collect::<Vec<_>>(),
         );
         shear(&mut stock, |x| b.at(x));
@@ -608,10 +608,10 @@ fn stock_sections(
 }
 
 /// The footprint's loops in the foot frame with the medial side +y.
-fn footprint_in_frame(foot: &Plantar, medial: f64) -> Vec<Vec<[f64; 2]>> {
+fn footprint_in_frame(foot: &Plantar, medial: f64) -> Vec<Vec<P2>> {
     foot.footprint
         .iter()
-        .map(|l| l.iter().map(|p| [p[0], p[1] * medial]).collect())
+        .map(|l| l.iter().map(|p| P2::new(p.x, p.y * medial)).collect())
         .collect()
 }
 
@@ -641,7 +641,7 @@ pub fn build_up_estimate(
     let pl = place_footprint(&fp, &plan, &at_foot, pivot);
     fp.iter()
         .flatten()
-        .filter(|p| matches!(super::region_of_plan(&at_foot, p[0]), 1 | 2 | 4))
+        .filter(|p| matches!(super::region_of_plan(&at_foot, p.x), 1 | 2 | 4))
         .map(|&p| BUILD_UP_ROOM_MM - plan.side_room(pl.apply(p, pivot)))
         .filter(|n| n.is_finite())
         .fold(0.0, f64::max)
@@ -719,13 +719,13 @@ const ACROSS_MAX_MM: f64 = 8.0;
 const ALONG_MAX_MM: f64 = 2.0;
 
 impl Placement {
-    fn apply(&self, p: [f64; 2], pivot: f64) -> [f64; 2] {
+    fn apply(&self, p: P2, pivot: f64) -> P2 {
         let (s, c) = self.turn_deg.to_radians().sin_cos();
-        let (x, y) = (p[0] - pivot, p[1]);
-        [
+        let (x, y) = (p.x - pivot, p.y);
+        P2::new(
             pivot + c * x - s * y + self.along_mm,
             s * x + c * y + self.across_mm,
-        ]
+        )
     }
 }
 
@@ -734,23 +734,18 @@ impl Placement {
 /// ball: the least side room over those points, each point's room taken across the axis
 /// against the last's plan extremes at its station (ahead of or behind the last: the distance
 /// beyond its end). A grid over turn, across and along, then a pattern search from its best.
-fn place_footprint(
-    fp: &[Vec<[f64; 2]>],
-    plan: &PlanProfile,
-    nd: &shape::Nodes,
-    pivot: f64,
-) -> Placement {
-    let judged: Vec<[f64; 2]> = fp
+fn place_footprint(fp: &[Vec<P2>], plan: &PlanProfile, nd: &shape::Nodes, pivot: f64) -> Placement {
+    let judged: Vec<P2> = fp
         .iter()
         .flatten()
         .copied()
         .filter(|p| {
-            let r = super::region_of_plan(nd, p[0]);
+            let r = super::region_of_plan(nd, p.x);
             r != 0
         })
         .collect();
     // Every third point: the outline is traced at a tenth of a millimetre.
-    let pts: Vec<[f64; 2]> = judged.iter().step_by(3).copied().collect();
+    let pts: Vec<P2> = judged.iter().step_by(3).copied().collect();
     if pts.is_empty() {
         return Placement::default();
     }
@@ -840,14 +835,14 @@ pub struct BuildUp {
 fn build_up(
     last: &mut TriMesh,
     plan: &PlanProfile,
-    fp: &[Vec<[f64; 2]>],
+    fp: &[Vec<P2>],
     nd: &shape::Nodes,
     medial: f64,
 ) -> Vec<BuildUp> {
     let n = plan.hi.len();
     let mut need = [vec![0.0f64; n], vec![0.0f64; n]];
     for &p in fp.iter().flatten() {
-        let r = super::region_of_plan(nd, p[0]);
+        let r = super::region_of_plan(nd, p.x);
         if r == 0 || r == 3 {
             continue;
         }
@@ -855,7 +850,7 @@ fn build_up(
         if room >= BUILD_UP_ROOM_MM || !room.is_finite() {
             continue;
         }
-        let k = ((p[0] - plan.x0) / plan.step).round();
+        let k = ((p.x - plan.x0) / plan.step).round();
         if k < 0.0 || k as usize >= n {
             continue;
         }
@@ -863,7 +858,7 @@ fn build_up(
         let (Some(hi), Some(lo)) = (plan.hi[k], plan.lo[k]) else {
             continue;
         };
-        let side = usize::from(hi.y - p[1] < p[1] - lo.y);
+        let side = usize::from(hi.y - p.y < p.y - lo.y);
         need[side][k] = need[side][k].max(BUILD_UP_ROOM_MM - room);
     }
     let r = (BUILD_UP_SPREAD_MM / plan.step).round() as usize;

@@ -64,24 +64,23 @@ pub use footscan_geom::Side;
 /// The foot's frame: world point = origin + x ex + y ey + z ez.
 #[derive(Clone, Debug, Serialize)]
 pub struct FootFrame {
-    pub origin: [f64; 3],
-    pub ex: [f64; 3],
-    pub ey: [f64; 3],
+    pub origin: P3,
+    pub ex: V3,
+    pub ey: V3,
     pub side: Side,
 }
 
 impl FootFrame {
     /// The isometry taking world points into the frame.
     pub fn world_to_frame(&self) -> Isometry3<f64> {
-        let ex = V3::from(self.ex);
-        let ey = V3::from(self.ey);
+        let (ex, ey) = (self.ex, self.ey);
         let ez = ex.cross(&ey);
         let r = Rotation3::from_matrix_unchecked(Matrix3::from_rows(&[
             ex.transpose(),
             ey.transpose(),
             ez.transpose(),
         ]));
-        let o = V3::from(self.origin);
+        let o = self.origin.coords;
         Isometry3::from_parts(
             Translation3::from(-(r * o)),
             UnitQuaternion::from_rotation_matrix(&r),
@@ -168,7 +167,7 @@ impl PlanProfile {
     /// Room across the axis for a plan point (x, y): the distance to the nearer plan extreme
     /// at its station, interpolated between stations (negative outside); ahead of or behind
     /// the outline, minus the distance beyond its end.
-    pub fn side_room(&self, p: [f64; 2]) -> f64 {
+    pub fn side_room(&self, p: P2) -> f64 {
         let n = self.lo.len();
         let first = self.hi.iter().position(Option::is_some);
         let last = self.hi.iter().rposition(Option::is_some);
@@ -179,13 +178,13 @@ impl PlanProfile {
             self.x0 + a as f64 * self.step,
             self.x0 + b as f64 * self.step,
         );
-        if p[0] < xa {
-            return -(xa - p[0]);
+        if p.x < xa {
+            return -(xa - p.x);
         }
-        if p[0] > xb {
-            return -(p[0] - xb);
+        if p.x > xb {
+            return -(p.x - xb);
         }
-        let t = (p[0] - self.x0) / self.step;
+        let t = (p.x - self.x0) / self.step;
         let k = (t.floor() as usize).min(n - 1);
         let k1 = (k + 1).min(b);
         let f = t - k as f64;
@@ -196,7 +195,7 @@ impl PlanProfile {
             _ => None,
         };
         match (lerp(&self.hi), lerp(&self.lo)) {
-            (Some(hi), Some(lo)) => (hi - p[1]).min(p[1] - lo),
+            (Some(hi), Some(lo)) => (hi - p.y).min(p.y - lo),
             _ => f64::NEG_INFINITY,
         }
     }
@@ -403,9 +402,9 @@ pub fn find_frame(world: &TriMesh, name: &str) -> Result<FootFrame, CustomizeErr
         ex = -ex;
     }
     let mut frame = FootFrame {
-        origin: [c.x, c.y, zmin],
-        ex: ex.into(),
-        ey: V3::z().cross(&ex).into(),
+        origin: P3::new(c.x, c.y, zmin),
+        ex,
+        ey: V3::z().cross(&ex),
         side: Side::Right,
     };
     let no_plan = || CustomizeError::NotAFoot {
@@ -440,9 +439,9 @@ pub fn find_frame(world: &TriMesh, name: &str) -> Result<FootFrame, CustomizeErr
         let dir_w = inv * dir;
         let ex = V3::new(dir_w.x, dir_w.y, 0.0).normalize();
         let hc_w = inv * hc;
-        frame.origin = [hc_w.x, hc_w.y, hc_w.z];
-        frame.ex = ex.into();
-        frame.ey = V3::z().cross(&ex).into();
+        frame.origin = hc_w;
+        frame.ex = ex;
+        frame.ey = V3::z().cross(&ex);
     }
     level(world, &mut frame);
     // Final origin: the heel point (pternion) on the axis, on the glass.
@@ -450,7 +449,7 @@ pub fn find_frame(world: &TriMesh, name: &str) -> Result<FootFrame, CustomizeErr
     m.transform(&frame.world_to_frame());
     let (o, _) = plan_ends(&m);
     let org = frame.world_to_frame().inverse() * P3::new(o.x, 0.0, 0.0);
-    frame.origin = org.into();
+    frame.origin = org;
     Ok(frame)
 }
 
@@ -521,9 +520,9 @@ fn level(world: &TriMesh, frame: &mut FootFrame) {
     let ex = (inv * V3::new(1.0, 0.0, slope)).normalize();
     let ey = inv * V3::y();
     let o = inv * P3::new(0.0, 0.0, z0);
-    frame.ex = ex.into();
-    frame.ey = ey.into();
-    frame.origin = o.into();
+    frame.ex = ex;
+    frame.ey = ey;
+    frame.origin = o;
 }
 
 /// The line the foot stands on, in the side view (x, z) of a mesh in a provisional frame:

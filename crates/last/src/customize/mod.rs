@@ -20,7 +20,7 @@ pub use error::CustomizeError;
 use curves::{fit_loop, least_change, Constraint, FitRecord};
 use footscan_geom::mesh::{Bvh, Format, Intake, IntakeOptions, TriMesh};
 use footscan_geom::nurbs::NurbsCurve;
-use footscan_geom::{P2, P3, V3};
+use footscan_geom::{P2, P3};
 use measure::{find_frame, measure, FootFrame, Loop3, Measures, OUTLINE_Z};
 use rules::{RuleSet, Shoe, Wearer};
 use serde::Serialize;
@@ -140,9 +140,9 @@ pub struct Customized {
     /// raised after it was made flat; the rules' values are those of the last laid flat by
     /// it. Clinic path: a stock last with toe spring or a raised heel. Whole-foot path: a
     /// foot whose midfoot does not reach the glass, the last's bottom following its arch.
-    pub bottom_curve: Option<Vec<[f64; 2]>>,
+    pub bottom_curve: Option<Vec<P2>>,
     /// Clinic path: the scan's footprint in the last's frame (drawn in the top view).
-    pub footprint: Vec<Vec<[f64; 2]>>,
+    pub footprint: Vec<Vec<P2>>,
     /// What was done to the input that the user should know (the clinic path: a stock last
     /// of the other side mirrored).
     pub notes: Vec<String>,
@@ -173,7 +173,7 @@ pub struct Clearance {
     pub must_fit_margin_mm: f64,
     /// Smallest clearance anywhere below the top, and where (foot frame, mm).
     pub overall_mm: f64,
-    pub worst_at_mm: [f64; 3],
+    pub worst_at_mm: P3,
     /// Where the foot does not fit where the rules say it must: which region, where, and
     /// what of the last's construction presses it there (None where it fits).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -190,7 +190,7 @@ pub struct RegionClearance {
     /// they make the last smaller than the foot on purpose.
     pub allowed_press_mm: Option<f64>,
     pub min_mm: f64,
-    pub at_mm: [f64; 3],
+    pub at_mm: P3,
     pub vertices: usize,
 }
 
@@ -361,12 +361,9 @@ pub fn load_foot_with(
     let name = path.display().to_string();
     let (m, mut frame) = foot_in_frame(intake.mesh.clone(), &name)?;
     // The frame in the file's coordinates (the intake only turned and moved the mesh).
-    let o = intake.to_file_mm(&P3::from(frame.origin));
-    let ex = intake.dir_to_file(&V3::from(frame.ex));
-    let ey = intake.dir_to_file(&V3::from(frame.ey));
-    frame.origin = o.into();
-    frame.ex = ex.into();
-    frame.ey = ey.into();
+    frame.origin = intake.to_file_mm(&frame.origin);
+    frame.ex = intake.dir_to_file(&frame.ex);
+    frame.ey = intake.dir_to_file(&frame.ey);
     Ok((m, frame, intake))
 }
 
@@ -496,9 +493,9 @@ impl Customized {
                 self.clearance.of,
                 r.region,
                 -r.min_mm,
-                r.at_mm[0],
-                r.at_mm[1],
-                r.at_mm[2],
+                r.at_mm.x,
+                r.at_mm.y,
+                r.at_mm.z,
                 r.rules,
                 match r.allowed_press_mm {
                     Some(a) if a > 0.0 => format!(" (pressing by {a:.2} mm allowed, {FIT_TOL_MM} mm slack)"),
@@ -525,7 +522,7 @@ fn why_missed(
         .iter()
         .filter(|r| !r.met())
         .min_by(|a, b| a.min_mm.total_cmp(&b.min_mm))?;
-    let [x, y, z] = r.at_mm;
+    let (x, y, z) = (r.at_mm.x, r.at_mm.y, r.at_mm.z);
     let side = if y * medial > 0.0 {
         "medial"
     } else {
@@ -610,7 +607,7 @@ fn clearance_regions(waist_change_mm: f64) -> [RegionClearance; 5] {
         rules,
         allowed_press_mm,
         min_mm: f64::INFINITY,
-        at_mm: [f64::NAN; 3],
+        at_mm: P3::new(f64::NAN, f64::NAN, f64::NAN),
         vertices: 0,
     })
 }
@@ -648,7 +645,10 @@ fn clearance_of(of: &'static str, regions: [RegionClearance; 5]) -> Clearance {
         .iter()
         .filter(|r| r.vertices > 0)
         .min_by(|a, b| a.min_mm.total_cmp(&b.min_mm))
-        .map_or((f64::INFINITY, [f64::NAN; 3]), |r| (r.min_mm, r.at_mm));
+        .map_or(
+            (f64::INFINITY, P3::new(f64::NAN, f64::NAN, f64::NAN)),
+            |r| (r.min_mm, r.at_mm),
+        );
     Clearance {
         of,
         regions: regions.into(),
@@ -659,7 +659,7 @@ fn clearance_of(of: &'static str, regions: [RegionClearance; 5]) -> Clearance {
     }
 }
 
-fn note(r: &mut RegionClearance, c: f64, at: [f64; 3]) {
+fn note(r: &mut RegionClearance, c: f64, at: P3) {
     r.vertices += 1;
     if c < r.min_mm {
         r.min_mm = c;
@@ -683,11 +683,7 @@ pub(crate) fn clearance(
         let Some(sd) = bvh.signed_distance(p) else {
             continue;
         };
-        note(
-            &mut regions[region_of(nd, p.x, p.z)],
-            -sd.distance,
-            [p.x, p.y, p.z],
-        );
+        note(&mut regions[region_of(nd, p.x, p.z)], -sd.distance, *p);
     }
     clearance_of("foot", regions)
 }
@@ -696,7 +692,7 @@ pub(crate) fn clearance(
 /// outlines, placed in the last's frame) against the last's plan outline, point by point
 /// (inside: the distance to the outline; outside: its negative).
 pub(crate) fn footprint_clearance(
-    footprint: &[Vec<[f64; 2]>],
+    footprint: &[Vec<P2>],
     last_outline: &[Loop3],
     nd: &shape::Nodes,
     waist_change_mm: f64,
@@ -709,20 +705,19 @@ pub(crate) fn footprint_clearance(
         })
         .collect();
     for p in footprint.iter().flatten() {
-        let q = P2::new(p[0], p[1]);
-        let inside = loops.iter().any(|l| l.contains(&q));
+        let inside = loops.iter().any(|l| l.contains(p));
         let d = loops
             .iter()
-            .map(|l| l.distance_to_boundary(&q))
+            .map(|l| l.distance_to_boundary(p))
             .fold(f64::INFINITY, f64::min);
         if !d.is_finite() {
             continue;
         }
         let c = if inside { d } else { -d };
         note(
-            &mut regions[region_of(nd, p[0], OUTLINE_Z)],
+            &mut regions[region_of(nd, p.x, OUTLINE_Z)],
             c,
-            [p[0], p[1], OUTLINE_Z],
+            P3::new(p.x, p.y, OUTLINE_Z),
         );
     }
     clearance_of("footprint", regions)
@@ -932,7 +927,7 @@ struct Report<'a> {
     mesh_evaluations: usize,
     last_triangles: usize,
     #[serde(skip_serializing_if = "Option::is_none")]
-    bottom_curve: Option<&'a [[f64; 2]]>,
+    bottom_curve: Option<&'a [P2]>,
     foot_points: FootPoints,
     /// Whether the last misses a rule or the must-fit check ([`Customized::misfits`]); a
     /// misfit is written only when asked (`--keep-misfit`), with MISFIT.txt beside it.
@@ -954,30 +949,29 @@ pub const MISFIT_FILE: &str = "MISFIT.txt";
 /// last maker or a test can compare them with landmarks of their own.
 #[derive(Serialize)]
 struct FootPoints {
-    heel_point_o: [f64; 3],
-    toe_tip_a: [f64; 3],
-    hallux_p: [f64; 3],
-    mt1_b: [f64; 3],
-    mt5_c: [f64; 3],
-    waist_inner_d: [f64; 3],
-    waist_outer_e: [f64; 3],
-    heel_centre: [f64; 3],
-    instep_top: [f64; 3],
+    heel_point_o: P3,
+    toe_tip_a: P3,
+    hallux_p: P3,
+    mt1_b: P3,
+    mt5_c: P3,
+    waist_inner_d: P3,
+    waist_outer_e: P3,
+    heel_centre: P3,
+    instep_top: P3,
 }
 
 impl FootPoints {
     fn of(m: &Measures) -> FootPoints {
-        let a = |p: &footscan_geom::P3| [p.x, p.y, p.z];
         FootPoints {
-            heel_point_o: a(&m.o),
-            toe_tip_a: a(&m.a),
-            hallux_p: a(&m.p),
-            mt1_b: a(&m.b),
-            mt5_c: a(&m.c),
-            waist_inner_d: a(&m.d),
-            waist_outer_e: a(&m.e),
-            heel_centre: a(&m.heel_centre),
-            instep_top: a(&m.instep_top),
+            heel_point_o: m.o,
+            toe_tip_a: m.a,
+            hallux_p: m.p,
+            mt1_b: m.b,
+            mt5_c: m.c,
+            waist_inner_d: m.d,
+            waist_outer_e: m.e,
+            heel_centre: m.heel_centre,
+            instep_top: m.instep_top,
         }
     }
 }

@@ -72,7 +72,7 @@ pub struct PartFit {
     /// max lies (and its distance from the cutting plane, negative inside the part).
     pub max_mm: f64,
     pub rms_mm: f64,
-    pub max_at: [f64; 3],
+    pub max_at: P3,
     pub max_from_plane_mm: f64,
     /// Largest distance of a fitted facet point from the surface, mm.
     pub points_max_mm: f64,
@@ -758,7 +758,7 @@ pub fn fit_part(
     fit.spans_v = distinct(&s.knots_v, s.domain_v().0, s.domain_v().1).len() - 1;
     fit.max_mm = c.max;
     fit.rms_mm = c.rms;
-    fit.max_at = [c.at.x, c.at.y, c.at.z];
+    fit.max_at = c.at;
     fit.max_from_plane_mm = -depth(&c.at);
     fit.ms = t0.elapsed().as_secs_f64() * 1e3;
     Ok((s, fit))

@@ -76,7 +76,7 @@ fn measure(m: &TriMesh, name: &str, which: &str) -> Result<LastMeasures, JoinErr
 /// Centre of the joint line (MT1 and MT5) in the measuring frame.
 fn joint(lm: &LastMeasures) -> V3 {
     let (a, b) = (lm.landmarks.mt1, lm.landmarks.mt5);
-    V3::new(0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), 0.0)
+    V3::new(0.5 * (a.x + b.x), 0.5 * (a.y + b.y), 0.0)
 }
 
 fn across(x: f64, y: f64) -> Plane {
@@ -122,7 +122,7 @@ pub fn place_pair(
     let (jb, jt) = (joint(&bm), joint(&tm));
     toe_mesh.translate(&(jb - jt));
     let back_plane = across(BACK_PLANE_OF_JOINT * jb.x, jb.y);
-    let toe_tip = tm.landmarks.toe_point[0] + (jb.x - jt.x);
+    let toe_tip = tm.landmarks.toe_point.x + (jb.x - jt.x);
     let toe_plane = across(jb.x + TOE_PLANE_OF_FOREPART * (toe_tip - jb.x), jb.y);
     Ok(Placed {
         back: back_mesh,

@@ -233,7 +233,7 @@ pub fn tessellate_kept(j: &Joined, nu: usize, step_mm: f64) -> Tessellation {
 struct CurveJson {
     degree: usize,
     knots: Vec<f64>,
-    poles: Vec<[f64; 3]>,
+    poles: Vec<P3>,
     periodic: bool,
 }
 
@@ -241,7 +241,7 @@ fn curve_json(c: &NurbsCurve) -> CurveJson {
     CurveJson {
         degree: c.degree,
         knots: c.knots.clone(),
-        poles: c.points.iter().map(|p| [p.x, p.y, p.z]).collect(),
+        poles: c.points.clone(),
         periodic: c.periodic,
     }
 }
@@ -254,7 +254,7 @@ struct SurfaceJson {
     knots_v: Vec<f64>,
     nu: usize,
     nv: usize,
-    poles: Vec<[f64; 3]>,
+    poles: Vec<P3>,
     periodic_u: bool,
 }
 
@@ -266,7 +266,7 @@ fn surface_json(s: &NurbsSurface) -> SurfaceJson {
         knots_v: s.knots_v.clone(),
         nu: s.nu,
         nv: s.nv,
-        poles: s.points.iter().map(|p| [p.x, p.y, p.z]).collect(),
+        poles: s.points.clone(),
         periodic_u: s.periodic_u,
     }
 }

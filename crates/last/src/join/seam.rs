@@ -42,7 +42,7 @@ pub struct Deviation {
     pub rms_mm: f64,
     pub max_mm: f64,
     /// Where the largest deviation is.
-    pub max_at: [f64; 3],
+    pub max_at: P3,
 }
 
 fn unit(v: V3) -> V3 {
@@ -145,7 +145,7 @@ pub fn deviation_bvh(s: &NurbsSurface, bvh: &Bvh, nu: usize, nv: usize) -> Devia
                 d.samples += 1;
                 if c.distance > d.max_mm {
                     d.max_mm = c.distance;
-                    d.max_at = [p.x, p.y, p.z];
+                    d.max_at = p;
                 }
             }
         }
