@@ -8,10 +8,10 @@ use crate::customize::clinic::{Plantar, StockCut, TapeGirths};
 use crate::customize::measure::Measures;
 use crate::customize::rules::RuleSet;
 use crate::customize::{targets, Inputs, RuleRow};
-use crate::measure_last::{LastMeasures, LastSide};
+use crate::measure_last::LastMeasures;
 use crate::size::SIZE_GROUP;
 use footscan_geom::mesh::TriMesh;
-use footscan_geom::P3;
+use footscan_geom::{Side, P3};
 use serde::Serialize;
 
 /// The plan length exceeds the 1.5 mm outline's by more than this share only where the toe
@@ -36,7 +36,7 @@ pub struct StationChange {
 #[derive(Clone, Debug, Serialize)]
 pub struct Candidate {
     pub name: String,
-    pub side: Option<LastSide>,
+    pub side: Option<Side>,
     /// The last is for the other side: it is mirrored before it is customized.
     pub mirrored: bool,
     pub stations: Vec<StationChange>,

@@ -17,7 +17,7 @@ use crate::draw::{self, Canvas, Colour, View};
 use crate::size::{check_last_size, SizeError};
 use footscan_geom::mesh::{MeshError, TriMesh, Units};
 use footscan_geom::plane::Plane;
-use footscan_geom::{P3, V3};
+use footscan_geom::{Side, P3, V3};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -50,15 +50,6 @@ pub const MIN_SWING_MM: f64 = 0.5;
 pub const TAPE_TILT_DEG: f64 = 60.0;
 /// A triangle faces down (the bottom) when its normal's z is below minus this.
 const DOWN_COS: f64 = 0.5;
-
-/// Which foot the last is for (the medial side is the one whose joint point is further
-/// forward: the first metatarsal head lies ahead of the fifth).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum LastSide {
-    Left,
-    Right,
-}
 
 /// The landmarks in the measuring frame (mm).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -107,7 +98,7 @@ impl LastLandmarks {
 pub struct LastMeasures {
     /// The file or name measured.
     pub source: String,
-    pub side: Option<LastSide>,
+    pub side: Option<Side>,
     /// Heel point to toe point in plan (a size stick laid on the ground from one to the other).
     pub stick_length: f64,
     /// Along the bottom's centre line from the heel point to the toe end (a tape on it).
@@ -542,11 +533,7 @@ pub fn measure_last(mut m: TriMesh, input: &str) -> Result<LastMeasures, Measure
         (p.right_joint, p.left_joint)
     };
     // y is to the left: a right last's medial side is +y.
-    let side = if left_medial {
-        LastSide::Right
-    } else {
-        LastSide::Left
-    };
+    let side = if left_medial { Side::Right } else { Side::Left };
     let waist_width = width_at(&p.st, WAIST_AT * l)
         .ok_or_else(|| err("no bottom at the waist station".into()))?;
     let ws =
@@ -844,8 +831,8 @@ pub fn draw_measures(lm: &LastMeasures, path: &Path) -> std::io::Result<()> {
     let x0 = 1080;
     let mut y = 60;
     let side_s = match lm.side {
-        Some(LastSide::Left) => "left last",
-        Some(LastSide::Right) => "right last",
+        Some(Side::Left) => "left last",
+        Some(Side::Right) => "right last",
         None => "side unknown",
     };
     cv.text(x0, y, side_s, draw::BLACK, 2);

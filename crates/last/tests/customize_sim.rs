@@ -34,10 +34,10 @@ fn scan_of_250_mm_foot() -> (
     footscan_last::customize::clinic::Plantar,
     footscan_last::customize::clinic::TapeGirths,
 ) {
+    use footscan_geom::Side;
     use footscan_last::customize::clinic::{Plantar, TapeGirths};
-    use footscan_last::customize::measure::Side as LastSide;
     let plantar = Plantar {
-        side: LastSide::Right,
+        side: Side::Right,
         length: 250.0,
         ball_width: 99.99,
         waist_width: 58.42,

@@ -3,8 +3,9 @@
 //! parameters, and a girth against an independent plane cut.
 
 use footscan_geom::mesh::{Format, TriMesh, Units};
+use footscan_geom::Side;
 use footscan_geom::{P3, V3};
-use footscan_last::measure_last::{measure_last, measure_last_file, LastMeasures, LastSide};
+use footscan_last::measure_last::{measure_last, measure_last_file, LastMeasures};
 use footscan_last::size::check_last_size;
 use footscan_sim::foot::Side as SimSide;
 use footscan_sim::last::{Last, LastParams, Toe};
@@ -80,7 +81,7 @@ fn shared_lasts_measure_the_same_turned_mirrored_and_rewritten() {
             "{name}"
         );
         // All four are left lasts (docs/method.md 9).
-        assert_eq!(base.side, Some(LastSide::Left), "{name}");
+        assert_eq!(base.side, Some(Side::Left), "{name}");
         let mut worst = (0.0f64, 0.0f64);
         let mut note = |w: (f64, f64)| worst = (worst.0.max(w.0), worst.1.max(w.1));
         // Heel to toe along y, moved.
@@ -92,7 +93,7 @@ fn shared_lasts_measure_the_same_turned_mirrored_and_rewritten() {
         // Mirrored: a right last, the same measures.
         let mir = measure_last(mirrored(&m), name).unwrap();
         note(agree(&base, &mir, &format!("{name} mirrored")));
-        assert_eq!(mir.side, Some(LastSide::Right), "{name} mirrored");
+        assert_eq!(mir.side, Some(Side::Right), "{name} mirrored");
         // PLY and OBJ copies (in mm) read back from files.
         for (ext, fmt) in [("ply", Format::PlyBinary), ("obj", Format::Obj)] {
             let p = dir.path().join(format!("{name}.{ext}"));
@@ -155,9 +156,9 @@ fn parametric_last_against_its_parameters() {
             t.ball_width_mm
         );
         let want = if side == SimSide::Right {
-            LastSide::Right
+            Side::Right
         } else {
-            LastSide::Left
+            Side::Left
         };
         assert_eq!(m.side, Some(want), "{toe:?}");
     }

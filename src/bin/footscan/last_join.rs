@@ -200,9 +200,13 @@ pub fn run(a: JoinArgs) -> Result<()> {
         )?;
         println!(
             "placed: back last {} {} mm, toe last {} {} mm{}, joint lines met at x = {:.1} mm",
-            p.back_measures.side.map_or("(side undecided)", side_word),
+            p.back_measures
+                .side
+                .map_or("(side undecided)", footscan_geom::Side::as_str),
             fmt1(p.back_measures.stick_length),
-            p.toe_measures.side.map_or("(side undecided)", side_word),
+            p.toe_measures
+                .side
+                .map_or("(side undecided)", footscan_geom::Side::as_str),
             fmt1(p.toe_measures.stick_length),
             if p.toe_mirrored { " (mirrored)" } else { "" },
             p.joint_x
@@ -323,13 +327,6 @@ pub fn run(a: JoinArgs) -> Result<()> {
         println!("wrote {}", f.display());
     }
     Ok(())
-}
-
-fn side_word(s: footscan_last::measure_last::LastSide) -> &'static str {
-    match s {
-        footscan_last::measure_last::LastSide::Left => "left",
-        footscan_last::measure_last::LastSide::Right => "right",
-    }
 }
 
 fn fmt1(x: f64) -> String {

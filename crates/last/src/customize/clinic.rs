@@ -247,21 +247,14 @@ pub fn stock_inputs(inp: &Inputs, own: Option<f64>) -> (Inputs, Option<String>) 
 pub fn cut_stock(
     mut stock: TriMesh,
     name: &str,
-    last_side: Option<crate::measure_last::LastSide>,
+    last_side: Option<Side>,
     foot_side: Side,
     opts: StockOptions,
     ankle_tape: f64,
 ) -> Result<StockCut, CustomizeError> {
-    use crate::measure_last::LastSide;
     let mut notes = Vec::new();
-    let want = match foot_side {
-        Side::Left => LastSide::Left,
-        Side::Right => LastSide::Right,
-    };
-    let word = |s: LastSide| match s {
-        LastSide::Left => "left",
-        LastSide::Right => "right",
-    };
+    let want = foot_side;
+    let word = Side::as_str;
     let mirrored = matches!(last_side, Some(s) if s != want);
     match last_side {
         Some(s) if s != want => {

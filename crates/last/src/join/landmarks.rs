@@ -7,9 +7,10 @@
 //! 13 % longer than the other; planes tied to the joint do not.
 
 use super::JoinError;
-use crate::measure_last::{measure_last, LastMeasures, LastSide};
+use crate::measure_last::{measure_last, LastMeasures};
 use footscan_geom::mesh::TriMesh;
 use footscan_geom::plane::Plane;
+use footscan_geom::Side;
 use footscan_geom::{P3, V3};
 
 /// The back plane lies this fraction of the way from the back last's heel point to its
@@ -49,12 +50,8 @@ pub struct Placed {
     pub joint_x: f64,
 }
 
-fn side_name(s: Option<LastSide>) -> &'static str {
-    match s {
-        Some(LastSide::Left) => "left",
-        Some(LastSide::Right) => "right",
-        None => "undecided",
-    }
+fn side_name(s: Option<Side>) -> &'static str {
+    s.map_or("undecided", Side::as_str)
 }
 
 /// The mesh carried into its measuring frame.
