@@ -85,7 +85,8 @@ pub struct TlsInfo {
 /// Why HTTPS could not be set up; each names the file and what would be valid.
 #[derive(Debug, thiserror::Error)]
 pub enum TlsError {
-    #[error("{}: {source}", path.display())]
+    /// The cause is the source, printed once by the chain (`footscan_util::Chain`, anyhow).
+    #[error("{}", path.display())]
     Io {
         path: PathBuf,
         source: std::io::Error,

@@ -64,7 +64,8 @@ pub enum GlbError {
     NoParts,
     #[error("part {name:?}: {what}")]
     Part { name: String, what: String },
-    #[error("{}: {source}", path.display())]
+    /// The cause is the source, printed once by the chain (`footscan_util::Chain`, anyhow).
+    #[error("{}", path.display())]
     Io {
         path: PathBuf,
         source: std::io::Error,
