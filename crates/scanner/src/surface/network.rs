@@ -669,8 +669,9 @@ fn fill_heights(segs: &[Segment], cell: f64, area: &Lattice, row0: usize, z: &mu
 /// arrive in order along u, and a column of segments is final once the three frames after
 /// its first have come), so that after the last frame only the last columns are left.
 /// [`HeightFill::finish`] checks the segments it was given against the finished network and
-/// gives exactly [`BezierNetwork::eval_heightmap`]'s map, or that map itself when they differ
-/// (frames bridged or changed after they were given).
+/// gives exactly [`BezierNetwork::eval_heightmap`]'s heights (on a lattice that may reach
+/// further), or that map itself when they differ (frames bridged or changed after they were
+/// given).
 #[derive(Debug)]
 pub struct HeightFill {
     cell: f64,
