@@ -118,9 +118,9 @@ impl Drop for MeasureStage {
 }
 
 impl Stage<Item> for MeasureStage {
-    /// Measures as soon as the model has come after the grid (the sinks between the model
-    /// and this stage may still be writing: the results do not wait on them), else at the
-    /// end of the stream.
+    /// Measures as soon as the model has come after the grid, else at the end of the
+    /// stream: the results do not wait for the stages after the model to end. The footprint
+    /// is rasterised from the grid's arrival on, beside the model's construction.
     fn process(&mut self, item: Item, out: &mut Emitter<Item>) -> Result<(), BoxError> {
         match &item {
             Item::Grid(g) => {
