@@ -66,43 +66,29 @@ fn scan_heightmap_with(
         (map, mm)
     });
     let mut map = map?;
-    // Both maps sit on multiples of the cell, so the model's cell of (i, j) is (i, j) moved by
-    // whole cells: no rounding per cell (the results wait on this). Where they do not line
-    // up, each cell is looked up.
+    // Both maps sit on multiples of the cell (rasterize_grid's origin and the model's
+    // lattice), so the model's cell of (i, j) is (i, j) moved by whole cells: no rounding per
+    // cell (the results wait on this).
     let shift = |a: f64, b: f64| {
         let d = (a - b) / cell_mm;
-        ((d - d.round()).abs() < 1e-6).then_some(d.round() as i64)
+        debug_assert!(
+            (d - d.round()).abs() < 1e-6,
+            "maps off the cell lattice: {d}"
+        );
+        d.round() as i64
     };
-    match (shift(map.x0, mm.x0), shift(map.y0, mm.y0)) {
-        (Some(di), Some(dj)) => {
-            for j in 0..map.ny {
-                let b = j as i64 + dj;
-                if b < 0 || b >= mm.ny as i64 {
-                    continue;
-                }
-                let row = &mm.z[b as usize * mm.nx..(b as usize + 1) * mm.nx];
-                let out = &mut map.z[j * map.nx..(j + 1) * map.nx];
-                for (i, z) in out.iter_mut().enumerate() {
-                    let a = i as i64 + di;
-                    if z.is_finite() && a >= 0 && a < mm.nx as i64 && row[a as usize].is_finite() {
-                        *z = row[a as usize];
-                    }
-                }
-            }
+    let (di, dj) = (shift(map.x0, mm.x0), shift(map.y0, mm.y0));
+    for j in 0..map.ny {
+        let b = j as i64 + dj;
+        if b < 0 || b >= mm.ny as i64 {
+            continue;
         }
-        _ => {
-            for j in 0..map.ny {
-                for i in 0..map.nx {
-                    if !map.get(i, j).is_finite() {
-                        continue;
-                    }
-                    if let Some((a, b)) = mm.cell_of(map.x(i), map.y(j)) {
-                        let z = mm.get(a, b);
-                        if z.is_finite() {
-                            map.set(i, j, z);
-                        }
-                    }
-                }
+        let row = &mm.z[b as usize * mm.nx..(b as usize + 1) * mm.nx];
+        let out = &mut map.z[j * map.nx..(j + 1) * map.nx];
+        for (i, z) in out.iter_mut().enumerate() {
+            let a = i as i64 + di;
+            if z.is_finite() && a >= 0 && a < mm.nx as i64 && row[a as usize].is_finite() {
+                *z = row[a as usize];
             }
         }
     }

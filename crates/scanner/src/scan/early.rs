@@ -12,6 +12,7 @@ use crate::geom::HeightMap;
 use crate::surface::network::{period, segments_along};
 use crate::surface::{BezierNetwork, HeightFill, Segment};
 use footscan_geom::P3;
+use std::collections::VecDeque;
 use std::sync::mpsc::{channel, Sender};
 use std::sync::Mutex;
 use std::thread::JoinHandle;
@@ -96,8 +97,8 @@ impl EarlyHeights {
 /// The frames of the segment column being waited for, and the filled heights.
 struct Columns {
     rows: usize,
-    /// Frames from the first of column `next` on, `rows` points each.
-    points: Vec<P3>,
+    /// Frames from the first of column `next` on.
+    frames: VecDeque<Vec<P3>>,
     next: usize,
     fill: HeightFill,
     col: Vec<Segment>,
@@ -107,7 +108,7 @@ impl Columns {
     fn new(rows: usize, cell: f64) -> Self {
         Columns {
             rows,
-            points: Vec::with_capacity(4 * rows),
+            frames: VecDeque::with_capacity(4),
             next: 0,
             fill: HeightFill::new(cell),
             col: Vec::new(),
@@ -118,20 +119,20 @@ impl Columns {
         if frame.len() != self.rows || self.rows < 2 {
             return;
         }
-        self.points.extend_from_slice(&frame);
+        self.frames.push_back(frame);
         // Column a spans frames 3a..=3a+3; it is final (period 3) once they have all come.
-        if self.points.len() < 4 * self.rows {
+        if self.frames.len() < 4 {
             return;
         }
-        let (rows, a) = (self.rows, self.next);
-        let pts = &self.points;
+        let (a, f) = (self.next, &self.frames);
         self.col.clear();
-        self.col.extend((0..segments_along(rows)).filter_map(|b| {
-            Segment::interpolating(|i, j| pts[(i - 3 * a) * rows + j], a, b, 3, period(rows, b))
-        }));
+        self.col
+            .extend((0..segments_along(self.rows)).filter_map(|b| {
+                Segment::interpolating(|i, j| f[i - 3 * a][j], a, b, 3, period(self.rows, b))
+            }));
         self.fill.add(&self.col);
         // The column's last frame is the next one's first.
-        self.points.drain(..3 * rows);
+        self.frames.drain(..3);
         self.next += 1;
     }
 }

@@ -600,13 +600,20 @@ impl Lattice {
 
     /// An empty (NaN) map on this lattice.
     fn map(&self, cell: f64) -> HeightMap {
-        HeightMap::new(
-            self.x0 as f64 * cell,
-            self.y0 as f64 * cell,
-            cell,
-            self.nx,
-            self.ny,
-        )
+        self.map_of(cell, vec![f64::NAN; self.nx * self.ny])
+    }
+
+    /// The map on this lattice holding `z` (row-major, `nx * ny` cells).
+    fn map_of(&self, cell: f64, z: Vec<f64>) -> HeightMap {
+        debug_assert_eq!(z.len(), self.nx * self.ny);
+        HeightMap {
+            x0: self.x0 as f64 * cell,
+            y0: self.y0 as f64 * cell,
+            cell_mm: cell,
+            nx: self.nx,
+            ny: self.ny,
+            z,
+        }
     }
 }
 
@@ -726,7 +733,7 @@ impl HeightFill {
         };
         let mut z = vec![f64::NAN; grown.nx * grown.ny];
         if let Some(old) = self.area {
-            copy_rect(&self.z, &old, &mut z, &grown, &old);
+            copy_into(&self.z, &old, &mut z, &grown);
         }
         self.z = z;
         self.area = Some(grown);
@@ -748,28 +755,19 @@ impl HeightFill {
             return net.eval_heightmap(self.cell);
         }
         self.add(&net.segs[k..]);
-        let Some(area) = self.area else {
-            return HeightMap::new(0.0, 0.0, self.cell, 0, 0);
-        };
-        HeightMap {
-            x0: area.x0 as f64 * self.cell,
-            y0: area.y0 as f64 * self.cell,
-            cell_mm: self.cell,
-            nx: area.nx,
-            ny: area.ny,
-            z: self.z,
+        match self.area {
+            Some(area) => area.map_of(self.cell, self.z),
+            None => HeightMap::new(0.0, 0.0, self.cell, 0, 0),
         }
     }
 }
 
-/// Copy the cells of `rect` from a map on `from` into a map on `to` (both hold `rect`).
-fn copy_rect(src: &[f64], from: &Lattice, dst: &mut [f64], to: &Lattice, rect: &Lattice) {
-    for j in 0..rect.ny as i64 {
-        let (js, jd) = (rect.y0 + j - from.y0, rect.y0 + j - to.y0);
-        let (is, id) = (rect.x0 - from.x0, rect.x0 - to.x0);
-        let s0 = js as usize * from.nx + is as usize;
-        let d0 = jd as usize * to.nx + id as usize;
-        dst[d0..d0 + rect.nx].copy_from_slice(&src[s0..s0 + rect.nx]);
+/// Copy a map on `from` into a map on `to`, which holds it.
+fn copy_into(src: &[f64], from: &Lattice, dst: &mut [f64], to: &Lattice) {
+    let (di, dj) = ((from.x0 - to.x0) as usize, (from.y0 - to.y0) as usize);
+    for (j, row) in src.chunks_exact(from.nx).enumerate() {
+        let d0 = (j + dj) * to.nx + di;
+        dst[d0..d0 + from.nx].copy_from_slice(row);
     }
 }
 
