@@ -313,191 +313,418 @@ fn principal_axis(map: &HeightMap, r: &Region) -> V2 {
 
 /// Measure a foot on `map` (see the module doc of [`crate::measure`] for every definition).
 pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
-    let mut regs = regions(map);
-    if regs.is_empty() {
-        return Err(MeasureError::NoFootprint);
-    }
-    let body = regs.remove(0);
-    if body.area_mm2 < MIN_BODY_MM2 {
-        return Err(MeasureError::TooSmall {
-            area_mm2: body.area_mm2,
-            min_mm2: MIN_BODY_MM2,
-        });
-    }
-    let bo = &body.outline;
-    // Initial axis: principal direction, toes (or else +x, the scanner's heel-to-toe
-    // direction) in front.
-    let mut u = principal_axis(map, &body);
-    let extent = {
-        let s: Vec<f64> = bo.iter().map(|p| p.coords.dot(&u)).collect();
-        s.iter().copied().fold(f64::NEG_INFINITY, f64::max)
-            - s.iter().copied().fold(f64::INFINITY, f64::min)
-    };
-    let big: Vec<&Region> = regs
-        .iter()
-        .filter(|r| r.area_mm2 >= MIN_TOE_FRACTION * body.area_mm2)
-        .collect();
-    let toe_pull = big.iter().fold(V2::zeros(), |acc, r| {
-        acc + (r.centroid - body.centroid) * r.area_mm2
-    });
-    let forward = if big.is_empty() { V2::x() } else { toe_pull };
-    if u.dot(&forward) < 0.0 {
-        u = -u;
-    }
-    let mut toes: Vec<&Region> = big
-        .into_iter()
-        .filter(|r| (r.centroid - body.centroid).dot(&u) > 0.25 * extent)
-        .collect();
-    toes.sort_by(|a, b| b.area_mm2.total_cmp(&a.area_mm2));
+    measure_foot_with(map, Planar::of(map)?)
+}
 
-    // Axis: heel circle centre to the body front, iterated to the fixed point. Toes joined to
-    // the ball (a weight-bearing foot seen from below: no toe pad stands apart) put the body
-    // front on a toe, so there the axis runs to the second metatarsal head's place on the ball
-    // line instead (below).
-    let joined = toes.is_empty();
-    let tips: Vec<&[P2]> = std::iter::once(bo.as_slice())
-        .chain(toes.iter().map(|t| t.outline.as_slice()))
-        .collect();
-    let heel_circle = |u: V2, band: f64| {
-        let s_min = bo
+/// What a map's footprint alone decides (which cells are valid, not their heights): its
+/// regions, the axis and, when a toe stands apart (so the medial side needs no heights),
+/// every landmark on the outline. A scan computes it from the footprint while the model is
+/// built, and only the arch and the contact wait for the model's heights (issue 34 item 2).
+#[derive(Debug)]
+pub struct Planar {
+    body: Region,
+    toes: Vec<Region>,
+    extent: f64,
+    axis: Axis,
+    /// None when the toes are joined to the ball: the medial side is then the higher
+    /// midfoot, and the landmarks wait for the heights.
+    marks: Option<Marks>,
+}
+
+/// The axis as the heel circle and the body front put it.
+#[derive(Clone, Copy, Debug)]
+struct Axis {
+    u: V2,
+    centre: P2,
+    radius: f64,
+    band: f64,
+    front: P2,
+}
+
+/// The landmarks on the outline, with the axis they settled.
+#[derive(Debug)]
+struct Marks {
+    sign: f64,
+    axis: Axis,
+    heel_point: P2,
+    toe_tip: P2,
+    mt1: P2,
+    mt5: P2,
+    mt2: P2,
+    yc: f64,
+    waist_inner: P2,
+    waist_outer: P2,
+    midfoot: (f64, f64),
+    mid: P2,
+    heel_width: (f64, P2, P2),
+    hallux_point: P2,
+    /// Said while the landmarks were found (joined toes, heads taken without a peak).
+    warnings: Vec<String>,
+    /// The outline's plausibility checks, said after the arch's.
+    checks: Vec<String>,
+}
+
+impl Planar {
+    /// The footprint of `map` measured as far as its outline goes.
+    pub fn of(map: &HeightMap) -> Result<Planar, MeasureError> {
+        let mut regs = regions(map);
+        if regs.is_empty() {
+            return Err(MeasureError::NoFootprint);
+        }
+        let body = regs.remove(0);
+        if body.area_mm2 < MIN_BODY_MM2 {
+            return Err(MeasureError::TooSmall {
+                area_mm2: body.area_mm2,
+                min_mm2: MIN_BODY_MM2,
+            });
+        }
+        let bo = &body.outline;
+        // Initial axis: principal direction, toes (or else +x, the scanner's heel-to-toe
+        // direction) in front.
+        let mut u = principal_axis(map, &body);
+        let extent = {
+            let s: Vec<f64> = bo.iter().map(|p| p.coords.dot(&u)).collect();
+            s.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+                - s.iter().copied().fold(f64::INFINITY, f64::min)
+        };
+        let big: Vec<&Region> = regs
             .iter()
-            .map(|p| p.coords.dot(&u))
-            .fold(f64::INFINITY, f64::min);
-        let heel: Vec<P2> = bo
-            .iter()
-            .copied()
-            .filter(|p| p.coords.dot(&u) <= s_min + band)
+            .filter(|r| r.area_mm2 >= MIN_TOE_FRACTION * body.area_mm2)
             .collect();
-        fit_circle(&heel).ok_or_else(|| MeasureError::Landmark {
-            what: "heel centre",
-            why: format!("{} heel outline points do not fit a circle", heel.len()),
-        })
-    };
-    let mut band = 0.12 * extent;
-    let mut centre = body.centroid;
-    let mut radius = 0.0;
-    let mut front = body.centroid;
-    for it in 0..60 {
-        let (c, r) = heel_circle(u, band)?;
-        (centre, radius, band) = (c, r, r.min(0.3 * extent));
-        front = extreme(bo, u, FRONT_DEPTH, true, |_| true).expect("non-empty outline");
-        if joined {
-            break;
+        let toe_pull = big.iter().fold(V2::zeros(), |acc, r| {
+            acc + (r.centroid - body.centroid) * r.area_mm2
+        });
+        let forward = if big.is_empty() { V2::x() } else { toe_pull };
+        if u.dot(&forward) < 0.0 {
+            u = -u;
         }
-        let nu = unit_by_hypot(&(front - centre));
-        let change = nu.perp(&u).abs();
-        u = nu;
-        if it > 2 && change < 1e-9 {
-            break;
-        }
-    }
+        let keep: Vec<bool> = regs
+            .iter()
+            .map(|r| {
+                r.area_mm2 >= MIN_TOE_FRACTION * body.area_mm2
+                    && (r.centroid - body.centroid).dot(&u) > 0.25 * extent
+            })
+            .collect();
+        let mut toes: Vec<Region> = regs
+            .into_iter()
+            .zip(keep)
+            .filter_map(|(r, k)| k.then_some(r))
+            .collect();
+        toes.sort_by(|a, b| b.area_mm2.total_cmp(&a.area_mm2));
 
-    // Medial side: the hallux side, else the higher midfoot.
-    let sign = match toes.first() {
-        Some(h) => (h.centroid - centre).dot(&quarter_turn(&u)).signum(),
-        None => arch_side(map, &body, centre, u, extent),
-    };
-    let side = if sign > 0.0 { Side::Right } else { Side::Left };
-    let mut warnings = Vec::new();
-
-    // The metatarsal heads from the side profiles; with joined toes the axis follows them.
-    let mut heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut Vec::new());
-    if joined {
-        for _ in 0..30 {
-            let Some(h) = &heads else { break };
-            let (c, r) = heel_circle(u, band)?;
-            (centre, radius, band) = (c, r, r.min(0.3 * extent));
-            let nu = unit_by_hypot(&(h.mt2_on_ball_line() - centre));
-            let change = nu.perp(&u).abs();
-            u = nu;
-            heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut Vec::new());
-            if change < 1e-9 {
+        // Axis: heel circle centre to the body front, iterated to the fixed point. Toes
+        // joined to the ball (a weight-bearing foot seen from below: no toe pad stands
+        // apart) put the body front on a toe, so there the axis runs to the second metatarsal
+        // head's place on the ball line instead (`Planar::marks`).
+        let joined = toes.is_empty();
+        let mut axis = Axis {
+            u,
+            centre: body.centroid,
+            radius: 0.0,
+            band: 0.12 * extent,
+            front: body.centroid,
+        };
+        for it in 0..60 {
+            let (c, r) = heel_circle(bo, axis.u, axis.band)?;
+            (axis.centre, axis.radius, axis.band) = (c, r, r.min(0.3 * extent));
+            axis.front =
+                extreme(bo, axis.u, FRONT_DEPTH, true, |_| true).expect("non-empty outline");
+            if joined {
+                break;
+            }
+            let nu = unit_by_hypot(&(axis.front - axis.centre));
+            let change = nu.perp(&axis.u).abs();
+            axis.u = nu;
+            if it > 2 && change < 1e-9 {
                 break;
             }
         }
-        warnings.push(
-            "the toes are joined to the ball in the footprint (no toe stands apart): the axis \
-             runs to the second metatarsal head's place on the ball line, the arch index's \
-             thirds include the toes' contact and there is no hallux point"
-                .to_string(),
-        );
-    }
-    let heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut warnings)
-        .ok_or_else(|| missing_landmark("metatarsal heads"))?;
-    let m = V2::new(sign * -u.y, sign * u.x);
-
-    // Rearmost point of the heel circle along the axis (on the axis by construction).
-    let heel_point = centre + u * -radius;
-    // Toe tip: most anterior point over the body and the toe pads.
-    let mut toe_tip = extreme(bo, u, 1.0, false, |_| true).expect("non-empty outline");
-    for t in &toes {
-        let p = extreme(&t.outline, u, 1.0, false, |_| true).expect("non-empty outline");
-        if p.coords.dot(&u) > toe_tip.coords.dot(&u) {
-            toe_tip = p;
+        let mut planar = Planar {
+            body,
+            toes,
+            extent,
+            axis,
+            marks: None,
+        };
+        // Medial side: the hallux side, else (`measure_foot_with`) the higher midfoot.
+        if let Some(h) = planar.toes.first() {
+            let sign = (h.centroid - axis.centre)
+                .dot(&quarter_turn(&axis.u))
+                .signum();
+            planar.marks = Some(planar.marks(map.cell_mm, sign)?);
         }
+        Ok(planar)
     }
+
+    /// The landmarks with the medial side on `sign` (+1: left of the axis).
+    fn marks(&self, cell_mm: f64, sign: f64) -> Result<Marks, MeasureError> {
+        let (body, toes, extent) = (&self.body, &self.toes, self.extent);
+        let bo = &body.outline;
+        let joined = toes.is_empty();
+        let tips: Vec<&[P2]> = std::iter::once(bo.as_slice())
+            .chain(toes.iter().map(|t| t.outline.as_slice()))
+            .collect();
+        let Axis {
+            mut u,
+            mut centre,
+            mut radius,
+            mut band,
+            front,
+        } = self.axis;
+        let mut warnings = Vec::new();
+
+        // The metatarsal heads from the side profiles; with joined toes the axis follows them.
+        let mut heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut Vec::new());
+        if joined {
+            for _ in 0..30 {
+                let Some(h) = &heads else { break };
+                let (c, r) = heel_circle(bo, u, band)?;
+                (centre, radius, band) = (c, r, r.min(0.3 * extent));
+                let nu = unit_by_hypot(&(h.mt2_on_ball_line() - centre));
+                let change = nu.perp(&u).abs();
+                u = nu;
+                heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut Vec::new());
+                if change < 1e-9 {
+                    break;
+                }
+            }
+            warnings.push(
+                "the toes are joined to the ball in the footprint (no toe stands apart): the axis \
+                 runs to the second metatarsal head's place on the ball line, the arch index's \
+                 thirds include the toes' contact and there is no hallux point"
+                    .to_string(),
+            );
+        }
+        let heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut warnings)
+            .ok_or_else(|| missing_landmark("metatarsal heads"))?;
+        let m = V2::new(sign * -u.y, sign * u.x);
+
+        // Rearmost point of the heel circle along the axis (on the axis by construction).
+        let heel_point = centre + u * -radius;
+        // Toe tip: most anterior point over the body and the toe pads.
+        let mut toe_tip = extreme(bo, u, 1.0, false, |_| true).expect("non-empty outline");
+        for t in toes {
+            let p = extreme(&t.outline, u, 1.0, false, |_| true).expect("non-empty outline");
+            if p.coords.dot(&u) > toe_tip.coords.dot(&u) {
+                toe_tip = p;
+            }
+        }
+        let xl = |p: P2| (p - heel_point).dot(&u);
+        let yl = |p: P2| (p - heel_point).dot(&m);
+        let to_world = |x: f64, y: f64| heel_point + u * x + m * y;
+        let length = xl(toe_tip);
+        let missing = missing_landmark;
+        let neg_m = -m;
+        // Each extreme refined on the outline near the station the profile found it at.
+        let near = |r: (f64, f64)| move |p: P2| (r.0..=r.1).contains(&xl(p));
+        let mt1 =
+            extreme(bo, m, 0.7, false, near(heads.mt1_x)).ok_or_else(|| missing("MT1 head"))?;
+        let mt5 =
+            extreme(bo, neg_m, 0.7, false, near(heads.mt5_x)).ok_or_else(|| missing("MT5 head"))?;
+        let ball_width = yl(mt1) - yl(mt5);
+        // The axis passes through the heel centre; coordinates relative to the heel point,
+        // which lies on it.
+        let yc = yl(centre);
+        let mt2 = to_world(xl(mt1), yc);
+        let waist_inner = extreme(bo, neg_m, 0.5, false, |p| {
+            yl(p) > yc && near(heads.waist_inner_x)(p)
+        })
+        .ok_or_else(|| missing("inner waist point"))?;
+        let waist_outer = extreme(bo, m, 0.5, false, |p| {
+            yl(p) < yc && near(heads.waist_outer_x)(p)
+        })
+        .ok_or_else(|| missing("outer waist point"))?;
+
+        // Mid-foot width over every outline (body and toes).
+        let mid = to_world(length / 2.0, 0.0);
+        let ts: Vec<f64> = tips
+            .iter()
+            .flat_map(|o| line_crossings(o, mid, m))
+            .collect();
+        if ts.len() < 2 {
+            return Err(missing("mid-foot breadth"));
+        }
+        let (t_lo, t_hi) = (
+            ts.iter().copied().fold(f64::INFINITY, f64::min),
+            ts.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        );
+
+        let heel_width = heel_width(bo, cell_mm, length, radius, to_world, m)
+            .ok_or_else(|| missing("heel width"))?;
+
+        let hallux_point = match toes.first() {
+            Some(h) => extreme(&h.outline, m, 1.0, false, |_| true).expect("non-empty outline"),
+            None => toe_tip,
+        };
+
+        // Plausibility: a figure that breaks what holds for feet is said, never passed on
+        // silently.
+        let mut checks = Vec::new();
+        let frac = |p: P2| xl(p) / length;
+        for (name, p) in [("first", mt1), ("fifth", mt5)] {
+            let f = frac(p);
+            if !(HEADS_PLAUSIBLE.0..=HEADS_PLAUSIBLE.1).contains(&f) {
+                checks.push(format!(
+                    "the {name} metatarsal head is at {:.1} % of the length from the heel; heads \
+                     lie between {:.0} % and {:.0} %: the ball width and the axis may be wrong",
+                    100.0 * f,
+                    100.0 * HEADS_PLAUSIBLE.0,
+                    100.0 * HEADS_PLAUSIBLE.1
+                ));
+            }
+        }
+        let forefoot = Profiles::of(&tips, heel_point, u, m, length, PROFILE_STEP);
+        let (kf0, kf1) = (forefoot.index(0.5 * length), forefoot.index(0.9 * length));
+        if let Some((x, b)) = (kf0..=kf1)
+            .map(|k| (forefoot.x(k), forefoot.breadth(k)))
+            .filter(|(_, b)| b.is_finite())
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+        {
+            if b > ball_width + 1.0 {
+                checks.push(format!(
+                    "the forefoot is {b:.1} mm wide at {:.0} % of the length, wider than the \
+                     ball ({ball_width:.1} mm between the metatarsal heads): the heads may be \
+                     misplaced",
+                    100.0 * x / length
+                ));
+            }
+        }
+        for (name, w, h) in [("inner", waist_inner, mt1), ("outer", waist_outer, mt5)] {
+            if xl(w) > xl(h) - 0.05 * length {
+                checks.push(format!(
+                    "the {name} waist point ({:.0} % of the length) is not behind its metatarsal \
+                     head ({:.0} %)",
+                    100.0 * frac(w),
+                    100.0 * frac(h)
+                ));
+            }
+        }
+        let midfoot_width = t_hi - t_lo;
+        let hw = heel_width.0;
+        if hw >= ball_width || midfoot_width > ball_width + 1.0 {
+            checks.push(format!(
+                "the widths are out of order: heel {hw:.1}, mid-foot {midfoot_width:.1}, \
+                 ball {ball_width:.1} mm (a foot is widest at the ball)"
+            ));
+        }
+        for (name, w, (lo, hi)) in [("ball", ball_width, BALL_RATIO), ("heel", hw, HEEL_RATIO)] {
+            let r = w / length;
+            if !(lo..=hi).contains(&r) {
+                checks.push(format!(
+                    "the {name} width is {:.2} of the length ({w:.1} of {length:.1} mm); feet \
+                     have {lo:.2} to {hi:.2}",
+                    r
+                ));
+            }
+        }
+        Ok(Marks {
+            sign,
+            axis: Axis {
+                u,
+                centre,
+                radius,
+                band,
+                front,
+            },
+            heel_point,
+            toe_tip,
+            mt1,
+            mt5,
+            mt2,
+            yc,
+            waist_inner,
+            waist_outer,
+            midfoot: (t_lo, t_hi),
+            mid,
+            heel_width,
+            hallux_point,
+            warnings,
+            checks,
+        })
+    }
+}
+
+/// The circle fitted to the outline's points within `band` of its rearmost point along `u`.
+fn heel_circle(bo: &[P2], u: V2, band: f64) -> Result<(P2, f64), MeasureError> {
+    let s_min = bo
+        .iter()
+        .map(|p| p.coords.dot(&u))
+        .fold(f64::INFINITY, f64::min);
+    let heel: Vec<P2> = bo
+        .iter()
+        .copied()
+        .filter(|p| p.coords.dot(&u) <= s_min + band)
+        .collect();
+    fit_circle(&heel).ok_or_else(|| MeasureError::Landmark {
+        what: "heel centre",
+        why: format!("{} heel outline points do not fit a circle", heel.len()),
+    })
+}
+
+/// [`measure_foot`] of `map` with its footprint's [`Planar::of`] given (computed from a map
+/// with the same valid cells: the footprint before the model's heights went into it).
+pub fn measure_foot_with(
+    map: &HeightMap,
+    mut planar: Planar,
+) -> Result<Measurements, MeasureError> {
+    let marks = match planar.marks.take() {
+        Some(k) => k,
+        None => {
+            let (a, b) = (&planar.body, &planar.axis);
+            let sign = arch_side(map, a, b.centre, b.u, planar.extent);
+            planar.marks(map.cell_mm, sign)?
+        }
+    };
+    finish(map, &planar.body, &planar.toes, marks)
+}
+
+/// The measurements from the landmarks and the heights: the arch and the contact.
+fn finish(
+    map: &HeightMap,
+    body: &Region,
+    toes: &[Region],
+    marks: Marks,
+) -> Result<Measurements, MeasureError> {
+    let Marks {
+        sign,
+        axis,
+        heel_point,
+        toe_tip,
+        mt1,
+        mt5,
+        mt2,
+        yc,
+        waist_inner,
+        waist_outer,
+        midfoot: (t_lo, t_hi),
+        mid,
+        heel_width: (heel_width, hw_in, hw_out),
+        hallux_point,
+        mut warnings,
+        checks,
+    } = marks;
+    let u = axis.u;
+    let m = V2::new(sign * -u.y, sign * u.x);
+    let side = if sign > 0.0 { Side::Right } else { Side::Left };
     let xl = |p: P2| (p - heel_point).dot(&u);
     let yl = |p: P2| (p - heel_point).dot(&m);
-    let to_world = |x: f64, y: f64| heel_point + u * x + m * y;
-    let length = xl(toe_tip);
     let missing = missing_landmark;
-    let neg_m = -m;
-    // Each extreme refined on the outline near the station the profile found it at.
-    let near = |r: (f64, f64)| move |p: P2| (r.0..=r.1).contains(&xl(p));
-    let mt1 = extreme(bo, m, 0.7, false, near(heads.mt1_x)).ok_or_else(|| missing("MT1 head"))?;
-    let mt5 =
-        extreme(bo, neg_m, 0.7, false, near(heads.mt5_x)).ok_or_else(|| missing("MT5 head"))?;
+    let length = xl(toe_tip);
     let ball_width = yl(mt1) - yl(mt5);
-    // The axis passes through the heel centre; coordinates relative to the heel point,
-    // which lies on it.
-    let yc = yl(centre);
-    let mt2 = to_world(xl(mt1), yc);
-    let waist_inner = extreme(bo, neg_m, 0.5, false, |p| {
-        yl(p) > yc && near(heads.waist_inner_x)(p)
-    })
-    .ok_or_else(|| missing("inner waist point"))?;
-    let waist_outer = extreme(bo, m, 0.5, false, |p| {
-        yl(p) < yc && near(heads.waist_outer_x)(p)
-    })
-    .ok_or_else(|| missing("outer waist point"))?;
-
-    // Mid-foot width over every outline (body and toes).
-    let all: Vec<&[P2]> = std::iter::once(bo.as_slice())
-        .chain(toes.iter().map(|t| t.outline.as_slice()))
-        .collect();
-    let mid = to_world(length / 2.0, 0.0);
-    let ts: Vec<f64> = all.iter().flat_map(|o| line_crossings(o, mid, m)).collect();
-    if ts.len() < 2 {
-        return Err(missing("mid-foot breadth"));
-    }
-    let (t_lo, t_hi) = (
-        ts.iter().copied().fold(f64::INFINITY, f64::min),
-        ts.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-    );
-    let (midfoot_inner, midfoot_outer) = (mid + m * t_hi, mid + m * t_lo);
-
-    let (heel_width, hw_in, hw_out) = heel_width(bo, map.cell_mm, length, radius, to_world, m)
-        .ok_or_else(|| missing("heel width"))?;
-
-    let hallux_point = match toes.first() {
-        Some(h) => extreme(&h.outline, m, 1.0, false, |_| true).expect("non-empty outline"),
-        None => toe_tip,
-    };
-
-    let x_front = xl(front);
+    let x_front = xl(axis.front);
     // The arch: where the medial midfoot faces the glass; on a foot that bears no weight the
     // whole vault may slope more, and a looser limit is taken (said in the warnings) rather
     // than losing every other measurement and the side with it.
     // The arch fit and the contact thirds read the map independently: side by side (a
     // scan's results wait on them, issue 34 item 2).
     let (arch, thirds) = std::thread::scope(|s| {
-        let thirds = s.spawn(|| contact_thirds(map, &body, x_front, &xl));
-        let mut arch = arch_height(map, &body, x_front, &xl, &yl, yc, ARCH_SLOPE);
+        let thirds = s.spawn(|| contact_thirds(map, body, x_front, &xl));
+        let mut arch = arch_height(map, body, x_front, &xl, &yl, yc, ARCH_SLOPE);
         for limit in ARCH_SLOPE_FALLBACK {
             if arch.is_some() {
                 break;
             }
-            arch = arch_height(map, &body, x_front, &xl, &yl, yc, limit);
+            arch = arch_height(map, body, x_front, &xl, &yl, yc, limit);
             if arch.is_some() {
                 warnings.push(format!(
                     "arch height taken where the medial midfoot slopes under {:.0} degrees: it \
@@ -518,66 +745,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
     if total <= 0.0 {
         return Err(missing("contact area"));
     }
-
-    // Plausibility: a figure that breaks what holds for feet is said, never passed on silently.
-    let frac = |p: P2| xl(p) / length;
-    for (name, p) in [("first", mt1), ("fifth", mt5)] {
-        let f = frac(p);
-        if !(HEADS_PLAUSIBLE.0..=HEADS_PLAUSIBLE.1).contains(&f) {
-            warnings.push(format!(
-                "the {name} metatarsal head is at {:.1} % of the length from the heel; heads lie \
-                 between {:.0} % and {:.0} %: the ball width and the axis may be wrong",
-                100.0 * f,
-                100.0 * HEADS_PLAUSIBLE.0,
-                100.0 * HEADS_PLAUSIBLE.1
-            ));
-        }
-    }
-    let forefoot = Profiles::of(&tips, heel_point, u, m, length, PROFILE_STEP);
-    let (kf0, kf1) = (forefoot.index(0.5 * length), forefoot.index(0.9 * length));
-    if let Some((x, b)) = (kf0..=kf1)
-        .map(|k| (forefoot.x(k), forefoot.breadth(k)))
-        .filter(|(_, b)| b.is_finite())
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-    {
-        if b > ball_width + 1.0 {
-            warnings.push(format!(
-                "the forefoot is {b:.1} mm wide at {:.0} % of the length, wider than the ball \
-                 ({ball_width:.1} mm between the metatarsal heads): the heads may be misplaced",
-                100.0 * x / length
-            ));
-        }
-    }
-    for (name, w, h) in [("inner", waist_inner, mt1), ("outer", waist_outer, mt5)] {
-        if xl(w) > xl(h) - 0.05 * length {
-            warnings.push(format!(
-                "the {name} waist point ({:.0} % of the length) is not behind its metatarsal head \
-                 ({:.0} %)",
-                100.0 * frac(w),
-                100.0 * frac(h)
-            ));
-        }
-    }
-    let midfoot_width = t_hi - t_lo;
-    if heel_width >= ball_width || midfoot_width > ball_width + 1.0 {
-        warnings.push(format!(
-            "the widths are out of order: heel {heel_width:.1}, mid-foot {midfoot_width:.1}, \
-             ball {ball_width:.1} mm (a foot is widest at the ball)"
-        ));
-    }
-    for (name, w, (lo, hi)) in [
-        ("ball", ball_width, BALL_RATIO),
-        ("heel", heel_width, HEEL_RATIO),
-    ] {
-        let r = w / length;
-        if !(lo..=hi).contains(&r) {
-            warnings.push(format!(
-                "the {name} width is {:.2} of the length ({w:.1} of {length:.1} mm); feet have \
-                 {lo:.2} to {hi:.2}",
-                r
-            ));
-        }
-    }
+    warnings.extend(checks);
     let share = total / body.area_mm2;
     if share < MIN_CONTACT_SHARE || thirds[1] / total > MAX_ARCH_INDEX {
         warnings.push(format!(
@@ -599,7 +767,7 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         side,
         heel_point,
         toe_tip,
-        heel_centre: centre,
+        heel_centre: axis.centre,
         mt2_head: mt2,
         axis_dir: u,
         axis_angle_deg: u.y.atan2(u.x).to_degrees(),
@@ -609,9 +777,9 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         ball_width_mm: ball_width,
         waist_inner,
         waist_outer,
-        midfoot_width_mm: midfoot_width,
-        midfoot_inner,
-        midfoot_outer,
+        midfoot_width_mm: t_hi - t_lo,
+        midfoot_inner: mid + m * t_hi,
+        midfoot_outer: mid + m * t_lo,
         heel_width_mm: heel_width,
         heel_width_inner: hw_in,
         heel_width_outer: hw_out,
@@ -621,8 +789,8 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
         arch_index: thirds[1] / total,
         contact_area_mm2: total,
         contact_thirds_mm2: thirds,
-        body_front: front,
-        outline: simplify(bo, 0.02),
+        body_front: axis.front,
+        outline: simplify(&body.outline, 0.02),
         toe_outlines: toes.iter().map(|t| simplify(&t.outline, 0.02)).collect(),
         cell_mm: map.cell_mm,
         heights_from: "height map".into(),

@@ -81,13 +81,13 @@ mod rasterize;
 mod scanned;
 mod truth;
 
-pub use foot::{measure_foot, Measurements, Side};
+pub use foot::{measure_foot, measure_foot_with, Measurements, Planar, Side};
 pub use outline::{line_crossings, regions, signed_area, simplify, Region};
 pub use picture::{render_plantar, PlantarImage};
 pub use rasterize::{grid_truncation, rasterize_grid};
 pub use scanned::{
-    measure_grid, measure_grid_with, measure_scan_dir, scan_heightmap, write_measurements, Ahead,
-    MeasureOutput, DEFAULT_CELL_MM,
+    footprint_ahead, measure_grid, measure_grid_with, measure_scan_dir, scan_heightmap,
+    write_measurements, Ahead, MeasureOutput, DEFAULT_CELL_MM,
 };
 pub use truth::{compare_with_truth, ErrorKind, ErrorRow, TruthComparison};
 

@@ -41,10 +41,16 @@ impl Run {
     fn half(&self) -> f64 {
         0.5 * (self.hi - self.lo)
     }
-    /// Height at y, linear between points, constant beyond the ends.
-    fn height(&self, y: f64) -> f64 {
+    /// Height at y, linear between points, constant beyond the ends. `k` is a cursor into
+    /// the points for calls with non-decreasing y (start it at 0): a column's cells walk the
+    /// run once instead of searching it per cell (the results of a scan wait on this, issue
+    /// 34 item 2); it finds the point a binary search would.
+    fn height(&self, y: f64, k: &mut usize) -> f64 {
         let p = &self.pts;
-        let k = p.partition_point(|q| q[1] < y);
+        while *k < p.len() && p[*k][1] < y {
+            *k += 1;
+        }
+        let k = *k;
         if k == 0 {
             return p[0][2];
         }
@@ -495,7 +501,7 @@ fn tip<'a>(run: &'a Run, at: f64, toward: f64, trend: Option<(&Run, f64)>) -> Pi
 }
 
 fn fill_piece(map: &mut HeightMap, i: usize, x: f64, w: f64, piece: &Piece) {
-    let mut fill = |lo: f64, hi: f64, h: &dyn Fn(f64) -> f64| {
+    let mut fill = |lo: f64, hi: f64, h: &mut dyn FnMut(f64) -> f64| {
         let j0 = ((lo - map.y0) / map.cell_mm).ceil().max(0.0) as usize;
         let mut j = j0;
         while j < map.ny && map.y(j) <= hi {
@@ -509,8 +515,9 @@ fn fill_piece(map: &mut HeightMap, i: usize, x: f64, w: f64, piece: &Piece) {
             let c = a.centre() + w * (b.centre() - a.centre());
             let h2 = a.half().powi(2) + w * (b.half().powi(2) - a.half().powi(2));
             let half = h2.max(0.0).sqrt();
-            fill(c - half, c + half, &|y| {
-                (1.0 - w) * a.height(y) + w * b.height(y)
+            let (mut ka, mut kb) = (0, 0);
+            fill(c - half, c + half, &mut |y| {
+                (1.0 - w) * a.height(y, &mut ka) + w * b.height(y, &mut kb)
             });
         }
         Piece::Tip {
@@ -531,12 +538,14 @@ fn fill_piece(map: &mut HeightMap, i: usize, x: f64, w: f64, piece: &Piece) {
             }
             let c = run.centre() + dc * d;
             let half = h2.sqrt();
-            fill(c - half, c + half, &|y| run.height(y));
+            let mut k = 0;
+            fill(c - half, c + half, &mut |y| run.height(y, &mut k));
         }
         Piece::Nearest(ra, rb) => {
             let runs = if w < 0.5 { ra } else { rb };
             for r in runs {
-                fill(r.lo, r.hi, &|y| r.height(y));
+                let mut k = 0;
+                fill(r.lo, r.hi, &mut |y| r.height(y, &mut k));
             }
         }
     }

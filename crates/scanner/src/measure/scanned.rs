@@ -6,8 +6,8 @@
 
 use super::picture::render_plantar;
 use super::{
-    compare_with_truth, grid_truncation, measure_foot, rasterize_grid, MeasureError, Measurements,
-    TruthComparison,
+    compare_with_truth, grid_truncation, measure_foot, measure_foot_with, rasterize_grid,
+    MeasureError, Measurements, Planar, TruthComparison,
 };
 use crate::geom::HeightMap;
 use crate::scandata::{ScanDir, ScanDirError, ScanGrid};
@@ -35,8 +35,24 @@ pub fn scan_heightmap(
 pub struct Ahead {
     /// [`rasterize_grid`] of the grid on the measured cell.
     pub footprint: Option<Result<HeightMap, MeasureError>>,
+    /// [`Planar::of`] that footprint: what its outline alone decides.
+    pub planar: Option<Result<Planar, MeasureError>>,
     /// The model's [`BezierNetwork::eval_heightmap`] on the measured cell.
     pub model_map: Option<HeightMap>,
+}
+
+/// The footprint of `grid` and its [`Planar`] measurement (the latter None when the footprint
+/// failed): what a scan computes from the grid while the model is built.
+pub fn footprint_ahead(
+    grid: &ScanGrid,
+    cell_mm: f64,
+) -> (
+    Result<HeightMap, MeasureError>,
+    Option<Result<Planar, MeasureError>>,
+) {
+    let map = rasterize_grid(grid, cell_mm);
+    let planar = map.as_ref().ok().map(Planar::of);
+    (map, planar)
 }
 
 /// [`scan_heightmap`] with what was computed `ahead`.
@@ -49,6 +65,7 @@ fn scan_heightmap_with(
     let Ahead {
         footprint,
         model_map,
+        ..
     } = ahead;
     let Some(net) = model else {
         let map = footprint.unwrap_or_else(|| rasterize_grid(grid, cell_mm))?;
@@ -109,10 +126,16 @@ pub fn measure_grid_with(
     grid: &ScanGrid,
     model: Option<&BezierNetwork>,
     cell_mm: f64,
-    ahead: Ahead,
+    mut ahead: Ahead,
 ) -> Result<(HeightMap, Measurements), MeasureError> {
+    let planar = ahead.planar.take();
     let (map, heights) = scan_heightmap_with(grid, model, cell_mm, ahead)?;
-    let mut m = measure_foot(&map)?;
+    // The model's heights went only into cells the footprint has: its valid cells, and so
+    // its regions and outline, are the footprint's.
+    let mut m = match planar {
+        Some(p) => measure_foot_with(&map, p?)?,
+        None => measure_foot(&map)?,
+    };
     m.heights_from = heights.to_string();
     m.warnings.extend(grid_truncation(grid));
     Ok((map, m))

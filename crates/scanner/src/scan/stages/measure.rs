@@ -4,7 +4,9 @@
 
 use super::out_file;
 use crate::geom::HeightMap;
-use crate::measure::{measure_grid_with, rasterize_grid, write_measurements, Ahead, MeasureError};
+use crate::measure::{
+    footprint_ahead, measure_grid_with, write_measurements, Ahead, MeasureError, Planar,
+};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::Item;
 use crate::scan::model_job::MeasuredFoot;
@@ -13,6 +15,12 @@ use crate::surface::BezierNetwork;
 use serde::Deserialize;
 use std::path::PathBuf;
 use std::sync::Arc;
+
+/// A footprint and what its outline alone decides ([`footprint_ahead`]).
+type Footprint = (
+    Result<HeightMap, MeasureError>,
+    Option<Result<Planar, MeasureError>>,
+);
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -57,8 +65,9 @@ pub struct MeasureStage {
     counters: Option<Arc<crate::scan::ScanCounters>>,
     /// Measured already (when the model came): the end of the stream has nothing to do.
     measured: bool,
-    /// The footprint, rasterised from the grid while the model is built.
-    footprint: Option<std::thread::JoinHandle<Result<HeightMap, MeasureError>>>,
+    /// The footprint, rasterised from the grid and measured as far as its outline goes while
+    /// the model is built.
+    footprint: Option<std::thread::JoinHandle<Footprint>>,
 }
 
 impl MeasureStage {
@@ -128,7 +137,7 @@ impl Stage<Item> for MeasureStage {
                 let (g, cell) = (g.clone(), self.cell_mm);
                 self.footprint = std::thread::Builder::new()
                     .name("measure.footprint".into())
-                    .spawn(move || rasterize_grid(&g, cell))
+                    .spawn(move || footprint_ahead(&g, cell))
                     .ok();
             }
             Item::Model(n) if self.use_model => self.model = Some(n.clone()),
@@ -160,12 +169,17 @@ impl MeasureStage {
         // The model's heights filled while the frames came, when accumulate fed them.
         let t = std::time::Instant::now();
         let ms = |t: std::time::Instant| t.elapsed().as_secs_f64() * 1e3;
+        let (footprint, planar) = match self.footprint.take().and_then(|h| h.join().ok()) {
+            Some((f, p)) => (Some(f), p),
+            None => (None, None),
+        };
         let ahead = Ahead {
             model_map: match (&self.counters, &model) {
                 (Some(c), Some(net)) => c.early.finish(net),
                 _ => None,
             },
-            footprint: self.footprint.take().and_then(|h| h.join().ok()),
+            footprint,
+            planar,
         };
         let early_ms = ms(t);
         let had_early = ahead.model_map.is_some();
