@@ -3,7 +3,7 @@
 
 use super::fit::{fit_circle, local_quadratic, peak_vertex};
 use super::outline::{line_crossings, regions, simplify, Region};
-use super::profile::{peaks, pick, valleys, Profiles};
+use super::profile::{peaks, pick, valleys, Crossings, Profiles};
 use super::MeasureError;
 use crate::geom::HeightMap;
 use footscan_geom::{quarter_turn, unit_by_hypot, P2, V2};
@@ -300,8 +300,7 @@ fn extreme(
 /// Principal direction of a region's cells (unit, sign arbitrary).
 fn principal_axis(map: &HeightMap, r: &Region) -> V2 {
     let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for &k in &r.cells {
-        let (i, j) = map.cell(k);
+    for (_, i, j) in r.cells_ij(map.nx) {
         let (dx, dy) = (map.x(i) - r.centroid.x, map.y(j) - r.centroid.y);
         sxx += dx * dx;
         sxy += dx * dy;
@@ -474,8 +473,8 @@ impl Planar {
         let mut warnings = Vec::new();
 
         // The metatarsal heads from the side profiles; with joined toes the axis follows them.
-        let mut heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut Vec::new());
         if joined {
+            let mut heads = Heads::find(bo, &tips, centre, radius, u, sign, &mut Vec::new());
             for _ in 0..30 {
                 let Some(h) = &heads else { break };
                 let (c, r) = heel_circle(bo, u, band)?;
@@ -549,7 +548,7 @@ impl Planar {
             ts.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         );
 
-        let heel_width = heel_width(bo, cell_mm, length, radius, to_world, m)
+        let heel_width = heel_width(bo, cell_mm, length, radius, to_world, (u, m))
             .ok_or_else(|| missing("heel width"))?;
 
         let hallux_point = match toes.first() {
@@ -719,12 +718,13 @@ fn finish(
     // scan's results wait on them, issue 34 item 2).
     let (arch, thirds) = std::thread::scope(|s| {
         let thirds = s.spawn(|| contact_thirds(map, body, x_front, &xl));
-        let mut arch = arch_height(map, body, x_front, &xl, &yl, yc, ARCH_SLOPE);
+        let fits = arch_fits(map, body, x_front, &xl, &yl, yc);
+        let mut arch = arch_height(&fits, ARCH_SLOPE);
         for limit in ARCH_SLOPE_FALLBACK {
             if arch.is_some() {
                 break;
             }
-            arch = arch_height(map, body, x_front, &xl, &yl, yc, limit);
+            arch = arch_height(&fits, limit);
             if arch.is_some() {
                 warnings.push(format!(
                     "arch height taken where the medial midfoot slopes under {:.0} degrees: it \
@@ -802,8 +802,7 @@ fn finish(
 fn arch_side(map: &HeightMap, body: &Region, c: P2, u: V2, extent: f64) -> f64 {
     let left = quarter_turn(&u);
     let (mut l, mut r) = (0.0, 0.0);
-    for &k in &body.cells {
-        let (i, j) = map.cell(k);
+    for (k, i, j) in body.cells_ij(map.nx) {
         let p = P2::new(map.x(i), map.y(j));
         let x = (p - c).dot(&u);
         if (0.15 * extent..0.45 * extent).contains(&x) {
@@ -832,7 +831,7 @@ fn heel_width(
     length: f64,
     x_centre: f64,
     to_world: impl Fn(f64, f64) -> P2,
-    m: V2,
+    (u, m): (V2, V2),
 ) -> Option<(f64, P2, P2)> {
     let step = (cell / 2.0).max(0.05);
     let n = (length / 4.0 / step).ceil() as usize;
@@ -840,14 +839,12 @@ fn heel_width(
     // Stations from 2 mm behind the heel point (none cross) to 2 mm past the quarter, so the
     // smoothing has samples on both sides of the range.
     let extra = (2.0 / step).ceil() as usize;
+    let c = Crossings::of(&[bo], to_world(0.0, 0.0), u, m, n + extra + 1, step);
     for q in 0..=n + extra {
-        let x = q as f64 * step;
-        let o = to_world(x, 0.0);
-        let ts = line_crossings(bo, o, m);
-        if ts.len() >= 2 {
-            xs.push(x);
-            med.push(ts.iter().copied().fold(f64::NEG_INFINITY, f64::max));
-            lat.push(ts.iter().copied().fold(f64::INFINITY, f64::min));
+        if c.count[q] >= 2 {
+            xs.push(q as f64 * step);
+            med.push(c.hi[q]);
+            lat.push(c.lo[q]);
         }
     }
     let at = |x: f64| {
@@ -874,17 +871,18 @@ fn heel_width(
     Some((w, to_world(x, a), to_world(x, b)))
 }
 
-/// Highest sole point sloping under `max_slope` over the medial half of the middle third of
-/// the body (x' in [x_f/3, 2 x_f/3], medial of the axis): plane fits over ARCH_FIT_RADIUS.
-fn arch_height(
+/// The plane fits of the arch: over the medial half of the middle third of the body (x' in
+/// [x_f/3, 2 x_f/3], medial of the axis), on cells about 0.2 mm apart, a plane fitted to the
+/// heights within ARCH_FIT_RADIUS wherever that disc lies wholly on the sole. Each as (height
+/// of the plane at its centre, slope, centre), in the order of the body's cells.
+fn arch_fits(
     map: &HeightMap,
     body: &Region,
     x_front: f64,
     xl: &impl Fn(P2) -> f64,
     yl: &impl Fn(P2) -> f64,
     y_axis: f64,
-    max_slope: f64,
-) -> Option<(f64, P2)> {
+) -> Vec<(f64, f64, P2)> {
     let cell = map.cell_mm;
     let rad = (ARCH_FIT_RADIUS / cell).ceil() as isize;
     // Evaluate on cells about 0.2 mm apart.
@@ -912,40 +910,69 @@ fn arch_height(
         s0[0], s0[1], s0[2], s0[1], s0[3], s0[4], s0[2], s0[4], s0[5],
     )
     .lu();
+    // A disc reaching past the map is no fit; its reach is that of its farthest cells.
+    let (ri, rj) = disc.iter().fold((0, 0), |(a, b), &(di, dj, _, _)| {
+        (a.max(di.abs()), b.max(dj.abs()))
+    });
+    let (nx, ny) = (map.nx as isize, map.ny as isize);
+    let centres: Vec<(isize, P2)> = body
+        .cells_ij(map.nx)
+        .filter(|&(_, i, j)| i % stride == 0 && j % stride == 0)
+        .filter_map(|(k, i, j)| {
+            let p = P2::new(map.x(i), map.y(j));
+            let x = xl(p);
+            let (i, j) = (i as isize, j as isize);
+            let inside = i >= ri && j >= rj && i + ri < nx && j + rj < ny;
+            (x >= x_front / 3.0 && x <= 2.0 * x_front / 3.0 && yl(p) >= y_axis && inside)
+                .then_some((k as isize, p))
+        })
+        .collect();
+    // The disc as index offsets from its centre.
+    let offs: Vec<(isize, f64, f64)> = disc
+        .iter()
+        .map(|&(di, dj, dx, dy)| (dj * nx + di, dx, dy))
+        .collect();
+    // Plane z = a + b dx + c dy over the disc; no fit across the outline (a height that is
+    // not finite makes the sums so). LANES discs at once, each summed in the disc's order:
+    // one disc's sums are a chain of dependent additions, and the results of a scan wait on
+    // them (issue 34 item 2).
+    const LANES: usize = 4;
+    let z = &map.z;
+    let mut out = Vec::with_capacity(centres.len());
+    for group in centres.chunks(LANES) {
+        let mut zs = [[0.0f64; 3]; LANES];
+        let ks: [isize; LANES] = std::array::from_fn(|l| group.get(l).map_or(group[0].0, |c| c.0));
+        for &(o, dx, dy) in &offs {
+            for l in 0..LANES {
+                let v = z[(ks[l] + o) as usize];
+                zs[l][0] += v;
+                zs[l][1] += v * dx;
+                zs[l][2] += v * dy;
+            }
+        }
+        for (l, &(_, p)) in group.iter().enumerate() {
+            let [a, b, c] = zs[l];
+            if !(a.is_finite() && b.is_finite() && c.is_finite()) {
+                continue;
+            }
+            let Some(c) = lu.solve(&nalgebra::Vector3::new(a, b, c)) else {
+                continue;
+            };
+            out.push((c[0], c[1].hypot(c[2]), p));
+        }
+    }
+    out
+}
+
+/// Highest sole point among the arch's plane fits sloping under `max_slope`.
+fn arch_height(fits: &[(f64, f64, P2)], max_slope: f64) -> Option<(f64, P2)> {
     let mut best: Option<(f64, P2)> = None;
-    'candidates: for &k in &body.cells {
-        let (i, j) = map.cell(k);
-        if i % stride != 0 || j % stride != 0 {
+    for &(h, slope, p) in fits {
+        if slope > max_slope {
             continue;
         }
-        let p = P2::new(map.x(i), map.y(j));
-        let x = xl(p);
-        if x < x_front / 3.0 || x > 2.0 * x_front / 3.0 || yl(p) < y_axis {
-            continue;
-        }
-        // Plane z = a + b dx + c dy over the disc; no fit across the outline.
-        let mut zs = [0.0f64; 3]; // sums: z, z dx, z dy
-        for &(di, dj, dx, dy) in &disc {
-            let (ii, jj) = (i as isize + di, j as isize + dj);
-            if ii < 0 || jj < 0 || ii >= map.nx as isize || jj >= map.ny as isize {
-                continue 'candidates;
-            }
-            let z = map.get(ii as usize, jj as usize);
-            if !z.is_finite() {
-                continue 'candidates;
-            }
-            for (v, add) in zs.iter_mut().zip([z, z * dx, z * dy]) {
-                *v += add;
-            }
-        }
-        let Some(c) = lu.solve(&nalgebra::Vector3::new(zs[0], zs[1], zs[2])) else {
-            continue;
-        };
-        if c[1].hypot(c[2]) > max_slope {
-            continue;
-        }
-        if best.is_none_or(|b| c[0] > b.0) {
-            best = Some((c[0], p));
+        if best.is_none_or(|b| h > b.0) {
+            best = Some((h, p));
         }
     }
     best
@@ -960,11 +987,10 @@ fn contact_thirds(
 ) -> [f64; 3] {
     let mut t = [0.0; 3];
     let a = map.cell_mm * map.cell_mm;
-    for &k in &body.cells {
+    for (k, i, j) in body.cells_ij(map.nx) {
         if map.z[k] > CONTACT_MM {
             continue;
         }
-        let (i, j) = map.cell(k);
         let x = xl(P2::new(map.x(i), map.y(j)));
         if !(0.0..x_front).contains(&x) {
             continue;

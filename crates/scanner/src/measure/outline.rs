@@ -13,7 +13,7 @@ use footscan_geom::{P2, V2};
 /// One 4-connected region of valid cells.
 #[derive(Clone, Debug)]
 pub struct Region {
-    /// Cell indices into the map's `z` (`HeightMap::index`; `HeightMap::cell` back to (i, j)).
+    /// Cell indices into the map's `z` (`HeightMap::index`), ascending.
     pub cells: Vec<usize>,
     /// Area in mm^2.
     pub area_mm2: f64,
@@ -21,6 +21,23 @@ pub struct Region {
     pub centroid: P2,
     /// Outer outline, counterclockwise, world mm (last vertex not repeated).
     pub outline: Vec<P2>,
+}
+
+impl Region {
+    /// Its cells as (index, column, row) on a map `nx` cells wide, without a division per
+    /// cell (the cells ascend, so the row only grows).
+    pub fn cells_ij(&self, nx: usize) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
+        let mut j = self.cells.first().map_or(0, |&k| k / nx);
+        let mut start = j * nx;
+        self.cells.iter().map(move |&k| {
+            debug_assert!(k >= start, "cells not ascending");
+            while k >= start + nx {
+                start += nx;
+                j += 1;
+            }
+            (k, k - start, j)
+        })
+    }
 }
 
 /// The 4-connected regions of the valid cells of `map`, largest first (equal sizes in the
