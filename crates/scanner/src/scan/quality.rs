@@ -272,54 +272,68 @@ pub fn bridge_gaps(grid: &mut ScanGrid, step_mm: f64, bridge_mm: f64) -> Quality
     }
     let foot: Vec<bool> = (0..n).map(|i| valid_rows(grid, i) >= FOOT_ROWS).collect();
     q.foot_frames = foot.iter().filter(|&&f| f).count() as u64;
+    // Frames missing before frame i that are bridged: decided first, so a scan with nothing
+    // to bridge keeps its grid instead of copying it (30 MB, and the results of a scan wait
+    // on this: issue 34 item 2).
+    let mut bridge = vec![0usize; n];
+    for i in 1..n {
+        let (a, b) = (grid.frames[i - 1], grid.frames[i]);
+        let d = b.x_mm - a.x_mm;
+        let over_foot = foot[i - 1] || foot[i];
+        if over_foot {
+            q.largest_gap_mm = q.largest_gap_mm.max(d);
+        }
+        let missing = (d / step_mm).round() as i64 - 1;
+        if over_foot && missing > 0 {
+            if d <= bridge_mm + 1e-9 {
+                bridge[i] = missing as usize;
+                q.bridged_frames += missing as u64;
+            } else {
+                q.unbridged_gaps_mm.push([a.x_mm, b.x_mm]);
+            }
+        }
+    }
+    if q.bridged_frames == 0 {
+        for (k, f) in grid.frames.iter_mut().enumerate() {
+            f.index = k as u64;
+        }
+        return q;
+    }
     let mut frames = Vec::with_capacity(n);
     let mut lines = Vec::with_capacity(grid.lines.len());
     let mut points = Vec::with_capacity(grid.points.len());
-    for i in 0..n {
-        if i > 0 {
+    for (i, &missing) in bridge.iter().enumerate() {
+        if missing > 0 {
             let (a, b) = (grid.frames[i - 1], grid.frames[i]);
             let d = b.x_mm - a.x_mm;
-            let over_foot = foot[i - 1] || foot[i];
-            if over_foot {
-                q.largest_gap_mm = q.largest_gap_mm.max(d);
-            }
-            let missing = (d / step_mm).round() as i64 - 1;
-            if over_foot && missing > 0 {
-                if d <= bridge_mm + 1e-9 {
-                    for k in 1..=missing {
-                        let t = k as f64 / (missing + 1) as f64;
-                        frames.push(FrameMeta {
-                            index: 0,
-                            seq: BRIDGED_SEQ,
-                            timestamp: footscan_hal::Timestamp {
-                                nanos: a.timestamp.nanos
-                                    + ((b.timestamp.nanos.saturating_sub(a.timestamp.nanos)) as f64
-                                        * t) as u64,
-                            },
-                            x_mm: a.x_mm + d * t,
+            for k in 1..=missing {
+                let t = k as f64 / (missing + 1) as f64;
+                frames.push(FrameMeta {
+                    index: 0,
+                    seq: BRIDGED_SEQ,
+                    timestamp: footscan_hal::Timestamp {
+                        nanos: a.timestamp.nanos
+                            + ((b.timestamp.nanos.saturating_sub(a.timestamp.nanos)) as f64 * t)
+                                as u64,
+                    },
+                    x_mm: a.x_mm + d * t,
+                });
+                for j in 0..rows {
+                    let (pa, pb) = (grid.point(i - 1, j), grid.point(i, j));
+                    let (la, lb) = (grid.lines[(i - 1) * rows + j], grid.lines[i * rows + j]);
+                    if pa[0].is_finite() && pb[0].is_finite() {
+                        points.push(pa + (pb - pa) * t);
+                        lines.push(LinePeak {
+                            col: la.col + (lb.col - la.col) * t,
+                            intensity: la.intensity.min(lb.intensity),
+                            width: la.width.max(lb.width),
+                            quality: la.quality.min(lb.quality),
+                            reject: None,
                         });
-                        for j in 0..rows {
-                            let (pa, pb) = (grid.point(i - 1, j), grid.point(i, j));
-                            let (la, lb) =
-                                (grid.lines[(i - 1) * rows + j], grid.lines[i * rows + j]);
-                            if pa[0].is_finite() && pb[0].is_finite() {
-                                points.push(pa + (pb - pa) * t);
-                                lines.push(LinePeak {
-                                    col: la.col + (lb.col - la.col) * t,
-                                    intensity: la.intensity.min(lb.intensity),
-                                    width: la.width.max(lb.width),
-                                    quality: la.quality.min(lb.quality),
-                                    reject: None,
-                                });
-                            } else {
-                                points.push(P3::from([f64::NAN; 3]));
-                                lines.push(LinePeak::NONE);
-                            }
-                        }
+                    } else {
+                        points.push(P3::from([f64::NAN; 3]));
+                        lines.push(LinePeak::NONE);
                     }
-                    q.bridged_frames += missing as u64;
-                } else {
-                    q.unbridged_gaps_mm.push([a.x_mm, b.x_mm]);
                 }
             }
         }
@@ -389,8 +403,9 @@ pub fn inspect(grid: &ScanGrid, q: &mut Quality) {
     if edge_frames >= 3 {
         q.cut.push("edge of the camera's view".into());
     }
-    zs.sort_by(f64::total_cmp);
-    q.lowest_mm = Some(zs[(zs.len() - 1) / 200]);
+    // The 0.5 % quantile: selected, not sorted (253 000 heights, 15 ms).
+    let k = (zs.len() - 1) / 200;
+    q.lowest_mm = Some(*zs.select_nth_unstable_by(k, f64::total_cmp).1);
 }
 
 /// The verdict: issues from `q` (with the operator's side `chosen` and whether a foot was
