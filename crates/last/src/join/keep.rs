@@ -6,8 +6,8 @@
 //! own facets (not only the sections), starting from the section surface's parameters and
 //! a fifth of its u knots ([`SPANS_U`]), and knots are added in u and v in the spans where
 //! the surface still strays more than [`TOL_MM`] from the mesh until none does. The join patch is then bent to meet the fitted
-//! parts with their own position, first and second v derivatives ([`meet`]), so the seams
-//! stay G2 against the surfaces as fitted. The closed STL keeps the original meshes
+//! parts ([`meet`]): by default their position and tangent plane along the whole seam, the
+//! change to the patch confined to a band next to each seam ([`Continuity::G1`]). The closed STL keeps the original meshes
 //! themselves outside the join region, trimmed at the planes ([`trim`]) and stitched to the
 //! patch ([`zip`]).
 
@@ -812,18 +812,29 @@ fn scaled(part: &[V3], own: &[V3]) -> Vec<V3> {
 /// Seam continuity asked of the patch against the fitted parts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 pub enum Continuity {
-    /// Position and, at each control column's Greville point, the tangent plane: the patch's
-    /// own v tangent turned into the fitted part's tangent plane there. The patch stays as
-    /// fair as the section patch (curvature variation 8.3e2 on the LastScan pair), but
-    /// between the points, where the normal turns fast at the rim, the normal jumps up to
-    /// 1.3 deg (LastScan) and 7.7 deg (RoundTip).
+    /// Position and tangent plane along the whole seam, the tangent's change confined to a
+    /// band next to each seam ([`G1_BAND`] of the patch's v): the patch leaves each seam along
+    /// the fitted part's own v tangent at the length of the patch's (as [`Self::G1Tangent`]),
+    /// but the change from the patch's own tangent fades out within the band instead of
+    /// across the whole gap, so the fitted parts' normals, which wiggle along the cut, bend
+    /// only a strip next to the part that has them and the rest of the patch stays the
+    /// section patch. Normal jump 0.035 / 0.009 deg (LastScan back / toe) and 0.053 / 0.021
+    /// deg (RoundTip) at most; curvature variation 1.9e2 / 3.4e5 against 1.4e2 / 3.7e5 for
+    /// the section patch (docs/method.md 11.7.4).
     #[default]
     G1,
+    /// Position and, at each control column's Greville point, the tangent plane: the patch's
+    /// own v tangent turned into the fitted part's tangent plane there, by a Hermite
+    /// correction across the whole gap (the default until 11.7.4). Fair (curvature variation
+    /// 2.1e3 / 8.7e5), but between the points, where the normal turns fast at the rim, the
+    /// normal jumps up to 2.3 deg (LastScan) and 6.0 deg (RoundTip).
+    G1Greville,
     /// Position and tangent plane along the whole seam: the fitted part's own v tangent at
-    /// the length of the patch's. The normal jumps 0.06 deg at most, but the fitted parts'
-    /// normals wiggle along the cut and the patch carries the wiggles across the gap
-    /// (curvature variation 5.9e6 on the LastScan pair, 5.2e8 on the RoundTip pair; ripples
-    /// in the zebra pictures). docs/method.md 11.7.1.
+    /// the length of the patch's, by a Hermite correction across the whole gap. The normal
+    /// jumps 0.06 deg at most, but the fitted parts' normals wiggle along the cut and the
+    /// patch carries the wiggles across the gap (curvature variation 3.1e7 on the LastScan
+    /// pair, 3.2e8 on the RoundTip pair; ripples in the zebra pictures). docs/method.md
+    /// 11.7.1.
     G1Tangent,
     /// Position, first and second v derivatives of the fitted parts: exact G2, but the
     /// fitted parts' derivatives carry their parametrisation, and the patch bulged (8.7 mm
@@ -831,10 +842,19 @@ pub enum Continuity {
     G2,
 }
 
+/// Width of the band next to each seam, as a fraction of the patch's v, within which
+/// [`Continuity::G1`] changes the patch's tangent: about 3 mm on the LastScan pair and 7 mm
+/// on the RoundTip pair (the patch is 20 / 47 mm across). Curvature variation of the LastScan
+/// patch against the band (RoundTip: 3.4e5 from 0.1 to 0.3): 2.8e2 at 0.1, 1.9e2 at 0.15,
+/// 2.3e2 at 0.2, 4.7e2 at 0.25 and 0.3, 4.4e4 at 0.45; the whole gap was 3.1e7.
+pub const G1_BAND: f64 = 0.15;
+
 /// The patch bent to meet `back` at its v = 1 and `toe` at its v = 0: a quintic (G2) or cubic
 /// (G1) Hermite correction in v whose end values are the differences of position and of the
 /// v derivatives, these scaled by the parameter lengths (`lens`: back, patch, toe on the
-/// whole surface before each piece was mapped to [0, 1]). All three share their u knots.
+/// whole surface before each piece was mapped to [0, 1]); for [`Continuity::G1`] the
+/// derivatives' part is a cubic B-spline that vanishes past [`G1_BAND`] from each end. All
+/// three share their u knots.
 pub fn meet(
     patch: &NurbsSurface,
     back: &NurbsSurface,
@@ -894,7 +914,8 @@ pub fn meet(
                 ]
             })
             .collect(),
-        Continuity::G1 => {
+        Continuity::G1 => return band(p, [&d0, &e0], [&bd[1], &td[1]], [&pd0[1], &pd1[1]]),
+        Continuity::G1Greville => {
             // The patch's own v tangent turned into the fitted part's tangent plane at the
             // Greville point of each control column: the fitted parts' v derivatives carry
             // their parametrisation (short spans near the cut after refinement), and taking
@@ -953,6 +974,62 @@ pub fn meet(
     .with_periodic(p.periodic_u, false)?;
     let both = make_surfaces_compatible(&[p.clone(), corr])?;
     Ok(both[0].try_add(&both[1])?)
+}
+
+/// [`Continuity::G1`]'s patch: `p` plus a cubic Hermite correction of position (end values
+/// `pos`, zero end tangents) and one of tangent on the knots 0, 0, 0, 0, b/2, b, 1 - b,
+/// 1 - b/2, 1, 1, 1, 1 in v (b = [`G1_BAND`]), whose control values are zero but next to each
+/// end: its first basis function is zero past b, so the tangent's change, the fitted part's
+/// v derivative (`part`, back then toe) scaled to the length of the patch's own (`own`) less
+/// that, acts only in the band. Both are C2 in v and exact at the ends: position and tangent
+/// plane of the fitted parts along the whole seam.
+fn band(
+    p: &NurbsSurface,
+    pos: [&[V3]; 2],
+    part: [&[V3]; 2],
+    own: [&[V3]; 2],
+) -> Result<NurbsSurface, JoinError> {
+    let nu = p.nu;
+    let t0 = scaled(part[0], own[0]);
+    let t1 = scaled(part[1], own[1]);
+    let a = 0.5 * G1_BAND;
+    // The first basis function's derivative at 0 is 3 / a (and the last's at 1, negated).
+    let z = V3::zeros();
+    let pts_pos: Vec<P3> = (0..nu)
+        .flat_map(|i| [pos[0][i], pos[0][i], pos[1][i], pos[1][i]])
+        .map(P3::from)
+        .collect();
+    let pts_tan: Vec<P3> = (0..nu)
+        .flat_map(|i| {
+            let (d, e) = (t0[i] - own[0][i], t1[i] - own[1][i]);
+            [z, d * a / 3.0, z, z, z, z, -e * a / 3.0, z]
+        })
+        .map(P3::from)
+        .collect();
+    let kv_pos = vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
+    let b = G1_BAND;
+    let kv_tan = vec![
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        a,
+        b,
+        1.0 - b,
+        1.0 - a,
+        1.0,
+        1.0,
+        1.0,
+        1.0,
+    ];
+    let corr = |kv: Vec<f64>, pts: Vec<P3>| {
+        let n = kv.len() - 4;
+        NurbsSurface::new(p.degree_u, 3, p.knots_u.clone(), kv, nu, n, pts, None)
+            .and_then(|s| s.with_periodic(p.periodic_u, false))
+    };
+    let all =
+        make_surfaces_compatible(&[p.clone(), corr(kv_pos, pts_pos)?, corr(kv_tan, pts_tan)?])?;
+    Ok(all[0].try_add(&all[1])?.try_add(&all[2])?)
 }
 
 /// The part of `mesh` on the kept side of `plane` (`into_part` = +1 keeps the side the normal
