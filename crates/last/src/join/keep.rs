@@ -40,9 +40,12 @@ const SMOOTH: f64 = 1e-2;
 const CG_TOL: f64 = 1e-7;
 /// Weight of a point of the pinned end curves against a facet point.
 const END_WEIGHT: f64 = 20.0;
+/// Weight of the second differences around of the fitted part's first control row
+/// differences at the cut against their fit ([`fair_cut`]): about three columns either side.
+const CUT_SMOOTH: f64 = 100.0;
 
 /// The fit's constants, hashed into its cache key ([`super::fit_cache::key`]).
-pub fn rules() -> [f64; 7] {
+pub fn rules() -> [f64; 8] {
     [
         TOL_MM,
         SAMPLE_MM,
@@ -51,6 +54,7 @@ pub fn rules() -> [f64; 7] {
         END_WEIGHT,
         SPANS_U as f64,
         CG_TOL,
+        CUT_SMOOTH,
     ]
 }
 
@@ -462,13 +466,11 @@ struct Check {
     /// the check was bounded, see [`check`]).
     pts: Vec<P3>,
     dist: Vec<f64>,
-    /// Every distance exact (no grid point skipped).
-    exact: bool,
 }
 
 impl Check {
     /// No point checked yet, room for `cap`.
-    fn empty(cap: usize, exact: bool) -> Check {
+    fn empty(cap: usize) -> Check {
         Check {
             far: Vec::new(),
             max: 0.0,
@@ -476,7 +478,6 @@ impl Check {
             at: P3::origin(),
             pts: Vec::with_capacity(cap),
             dist: Vec::with_capacity(cap),
-            exact,
         }
     }
 }
@@ -536,7 +537,7 @@ fn check(
     let chunk = 16;
     let chunks = us.len().div_ceil(chunk);
     let parts = crate::par::map(chunks, crate::par::cores(2), |ck| {
-        let mut c = Check::empty(chunk * nv, prev.is_none());
+        let mut c = Check::empty(chunk * nv);
         let mut sum = 0.0;
         for iu in ck * chunk..((ck + 1) * chunk).min(us.len()) {
             let u = us[iu];
@@ -588,7 +589,7 @@ fn check(
         c.rms = sum;
         c
     });
-    let mut c = Check::empty(n, prev.is_none());
+    let mut c = Check::empty(n);
     let mut sum = 0.0;
     for p in parts {
         c.far.extend(p.far);
@@ -673,7 +674,7 @@ pub fn fit_part(
     let fine_u = distinct(&s0.knots_u, u0, u1);
     s = coarse_u(s0, (fine_u.len() - 1).div_ceil(SPANS_U));
     fit.setup_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let mut c = None;
+    let mut c: Option<Check> = None;
     for round in 0..ROUNDS {
         let ts = Instant::now();
         // The parameters stay those found on the section surface: knot insertion keeps the
@@ -712,19 +713,9 @@ pub fn fit_part(
             .map(|(j, _)| 0.5 * (kv[j] + kv[j + 1]))
             .collect();
         let tc = Instant::now();
-        // The last round's check is a full one (its figures are the fit's); so is one that
-        // turns out to be the last.
-        let prev = if round + 1 == ROUNDS {
-            None
-        } else {
-            c.as_ref()
-        };
-        let mut ck = check(&s, &bvh, &s0.knots_u, &s0.knots_v, prev);
-        let last = round + 1 == ROUNDS || (over_v.is_empty() && ck.max <= TOL_MM);
-        if last && !ck.exact {
-            // The figures of the fit come from a full check.
-            ck = check(&s, &bvh, &s0.knots_u, &s0.knots_v, None);
-        }
+        // Bounded by the previous check (its decisions are a full check's); the fit's figures
+        // come from the full check after the cut is faired, below.
+        let ck = check(&s, &bvh, &s0.knots_u, &s0.knots_v, c.as_ref());
         fit.check_ms += tc.elapsed().as_secs_f64() * 1e3;
         // u spans are halved where a facet point or a check point is over the tolerance.
         bad_u.extend(
@@ -748,7 +739,16 @@ pub fn fit_part(
         }
         s = s.refine_v(&over_v).refine_u(&split_u(&s, &fine_u, &bad_u));
     }
-    let c = c.expect("one round at least");
+    // The cut is the end of the section surface that lies on the plane.
+    let at = |v: f64| {
+        (0..8)
+            .map(|k| depth(&s0.point(k as f64 / 8.0, v)).abs())
+            .sum::<f64>()
+    };
+    fair_cut(&mut s, at(v0) < at(v1));
+    let tc = Instant::now();
+    let c = check(&s, &bvh, &s0.knots_u, &s0.knots_v, None);
+    fit.check_ms += tc.elapsed().as_secs_f64() * 1e3;
     fit.points_max_mm = pts[..nfacet]
         .iter()
         .zip(&uv)
@@ -762,6 +762,49 @@ pub fn fit_part(
     fit.max_from_plane_mm = -depth(&c.at);
     fit.ms = t0.elapsed().as_secs_f64() * 1e3;
     Ok((s, fit))
+}
+
+/// The fitted part's tangent field across the cut made fair: the differences between the
+/// first control row in from the cut and the cut's own row (`at_start`: the cut at v = 0,
+/// else at v = 1), which give the part's v derivative along the cut, replaced by their
+/// smoothing around (periodic second differences over the control columns, weight
+/// [`CUT_SMOOTH`]). The fit leaves that field wiggling column to column (the rows next to
+/// the cut hold few facet points, and the pinned cut beside them), so the part's normal
+/// wiggles along the cut, and a patch that meets it G1 had to carry the wiggles (curvature
+/// variation 3.1e7 / 3.2e8 for `G1Tangent`, docs/method.md 11.7.4). The cut's row stays, so
+/// the seam does not move; the row in from it moves by a few hundredths of a mm, which
+/// leaves the part's distance from its mesh as it was on the check grid, and its normal at
+/// the cut nearer the original last's.
+fn fair_cut(s: &mut NurbsSurface, at_start: bool) {
+    let nv = s.nv;
+    let m = s.nu - s.degree_u;
+    let (r0, r1) = if at_start { (0, 1) } else { (nv - 1, nv - 2) };
+    // (I + w D^T D) x = d with D the periodic second differences: a dense Cholesky of m x m
+    // (m is a few hundred columns).
+    let mut a = nalgebra::DMatrix::<f64>::identity(m, m);
+    let mut b = nalgebra::DMatrix::<f64>::zeros(m, 3);
+    for i in 0..m {
+        let idx = [(i + m - 1) % m, i, (i + 1) % m];
+        let w = [1.0, -2.0, 1.0];
+        for p in 0..3 {
+            for q in 0..3 {
+                a[(idx[p], idx[q])] += CUT_SMOOTH * w[p] * w[q];
+            }
+        }
+        let d = s.points[i * nv + r1] - s.points[i * nv + r0];
+        for k in 0..3 {
+            b[(i, k)] = d[k];
+        }
+    }
+    let x = nalgebra::Cholesky::new(a)
+        .expect("identity plus a positive semi-definite matrix")
+        .solve(&b);
+    // Columns past m wrap onto the first ones (periodic in u).
+    for i in 0..s.nu {
+        let k = i % m;
+        let q0 = s.points[i * nv + r0];
+        s.points[i * nv + r1] = q0 + V3::new(x[(k, 0)], x[(k, 1)], x[(k, 2)]);
+    }
 }
 
 /// The v derivatives of order 0..=2 of `s` at v as control points along u (the u basis is
@@ -818,23 +861,27 @@ pub enum Continuity {
     /// but the change from the patch's own tangent fades out within the band instead of
     /// across the whole gap, so the fitted parts' normals, which wiggle along the cut, bend
     /// only a strip next to the part that has them and the rest of the patch stays the
-    /// section patch. Normal jump 0.035 / 0.009 deg (LastScan back / toe) and 0.053 / 0.021
-    /// deg (RoundTip) at most; curvature variation 1.9e2 / 3.4e5 against 1.4e2 / 3.7e5 for
-    /// the section patch (docs/method.md 11.7.4).
+    /// section patch. Normal jump 0.001 / 0.000 deg (LastScan back / toe) and 0.001 / 0.003
+    /// deg (RoundTip) at most against the parts faired at the cut ([`fair_cut`]; 0.035 /
+    /// 0.009 and 0.053 / 0.021 against the parts before); curvature variation 1.8e2 / 3.4e5
+    /// against 1.4e2 / 3.7e5 for the section patch (docs/method.md 11.7.4).
     #[default]
     G1,
     /// Position and, at each control column's Greville point, the tangent plane: the patch's
     /// own v tangent turned into the fitted part's tangent plane there, by a Hermite
-    /// correction across the whole gap (the default until 11.7.4). Fair (curvature variation
-    /// 2.1e3 / 8.7e5), but between the points, where the normal turns fast at the rim, the
-    /// normal jumps up to 2.3 deg (LastScan) and 6.0 deg (RoundTip).
+    /// correction across the whole gap (the default until 11.7.4). Between the points, where
+    /// the normal turns fast at the rim, the normal jumps up to 0.27 deg (LastScan) and 0.88
+    /// deg (RoundTip) against the parts faired at the cut (2.3 and 6.0 deg before, when it
+    /// was fair: curvature variation 2.1e3 / 8.7e5; now 8.6e1 / 3.8e7).
     G1Greville,
     /// Position and tangent plane along the whole seam: the fitted part's own v tangent at
     /// the length of the patch's, by a Hermite correction across the whole gap. The normal
-    /// jumps 0.06 deg at most, but the fitted parts' normals wiggle along the cut and the
-    /// patch carries the wiggles across the gap (curvature variation 3.1e7 on the LastScan
-    /// pair, 3.2e8 on the RoundTip pair; ripples in the zebra pictures). docs/method.md
-    /// 11.7.1.
+    /// jumps 0.003 deg at most. Before the parts were faired at the cut ([`fair_cut`]) their
+    /// normals wiggled along it and the patch carried the wiggles across the gap (curvature
+    /// variation 3.1e7 on the LastScan pair, 3.2e8 on the RoundTip pair; ripples in the zebra
+    /// pictures, docs/method.md 11.7.1); now 5.2e1 / 2.5e5, but on the RoundTip pair 6.9e5
+    /// on a 384 x 192 grid and 2.4e6 with the fairing at 300 instead of 100: less steady than
+    /// the band of [`Self::G1`] (11.7.4).
     G1Tangent,
     /// Position, first and second v derivatives of the fitted parts: exact G2, but the
     /// fitted parts' derivatives carry their parametrisation, and the patch bulged (8.7 mm
@@ -845,8 +892,9 @@ pub enum Continuity {
 /// Width of the band next to each seam, as a fraction of the patch's v, within which
 /// [`Continuity::G1`] changes the patch's tangent: about 3 mm on the LastScan pair and 7 mm
 /// on the RoundTip pair (the patch is 20 / 47 mm across). Curvature variation of the LastScan
-/// patch against the band (RoundTip: 3.4e5 from 0.1 to 0.3): 2.8e2 at 0.1, 1.9e2 at 0.15,
-/// 2.3e2 at 0.2, 4.7e2 at 0.25 and 0.3, 4.4e4 at 0.45; the whole gap was 3.1e7.
+/// patch against the band, measured before the parts were faired at the cut (RoundTip: 3.4e5
+/// from 0.1 to 0.3): 2.8e2 at 0.1, 1.9e2 at 0.15, 2.3e2 at 0.2, 4.7e2 at 0.25 and 0.3, 4.4e4
+/// at 0.45; the whole gap was 3.1e7.
 pub const G1_BAND: f64 = 0.15;
 
 /// The patch bent to meet `back` at its v = 1 and `toe` at its v = 0: a quintic (G2) or cubic
