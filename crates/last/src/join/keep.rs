@@ -1225,3 +1225,150 @@ pub fn turn(verts: &[P3], l: &[u32], axis: &V3) -> f64 {
     }
     a.dot(axis).signum()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A closed tube around z: `m` control columns (periodic cubic, uniform knots) and one
+    /// control row per `(z, radius)` (clamped cubic along), each control point's radius
+    /// moved by `bump(column, row)`.
+    fn tube(m: usize, rows: &[(f64, f64)], bump: impl Fn(usize, usize) -> f64) -> NurbsSurface {
+        let p = 3;
+        let nv = rows.len();
+        let knots_u: Vec<f64> = (0..m + 2 * p + 1)
+            .map(|i| (i as f64 - p as f64) / m as f64)
+            .collect();
+        let mut knots_v = vec![0.0; 4];
+        for k in 1..nv - 3 {
+            knots_v.push(k as f64 / (nv - 3) as f64);
+        }
+        knots_v.extend([1.0; 4]);
+        let mut pts = Vec::new();
+        for i in 0..m + p {
+            let a = std::f64::consts::TAU * (i % m) as f64 / m as f64;
+            for (j, &(z, r)) in rows.iter().enumerate() {
+                let r = r + bump(i % m, j);
+                pts.push(P3::new(r * a.cos(), r * a.sin(), z));
+            }
+        }
+        NurbsSurface::new(p, 3, knots_u, knots_v, m + p, nv, pts, None)
+            .and_then(|s| s.with_periodic(true, false))
+            .unwrap()
+    }
+
+    fn angle_deg(a: V3, b: V3) -> f64 {
+        a.normalize()
+            .dot(&b.normalize())
+            .abs()
+            .min(1.0)
+            .acos()
+            .to_degrees()
+    }
+
+    /// The default G1 meets both parts' tangent planes along the whole seam, even where the
+    /// part's tangent wiggles column to column, and leaves the patch as it was past the band.
+    #[test]
+    fn g1_meets_the_tangent_planes_and_keeps_the_middle() {
+        let m = 64;
+        // A cone in to the cut at z = 0 whose row next to the cut wiggles, a straight tube as
+        // the patch, a wider cone out of the toe cut at z = 10.
+        let back = tube(
+            m,
+            &[(-10.0, 12.0), (-6.0, 11.2), (-3.0, 10.6), (0.0, 10.0)],
+            |i, j| {
+                if j == 2 {
+                    0.05 * (-1f64).powi(i as i32)
+                } else {
+                    0.0
+                }
+            },
+        );
+        let patch = tube(
+            m,
+            &[
+                (0.0, 10.0),
+                (10.0 / 3.0, 10.0),
+                (20.0 / 3.0, 10.0),
+                (10.0, 10.0),
+            ],
+            |_, _| 0.0,
+        );
+        let toe = tube(
+            m,
+            &[(10.0, 10.0), (13.0, 10.3), (16.0, 10.6), (20.0, 11.0)],
+            |_, _| 0.0,
+        );
+        let met = meet(&patch, &back, &toe, [1.0, 1.0, 1.0], Continuity::G1).unwrap();
+        for k in 0..500 {
+            let u = (k as f64 + 0.5) / 500.0;
+            assert!((met.point(u, 0.0) - back.point(u, 1.0)).norm() < 1e-12);
+            assert!((met.point(u, 1.0) - toe.point(u, 0.0)).norm() < 1e-12);
+            let jb = angle_deg(met.normal(u, 0.0), back.normal(u, 1.0));
+            let jt = angle_deg(met.normal(u, 1.0), toe.normal(u, 0.0));
+            // Exact but for the scale's variation around (its window, [`scaled`]): the part's
+            // alternating row changes the ratio of lengths column to column (1.2e-4 deg).
+            assert!(jb < 1e-3 && jt < 1e-3, "u {u}: {jb} / {jt} deg");
+            // Past the band the patch is its own (the positions met already).
+            for v in [G1_BAND + 1e-9, 0.5, 1.0 - G1_BAND - 1e-9] {
+                assert!(
+                    (met.point(u, v) - patch.point(u, v)).norm() < 1e-12,
+                    "{u} {v}"
+                );
+            }
+        }
+        // The Greville turn, on the same parts, misses the wiggling part's tangent plane
+        // between its points (0.22 deg here).
+        let grev = meet(&patch, &back, &toe, [1.0; 3], Continuity::G1Greville).unwrap();
+        let worst = (0..500)
+            .map(|k| {
+                let u = (k as f64 + 0.5) / 500.0;
+                angle_deg(grev.normal(u, 0.0), back.normal(u, 1.0))
+            })
+            .fold(0.0, f64::max);
+        assert!(worst > 0.01, "{worst}");
+        // Inside the band it bends (the cone's tangent is not the tube's).
+        assert!((met.point(0.3, 0.5 * G1_BAND) - patch.point(0.3, 0.5 * G1_BAND)).norm() > 1e-3);
+    }
+
+    /// The row next to the cut loses its column-to-column wiggle; the cut's row stays.
+    #[test]
+    fn fair_cut_smooths_the_tangent_field_and_keeps_the_cut() {
+        let m = 64;
+        let rows = [(-10.0, 12.0), (-6.0, 11.2), (-3.0, 10.6), (0.0, 10.0)];
+        let wiggle = |i: usize, j: usize| {
+            if j == 2 {
+                0.05 * (-1f64).powi(i as i32)
+            } else {
+                0.0
+            }
+        };
+        let alternation = |s: &NurbsSurface| {
+            (0..m)
+                .map(|i| {
+                    let a = std::f64::consts::TAU * i as f64 / m as f64;
+                    let d = s.points[i * s.nv + 2] - s.points[i * s.nv + 3];
+                    (-1f64).powi(i as i32) * d.dot(&V3::new(a.cos(), a.sin(), 0.0))
+                })
+                .sum::<f64>()
+                / m as f64
+        };
+        let mut s = tube(m, &rows, wiggle);
+        let before = s.clone();
+        assert!((alternation(&s) - 0.05).abs() < 1e-12);
+        fair_cut(&mut s, false);
+        assert!(alternation(&s).abs() < 1e-4, "{}", alternation(&s));
+        for i in 0..s.nu {
+            assert_eq!(s.points[i * s.nv + 3], before.points[i * s.nv + 3]);
+            assert_eq!(s.points[i * s.nv], before.points[i * s.nv]);
+            // The wrapped columns stay copies of the first ones.
+            let k = i % m;
+            assert_eq!(s.points[i * s.nv + 2], s.points[k * s.nv + 2]);
+        }
+        // The smooth part of the field (the cone's slope) stays within 1 %.
+        let smooth = tube(m, &rows, |_, _| 0.0);
+        let d0 = (smooth.points[2] - smooth.points[3]).norm();
+        let d1 = (s.points[2] - s.points[3]).norm();
+        assert!((d1 - d0).abs() < 0.01 * d0, "{d0} {d1}");
+    }
+}
