@@ -1,7 +1,7 @@
 //! The fits of the kept parts on both real pairs, timed (`cargo run --release -p footscan-last
 //! --example join_fit [-- --dense] [--cache DIR]`): per part the fit's time and where it goes,
-//! its distance from the mesh on the fit's check grid and on the quality's grid (240 x 120;
-//! with `--dense` also 1200 x 600), the join's own time, the seams between the pieces and
+//! its distance from the mesh on the fit's check grid, on the quality's grid (240 x 120;
+//! with `--dense` also 1200 x 600) and on 2000 x 31 points over the 3 v spans at the cut, the join's own time, the seams between the pieces and
 //! against the original lasts; with `--cache DIR` each pair is joined twice with the fit cache
 //! in DIR and both runs' fit times are printed. The lasts are read from FOOTSCAN_DATA (default:
 //! the shared data directory beside the repository).
@@ -69,6 +69,28 @@ fn main() {
                 f.rms_mm,
                 q.max_mm
             );
+            // Next to the cut (the fairing of the part's tangent field there moves the
+            // surface): 2000 x 31 points over the 3 v spans at the cut.
+            let kv: Vec<f64> = {
+                let mut k = s.knots_v.clone();
+                k.dedup();
+                k
+            };
+            let n = kv.len();
+            let (a, b) = if part == "back" {
+                (kv[n - 4], kv[n - 1])
+            } else {
+                (kv[0], kv[3])
+            };
+            let bvh = footscan_geom::mesh::Bvh::new(m);
+            let mut near: f64 = 0.0;
+            for i in 0..2000 {
+                for k in 0..=30 {
+                    let p = s.point(i as f64 / 2000.0, a + (b - a) * k as f64 / 30.0);
+                    near = near.max(bvh.closest_point(&p).unwrap().distance);
+                }
+            }
+            print!(", next to the cut {near:.3}");
             if dense {
                 let d = seam::deviation(s, m, 1200, 600);
                 print!(

@@ -1,5 +1,5 @@
 //! Kept parts true to their meshes (issue 36): each fitted part within 0.1 mm of its mesh, the
-//! seams G2 against the fitted parts, and the STL the original meshes outside the join region.
+//! seams G1 within 0.1 deg against the fitted parts with a fair patch, and the STL the original meshes outside the join region.
 
 use footscan_geom::mesh::{TriMesh, Units};
 use footscan_last::join::{self, output, JoinParams};
@@ -43,9 +43,9 @@ fn pair(name: &str) -> (TriMesh, TriMesh) {
 fn kept_parts_follow_their_meshes_and_the_seams_the_originals() {
     for name in ["scan", "roundtip"] {
         let (b, t) = pair(name);
+        // The default continuity (G1 confined to a band next to each seam).
         let p = JoinParams {
             fit_parts: true,
-            continuity: join::keep::Continuity::G1Tangent,
             ..JoinParams::default()
         };
         let j = join::join(&b, &t, &p).unwrap();
@@ -73,10 +73,12 @@ fn kept_parts_follow_their_meshes_and_the_seams_the_originals() {
             // on 500 spans around without halving them at the rim).
             assert!(f.max_mm <= 0.1 && f.rms_mm <= 0.02, "{name} {part}: {f:?}");
         }
-        // G1 along the whole seam (`G1Tangent`): the patch leaves each seam along the fitted
-        // part's own v tangent, scaled to the patch's length. 0.020-0.062 deg at most on the two pairs (issue 36 asks 0.1 deg);
-        // turning the patch's own tangent into the part's tangent plane at the Greville points
-        // left 1.3 deg (LastScan) and 7.7 deg (RoundTip) at the rim.
+        // G1 along the whole seam (the default `G1`, as `G1Tangent` but confined to a band):
+        // the patch leaves each seam along the fitted part's own v tangent, scaled to the
+        // patch's length. 0.001-0.005 deg at most on the two pairs (issue 36 asks 0.1 deg;
+        // 0.009-0.053 before the parts were faired at the cut); turning the patch's own
+        // tangent into the part's tangent plane at the Greville points (`G1Greville`, the
+        // default before) left 2.3 deg (LastScan) and 6.0 deg (RoundTip) at the rim.
         for s in [&q.back_seam, &q.toe_seam] {
             println!("{name} seam: {s:?}");
             assert!(s.gap_max_mm <= 1e-9, "{name}: {s:?}");
@@ -108,11 +110,13 @@ fn the_patch_stays_between_the_lasts() {
     for name in ["scan", "roundtip"] {
         let (b, t) = pair(name);
         let mut worsts = Vec::new();
+        let mut vars = Vec::new();
         for (c, fit) in [
             (join::keep::Continuity::G2, false),
             (join::keep::Continuity::G2, true),
             (join::keep::Continuity::G1, true),
             (join::keep::Continuity::G1Tangent, true),
+            (join::keep::Continuity::G1Greville, true),
         ] {
             let p = JoinParams {
                 continuity: c,
@@ -134,17 +138,29 @@ fn the_patch_stays_between_the_lasts() {
                 }
             }
             let (var, _) = footscan_last::blend::fair::surface_fairness(&j.patch, 96, 24);
+            let (fine, _) = footscan_last::blend::fair::surface_fairness(&j.patch, 384, 192);
             println!(
                 "{name} {c:?} fit {fit}: patch at most {worst:.2} mm from the nearer last, \
-                 curvature variation {var:.3e} 1/mm^2"
+                 curvature variation {var:.3e} 1/mm^2 ({fine:.3e} on 384 x 192)"
             );
             worsts.push(worst);
+            vars.push((var, fine));
         }
-        // The section patch (no fit) 1.89 / 10.37 mm; exact G2 to the fitted parts bulged to
-        // 8.70 / 63.83 mm; the G1 default (1.18 / 10.5 mm) and G1Tangent (1.25 / 10.92 mm) stay
-        // within 1 mm of the section patch's figure.
+        // The default G1 is fair: its patch varies its curvature no more than twice the
+        // section patch's (no fit: 1.4e2 / 3.7e5 on 96 x 24, 1.3e2 / 3.8e5 on 384 x 192; G1
+        // 1.8e2 / 3.4e5 and 1.9e2 / 9.2e4) on either grid. The Greville turn, the default
+        // before, was 2.1e3 / 8.7e5 (9.7e1 / 2.2e4 against the parts faired at the cut, 9.2e1
+        // / 1.8e7 on 384 x 192) and G1Tangent 3.1e7 / 3.2e8 (1.0e2 / 3.2e6 against them).
+        let (section, g1) = (vars[0], vars[2]);
         assert!(
-            worsts[2] <= worsts[0] + 1.0 && worsts[3] <= worsts[0] + 1.0,
+            g1.0 <= 2.0 * section.0 && g1.1 <= 2.0 * section.1,
+            "{name}: {vars:?}"
+        );
+        // The section patch (no fit) 1.89 / 10.37 mm; exact G2 to the fitted parts bulged to
+        // 8.70 / 63.83 mm; the G1 default (1.90 / 10.37 mm), G1Tangent (1.10 / 10.50 mm) and
+        // the Greville turn (1.14 / 10.37 mm) stay within 1 mm of the section patch's figure.
+        assert!(
+            worsts[2..].iter().all(|&w| w <= worsts[0] + 1.0),
             "{name}: {worsts:?}"
         );
     }

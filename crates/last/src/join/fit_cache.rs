@@ -19,7 +19,7 @@ use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 
 /// Bumped whenever the fit's rules change (its constants are hashed too).
-const FIT_RULES: &str = "keep::fit_part v5";
+const FIT_RULES: &str = "keep::fit_part v6";
 
 /// First bytes of a cache file.
 const MAGIC: &[u8; 8] = b"FSFIT01\n";

@@ -6,8 +6,8 @@
 //! own facets (not only the sections), starting from the section surface's parameters and
 //! a fifth of its u knots ([`SPANS_U`]), and knots are added in u and v in the spans where
 //! the surface still strays more than [`TOL_MM`] from the mesh until none does. The join patch is then bent to meet the fitted
-//! parts with their own position, first and second v derivatives ([`meet`]), so the seams
-//! stay G2 against the surfaces as fitted. The closed STL keeps the original meshes
+//! parts ([`meet`]): by default their position and tangent plane along the whole seam, the
+//! change to the patch confined to a band next to each seam ([`Continuity::G1`]). The closed STL keeps the original meshes
 //! themselves outside the join region, trimmed at the planes ([`trim`]) and stitched to the
 //! patch ([`zip`]).
 
@@ -40,9 +40,15 @@ const SMOOTH: f64 = 1e-2;
 const CG_TOL: f64 = 1e-7;
 /// Weight of a point of the pinned end curves against a facet point.
 const END_WEIGHT: f64 = 20.0;
+/// Weight of the second differences around of the fitted part's first control row
+/// differences at the cut against their fit ([`fair_cut`]). At 10 the parts within 3 v spans
+/// of the cut stay as near their meshes as before on a dense grid (2000 x 31: 0.070 -> 0.065,
+/// 0.080 -> 0.080, 0.098 -> 0.098, 0.076 -> 0.076 mm); at 30 the RoundTip back went to
+/// 0.104 mm there, at 100 to 0.111 (docs/method.md 11.7.4).
+const CUT_SMOOTH: f64 = 10.0;
 
 /// The fit's constants, hashed into its cache key ([`super::fit_cache::key`]).
-pub fn rules() -> [f64; 7] {
+pub fn rules() -> [f64; 8] {
     [
         TOL_MM,
         SAMPLE_MM,
@@ -51,6 +57,7 @@ pub fn rules() -> [f64; 7] {
         END_WEIGHT,
         SPANS_U as f64,
         CG_TOL,
+        CUT_SMOOTH,
     ]
 }
 
@@ -462,13 +469,11 @@ struct Check {
     /// the check was bounded, see [`check`]).
     pts: Vec<P3>,
     dist: Vec<f64>,
-    /// Every distance exact (no grid point skipped).
-    exact: bool,
 }
 
 impl Check {
     /// No point checked yet, room for `cap`.
-    fn empty(cap: usize, exact: bool) -> Check {
+    fn empty(cap: usize) -> Check {
         Check {
             far: Vec::new(),
             max: 0.0,
@@ -476,7 +481,6 @@ impl Check {
             at: P3::origin(),
             pts: Vec::with_capacity(cap),
             dist: Vec::with_capacity(cap),
-            exact,
         }
     }
 }
@@ -536,7 +540,7 @@ fn check(
     let chunk = 16;
     let chunks = us.len().div_ceil(chunk);
     let parts = crate::par::map(chunks, crate::par::cores(2), |ck| {
-        let mut c = Check::empty(chunk * nv, prev.is_none());
+        let mut c = Check::empty(chunk * nv);
         let mut sum = 0.0;
         for iu in ck * chunk..((ck + 1) * chunk).min(us.len()) {
             let u = us[iu];
@@ -588,7 +592,7 @@ fn check(
         c.rms = sum;
         c
     });
-    let mut c = Check::empty(n, prev.is_none());
+    let mut c = Check::empty(n);
     let mut sum = 0.0;
     for p in parts {
         c.far.extend(p.far);
@@ -673,7 +677,7 @@ pub fn fit_part(
     let fine_u = distinct(&s0.knots_u, u0, u1);
     s = coarse_u(s0, (fine_u.len() - 1).div_ceil(SPANS_U));
     fit.setup_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let mut c = None;
+    let mut c: Option<Check> = None;
     for round in 0..ROUNDS {
         let ts = Instant::now();
         // The parameters stay those found on the section surface: knot insertion keeps the
@@ -712,19 +716,9 @@ pub fn fit_part(
             .map(|(j, _)| 0.5 * (kv[j] + kv[j + 1]))
             .collect();
         let tc = Instant::now();
-        // The last round's check is a full one (its figures are the fit's); so is one that
-        // turns out to be the last.
-        let prev = if round + 1 == ROUNDS {
-            None
-        } else {
-            c.as_ref()
-        };
-        let mut ck = check(&s, &bvh, &s0.knots_u, &s0.knots_v, prev);
-        let last = round + 1 == ROUNDS || (over_v.is_empty() && ck.max <= TOL_MM);
-        if last && !ck.exact {
-            // The figures of the fit come from a full check.
-            ck = check(&s, &bvh, &s0.knots_u, &s0.knots_v, None);
-        }
+        // Bounded by the previous check (its decisions are a full check's); the fit's figures
+        // come from the full check after the cut is faired, below.
+        let ck = check(&s, &bvh, &s0.knots_u, &s0.knots_v, c.as_ref());
         fit.check_ms += tc.elapsed().as_secs_f64() * 1e3;
         // u spans are halved where a facet point or a check point is over the tolerance.
         bad_u.extend(
@@ -748,7 +742,16 @@ pub fn fit_part(
         }
         s = s.refine_v(&over_v).refine_u(&split_u(&s, &fine_u, &bad_u));
     }
-    let c = c.expect("one round at least");
+    // The cut is the end of the section surface that lies on the plane.
+    let at = |v: f64| {
+        (0..8)
+            .map(|k| depth(&s0.point(k as f64 / 8.0, v)).abs())
+            .sum::<f64>()
+    };
+    fair_cut(&mut s, at(v0) < at(v1));
+    let tc = Instant::now();
+    let c = check(&s, &bvh, &s0.knots_u, &s0.knots_v, None);
+    fit.check_ms += tc.elapsed().as_secs_f64() * 1e3;
     fit.points_max_mm = pts[..nfacet]
         .iter()
         .zip(&uv)
@@ -762,6 +765,49 @@ pub fn fit_part(
     fit.max_from_plane_mm = -depth(&c.at);
     fit.ms = t0.elapsed().as_secs_f64() * 1e3;
     Ok((s, fit))
+}
+
+/// The fitted part's tangent field across the cut made fair: the differences between the
+/// first control row in from the cut and the cut's own row (`at_start`: the cut at v = 0,
+/// else at v = 1), which give the part's v derivative along the cut, replaced by their
+/// smoothing around (periodic second differences over the control columns, weight
+/// [`CUT_SMOOTH`]). The fit leaves that field wiggling column to column (the rows next to
+/// the cut hold few facet points, and the pinned cut beside them), so the part's normal
+/// wiggles along the cut, and a patch that meets it G1 had to carry the wiggles (curvature
+/// variation 3.1e7 / 3.2e8 for `G1Tangent`, docs/method.md 11.7.4). The cut's row stays, so
+/// the seam does not move; the surface within the first v spans moves by up to 0.06-0.12
+/// mm, which leaves the part as near its mesh as it was (on the check grid and on a dense
+/// grid next to the cut), and its normal at the cut nearer the original last's.
+fn fair_cut(s: &mut NurbsSurface, at_start: bool) {
+    let nv = s.nv;
+    let m = s.nu - s.degree_u;
+    let (r0, r1) = if at_start { (0, 1) } else { (nv - 1, nv - 2) };
+    // (I + w D^T D) x = d with D the periodic second differences: a dense Cholesky of m x m
+    // (m is a few hundred columns).
+    let mut a = nalgebra::DMatrix::<f64>::identity(m, m);
+    let mut b = nalgebra::DMatrix::<f64>::zeros(m, 3);
+    for i in 0..m {
+        let idx = [(i + m - 1) % m, i, (i + 1) % m];
+        let w = [1.0, -2.0, 1.0];
+        for p in 0..3 {
+            for q in 0..3 {
+                a[(idx[p], idx[q])] += CUT_SMOOTH * w[p] * w[q];
+            }
+        }
+        let d = s.points[i * nv + r1] - s.points[i * nv + r0];
+        for k in 0..3 {
+            b[(i, k)] = d[k];
+        }
+    }
+    let x = nalgebra::Cholesky::new(a)
+        .expect("identity plus a positive semi-definite matrix")
+        .solve(&b);
+    // Columns past m wrap onto the first ones (periodic in u).
+    for i in 0..s.nu {
+        let k = i % m;
+        let q0 = s.points[i * nv + r0];
+        s.points[i * nv + r1] = q0 + V3::new(x[(k, 0)], x[(k, 1)], x[(k, 2)]);
+    }
 }
 
 /// The v derivatives of order 0..=2 of `s` at v as control points along u (the u basis is
@@ -812,18 +858,33 @@ fn scaled(part: &[V3], own: &[V3]) -> Vec<V3> {
 /// Seam continuity asked of the patch against the fitted parts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 pub enum Continuity {
-    /// Position and, at each control column's Greville point, the tangent plane: the patch's
-    /// own v tangent turned into the fitted part's tangent plane there. The patch stays as
-    /// fair as the section patch (curvature variation 8.3e2 on the LastScan pair), but
-    /// between the points, where the normal turns fast at the rim, the normal jumps up to
-    /// 1.3 deg (LastScan) and 7.7 deg (RoundTip).
+    /// Position and tangent plane along the whole seam, the tangent's change confined to a
+    /// band next to each seam ([`G1_BAND`] of the patch's v): the patch leaves each seam along
+    /// the fitted part's own v tangent at the length of the patch's (as [`Self::G1Tangent`]),
+    /// but the change from the patch's own tangent fades out within the band instead of
+    /// across the whole gap, so the fitted parts' normals, which wiggle along the cut, bend
+    /// only a strip next to the part that has them and the rest of the patch stays the
+    /// section patch. Normal jump 0.004 / 0.001 deg (LastScan back / toe) and 0.002 / 0.005
+    /// deg (RoundTip) at most against the parts faired at the cut ([`fair_cut`]; 0.035 /
+    /// 0.009 and 0.053 / 0.021 against the parts before); curvature variation 1.8e2 / 3.4e5
+    /// against 1.4e2 / 3.7e5 for the section patch (docs/method.md 11.7.4).
     #[default]
     G1,
+    /// Position and, at each control column's Greville point, the tangent plane: the patch's
+    /// own v tangent turned into the fitted part's tangent plane there, by a Hermite
+    /// correction across the whole gap (the default until 11.7.4). Between the points, where
+    /// the normal turns fast at the rim, the normal jumps up to 0.45 deg (LastScan) and 1.3
+    /// deg (RoundTip) against the parts faired at the cut (2.3 and 6.0 deg before; curvature
+    /// variation 9.7e1 / 2.2e4, before 2.1e3 / 8.7e5).
+    G1Greville,
     /// Position and tangent plane along the whole seam: the fitted part's own v tangent at
-    /// the length of the patch's. The normal jumps 0.06 deg at most, but the fitted parts'
-    /// normals wiggle along the cut and the patch carries the wiggles across the gap
-    /// (curvature variation 5.9e6 on the LastScan pair, 5.2e8 on the RoundTip pair; ripples
-    /// in the zebra pictures). docs/method.md 11.7.1.
+    /// the length of the patch's, by a Hermite correction across the whole gap. The normal
+    /// jumps as [`Self::G1`]'s, but the fitted parts' normals wiggle along the cut and the
+    /// patch carries what is left of the wiggles across the gap: curvature variation 3.1e7
+    /// on the LastScan pair and 3.2e8 on the RoundTip pair before the parts were faired at the
+    /// cut ([`fair_cut`]; ripples in the zebra pictures, docs/method.md 11.7.1), 1.0e2 / 3.2e6
+    /// after, and 5.2e1 / 2.5e5 with a fairing ten times stronger, which takes the parts
+    /// further from their meshes next to the cut (11.7.4).
     G1Tangent,
     /// Position, first and second v derivatives of the fitted parts: exact G2, but the
     /// fitted parts' derivatives carry their parametrisation, and the patch bulged (8.7 mm
@@ -831,10 +892,20 @@ pub enum Continuity {
     G2,
 }
 
+/// Width of the band next to each seam, as a fraction of the patch's v, within which
+/// [`Continuity::G1`] changes the patch's tangent: about 3 mm on the LastScan pair and 7 mm
+/// on the RoundTip pair (the patch is 20 / 47 mm across). Curvature variation of the LastScan
+/// patch against the band, measured before the parts were faired at the cut (RoundTip: 3.4e5
+/// from 0.1 to 0.3): 2.8e2 at 0.1, 1.9e2 at 0.15, 2.3e2 at 0.2, 4.7e2 at 0.25 and 0.3, 4.4e4
+/// at 0.45; the whole gap was 3.1e7.
+pub const G1_BAND: f64 = 0.15;
+
 /// The patch bent to meet `back` at its v = 1 and `toe` at its v = 0: a quintic (G2) or cubic
 /// (G1) Hermite correction in v whose end values are the differences of position and of the
 /// v derivatives, these scaled by the parameter lengths (`lens`: back, patch, toe on the
-/// whole surface before each piece was mapped to [0, 1]). All three share their u knots.
+/// whole surface before each piece was mapped to [0, 1]); for [`Continuity::G1`] the
+/// derivatives' part is a cubic B-spline that vanishes past [`G1_BAND`] from each end. All
+/// three share their u knots.
 pub fn meet(
     patch: &NurbsSurface,
     back: &NurbsSurface,
@@ -894,7 +965,8 @@ pub fn meet(
                 ]
             })
             .collect(),
-        Continuity::G1 => {
+        Continuity::G1 => return band(p, [&d0, &e0], [&bd[1], &td[1]], [&pd0[1], &pd1[1]]),
+        Continuity::G1Greville => {
             // The patch's own v tangent turned into the fitted part's tangent plane at the
             // Greville point of each control column: the fitted parts' v derivatives carry
             // their parametrisation (short spans near the cut after refinement), and taking
@@ -953,6 +1025,62 @@ pub fn meet(
     .with_periodic(p.periodic_u, false)?;
     let both = make_surfaces_compatible(&[p.clone(), corr])?;
     Ok(both[0].try_add(&both[1])?)
+}
+
+/// [`Continuity::G1`]'s patch: `p` plus a cubic Hermite correction of position (end values
+/// `pos`, zero end tangents) and one of tangent on the knots 0, 0, 0, 0, b/2, b, 1 - b,
+/// 1 - b/2, 1, 1, 1, 1 in v (b = [`G1_BAND`]), whose control values are zero but next to each
+/// end: its first basis function is zero past b, so the tangent's change, the fitted part's
+/// v derivative (`part`, back then toe) scaled to the length of the patch's own (`own`) less
+/// that, acts only in the band. Both are C2 in v and exact at the ends: position and tangent
+/// plane of the fitted parts along the whole seam.
+fn band(
+    p: &NurbsSurface,
+    pos: [&[V3]; 2],
+    part: [&[V3]; 2],
+    own: [&[V3]; 2],
+) -> Result<NurbsSurface, JoinError> {
+    let nu = p.nu;
+    let t0 = scaled(part[0], own[0]);
+    let t1 = scaled(part[1], own[1]);
+    let a = 0.5 * G1_BAND;
+    // The first basis function's derivative at 0 is 3 / a (and the last's at 1, negated).
+    let z = V3::zeros();
+    let pts_pos: Vec<P3> = (0..nu)
+        .flat_map(|i| [pos[0][i], pos[0][i], pos[1][i], pos[1][i]])
+        .map(P3::from)
+        .collect();
+    let pts_tan: Vec<P3> = (0..nu)
+        .flat_map(|i| {
+            let (d, e) = (t0[i] - own[0][i], t1[i] - own[1][i]);
+            [z, d * a / 3.0, z, z, z, z, -e * a / 3.0, z]
+        })
+        .map(P3::from)
+        .collect();
+    let kv_pos = vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
+    let b = G1_BAND;
+    let kv_tan = vec![
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        a,
+        b,
+        1.0 - b,
+        1.0 - a,
+        1.0,
+        1.0,
+        1.0,
+        1.0,
+    ];
+    let corr = |kv: Vec<f64>, pts: Vec<P3>| {
+        let n = kv.len() - 4;
+        NurbsSurface::new(p.degree_u, 3, p.knots_u.clone(), kv, nu, n, pts, None)
+            .and_then(|s| s.with_periodic(p.periodic_u, false))
+    };
+    let all =
+        make_surfaces_compatible(&[p.clone(), corr(kv_pos, pts_pos)?, corr(kv_tan, pts_tan)?])?;
+    Ok(all[0].try_add(&all[1])?.try_add(&all[2])?)
 }
 
 /// The part of `mesh` on the kept side of `plane` (`into_part` = +1 keeps the side the normal
@@ -1099,4 +1227,153 @@ pub fn turn(verts: &[P3], l: &[u32], axis: &V3) -> f64 {
         a += p.cross(&q);
     }
     a.dot(axis).signum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A closed tube around z: `m` control columns (periodic cubic, uniform knots) and one
+    /// control row per `(z, radius)` (clamped cubic along), each control point's radius
+    /// moved by `bump(column, row)`.
+    fn tube(m: usize, rows: &[(f64, f64)], bump: impl Fn(usize, usize) -> f64) -> NurbsSurface {
+        let p = 3;
+        let nv = rows.len();
+        let knots_u: Vec<f64> = (0..m + 2 * p + 1)
+            .map(|i| (i as f64 - p as f64) / m as f64)
+            .collect();
+        let mut knots_v = vec![0.0; 4];
+        for k in 1..nv - 3 {
+            knots_v.push(k as f64 / (nv - 3) as f64);
+        }
+        knots_v.extend([1.0; 4]);
+        let mut pts = Vec::new();
+        for i in 0..m + p {
+            let a = std::f64::consts::TAU * (i % m) as f64 / m as f64;
+            for (j, &(z, r)) in rows.iter().enumerate() {
+                let r = r + bump(i % m, j);
+                pts.push(P3::new(r * a.cos(), r * a.sin(), z));
+            }
+        }
+        NurbsSurface::new(p, 3, knots_u, knots_v, m + p, nv, pts, None)
+            .and_then(|s| s.with_periodic(true, false))
+            .unwrap()
+    }
+
+    fn angle_deg(a: V3, b: V3) -> f64 {
+        a.normalize()
+            .dot(&b.normalize())
+            .abs()
+            .min(1.0)
+            .acos()
+            .to_degrees()
+    }
+
+    /// The default G1 meets both parts' tangent planes along the whole seam, even where the
+    /// part's tangent wiggles column to column, and leaves the patch as it was past the band.
+    #[test]
+    fn g1_meets_the_tangent_planes_and_keeps_the_middle() {
+        let m = 64;
+        // A cone in to the cut at z = 0 whose row next to the cut wiggles, a straight tube as
+        // the patch, a wider cone out of the toe cut at z = 10.
+        let back = tube(
+            m,
+            &[(-10.0, 12.0), (-6.0, 11.2), (-3.0, 10.6), (0.0, 10.0)],
+            |i, j| {
+                if j == 2 {
+                    0.05 * (-1f64).powi(i as i32)
+                } else {
+                    0.0
+                }
+            },
+        );
+        let patch = tube(
+            m,
+            &[
+                (0.0, 10.0),
+                (10.0 / 3.0, 10.0),
+                (20.0 / 3.0, 10.0),
+                (10.0, 10.0),
+            ],
+            |_, _| 0.0,
+        );
+        let toe = tube(
+            m,
+            &[(10.0, 10.0), (13.0, 10.3), (16.0, 10.6), (20.0, 11.0)],
+            |_, _| 0.0,
+        );
+        let met = meet(&patch, &back, &toe, [1.0, 1.0, 1.0], Continuity::G1).unwrap();
+        for k in 0..500 {
+            let u = (k as f64 + 0.5) / 500.0;
+            assert!((met.point(u, 0.0) - back.point(u, 1.0)).norm() < 1e-12);
+            assert!((met.point(u, 1.0) - toe.point(u, 0.0)).norm() < 1e-12);
+            let jb = angle_deg(met.normal(u, 0.0), back.normal(u, 1.0));
+            let jt = angle_deg(met.normal(u, 1.0), toe.normal(u, 0.0));
+            // Exact but for the scale's variation around (its window, [`scaled`]): the part's
+            // alternating row changes the ratio of lengths column to column (1.2e-4 deg).
+            assert!(jb < 1e-3 && jt < 1e-3, "u {u}: {jb} / {jt} deg");
+            // Past the band the patch is its own (the positions met already).
+            for v in [G1_BAND + 1e-9, 0.5, 1.0 - G1_BAND - 1e-9] {
+                assert!(
+                    (met.point(u, v) - patch.point(u, v)).norm() < 1e-12,
+                    "{u} {v}"
+                );
+            }
+        }
+        // The Greville turn, on the same parts, misses the wiggling part's tangent plane
+        // between its points (0.22 deg here).
+        let grev = meet(&patch, &back, &toe, [1.0; 3], Continuity::G1Greville).unwrap();
+        let worst = (0..500)
+            .map(|k| {
+                let u = (k as f64 + 0.5) / 500.0;
+                angle_deg(grev.normal(u, 0.0), back.normal(u, 1.0))
+            })
+            .fold(0.0, f64::max);
+        assert!(worst > 0.01, "{worst}");
+        // Inside the band it bends (the cone's tangent is not the tube's).
+        assert!((met.point(0.3, 0.5 * G1_BAND) - patch.point(0.3, 0.5 * G1_BAND)).norm() > 1e-3);
+    }
+
+    /// The row next to the cut loses its column-to-column wiggle; the cut's row stays.
+    #[test]
+    fn fair_cut_smooths_the_tangent_field_and_keeps_the_cut() {
+        let m = 64;
+        let rows = [(-10.0, 12.0), (-6.0, 11.2), (-3.0, 10.6), (0.0, 10.0)];
+        let wiggle = |i: usize, j: usize| {
+            if j == 2 {
+                0.05 * (-1f64).powi(i as i32)
+            } else {
+                0.0
+            }
+        };
+        let alternation = |s: &NurbsSurface| {
+            (0..m)
+                .map(|i| {
+                    let a = std::f64::consts::TAU * i as f64 / m as f64;
+                    let d = s.points[i * s.nv + 2] - s.points[i * s.nv + 3];
+                    (-1f64).powi(i as i32) * d.dot(&V3::new(a.cos(), a.sin(), 0.0))
+                })
+                .sum::<f64>()
+                / m as f64
+        };
+        let mut s = tube(m, &rows, wiggle);
+        let before = s.clone();
+        assert!((alternation(&s) - 0.05).abs() < 1e-12);
+        fair_cut(&mut s, false);
+        // The highest frequency around shrinks by about 1 + 16 CUT_SMOOTH (161: 3.1e-4 mm
+        // left).
+        assert!(alternation(&s).abs() < 0.05 / 100.0, "{}", alternation(&s));
+        for i in 0..s.nu {
+            assert_eq!(s.points[i * s.nv + 3], before.points[i * s.nv + 3]);
+            assert_eq!(s.points[i * s.nv], before.points[i * s.nv]);
+            // The wrapped columns stay copies of the first ones.
+            let k = i % m;
+            assert_eq!(s.points[i * s.nv + 2], s.points[k * s.nv + 2]);
+        }
+        // The smooth part of the field (the cone's slope) stays within 1 %.
+        let smooth = tube(m, &rows, |_, _| 0.0);
+        let d0 = (smooth.points[2] - smooth.points[3]).norm();
+        let d1 = (s.points[2] - s.points[3]).norm();
+        assert!((d1 - d0).abs() < 0.01 * d0, "{d0} {d1}");
+    }
 }
