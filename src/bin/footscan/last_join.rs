@@ -97,9 +97,9 @@ pub struct JoinArgs {
     allow_size_mismatch: bool,
     /// Gordon: refit the kept parts to their meshes' facets (within 0.1 mm on the fit's
     /// check grid, 0.16-0.31 mm on a denser one; the section surfaces 0.2-0.9 mm) and keep
-    /// the original meshes in the STL; the patch meets them G1 at its control columns (normal
-    /// jumps up to 1-4 deg at the rim between them). Off by default: the fits take 0.25-0.9 s
-    /// per part in a release build (read back from --fit-cache in a few ms).
+    /// the original meshes in the STL; the patch meets them G1 (normal jumps under 0.01 deg,
+    /// its tangent changed only in a band next to each seam). Off by default: the fits take
+    /// 0.25-1 s per part in a release build (read back from --fit-cache in a few ms).
     #[arg(long)]
     fit_parts: bool,
     /// With --fit-parts: the directory that keeps fitted parts, keyed by the SHA-256 of
