@@ -13,14 +13,18 @@ use crate::surface::network::{period, segments_along};
 use crate::surface::{BezierNetwork, HeightFill, Segment};
 use footscan_geom::P3;
 use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{channel, Sender};
 use std::sync::Mutex;
 use std::thread::JoinHandle;
 
-/// Requested by `measure.foot` (with its cell) before the frames flow, fed by `accumulate`.
+/// Requested by `measure.foot` (with its cell) before the frames flow, fed by `accumulate`;
+/// filled only when `model.bezier` is in the pipeline to send the network it is checked
+/// against (without it the map would be filled for nothing).
 #[derive(Debug, Default)]
 pub struct EarlyHeights {
     cell_mm: Mutex<Option<f64>>,
+    model: AtomicBool,
     worker: Mutex<Option<Worker>>,
 }
 
@@ -36,10 +40,18 @@ impl EarlyHeights {
         *self.cell_mm.lock().unwrap() = Some(cell_mm);
     }
 
+    /// Say that a model stage will send the network down the pipeline.
+    pub fn model_comes(&self) {
+        self.model.store(true, Ordering::Relaxed);
+    }
+
     /// One frame's points, in scan order (the first starts the thread when heights were
     /// asked for). A frame with another row count than the first is ignored here:
     /// [`HeightFill::finish`] then finds the segments differ.
     pub fn push(&self, points: &[P3]) {
+        if !self.model.load(Ordering::Relaxed) {
+            return;
+        }
         let Some(cell) = *self.cell_mm.lock().unwrap() else {
             return;
         };
@@ -169,10 +181,13 @@ mod tests {
     fn heights_filled_while_the_frames_come_are_the_networks() {
         let fr = frames(50, 81);
         let early = EarlyHeights::default();
-        // Nothing asked for: nothing kept.
+        // Nothing asked for, or asked for with no model to come: nothing kept.
         early.push(&fr[0]);
         assert!(early.worker.lock().unwrap().is_none());
         early.request(0.1);
+        early.push(&fr[0]);
+        assert!(early.worker.lock().unwrap().is_none());
+        early.model_comes();
         let mut cols = Columns::new(81, 0.1);
         for f in &fr {
             early.push(f);

@@ -112,6 +112,7 @@ impl ModelStage {
 
     /// Write the files on `counters`' model job, after the results.
     pub fn with_counters(mut self, counters: Arc<ScanCounters>) -> Self {
+        counters.early.model_comes();
         self.counters = Some(counters);
         self
     }
