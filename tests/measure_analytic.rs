@@ -5,7 +5,8 @@
 
 use footscan::geom::HeightMap;
 use footscan::measure::{
-    compare_with_truth, measure_foot, ErrorKind, MeasureError, Measurements, Side, TruthComparison,
+    compare_with_truth, measure_foot, measure_foot_with, ErrorKind, MeasureError, Measurements,
+    Planar, Side, TruthComparison,
 };
 use footscan_bench::measure::{analytic_map, population_rows};
 use footscan_sim::foot::{Foot, FootParams, Side as SimSide};
@@ -161,6 +162,33 @@ fn foot_without_toe_pads_uses_the_arch_for_the_side() {
             let e = c.row(name).unwrap().error.abs();
             assert!(e < 0.15, "{name}: {e}");
         }
+    }
+}
+
+/// A scan measures the outline on the footprint before the model's heights go into it
+/// (`Planar::of`); with the same valid cells and other heights, the measurements are
+/// measure_foot's exactly, with toes apart and joined (where the side waits for the heights),
+/// and a footprint of another lattice is not used.
+#[test]
+fn the_outline_measured_on_the_footprint_alone_is_the_maps() {
+    for (p, toes) in [
+        (FootParams::default(), true),
+        (FootParams::default().mirrored(), false),
+    ] {
+        let foot = Foot::new(p).unwrap();
+        let map = analytic_map(&foot, CELL, toes);
+        let mut footprint = map.clone();
+        for z in footprint.z.iter_mut().filter(|z| z.is_finite()) {
+            *z = 40.0 - *z;
+        }
+        let whole = measure_foot(&map).unwrap();
+        let early = measure_foot_with(&map, Planar::of(&footprint).unwrap()).unwrap();
+        assert_eq!(early, whole, "toes apart: {toes}");
+        assert_eq!(early.toe_outlines.is_empty(), !toes);
+        let mut other = map.clone();
+        other.x0 += CELL;
+        let moved = measure_foot_with(&map, Planar::of(&other).unwrap()).unwrap();
+        assert_eq!(moved, whole, "toes apart: {toes}");
     }
 }
 

@@ -321,6 +321,8 @@ pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
 /// built, and only the arch and the contact wait for the model's heights (issue 34 item 2).
 #[derive(Debug)]
 pub struct Planar {
+    /// The map's lattice (nx, ny, x0, y0, cell): the regions' cells index it.
+    lattice: (usize, usize, f64, f64, f64),
     body: Region,
     toes: Vec<Region>,
     extent: f64,
@@ -439,6 +441,7 @@ impl Planar {
             }
         }
         let mut planar = Planar {
+            lattice: lattice(map),
             body,
             toes,
             extent,
@@ -643,6 +646,10 @@ impl Planar {
     }
 }
 
+fn lattice(map: &HeightMap) -> (usize, usize, f64, f64, f64) {
+    (map.nx, map.ny, map.x0, map.y0, map.cell_mm)
+}
+
 /// The circle fitted to the outline's points within `band` of its rearmost point along `u`.
 fn heel_circle(bo: &[P2], u: V2, band: f64) -> Result<(P2, f64), MeasureError> {
     let s_min = bo
@@ -666,6 +673,10 @@ pub fn measure_foot_with(
     map: &HeightMap,
     mut planar: Planar,
 ) -> Result<Measurements, MeasureError> {
+    if planar.lattice != lattice(map) {
+        // Another map's footprint: its cells would index this one wrongly.
+        planar = Planar::of(map)?;
+    }
     let marks = match planar.marks.take() {
         Some(k) => k,
         None => {
