@@ -69,17 +69,26 @@ impl ScanGrid {
                 }
                 w.write_all(&f.x_mm.to_le_bytes())?;
             }
+            // Rows gathered in a buffer and written a chunk at a time: eight writes a row
+            // through the writer were 7 M calls on a scan's grid, and the sinks run beside
+            // the measurement the results wait for (issue 34 item 2).
+            const ROW: usize = 8 + 3 * 4 + 1 + 3 * 8;
+            let mut buf = Vec::with_capacity(ROW * 4096);
             for (l, p) in self.lines.iter().zip(&self.points) {
-                w.write_all(&l.col.to_le_bytes())?;
+                buf.extend_from_slice(&l.col.to_le_bytes());
                 for v in [l.intensity, l.width, l.quality] {
-                    w.write_all(&v.to_le_bytes())?;
+                    buf.extend_from_slice(&v.to_le_bytes());
                 }
-                w.write_all(&[reject_code(l.reject)])?;
+                buf.push(reject_code(l.reject));
                 for v in p.iter() {
-                    w.write_all(&v.to_le_bytes())?;
+                    buf.extend_from_slice(&v.to_le_bytes());
+                }
+                if buf.len() >= ROW * 4096 {
+                    w.write_all(&buf)?;
+                    buf.clear();
                 }
             }
-            Ok(())
+            w.write_all(&buf)
         })
     }
 
