@@ -425,6 +425,11 @@ impl Planar {
             band: 0.12 * extent,
             front: body.centroid,
         };
+        // The iteration contracts by about a half a step (the heel circle follows the axis):
+        // 24 steps to 1e-9 on a scanned foot. Every third step is Aitken's extrapolation of
+        // the angle from the two before (Steffensen), taken only where it stays near them;
+        // the stopping test is still the step's own change.
+        let mut seen: Vec<f64> = Vec::with_capacity(3);
         for it in 0..60 {
             let (c, r) = heel_circle(bo, axis.u, axis.band)?;
             (axis.centre, axis.radius, axis.band) = (c, r, r.min(0.3 * extent));
@@ -435,9 +440,21 @@ impl Planar {
             }
             let nu = unit_by_hypot(&(axis.front - axis.centre));
             let change = nu.perp(&axis.u).abs();
+            if seen.is_empty() {
+                seen.push(axis.u.y.atan2(axis.u.x));
+            }
+            seen.push(nu.y.atan2(nu.x));
             axis.u = nu;
             if it > 2 && change < 1e-9 {
                 break;
+            }
+            if let [a0, a1, a2] = seen[..] {
+                let (d1, d2) = (a1 - a0, a2 - a1);
+                let a = a2 - d2 * d2 / (d2 - d1);
+                if a.is_finite() && (a - a2).abs() <= 10.0 * d2.abs() {
+                    axis.u = V2::new(a.cos(), a.sin());
+                }
+                seen.clear();
             }
         }
         let mut planar = Planar {
