@@ -327,8 +327,10 @@ pub struct Planar {
     toes: Vec<Region>,
     extent: f64,
     axis: Axis,
-    /// None when the toes are joined to the ball: the medial side is then the higher
-    /// midfoot, and the landmarks wait for the heights.
+    /// With toes joined to the ball the medial side is the higher midfoot, which the
+    /// heights decide: the landmarks are then found for the side the map's own heights give
+    /// (a scan's footprint has the grid's), and found again if the model's give the other.
+    /// None when they could not be found for that side.
     marks: Option<Marks>,
 }
 
@@ -465,12 +467,16 @@ impl Planar {
             axis,
             marks: None,
         };
-        // Medial side: the hallux side, else (`measure_foot_with`) the higher midfoot.
+        // Medial side: the hallux side, else the higher midfoot (checked again on the final
+        // heights by `measure_foot_with`).
         if let Some(h) = planar.toes.first() {
             let sign = (h.centroid - axis.centre)
                 .dot(&quarter_turn(&axis.u))
                 .signum();
             planar.marks = Some(planar.marks(map.cell_mm, sign)?);
+        } else {
+            let sign = arch_side(map, &planar.body, axis.centre, axis.u, extent);
+            planar.marks = planar.marks(map.cell_mm, sign).ok();
         }
         Ok(planar)
     }
@@ -695,11 +701,14 @@ pub fn measure_foot_with(
         planar = Planar::of(map)?;
     }
     let marks = match planar.marks.take() {
-        Some(k) => k,
-        None => {
+        Some(k) if !planar.toes.is_empty() => k,
+        found => {
             let (a, b) = (&planar.body, &planar.axis);
             let sign = arch_side(map, a, b.centre, b.u, planar.extent);
-            planar.marks(map.cell_mm, sign)?
+            match found {
+                Some(k) if k.sign == sign => k,
+                _ => planar.marks(map.cell_mm, sign)?,
+            }
         }
     };
     finish(map, &planar.body, &planar.toes, marks)
