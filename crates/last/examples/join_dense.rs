@@ -1,7 +1,8 @@
 //! Where the fitted kept parts stray from their meshes between the fit's check points
 //! (`cargo run --release -p footscan-last --example join_dense [-- N]`): per part of both
 //! real pairs, on a 1200 x 600 grid uniform in the parameters, the N (default 20) worst
-//! points at least 3 mm apart, each with its parameters, the sharpest bend between the
+//! points at least 3 mm apart, each with its side of the mesh (out: the surface bulges
+//! past it; in: it cuts inside), its parameters, the sharpest bend between the
 //! facets around its nearest mesh point (dihedral angle of the nearest facet and its
 //! neighbours two edges out), the fitted surface's knot spans there (mm around and along)
 //! and the distances on a 2 x 4 grid of that span (the fit's check grid is 2 x 4 per span of
@@ -137,7 +138,7 @@ fn main() {
                 100.0 * over as f64 / grid.len() as f64
             );
             println!(
-                "    mm      x      y      z       u       v   bend deg  span u x v mm   \
+                "    mm  side     x      y      z       u       v   bend deg  span u x v mm   \
                  span 2x4 max mm"
             );
             let mut shown: Vec<P3> = Vec::new();
@@ -150,6 +151,11 @@ fn main() {
                     continue;
                 }
                 shown.push(q);
+                let side = if bvh.signed_distance(&q).unwrap().distance > 0.0 {
+                    "out"
+                } else {
+                    "in "
+                };
                 let (a, b) = span(&ku, u);
                 let (c, e) = span(&kv, v);
                 let su = (s.point(b, v) - s.point(a, v)).norm();
@@ -162,8 +168,8 @@ fn main() {
                     }
                 }
                 println!(
-                    "  {d:.3} {:6.1} {:6.1} {:6.1}  {u:.4} {v:.4}  {:6.1}    {su:5.2} x {sv:5.2}   \
-                     {sm:.3}",
+                    "  {d:.3} {side} {:6.1} {:6.1} {:6.1}  {u:.4} {v:.4}  {:6.1}    {su:5.2} x \
+                     {sv:5.2}   {sm:.3}",
                     q.x,
                     q.y,
                     q.z,
