@@ -216,6 +216,11 @@ pub fn render_plantar(map: &HeightMap, m: &Measurements) -> PlantarImage {
         (m.arch_point, "arch"),
     ];
     for (p, name) in points {
+        // Toes joined to the ball leave no hallux point: the measurement puts it on the toe
+        // tip, whose label it would overwrite.
+        if name == "hallux" && p == m.toe_tip {
+            continue;
+        }
         dot(&mut img, &view, p, POINT);
         let mut away = p - centre;
         if matches!(name, "heel centre" | "MT2") {
