@@ -11,9 +11,8 @@
 //! an end row left out: they are past the part). The lasts are read from FOOTSCAN_DATA.
 
 use footscan_geom::mesh::{Bvh, TriMesh};
-use footscan_geom::nurbs::NurbsSurface;
 use footscan_geom::P3;
-use footscan_last::join::{self, study, JoinParams};
+use footscan_last::join::{self, keep, study, JoinParams};
 use std::collections::HashMap;
 use std::path::PathBuf;
 
@@ -49,25 +48,6 @@ fn bend(m: &TriMesh, adj: &[Vec<usize>], t: usize) -> f64 {
         }
     }
     worst
-}
-
-fn project(s: &NurbsSurface, p: &P3, u: &mut f64, v: &mut f64) {
-    let (u0, u1) = s.domain_u();
-    let (v0, v1) = s.domain_v();
-    for _ in 0..8 {
-        let d = s.derivatives(*u, *v, 1);
-        let r = p - P3::from(d[0][0]);
-        let (su, sv) = (d[1][0], d[0][1]);
-        let (a, b, c) = (su.dot(&su), su.dot(&sv), sv.dot(&sv));
-        let (ru, rv) = (su.dot(&r), sv.dot(&r));
-        let det = a * c - b * b;
-        if det.abs() < 1e-300 {
-            break;
-        }
-        *u += (c * ru - b * rv) / det;
-        *v = (*v + (a * rv - b * ru) / det).clamp(v0, v1);
-        *u = u0 + (*u - u0).rem_euclid(u1 - u0);
-    }
 }
 
 fn main() {
@@ -205,7 +185,7 @@ fn main() {
                 }
                 let mut u = u0 + (u1 - u0) * (i as f64 + 0.5) / tu as f64;
                 let mut v = v0 + (v1 - v0) * (k as f64 + 0.5) / tv as f64;
-                project(s, x, &mut u, &mut v);
+                keep::project(s, x, &mut u, &mut v, 8);
                 let d = (s.point(u, v) - x).norm().min(c.distance);
                 n += 1;
                 if d > 0.1 {

@@ -177,16 +177,17 @@ impl Locator {
         let q = self.params[c.triangle];
         let mut u = q[0].0 + wb * (q[1].0 - q[0].0) + wd * (q[2].0 - q[0].0);
         let mut v = q[0].1 + wb * (q[1].1 - q[0].1) + wd * (q[2].1 - q[0].1);
-        project(s, p, &mut u, &mut v);
+        project(s, p, &mut u, &mut v, 5);
         (u, v)
     }
 }
 
-/// Gauss-Newton steps towards the foot point of `p` on `s` from (u, v).
-fn project(s: &NurbsSurface, p: &P3, u: &mut f64, v: &mut f64) {
+/// Gauss-Newton steps toward the foot point of `p` on `s` from (u, v), at most `steps` (v
+/// clamped to the domain, u wrapped around it), ending once a step is under 1e-10.
+pub fn project(s: &NurbsSurface, p: &P3, u: &mut f64, v: &mut f64, steps: usize) {
     let (u0, u1) = s.domain_u();
     let (v0, v1) = s.domain_v();
-    for _ in 0..5 {
+    for _ in 0..steps {
         let d = s.derivatives(*u, *v, 1);
         let r = p - P3::from(d[0][0]);
         let (su, sv) = (d[1][0], d[0][1]);
@@ -698,7 +699,7 @@ pub fn fit_part(
             let mut e = (s.point(u, v) - p).norm();
             if e > 0.5 * TOL_MM {
                 let (mut a, mut b) = (u, v);
-                project(&s, p, &mut a, &mut b);
+                project(&s, p, &mut a, &mut b, 5);
                 let f = (s.point(a, b) - p).norm();
                 if (s.point(a, b) - s.point(u, v)).norm() < 2.0 {
                     e = e.min(f);
