@@ -312,7 +312,8 @@ fn principal_axis(map: &HeightMap, r: &Region) -> V2 {
 
 /// Measure a foot on `map` (see the module doc of [`crate::measure`] for every definition).
 pub fn measure_foot(map: &HeightMap) -> Result<Measurements, MeasureError> {
-    measure_foot_with(map, Planar::of(map)?)
+    // The Planar's side was found on these very heights: no second look.
+    with_marks(map, Planar::of(map)?, false)
 }
 
 /// What a map's footprint alone decides (which cells are valid, not their heights): its
@@ -700,8 +701,19 @@ pub fn measure_foot_with(
         // Another map's footprint: its cells would index this one wrongly.
         planar = Planar::of(map)?;
     }
+    with_marks(map, planar, true)
+}
+
+/// The measurements from `planar`; with toes joined and `recheck`, its side is taken again on
+/// `map`'s heights (the Planar's came from the footprint's) and the landmarks found again if
+/// it differs.
+fn with_marks(
+    map: &HeightMap,
+    mut planar: Planar,
+    recheck: bool,
+) -> Result<Measurements, MeasureError> {
     let marks = match planar.marks.take() {
-        Some(k) if !planar.toes.is_empty() => k,
+        Some(k) if !planar.toes.is_empty() || !recheck => k,
         found => {
             let (a, b) = (&planar.body, &planar.axis);
             let sign = arch_side(map, a, b.centre, b.u, planar.extent);

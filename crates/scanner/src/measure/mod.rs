@@ -87,7 +87,7 @@ pub use picture::{render_plantar, PlantarImage};
 pub use rasterize::{grid_truncation, rasterize_grid};
 pub use scanned::{
     footprint_ahead, measure_grid, measure_grid_with, measure_scan_dir, scan_heightmap,
-    write_measurements, Ahead, MeasureOutput, DEFAULT_CELL_MM,
+    write_measurements, Ahead, Footprint, MeasureOutput, DEFAULT_CELL_MM,
 };
 pub use truth::{compare_with_truth, ErrorKind, ErrorRow, TruthComparison};
 

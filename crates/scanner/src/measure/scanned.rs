@@ -41,15 +41,15 @@ pub struct Ahead {
     pub model_map: Option<HeightMap>,
 }
 
-/// The footprint of `grid` and its [`Planar`] measurement (the latter None when the footprint
-/// failed): what a scan computes from the grid while the model is built.
-pub fn footprint_ahead(
-    grid: &ScanGrid,
-    cell_mm: f64,
-) -> (
+/// A footprint and its [`Planar`] measurement (None when the footprint failed).
+pub type Footprint = (
     Result<HeightMap, MeasureError>,
     Option<Result<Planar, MeasureError>>,
-) {
+);
+
+/// The footprint of `grid` and its [`Planar`] measurement: what a scan computes from the
+/// grid while the model is built.
+pub fn footprint_ahead(grid: &ScanGrid, cell_mm: f64) -> Footprint {
     let map = rasterize_grid(grid, cell_mm);
     let planar = map.as_ref().ok().map(Planar::of);
     (map, planar)

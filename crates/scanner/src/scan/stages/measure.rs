@@ -3,10 +3,7 @@
 //! the last stages (`last.adjust`).
 
 use super::out_file;
-use crate::geom::HeightMap;
-use crate::measure::{
-    footprint_ahead, measure_grid_with, write_measurements, Ahead, MeasureError, Planar,
-};
+use crate::measure::{footprint_ahead, measure_grid_with, write_measurements, Ahead, Footprint};
 use crate::pipeline::{BoxError, Emitter, Stage};
 use crate::scan::item::Item;
 use crate::scan::model_job::MeasuredFoot;
@@ -15,12 +12,6 @@ use crate::surface::BezierNetwork;
 use serde::Deserialize;
 use std::path::PathBuf;
 use std::sync::Arc;
-
-/// A footprint and what its outline alone decides ([`footprint_ahead`]).
-type Footprint = (
-    Result<HeightMap, MeasureError>,
-    Option<Result<Planar, MeasureError>>,
-);
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
