@@ -312,6 +312,14 @@ pub fn run(a: JoinArgs) -> Result<()> {
                 f.max_from_plane_mm,
                 f.rms_mm
             );
+            if f.max_mm > join::keep::TOL_MM {
+                println!(
+                    "warning: the {s} part stays up to {:.3} mm from its mesh on the fit's check \
+                     grid, over the {} mm the fit aims at",
+                    f.max_mm,
+                    join::keep::TOL_MM
+                );
+            }
         }
         println!("joined.stl: the original lasts outside the planes, the patch between them");
     }
@@ -323,6 +331,19 @@ pub fn run(a: JoinArgs) -> Result<()> {
         q.back_facets_deg.0, q.back_facets_deg.1, q.toe_facets_deg.0, q.toe_facets_deg.1
     );
     print_deviation(&[("back", &q.back_deviation), ("toe", &q.toe_deviation)]);
+    if q.fits.is_some() {
+        for (s, d) in [("back", &q.back_deviation), ("toe", &q.toe_deviation)] {
+            if d.max_mm > join::keep::TOL_MM {
+                println!(
+                    "warning: the {s} part's surface in the IGES and STEP files strays {:.3} mm \
+                     from its mesh between the fit's check points, over {} mm (where the mesh \
+                     bends sharply: docs/method.md 11.7.5)",
+                    d.max_mm,
+                    join::keep::TOL_MM
+                );
+            }
+        }
+    }
     for f in in_out(&a.out, &w.files) {
         println!("wrote {}", f.display());
     }
